@@ -1,0 +1,23 @@
+from setuptools import find_packages, setup
+
+package_name = 'stealth_agent'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=True,
+    maintainer='stealth-nav developers',
+    maintainer_email='dev@stealth-nav.org',
+    description='Tabular reinforcement learners (Q-learning, SARSA, Dyna-Q).',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+        ],
+    },
+)
