@@ -21,8 +21,11 @@ def main() -> int:
     venv = pathlib.Path(sys.prefix)
     python_include = sysconfig.get_paths()['include']
     if not pathlib.Path(python_include, 'Python.h').is_file():
-        print(f'error: no Python.h in {python_include}: install the Python 3.11 development '
-              'headers (Debian: apt-get install python3.11-dev)', file=sys.stderr)
+        print(
+            f'error: no Python.h in {python_include}: install the Python 3.11 development '
+            'headers (Debian: apt-get install python3.11-dev)',
+            file=sys.stderr,
+        )
         return 1
     replacements = {
         BUILD_NUMPY_INCLUDE: numpy.get_include(),

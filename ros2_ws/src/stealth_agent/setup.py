@@ -17,7 +17,6 @@ setup(
     description='Tabular reinforcement learners (Q-learning, SARSA, Dyna-Q).',
     license='Apache-2.0',
     entry_points={
-        'console_scripts': [
-        ],
+        'console_scripts': [],
     },
 )

@@ -17,7 +17,6 @@ setup(
     description='Searchlights, occlusion, rewards and scenarios of stealth-nav.',
     license='Apache-2.0',
     entry_points={
-        'console_scripts': [
-        ],
+        'console_scripts': [],
     },
 )

@@ -17,7 +17,6 @@ setup(
     description='Kinematic diff-drive simulator with noisy odometry and localisation.',
     license='Apache-2.0',
     entry_points={
-        'console_scripts': [
-        ],
+        'console_scripts': [],
     },
 )
