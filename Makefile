@@ -20,7 +20,7 @@ hash_files = $(shell cat $(1) 2>/dev/null | sha256sum | cut -c1-16)
 VENV_INPUTS := requirements.in requirements.lock scripts/fix_ros_wheels.py
 VENV_STAMP := $(STAMPS)/venv-$(call hash_files,$(VENV_INPUTS))
 WS_SOURCES := $(shell find ros2_ws/src -type f -not -path '*/__pycache__/*' -not -name '*.pyc' | LC_ALL=C sort)
-BUILD_STAMP := $(STAMPS)/build-$(shell (cat $(VENV_STAMP) 2>/dev/null; printf '%s\n' $(WS_SOURCES); cat $(WS_SOURCES)) | sha256sum | cut -c1-16)
+BUILD_STAMP := $(STAMPS)/build-$(shell (echo $(VENV_STAMP); printf '%s\n' $(WS_SOURCES); cat $(WS_SOURCES)) | sha256sum | cut -c1-16)
 
 .PHONY: help setup venv build test test-packages test-system lint format clean distclean
 
