@@ -28,8 +28,12 @@ def ros_domain(monkeypatch):
 
 
 @pytest.fixture
-def ros_context(ros_domain):
-    """An initialised rclpy context on the test's private domain, shut down afterwards."""
+def ros_context(ros_domain, node_processes):
+    """An initialised rclpy context on the test's private domain, shut down afterwards.
+
+    It depends on `node_processes` so that it is torn down first: the leak check there must not
+    see this process's own live DDS participant.
+    """
     import rclpy
 
     context = rclpy.Context()

@@ -7,6 +7,7 @@ DDS shared-memory segments a killed process leaves in /dev/shm.
 
 import contextlib
 import fcntl
+import functools
 import os
 import pathlib
 import random
@@ -17,7 +18,6 @@ import time
 
 REPO_ROOT = pathlib.Path(__file__).resolve().parent.parent
 VENV = REPO_ROOT / '.venv'
-INSTALL_SPACE = REPO_ROOT / 'ros2_ws' / 'install'
 DOMAIN_LOCK_DIR = pathlib.Path('/tmp/stealth_nav_domains')
 SHM_DIR = pathlib.Path('/dev/shm')
 # Linux keeps ids 0-101 clear of the ephemeral port range; 0 is everyone's default, so skip it.
@@ -46,27 +46,26 @@ def reserved_domain_id():
     raise RuntimeError(f'all ROS domain ids {DOMAIN_IDS} are held by other test runs')
 
 
+@functools.cache
+def _sourced_environment() -> tuple[tuple[str, str], ...]:
+    """The environment a user's shell has after `source scripts/ros_env.sh` (venv + install)."""
+    output = subprocess.run(
+        ['bash', '-c', f'source {REPO_ROOT}/scripts/ros_env.sh && env -0'],
+        capture_output=True,
+        check=True,
+        env={key: value for key, value in os.environ.items() if not key.startswith('ROS_')},
+    ).stdout
+    pairs = (entry.split('=', 1) for entry in output.decode().split('\0') if '=' in entry)
+    return tuple((key, value) for key, value in pairs)
+
+
 def ros_environment(domain_id: int) -> dict[str, str]:
     """The environment of a node process: the venv and install space, a private domain."""
-    env = dict(os.environ)
+    env = dict(_sourced_environment())
     env.pop('ROS_LOCALHOST_ONLY', None)  # it overrides the discovery range below
     env['ROS_DOMAIN_ID'] = str(domain_id)
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     env['PYTHONUNBUFFERED'] = '1'
-    env['PYTHONNOUSERSITE'] = '1'
-    env['VIRTUAL_ENV'] = str(VENV)
-    env['PATH'] = f'{VENV / "bin"}:{env.get("PATH", "")}'
-    prefixes = [str(INSTALL_SPACE / pkg.name) for pkg in sorted(INSTALL_SPACE.glob('*/'))]
-    prefixes = [p for p in prefixes if pathlib.Path(p, 'share').is_dir()]
-    env['AMENT_PREFIX_PATH'] = ':'.join([*prefixes, str(VENV)])
-    python_paths = [
-        str(site)
-        for prefix in prefixes
-        for site in pathlib.Path(prefix, 'lib').glob('python3*/site-packages')
-    ]
-    env['PYTHONPATH'] = ':'.join(python_paths)
-    lib_paths = [str(pathlib.Path(p, 'lib')) for p in prefixes]
-    env['LD_LIBRARY_PATH'] = ':'.join([*lib_paths, env.get('LD_LIBRARY_PATH', '')]).rstrip(':')
     return env
 
 

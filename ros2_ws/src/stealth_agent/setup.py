@@ -18,6 +18,8 @@ setup(
     description='Tabular reinforcement learners (Q-learning, SARSA, Dyna-Q).',
     license='Apache-2.0',
     entry_points={
-        'console_scripts': [],
+        'console_scripts': [
+            'agent_node = stealth_agent.agent_node:main',
+        ],
     },
 )

@@ -1,0 +1,503 @@
+"""The agent node: rl-texplore-ros-pkg's rl_agent protocol over the tabular learners.
+
+Subscribes rl_env/rl_env_description (reliable, transient local) and rl_env/rl_state_reward;
+publishes rl_agent/rl_action after every non-terminal state and rl_agent/rl_experiment_info at
+every terminal state. Everything it decides is in the plain-Python core (protocol.py,
+learners.py, state_index.py, policy_store.py); this node translates messages and parameters.
+
+Bad input (an unusable description, a state before any description, a state whose length
+changes, a non-finite reward, an unusable policy file) is logged with what is wrong and the
+message skipped; the node stays up and the table is never touched by a rejected message.
+"""
+
+from collections import Counter
+import math
+import pathlib
+from typing import NamedTuple
+
+import numpy as np
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    SetParametersResult,
+)
+import rclpy
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from stealth_interfaces.msg import (
+    EpisodeSummary,
+    RLAction,
+    RLEnvDescription,
+    RLExperimentInfo,
+    RLStateReward,
+)
+
+from .learners import LearnerConfig, canonical_learner_name, make_learner
+from .policy_store import PolicyFileError, check_compatible, load_policy, save_policy
+from .protocol import (
+    BadInputError,
+    EnvDescription,
+    ProtocolAgent,
+    format_progress,
+    parse_description,
+)
+from .schedules import SCHEDULE_KINDS, Schedule
+from .state_index import StateIndex, mapping_from_description
+
+# Lockstep protocol: one message in flight, but a reliable queue that never drops a step anyway.
+RL_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1000,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+# Published once by the environment; late agents still get it.
+DESCRIPTION_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+OUTCOME_NAMES = {
+    EpisodeSummary.SUCCESS: 'success',
+    EpisodeSummary.DETECTED: 'detected',
+    EpisodeSummary.TIMEOUT: 'timeout',
+    EpisodeSummary.ABORTED: 'aborted',
+}
+# Learner settings that may change while running (applied to the live learner).
+LIVE_LEARNER_PARAMETERS = {
+    'gamma',
+    'alpha',
+    'epsilon',
+    'n',
+    'epsilon_schedule',
+    'epsilon_final',
+    'epsilon_decay_episodes',
+    'alpha_schedule',
+    'alpha_final',
+    'alpha_decay_episodes',
+}
+STRING_CHOICES = {
+    'epsilon_schedule': SCHEDULE_KINDS,
+    'alpha_schedule': SCHEDULE_KINDS,
+}
+
+
+def _fp(low: float, high: float) -> list[FloatingPointRange]:
+    return [FloatingPointRange(from_value=low, to_value=high, step=0.0)]
+
+
+def _int(low: int, high: int) -> list[IntegerRange]:
+    return [IntegerRange(from_value=low, to_value=high, step=1)]
+
+
+class Param(NamedTuple):
+    """One ROS parameter of the node."""
+
+    name: str
+    default: object
+    description: str
+    floats: list[FloatingPointRange] | None = None
+    ints: list[IntegerRange] | None = None
+    read_only: bool = False  # fixed once the node is up (the table depends on it)
+
+
+PARAMETERS = (
+    Param('agent', 'qlearning', 'Learner: qlearning (rl_agent qlearner), sarsa or dyna.',
+          read_only=True),
+    Param('seed', 1, 'Seed of the random generator (exploration, tie-breaking, Dyna planning).',
+          ints=_int(0, 2**31 - 1), read_only=True),
+    Param('gamma', 0.99, 'Discount factor.', floats=_fp(0.0, 1.0)),
+    Param('alpha', 0.3, 'Learning rate; the start of the alpha schedule.', floats=_fp(0.0, 1.0)),
+    Param('epsilon', 0.1, 'Exploration rate of epsilon-greedy; the start of its schedule.',
+          floats=_fp(0.0, 1.0)),
+    Param('initialvalue', 0.0, 'Initial Q value of every new state-action.', read_only=True),
+    Param('n', 10, 'Dyna-Q: planning updates from the learned model per real step.',
+          ints=_int(0, 1_000_000)),
+    Param('epsilon_schedule', 'constant', 'constant, linear or exponential (over episodes).'),
+    Param('epsilon_final', 0.01, 'Epsilon the schedule decays to.', floats=_fp(0.0, 1.0)),
+    Param('epsilon_decay_episodes', 1000.0,
+          'Linear: episodes to reach epsilon_final; exponential: time constant (episodes); > 0.',
+          floats=_fp(0.0, 1e12)),
+    Param('alpha_schedule', 'constant', 'constant, linear or exponential (over episodes).'),
+    Param('alpha_final', 0.05, 'Alpha the schedule decays to.', floats=_fp(0.0, 1.0)),
+    Param('alpha_decay_episodes', 1000.0,
+          'Linear: episodes to reach alpha_final; exponential: time constant (episodes); > 0.',
+          floats=_fp(0.0, 1e12)),
+    Param('nstates', 0,
+          'rl_agent --nstates: bins per state feature over the description ranges; '
+          '0 = one table row per distinct state vector.',
+          ints=_int(0, 1_000_000_000), read_only=True),
+    Param('state_resolution', 0.0,
+          'Bin width of every state feature (state units, e.g. the map cell in m); '
+          'overrides nstates; 0 = off.',
+          floats=_fp(0.0, 1e12), read_only=True),
+    Param('policy_file', '', 'Policy file (.npz) to save to and load from; empty = none.',
+          read_only=True),
+    Param('save_every', 100, 'Save the policy every this many episodes (0 = only at shutdown).',
+          ints=_int(0, 2**31 - 1)),
+    Param('load_policy', False, 'Resume learning from policy_file if it exists.',
+          read_only=True),
+    Param('evaluate', False,
+          'Greedy, no learning: run the policy in policy_file (rl_agent savedpolicy).',
+          read_only=True),
+    Param('log_every', 10, 'Log progress every this many episodes (0 = never).',
+          ints=_int(0, 2**31 - 1)),
+    Param('episode_summary_topic', 'rl_env/episode_summary',
+          'stealth_interfaces/EpisodeSummary topic for named outcomes in the progress log '
+          '(optional, any rl_msgs environment works without it); empty = off.',
+          read_only=True),
+)  # fmt: skip
+
+
+class ConfigError(ValueError):
+    """Parameters that do not make a usable agent."""
+
+
+class AgentNode(Node):
+    """rl_agent for rl_msgs environments, with Q-learning, SARSA and Dyna-Q."""
+
+    def __init__(self):
+        super().__init__('agent')
+        self._core: ProtocolAgent | None = None
+        self._description: EnvDescription | None = None
+        self._setup_error = ''
+        self._window = []
+        self._named_outcomes = Counter()
+        self._out_of_range = 0
+        self._declared = False
+
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+        for param in PARAMETERS:
+            descriptor = ParameterDescriptor(
+                description=param.description, read_only=param.read_only
+            )
+            if param.floats:
+                descriptor.floating_point_range = param.floats
+            if param.ints:
+                descriptor.integer_range = param.ints
+            self.declare_parameter(param.name, param.default, descriptor)
+        self._declared = True
+        self._check_startup_parameters()
+
+        self._action_pub = self.create_publisher(RLAction, 'rl_agent/rl_action', RL_QOS)
+        self._info_pub = self.create_publisher(
+            RLExperimentInfo, 'rl_agent/rl_experiment_info', RL_QOS
+        )
+        self.create_subscription(
+            RLEnvDescription, 'rl_env/rl_env_description', self._on_description, DESCRIPTION_QOS
+        )
+        self.create_subscription(RLStateReward, 'rl_env/rl_state_reward', self._on_state, RL_QOS)
+        summary_topic = self._param('episode_summary_topic')
+        if summary_topic:
+            self.create_subscription(EpisodeSummary, summary_topic, self._on_summary, RL_QOS)
+        mode = 'evaluating (greedy, no learning)' if self._param('evaluate') else 'learning'
+        self.get_logger().info(
+            f'agent {self._param("agent")} {mode}; waiting for rl_env/rl_env_description'
+        )
+
+    # --- parameters --------------------------------------------------------------------------
+
+    def _param(self, name: str):
+        return self.get_parameter(name).value
+
+    def _validate_parameters(self, parameters) -> SetParametersResult:
+        """Reject values that would not make a usable agent (at startup and at runtime)."""
+        values = {}
+        for p in parameters:
+            value = p.value
+            if isinstance(value, float) and not math.isfinite(value):
+                return SetParametersResult(successful=False, reason=f'{p.name} must be finite')
+            if p.name == 'agent':
+                try:
+                    canonical_learner_name(value)
+                except ValueError as error:
+                    return SetParametersResult(successful=False, reason=str(error))
+            if p.name in STRING_CHOICES and value not in STRING_CHOICES[p.name]:
+                choices = ', '.join(STRING_CHOICES[p.name])
+                return SetParametersResult(
+                    successful=False, reason=f'{p.name} must be one of {choices}, got {value!r}'
+                )
+            if p.name.endswith('_decay_episodes') and value <= 0:
+                return SetParametersResult(
+                    successful=False, reason=f'{p.name} must be > 0, got {value}'
+                )
+            values[p.name] = value
+        # While declaring, not every parameter exists yet; startup checks the whole set after.
+        if self._declared and LIVE_LEARNER_PARAMETERS & values.keys():
+            try:
+                self._learner_config(values)
+            except ValueError as error:
+                return SetParametersResult(successful=False, reason=str(error))
+        return SetParametersResult(successful=True)
+
+    def _apply_parameters(self, parameters) -> None:
+        names = {p.name for p in parameters}
+        if self._core is not None and self._core.learning and LIVE_LEARNER_PARAMETERS & names:
+            self._core.learner.set_config(self._learner_config())
+            changed = ', '.join(f'{p.name}={p.value}' for p in parameters)
+            self.get_logger().info(f'learner settings changed: {changed}')
+
+    def _learner_config(self, overrides: dict | None = None) -> LearnerConfig:
+        def get(name):
+            if overrides and name in overrides:
+                return overrides[name]
+            return self._param(name)
+
+        return LearnerConfig(
+            gamma=get('gamma'),
+            alpha=Schedule(
+                get('alpha_schedule'),
+                get('alpha'),
+                get('alpha_final'),
+                get('alpha_decay_episodes'),
+            ),
+            epsilon=Schedule(
+                get('epsilon_schedule'),
+                get('epsilon'),
+                get('epsilon_final'),
+                get('epsilon_decay_episodes'),
+            ),
+            initial_value=get('initialvalue'),
+            n_planning=get('n'),
+        )
+
+    def _check_startup_parameters(self) -> None:
+        if (self._param('evaluate') or self._param('load_policy')) and not self._param(
+            'policy_file'
+        ):
+            raise ConfigError('evaluate and load_policy need policy_file')
+        try:
+            self._learner_config()
+        except ValueError as error:
+            raise ConfigError(str(error)) from None
+
+    # --- messages ----------------------------------------------------------------------------
+
+    def _on_description(self, msg: RLEnvDescription) -> None:
+        log = self.get_logger()
+        try:
+            description = parse_description(
+                msg.num_actions,
+                msg.num_states,
+                msg.min_state_range,
+                msg.max_state_range,
+                msg.max_reward,
+                msg.reward_range,
+                msg.stochastic,
+                msg.episodic,
+                msg.title,
+            )
+        except BadInputError as error:
+            log.error(f'{error}; description ignored, waiting for a usable one')
+            return
+        if self._core is not None:
+            self._description_again(description)
+            return
+        self._description = description
+        self._setup(description)
+
+    def _description_again(self, description: EnvDescription) -> None:
+        log = self.get_logger()
+        current = self._description
+        if (
+            description.num_actions != current.num_actions
+            or description.title != current.title
+            or len(description.min_state_range) != len(current.min_state_range)
+        ):
+            log.error(
+                f'a different environment description arrived ({description.title!r}, '
+                f'{description.num_actions} actions, {len(description.min_state_range)} state '
+                f'ranges; running: {current.title!r}, {current.num_actions} actions, '
+                f'{len(current.min_state_range)} state ranges); ignored, restart the agent '
+                'to switch environments'
+            )
+            return
+        aborted = self._core.abort()
+        note = f'; dropped the episode in progress ({aborted.actions} actions)' if aborted else ''
+        log.warning(
+            f'environment description received again (environment restarted?); '
+            f'keeping the table{note}'
+        )
+
+    def _setup(self, description: EnvDescription) -> None:
+        """Build (or load) the learner for this environment; on failure stay idle, alive."""
+        log = self.get_logger()
+        mapping, warnings = mapping_from_description(
+            description.min_state_range,
+            description.max_state_range,
+            nstates=self._param('nstates'),
+            resolution=self._param('state_resolution'),
+        )
+        for warning in warnings:
+            log.warning(warning)
+        learner_name = canonical_learner_name(self._param('agent'))
+        evaluate = self._param('evaluate')
+        path = pathlib.Path(self._param('policy_file')) if self._param('policy_file') else None
+        seed = self._param('seed')
+        rng = np.random.default_rng(seed)
+        source = 'a fresh table'
+        if evaluate or self._param('load_policy'):
+            if not path.exists() and not evaluate:
+                log.warning(f'no policy file at {path} yet; starting with a fresh table')
+                policy = None
+            else:
+                try:
+                    policy = load_policy(path)
+                    check_compatible(
+                        policy,
+                        num_actions=description.num_actions,
+                        state_dim=mapping.dim,
+                        learner=None if evaluate else learner_name,
+                        scenario_title=description.title,
+                        mapping=mapping,
+                    )
+                except PolicyFileError as error:
+                    self._setup_error = str(error)
+                    log.error(
+                        f'{error}; the agent will not act (and will not overwrite the file): '
+                        'fix or remove it, then restart the agent'
+                    )
+                    return
+        else:
+            policy = None
+        if policy is not None:
+            learner, index = policy.learner, policy.index
+            source = f'{path} ({learner.episodes} episodes, {len(index)} states)'
+            if not evaluate:
+                learner.set_config(self._learner_config())
+                saved_rng = policy.restored_rng()
+                if saved_rng is not None:
+                    rng = saved_rng
+                    source += ', continuing its random stream'
+        else:
+            learner = make_learner(learner_name, description.num_actions, self._learner_config())
+            index = StateIndex(mapping)
+        self._core = ProtocolAgent(learner, index, rng, learning=not evaluate)
+        self._setup_error = ''
+        config = learner.config
+        if evaluate:
+            settings = f'greedy, ties broken with seed {seed}'
+        else:
+            settings = (
+                f'gamma {config.gamma}, alpha {learner.alpha} ({config.alpha.kind}), '
+                f'epsilon {learner.epsilon} ({config.epsilon.kind}), '
+                f'initial {config.initial_value}, n {config.n_planning}, seed {seed}'
+            )
+        log.info(
+            f'environment {description.title!r}: {description.num_actions} actions, state '
+            f'ranges {list(description.min_state_range)}..{list(description.max_state_range)}; '
+            f'learner {learner.name} ({settings}); states {index.mapping.describe()}; '
+            f'from {source}; ' + ('evaluating (no learning)' if evaluate else 'learning')
+        )
+
+    def _on_state(self, msg: RLStateReward) -> None:
+        log = self.get_logger()
+        if self._core is None:
+            if self._description is None:
+                log.warning(
+                    'rl_state_reward received before any environment description '
+                    '(rl_env/rl_env_description); skipped'
+                )
+            else:
+                log.error(
+                    f'rl_state_reward skipped: the agent is not usable ({self._setup_error})'
+                )
+            return
+        try:
+            step = self._core.handle(msg.state, msg.reward, msg.terminal)
+        except BadInputError as error:
+            log.error(f'rl_state_reward skipped: {error}')
+            return
+        for note in step.notes:
+            self._out_of_range += 1
+            if self._out_of_range <= 5 or self._out_of_range % 1000 == 0:
+                log.warning(f'{note} ({self._out_of_range} so far); it gets its own table row')
+        if step.action is not None:
+            self._action_pub.publish(RLAction(action=step.action))
+        if step.result is not None:
+            self._episode_done(step.result)
+
+    def _episode_done(self, result) -> None:
+        reward = float(np.clip(result.reward, -FLOAT32_MAX, FLOAT32_MAX))
+        self._info_pub.publish(
+            RLExperimentInfo(
+                episode_number=result.episode,
+                episode_reward=reward,
+                number_actions=result.actions,
+            )
+        )
+        self._window.append(result)
+        log_every = self._param('log_every')
+        if log_every and len(self._window) >= log_every:
+            self.get_logger().info(
+                format_progress(
+                    self._window,
+                    table_rows=len(self._core.index),
+                    named_outcomes=self._named_outcomes,
+                )
+            )
+            self._window = []
+            self._named_outcomes = Counter()
+        save_every = self._param('save_every')
+        if save_every and self._core.learning and self._core.episode % save_every == 0:
+            self.save(f'every {save_every} episodes')
+
+    def _on_summary(self, msg: EpisodeSummary) -> None:
+        self._named_outcomes[OUTCOME_NAMES.get(msg.outcome, f'outcome {msg.outcome}')] += 1
+
+    # --- policy file -------------------------------------------------------------------------
+
+    def save(self, reason: str) -> bool:
+        """Save the learned policy atomically, if learning with a policy file."""
+        path = self._param('policy_file')
+        if self._core is None or not self._core.learning or not path:
+            return False
+        learner, index = self._core.learner, self._core.index
+        # After Ctrl-C the context is already shut down and /rosout cannot take the message.
+        log = self.get_logger() if self.context.ok() else rclpy.logging.get_logger('agent.exit')
+        try:
+            save_policy(
+                path,
+                learner,
+                index,
+                scenario=self._description.identity(),
+                rng=self._core.rng,
+                extra={'seed': self._param('seed'), 'reason': reason},
+            )
+        except (OSError, ValueError) as error:
+            log.error(f'could not save the policy to {path}: {error}')
+            return False
+        log.info(
+            f'saved the policy to {path} ({reason}; {learner.episodes} episodes, '
+            f'{len(index)} states)'
+        )
+        return True
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    try:
+        node = AgentNode()
+    except (ParameterException, ValueError) as error:  # ConfigError is a ValueError
+        rclpy.logging.get_logger('agent').fatal(f'bad configuration, not starting: {error}')
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.save('shutdown')
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

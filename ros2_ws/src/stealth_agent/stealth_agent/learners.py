@@ -1,0 +1,473 @@
+"""Tabular learners: Q-learning, SARSA and Dyna-Q (plain Python + numpy, no rclpy).
+
+Like rl-texplore-ros-pkg's rl_agent (QLearner, Sarsa, Dyna): the table holds one row of action
+values per discrete state, epsilon-greedy action choice with random tie-breaking among the
+maximal actions, defaults gamma 0.99, alpha 0.3, epsilon 0.1, initial Q 0.
+
+Interface (shared by the ROS node and in-process trainers such as a Gymnasium loop)::
+
+    learner = make_learner('qlearning', num_actions, LearnerConfig(...))
+    a = learner.act(s, rng)                    # epsilon-greedy; s is a table row (int >= 0)
+    a = learner.greedy_action(s, rng)          # evaluation: no exploration
+    learner.update(s, a, r, s_next, terminated, a_next=None, rng=rng)
+    a_next = learner.next_action(s, a, r, s_next, rng)   # learn + choose, rl_agent's order
+    learner.end_episode()                      # advances the epsilon/alpha schedules
+
+Targets: r + gamma * (not terminated) * max_a' Q(s', a') (Q-learning, Dyna-Q) or
+Q(s', a_next) (SARSA, one step, i.e. rl_agent's Sarsa with lambda 0). A terminal transition
+gets Q += alpha * (r - Q), as rl_agent's last_action. Rows are added on demand: the table grows
+(capacity doubling), it never overflows. Every random choice draws from the
+`np.random.Generator` passed in, so a seed fixes the whole learning curve bit for bit.
+"""
+
+from dataclasses import dataclass, field
+import math
+from typing import ClassVar
+
+import numpy as np
+
+from .schedules import Schedule
+
+LEARNER_NAMES = ('qlearning', 'sarsa', 'dyna')
+# rl_agent's spellings and a few obvious ones.
+LEARNER_ALIASES = {
+    'qlearning': 'qlearning',
+    'qlearner': 'qlearning',
+    'q': 'qlearning',
+    'sarsa': 'sarsa',
+    'dyna': 'dyna',
+    'dynaq': 'dyna',
+    'dyna-q': 'dyna',
+    'dyna_q': 'dyna',
+}
+_INITIAL_CAPACITY = 64
+MAX_ROWS = 2**31 - 1
+
+
+def canonical_learner_name(name: str) -> str:
+    """'qlearning', 'sarsa' or 'dyna' for any accepted spelling; ValueError otherwise."""
+    key = str(name).strip().lower()
+    if key not in LEARNER_ALIASES:
+        raise ValueError(f'unknown learner {name!r} (expected one of {", ".join(LEARNER_NAMES)})')
+    return LEARNER_ALIASES[key]
+
+
+def check_num_actions(num_actions) -> int:
+    """The action count as an int >= 1; ValueError naming the problem otherwise."""
+    try:
+        value = float(num_actions)
+    except (TypeError, ValueError):
+        raise ValueError(f'action count must be a number, got {num_actions!r}') from None
+    if not math.isfinite(value) or value != int(value):
+        raise ValueError(f'action count must be a whole number, got {num_actions!r}')
+    if value < 1:
+        raise ValueError(f'action count must be at least 1, got {int(value)}')
+    return int(value)
+
+
+@dataclass(frozen=True)
+class LearnerConfig:
+    """Hyperparameters (rl_agent's defaults); alpha and epsilon follow schedules."""
+
+    gamma: float = 0.99
+    alpha: Schedule = field(default_factory=lambda: Schedule.fixed(0.3))
+    epsilon: Schedule = field(default_factory=lambda: Schedule.fixed(0.1))
+    initial_value: float = 0.0
+    n_planning: int = 10  # Dyna-Q: model updates per real step (rl_agent's --k, default 1000)
+
+    def __post_init__(self):
+        if not (isinstance(self.gamma, int | float) and 0.0 <= self.gamma <= 1.0):
+            raise ValueError(f'gamma must be in [0, 1], got {self.gamma!r}')
+        for name, schedule in (('alpha', self.alpha), ('epsilon', self.epsilon)):
+            if not isinstance(schedule, Schedule):
+                raise ValueError(f'{name} must be a Schedule, got {schedule!r}')
+            for end in (schedule.start, schedule.final):
+                if not 0.0 <= end <= 1.0:
+                    raise ValueError(f'{name} must stay in [0, 1], got {end!r}')
+        if not (isinstance(self.initial_value, int | float) and math.isfinite(self.initial_value)):
+            raise ValueError(f'initial value must be finite, got {self.initial_value!r}')
+        if isinstance(self.n_planning, bool) or not isinstance(self.n_planning, int | np.integer):
+            raise ValueError(f'n (planning updates) must be an integer, got {self.n_planning!r}')
+        if self.n_planning < 0:
+            raise ValueError(f'n (planning updates) must be >= 0, got {self.n_planning}')
+
+    @classmethod
+    def constant(
+        cls,
+        gamma: float = 0.99,
+        alpha: float = 0.3,
+        epsilon: float = 0.1,
+        initial_value: float = 0.0,
+        n_planning: int = 10,
+    ) -> 'LearnerConfig':
+        """A configuration with constant alpha and epsilon."""
+        return cls(
+            gamma, Schedule.fixed(alpha), Schedule.fixed(epsilon), initial_value, n_planning
+        )
+
+    def to_dict(self) -> dict:
+        return {
+            'gamma': self.gamma,
+            'alpha': self.alpha.to_dict(),
+            'epsilon': self.epsilon.to_dict(),
+            'initial_value': self.initial_value,
+            'n_planning': int(self.n_planning),
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict) -> 'LearnerConfig':
+        return cls(
+            float(data['gamma']),
+            Schedule.from_dict(data['alpha']),
+            Schedule.from_dict(data['epsilon']),
+            float(data['initial_value']),
+            int(data['n_planning']),
+        )
+
+
+def argmax_random(values: np.ndarray, rng: np.random.Generator) -> int:
+    """Index of a maximal entry, ties broken uniformly at random (rl_agent random_max_element)."""
+    best = np.flatnonzero(values == values.max())
+    if best.size == 1:
+        return int(best[0])
+    return int(best[rng.integers(best.size)])
+
+
+class TabularLearner:
+    """Common table handling, action choice and serialisation; subclasses define the target."""
+
+    name: ClassVar[str] = ''
+    on_policy: ClassVar[bool] = False
+
+    def __init__(self, num_actions: int, config: LearnerConfig | None = None):
+        self.num_actions = check_num_actions(num_actions)
+        self.config = config if config is not None else LearnerConfig()
+        self._q = np.full(
+            (_INITIAL_CAPACITY, self.num_actions), self.config.initial_value, dtype=np.float64
+        )
+        self._rows = 0
+        self.episodes = 0  # finished episodes; the schedules' t
+        self.updates = 0  # real (not planning) updates
+        self._refresh_rates()
+
+    # --- table -------------------------------------------------------------------------------
+
+    @property
+    def q(self) -> np.ndarray:
+        """The Q-table, shape (rows, actions); a view, do not resize."""
+        return self._q[: self._rows]
+
+    @property
+    def num_rows(self) -> int:
+        return self._rows
+
+    def ensure_rows(self, rows: int) -> None:
+        """Make rows 0..rows-1 exist (new ones at the initial value)."""
+        if rows > MAX_ROWS:
+            raise ValueError(f'table row {rows - 1} exceeds the limit {MAX_ROWS - 1}')
+        capacity = self._q.shape[0]
+        if rows > capacity:
+            grown = np.full(
+                (max(rows, 2 * capacity), self.num_actions),
+                self.config.initial_value,
+                dtype=np.float64,
+            )
+            grown[: self._rows] = self._q[: self._rows]
+            self._q = grown
+        self._rows = max(self._rows, rows)
+
+    def values(self, s: int) -> np.ndarray:
+        """A copy of the action values of row s."""
+        s = self._check_row(s)
+        self.ensure_rows(s + 1)
+        return self._q[s].copy()
+
+    # --- rates -------------------------------------------------------------------------------
+
+    @property
+    def epsilon(self) -> float:
+        """Exploration rate of the current episode (from the schedule)."""
+        return self._epsilon
+
+    @property
+    def alpha(self) -> float:
+        """Learning rate of the current episode (from the schedule)."""
+        return self._alpha
+
+    def set_config(self, config: LearnerConfig) -> None:
+        """Change hyperparameters (e.g. at runtime); the table is kept."""
+        if config.initial_value != self.config.initial_value:
+            # Only rows created from now on use it; make the spare capacity agree.
+            self._q[self._rows :] = config.initial_value
+        self.config = config
+        self._refresh_rates()
+
+    def _refresh_rates(self) -> None:
+        self._epsilon = self.config.epsilon(self.episodes)
+        self._alpha = self.config.alpha(self.episodes)
+
+    def end_episode(self) -> None:
+        """Count a finished episode; epsilon and alpha move along their schedules."""
+        self.episodes += 1
+        self._refresh_rates()
+
+    # --- acting ------------------------------------------------------------------------------
+
+    def greedy_action(self, s: int, rng: np.random.Generator) -> int:
+        """A maximal action of row s, ties broken at random."""
+        s = self._check_row(s)
+        self.ensure_rows(s + 1)
+        return argmax_random(self._q[s], rng)
+
+    def act(self, s: int, rng: np.random.Generator, *, greedy: bool = False) -> int:
+        """Epsilon-greedy action in row s (rl_agent: uniform draw < epsilon -> random action)."""
+        s = self._check_row(s)
+        self.ensure_rows(s + 1)
+        if not greedy and rng.random() < self._epsilon:
+            return int(rng.integers(self.num_actions))
+        return argmax_random(self._q[s], rng)
+
+    # --- learning ----------------------------------------------------------------------------
+
+    def update(
+        self,
+        s: int,
+        a: int,
+        r: float,
+        s_next: int | None,
+        terminated: bool,
+        a_next: int | None = None,
+        rng: np.random.Generator | None = None,
+    ) -> float:
+        """One TD update of Q(s, a); returns the TD error. Validates before changing anything."""
+        s, a, r = self._check_row(s), self._check_action(a), self._check_reward(r)
+        terminated = bool(terminated)
+        if not terminated:
+            if s_next is None:
+                raise ValueError('a non-terminal update needs the next state')
+            s_next = self._check_row(s_next)
+            if self.on_policy:
+                if a_next is None:
+                    raise ValueError(f'{self.name} needs the next action (a_next) to update')
+                a_next = self._check_action(a_next)
+        self._check_update_extra(rng)
+        self.ensure_rows(s + 1 if terminated else max(s, s_next) + 1)
+        target = r if terminated else r + self.config.gamma * self._bootstrap(s_next, a_next)
+        error = target - self._q[s, a]
+        self._q[s, a] += self._alpha * error
+        self.updates += 1
+        self._after_update(s, a, r, s_next, terminated, rng)
+        return float(error)
+
+    def next_action(self, s: int, a: int, r: float, s_next: int, rng: np.random.Generator) -> int:
+        """Learn from the non-terminal step (s, a, r, s_next), then choose the action in s_next.
+
+        rl_agent's QLearner order: update first, then choose from the updated values.
+        """
+        self.update(s, a, r, s_next, False, rng=rng)
+        return self.act(s_next, rng)
+
+    def _bootstrap(self, s_next: int, a_next: int | None) -> float:
+        return float(self._q[s_next].max())
+
+    def _check_update_extra(self, rng) -> None:
+        pass
+
+    def _after_update(self, s, a, r, s_next, terminated, rng) -> None:
+        pass
+
+    # --- checks ------------------------------------------------------------------------------
+
+    def _check_row(self, s) -> int:
+        if isinstance(s, bool) or not isinstance(s, int | np.integer):
+            raise ValueError(f'state row must be an integer, got {s!r}')
+        if not 0 <= s < MAX_ROWS:
+            raise ValueError(f'state row must be in [0, {MAX_ROWS}), got {s}')
+        return int(s)
+
+    def _check_action(self, a) -> int:
+        if isinstance(a, bool) or not isinstance(a, int | np.integer):
+            raise ValueError(f'action must be an integer, got {a!r}')
+        if not 0 <= a < self.num_actions:
+            raise ValueError(f'action {a} out of range [0, {self.num_actions})')
+        return int(a)
+
+    @staticmethod
+    def _check_reward(r) -> float:
+        r = float(r)
+        if not math.isfinite(r):
+            raise ValueError(f'reward must be finite, got {r}')
+        return r
+
+    # --- serialisation -----------------------------------------------------------------------
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """Everything learned, as arrays (the Q-table, the Dyna model)."""
+        return {'q': self.q.copy()}
+
+    def to_meta(self) -> dict:
+        """Everything else about the learner, JSON-serialisable."""
+        return {
+            'learner': self.name,
+            'num_actions': self.num_actions,
+            'config': self.config.to_dict(),
+            'episodes': self.episodes,
+            'updates': self.updates,
+        }
+
+    def load_arrays(self, arrays: dict[str, np.ndarray], episodes: int, updates: int) -> None:
+        """Replace the table (and model) with saved ones; ValueError if they do not fit."""
+        q = np.asarray(arrays['q'])
+        if q.ndim != 2 or q.shape[1] != self.num_actions:
+            raise ValueError(f'Q-table shape {q.shape} does not fit {self.num_actions} actions')
+        if not np.all(np.isfinite(q)):
+            raise ValueError('Q-table holds non-finite values')
+        self._load_extra(arrays, q.shape[0])
+        fresh = np.full(
+            (max(_INITIAL_CAPACITY, q.shape[0]), self.num_actions),
+            self.config.initial_value,
+            dtype=np.float64,
+        )
+        fresh[: q.shape[0]] = q
+        self._q, self._rows = fresh, q.shape[0]
+        self.episodes, self.updates = int(episodes), int(updates)
+        self._refresh_rates()
+
+    def _load_extra(self, arrays, rows: int) -> None:
+        pass
+
+
+class QLearning(TabularLearner):
+    """Watkins' Q-learning (rl_agent's QLearner)."""
+
+    name = 'qlearning'
+
+
+class Sarsa(TabularLearner):
+    """One-step SARSA: on-policy, bootstraps on the action actually chosen next."""
+
+    name = 'sarsa'
+    on_policy = True
+
+    def _bootstrap(self, s_next: int, a_next: int | None) -> float:
+        return float(self._q[s_next, a_next])
+
+    def next_action(self, s: int, a: int, r: float, s_next: int, rng: np.random.Generator) -> int:
+        """Choose the action in s_next first, then learn from (s, a, r, s_next, a_next)."""
+        # Validate before drawing from rng, so a rejected step changes nothing.
+        self._check_row(s)
+        self._check_action(a)
+        self._check_reward(r)
+        s_next = self._check_row(s_next)
+        a_next = self.act(s_next, rng)
+        self.update(s, a, r, s_next, False, a_next=a_next, rng=rng)
+        return a_next
+
+
+class DynaQ(QLearning):
+    """Dyna-Q (Sutton & Barto 8.2): Q-learning plus n planning updates per real step.
+
+    The model remembers, for every (s, a) tried, the last reward, next row and terminal flag
+    seen (exact for deterministic environments, a sample for stochastic ones). Each planning
+    update picks a remembered (s, a) uniformly at random and applies the Q-learning update
+    to the remembered outcome.
+    """
+
+    name = 'dyna'
+
+    def __init__(self, num_actions: int, config: LearnerConfig | None = None):
+        super().__init__(num_actions, config)
+        self._model_index: dict[tuple[int, int], int] = {}
+        self._model_s: list[int] = []
+        self._model_a: list[int] = []
+        self._model_r: list[float] = []
+        self._model_next: list[int] = []  # -1 when terminal
+        self._model_terminal: list[bool] = []
+
+    @property
+    def model_size(self) -> int:
+        return len(self._model_s)
+
+    def _check_update_extra(self, rng) -> None:
+        if self.config.n_planning > 0 and rng is None:
+            raise ValueError('Dyna-Q planning needs the random generator (rng=...)')
+
+    def _after_update(self, s, a, r, s_next, terminated, rng) -> None:
+        next_row = -1 if terminated else s_next
+        key = (s, a)
+        i = self._model_index.get(key)
+        if i is None:
+            self._model_index[key] = len(self._model_s)
+            self._model_s.append(s)
+            self._model_a.append(a)
+            self._model_r.append(r)
+            self._model_next.append(next_row)
+            self._model_terminal.append(terminated)
+        else:
+            self._model_r[i], self._model_next[i], self._model_terminal[i] = (
+                r,
+                next_row,
+                terminated,
+            )
+        self.plan(self.config.n_planning, rng)
+
+    def plan(self, n: int, rng: np.random.Generator) -> None:
+        """n simulated Q-learning updates from remembered transitions."""
+        if n <= 0 or not self._model_s:
+            return
+        q, gamma, alpha = self._q, self.config.gamma, self._alpha
+        for i in rng.integers(len(self._model_s), size=n).tolist():
+            s, a = self._model_s[i], self._model_a[i]
+            target = self._model_r[i]
+            if not self._model_terminal[i]:
+                target += gamma * q[self._model_next[i]].max()
+            q[s, a] += alpha * (target - q[s, a])
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        arrays = super().to_arrays()
+        arrays['model_s'] = np.asarray(self._model_s, dtype=np.int64)
+        arrays['model_a'] = np.asarray(self._model_a, dtype=np.int64)
+        arrays['model_reward'] = np.asarray(self._model_r, dtype=np.float64)
+        arrays['model_next'] = np.asarray(self._model_next, dtype=np.int64)
+        arrays['model_terminal'] = np.asarray(self._model_terminal, dtype=bool)
+        return arrays
+
+    def _load_extra(self, arrays, rows: int) -> None:
+        names = ('model_s', 'model_a', 'model_reward', 'model_next', 'model_terminal')
+        missing = [n for n in names if n not in arrays]
+        if missing:
+            raise ValueError(f'Dyna-Q model arrays missing: {", ".join(missing)}')
+        s, a, r, nxt, term = (np.asarray(arrays[n]) for n in names)
+        size = s.shape[0]
+        if any(x.ndim != 1 or x.shape[0] != size for x in (s, a, r, nxt, term)):
+            raise ValueError('Dyna-Q model arrays have inconsistent shapes')
+        if size and (
+            s.min() < 0
+            or s.max() >= rows
+            or a.min() < 0
+            or a.max() >= self.num_actions
+            or nxt.min() < -1
+            or nxt.max() >= rows
+            or not np.all(np.isfinite(r))
+            or np.any(term != (nxt == -1))
+        ):
+            raise ValueError('Dyna-Q model refers to rows or actions outside the table')
+        self._model_s = s.astype(int).tolist()
+        self._model_a = a.astype(int).tolist()
+        self._model_r = r.astype(float).tolist()
+        self._model_next = nxt.astype(int).tolist()
+        self._model_terminal = term.astype(bool).tolist()
+        pairs = zip(self._model_s, self._model_a, strict=True)
+        self._model_index = {pair: i for i, pair in enumerate(pairs)}
+        if len(self._model_index) != size:
+            raise ValueError('Dyna-Q model holds a state-action pair twice')
+
+
+_LEARNER_CLASSES = {cls.name: cls for cls in (QLearning, Sarsa, DynaQ)}
+
+
+def make_learner(
+    name: str, num_actions: int, config: LearnerConfig | None = None
+) -> TabularLearner:
+    """A fresh learner by name ('qlearning', 'sarsa', 'dyna' or an rl_agent alias)."""
+    return _LEARNER_CLASSES[canonical_learner_name(name)](num_actions, config)

@@ -1,0 +1,298 @@
+"""The rl_msgs protocol of rl-texplore-ros-pkg's rl_agent, as plain Python (no rclpy).
+
+rl_agent's processState: the first state of an episode gets first_action (its reward is
+ignored); each later non-terminal state gets next_action(reward, state) (learn, then choose);
+a terminal state gets last_action(reward) (Q += alpha * (r - Q)), no action, and the episode's
+RLExperimentInfo: episode number, sum of rewards after the first state, number of actions.
+
+ProtocolAgent does exactly that on top of a learner, a state index and a random generator, and
+checks every input first: a bad one raises BadInputError naming the problem and leaves the table,
+the index and the episode untouched, so the caller can skip the message and carry on. The ROS
+node only converts messages; an in-process trainer can drive the same object.
+"""
+
+from collections import Counter
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+from .learners import TabularLearner, check_num_actions
+from .state_index import StateError, StateIndex
+
+
+class BadInputError(ValueError):
+    """A message the agent cannot use; the text names the problem."""
+
+
+@dataclass(frozen=True)
+class EnvDescription:
+    """What RLEnvDescription says, checked."""
+
+    num_actions: int
+    num_states: float = 0.0
+    min_state_range: tuple[float, ...] = ()
+    max_state_range: tuple[float, ...] = ()
+    max_reward: float = 0.0
+    reward_range: float = 0.0
+    stochastic: bool = False
+    episodic: bool = True
+    title: str = ''
+
+    def identity(self) -> dict:
+        """The scenario identity stored with a policy."""
+        return {
+            'title': self.title,
+            'num_actions': self.num_actions,
+            'num_states': self.num_states,
+            'min_state_range': list(self.min_state_range),
+            'max_state_range': list(self.max_state_range),
+            'max_reward': self.max_reward,
+            'reward_range': self.reward_range,
+            'stochastic': self.stochastic,
+            'episodic': self.episodic,
+        }
+
+
+def parse_description(
+    num_actions,
+    num_states=0.0,
+    min_state_range=(),
+    max_state_range=(),
+    max_reward=0.0,
+    reward_range=0.0,
+    stochastic=False,
+    episodic=True,
+    title='',
+) -> EnvDescription:
+    """An EnvDescription from RLEnvDescription's fields; BadInputError when unusable."""
+    try:
+        actions = check_num_actions(num_actions)
+    except ValueError as error:
+        raise BadInputError(f'environment description: {error}') from None
+    return EnvDescription(
+        actions,
+        float(num_states),
+        tuple(float(v) for v in min_state_range),
+        tuple(float(v) for v in max_state_range),
+        float(max_reward),
+        float(reward_range),
+        bool(stochastic),
+        bool(episodic),
+        str(title),
+    )
+
+
+@dataclass(frozen=True)
+class EpisodeResult:
+    """One finished episode, as reported in RLExperimentInfo and the progress log."""
+
+    episode: int  # episode number of this run (RLExperimentInfo.episode_number), from 0
+    learner_episode: int  # the learner's count of finished episodes before this one
+    reward: float  # sum of rewards after the first state
+    actions: int  # actions taken
+    terminal_reward: float | None  # reward of the terminal state (None: truncated or aborted)
+    epsilon: float  # exploration rate used (0 when evaluating)
+    truncated: bool = False  # ended by a time limit without a terminal state (trainers only)
+    aborted: bool = False  # dropped without a final update (environment restarted)
+    learning: bool = True  # False when evaluating (greedy, no updates)
+
+
+@dataclass(frozen=True)
+class Step:
+    """What to send back for one RLStateReward."""
+
+    action: int | None = None  # RLAction to publish, None at a terminal state
+    result: EpisodeResult | None = None  # RLExperimentInfo to publish, at a terminal state
+    notes: tuple[str, ...] = ()  # warnings worth logging (e.g. a state outside the ranges)
+
+
+class ProtocolAgent:
+    """rl_agent's processState over a learner, a state index and a seeded generator."""
+
+    def __init__(
+        self,
+        learner: TabularLearner,
+        index: StateIndex,
+        rng: np.random.Generator,
+        *,
+        learning: bool = True,
+    ):
+        self.learner = learner
+        self.index = index
+        self.rng = rng
+        self.learning = learning
+        self.episode = 0  # episodes finished in this run
+        self.in_episode = False
+        self.episode_reward = 0.0
+        self.number_actions = 0
+        self._s: int | None = None
+        self._a: int | None = None
+
+    @property
+    def epsilon(self) -> float:
+        return self.learner.epsilon if self.learning else 0.0
+
+    def handle(self, state, reward, terminal: bool) -> Step:
+        """One RLStateReward in, what to publish out; BadInputError leaves everything unchanged."""
+        vector = self._check_state(state)
+        notes = ()
+        if self.index.mapping.out_of_range(vector):
+            notes = (f'state {vector.tolist()} lies outside the description state ranges',)
+        if not self.in_episode:
+            if terminal:
+                return Step(None, self._finish(0.0, terminal_reward=None), notes)
+            return Step(self.first_action(vector), None, notes)
+        if terminal:
+            return Step(None, self.last_action(reward), notes)
+        return Step(self.next_action(reward, vector), None, notes)
+
+    def first_action(self, state) -> int:
+        """The first state of an episode: choose an action, its reward is ignored."""
+        vector = self._check_state(state)
+        row = self.index.row(vector)
+        action = self.learner.act(row, self.rng, greedy=not self.learning)
+        self._s, self._a = row, action
+        self.in_episode = True
+        self.episode_reward = 0.0
+        self.number_actions = 1
+        return action
+
+    def next_action(self, reward, state) -> int:
+        """A non-terminal state after an action: learn, then choose the next action."""
+        self._check_in_episode()
+        r = self._check_reward(reward)
+        vector = self._check_state(state)
+        row = self.index.row(vector)
+        if self.learning:
+            action = self.learner.next_action(self._s, self._a, r, row, self.rng)
+        else:
+            action = self.learner.greedy_action(row, self.rng)
+        self._s, self._a = row, action
+        self.episode_reward += r
+        self.number_actions += 1
+        return action
+
+    def last_action(self, reward) -> EpisodeResult:
+        """A terminal state: Q += alpha * (r - Q), end the episode."""
+        self._check_in_episode()
+        r = self._check_reward(reward)
+        if self.learning:
+            self.learner.update(self._s, self._a, r, None, True, rng=self.rng)
+        return self._finish(r, terminal_reward=r)
+
+    def truncate(self, reward, state) -> EpisodeResult:
+        """The episode was cut off (time limit) in a non-terminal state: bootstrap, then end.
+
+        For in-process trainers whose environment separates truncation from termination; the
+        rl_msgs protocol has only `terminal`.
+        """
+        self._check_in_episode()
+        r = self._check_reward(reward)
+        vector = self._check_state(state)
+        row = self.index.row(vector)
+        if self.learning:
+            a_next = self.learner.act(row, self.rng) if self.learner.on_policy else None
+            self.learner.update(self._s, self._a, r, row, False, a_next=a_next, rng=self.rng)
+        return self._finish(r, terminal_reward=None, truncated=True)
+
+    def abort(self) -> EpisodeResult | None:
+        """Drop the episode in progress without a final update (the environment restarted)."""
+        if not self.in_episode:
+            return None
+        result = EpisodeResult(
+            self.episode,
+            self.learner.episodes,
+            self.episode_reward,
+            self.number_actions,
+            None,
+            self.epsilon,
+            aborted=True,
+            learning=self.learning,
+        )
+        self.in_episode = False
+        self._s = self._a = None
+        return result
+
+    def _finish(self, r: float, *, terminal_reward, truncated=False) -> EpisodeResult:
+        actions = self.number_actions if self.in_episode else 0
+        total = self.episode_reward + r if self.in_episode else 0.0
+        result = EpisodeResult(
+            self.episode,
+            self.learner.episodes,
+            total,
+            actions,
+            terminal_reward,
+            self.epsilon,
+            truncated=truncated,
+            learning=self.learning,
+        )
+        if self.learning:
+            self.learner.end_episode()
+        self.episode += 1
+        self.in_episode = False
+        self.episode_reward = 0.0
+        self.number_actions = 0
+        self._s = self._a = None
+        return result
+
+    def _check_state(self, state) -> np.ndarray:
+        try:
+            return self.index.check(state)
+        except StateError as error:
+            raise BadInputError(f'bad state: {error}') from None
+
+    @staticmethod
+    def _check_reward(reward) -> float:
+        try:
+            r = float(reward)
+        except (TypeError, ValueError):
+            raise BadInputError(f'bad reward: not a number ({reward!r})') from None
+        if not math.isfinite(r):
+            raise BadInputError(f'bad reward: {r} is not finite')
+        return r
+
+    def _check_in_episode(self) -> None:
+        if not self.in_episode:
+            raise BadInputError('no episode in progress (expected the first state of an episode)')
+
+
+def outcome_mix(results: Sequence[EpisodeResult]) -> Counter:
+    """Outcomes told apart by the terminal reward's sign (all the rl_msgs protocol carries)."""
+    mix = Counter()
+    for result in results:
+        if result.aborted:
+            mix['aborted'] += 1
+        elif result.truncated or result.terminal_reward is None:
+            mix['truncated'] += 1
+        elif result.terminal_reward > 0:
+            mix['positive end'] += 1
+        elif result.terminal_reward < 0:
+            mix['negative end'] += 1
+        else:
+            mix['zero end'] += 1
+    return mix
+
+
+def format_progress(
+    results: Sequence[EpisodeResult],
+    *,
+    table_rows: int,
+    named_outcomes: Mapping[str, int] | None = None,
+) -> str:
+    """One log line about a window of episodes: returns, steps, outcome mix, epsilon."""
+    if not results:
+        return 'no episodes yet'
+    returns = np.array([r.reward for r in results], dtype=np.float64)
+    steps = np.array([r.actions for r in results], dtype=np.float64)
+    mix = named_outcomes if named_outcomes else outcome_mix(results)
+    mix_text = ', '.join(f'{name} {count}' for name, count in sorted(mix.items()))
+    first, last = results[0], results[-1]
+    mode = f'learner total {last.learner_episode + 1}' if last.learning else 'evaluation'
+    return (
+        f'episodes {first.episode}-{last.episode} ({mode}): '
+        f'return mean {returns.mean():.3f} [min {returns.min():.3f}, max {returns.max():.3f}], '
+        f'last {last.reward:.3f}; steps mean {steps.mean():.1f}, last {last.actions}; '
+        f'outcomes: {mix_text}; epsilon {last.epsilon:.4f}; table {table_rows} states'
+    )

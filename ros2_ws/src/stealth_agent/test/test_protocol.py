@@ -1,0 +1,201 @@
+"""rl_agent's processState semantics and bad input, without ROS."""
+
+import math
+
+import numpy as np
+import pytest
+from stealth_agent.learners import LearnerConfig, QLearning, Sarsa, make_learner
+from stealth_agent.protocol import (
+    BadInputError,
+    EpisodeResult,
+    ProtocolAgent,
+    format_progress,
+    outcome_mix,
+    parse_description,
+)
+from stealth_agent.state_index import StateIndex, mapping_from_description
+
+
+def make_agent(name='qlearning', learning=True, actions=2, **config):
+    learner = make_learner(name, actions, LearnerConfig.constant(**config))
+    return ProtocolAgent(learner, StateIndex(), np.random.default_rng(0), learning=learning)
+
+
+def snapshot(agent):
+    return (
+        agent.learner.q.copy(),
+        len(agent.index),
+        agent.index.dim,
+        agent.in_episode,
+        agent.episode_reward,
+        agent.number_actions,
+        agent.episode,
+        agent.rng.bit_generator.state,
+    )
+
+
+def assert_unchanged(agent, before):
+    after = snapshot(agent)
+    assert np.array_equal(after[0], before[0])
+    assert after[1:] == before[1:]
+
+
+def test_episode_sums_ignore_the_first_reward_and_count_actions():
+    agent = make_agent()
+    step = agent.handle([0.0], 1000.0, False)  # first state: its reward is ignored
+    assert step.action in (0, 1) and step.result is None
+    agent.handle([1.0], -1.0, False)
+    agent.handle([2.0], -1.0, False)
+    step = agent.handle([3.0], 10.0, True)
+    assert step.action is None
+    assert step.result.episode == 0
+    assert step.result.reward == 8.0
+    assert step.result.actions == 3  # first action plus two more; none at the terminal state
+    assert step.result.terminal_reward == 10.0
+    # The next state starts episode 1, again ignoring its reward.
+    assert agent.handle([0.0], -55.0, False).action is not None
+    assert agent.handle([1.0], 2.0, True).result == EpisodeResult(
+        1, 1, 2.0, 1, 2.0, 0.1, learning=True
+    )
+
+
+def test_terminal_state_updates_towards_the_reward():
+    agent = make_agent(alpha=0.5, epsilon=0.0)
+    a = agent.handle([0.0], 0.0, False).action
+    agent.handle([1.0], 4.0, True)
+    row = agent.index.lookup([0.0])
+    assert agent.learner.q[row, a] == 0.5 * 4.0
+    assert agent.index.lookup([1.0]) is None  # terminal states need no row: no action there
+
+
+def test_a_terminal_first_state_is_an_empty_episode():
+    agent = make_agent()
+    step = agent.handle([0.0], 3.0, True)
+    assert step.action is None and step.result.actions == 0 and step.result.reward == 0.0
+    assert agent.episode == 1 and not agent.learner.q.any()
+
+
+@pytest.mark.parametrize(
+    ('state', 'reward', 'message'),
+    [
+        ([1.0, 0.0], -1.0, 'state has 2 features, expected 1'),
+        ([], -1.0, 'state has 0 features, expected 1'),
+        ([float('nan')], -1.0, 'non-finite'),
+        ([1.0], float('nan'), 'bad reward: nan is not finite'),
+        ([1.0], float('inf'), 'bad reward: inf is not finite'),
+        ([1.0], -float('inf'), 'bad reward: -inf is not finite'),
+    ],
+)
+@pytest.mark.parametrize('terminal', [False, True])
+@pytest.mark.parametrize('name', ['qlearning', 'sarsa', 'dyna'])
+def test_bad_messages_mid_episode_change_nothing(name, terminal, state, reward, message):
+    agent = make_agent(name)
+    agent.handle([0.0], 0.0, False)
+    agent.handle([1.0], -1.0, False)
+    before = snapshot(agent)
+    with pytest.raises(BadInputError, match=message):
+        agent.handle(state, reward, terminal)
+    assert_unchanged(agent, before)
+    # The episode carries on with the next good message.
+    assert agent.handle([2.0], -1.0, False).action is not None
+    assert agent.handle([3.0], 5.0, True).result.reward == 3.0
+
+
+def test_a_nan_reward_on_the_first_state_is_ignored_like_any_first_reward():
+    agent = make_agent()
+    assert agent.handle([0.0], float('nan'), False).action is not None
+
+
+def test_evaluation_is_greedy_and_never_learns():
+    agent = make_agent(learning=False, epsilon=1.0)
+    agent.learner.ensure_rows(1)
+    agent.index.row([0.0])
+    agent.learner.q[0] = [0.0, 1.0]
+    for _ in range(20):
+        assert agent.handle([0.0], 0.0, False).action == 1
+        result = agent.handle([0.0], 7.0, True).result
+        assert result.epsilon == 0.0 and not result.learning
+    assert agent.learner.q[0].tolist() == [0.0, 1.0]
+    assert agent.learner.episodes == 0 and agent.learner.updates == 0
+
+
+def test_truncation_bootstraps_instead_of_ending_at_the_reward():
+    agent = ProtocolAgent(
+        QLearning(2, LearnerConfig.constant(gamma=0.5, alpha=1.0, epsilon=0.0)),
+        StateIndex(),
+        np.random.default_rng(0),
+    )
+    agent.learner.ensure_rows(2)
+    agent.index.row([0.0]), agent.index.row([1.0])
+    agent.learner.q[1] = [4.0, 2.0]
+    a = agent.handle([0.0], 0.0, False).action
+    result = agent.truncate(1.0, [1.0])
+    assert result.truncated and result.terminal_reward is None
+    assert agent.learner.q[0, a] == 1.0 + 0.5 * 4.0
+
+
+def test_sarsa_through_the_protocol_bootstraps_on_the_action_it_sends():
+    agent = ProtocolAgent(
+        Sarsa(2, LearnerConfig.constant(gamma=1.0, alpha=1.0, epsilon=0.0)),
+        StateIndex(),
+        np.random.default_rng(0),
+    )
+    agent.learner.ensure_rows(2)
+    agent.index.row([0.0]), agent.index.row([1.0])
+    agent.learner.q[1] = [3.0, 5.0]
+    a0 = agent.handle([0.0], 0.0, False).action
+    a1 = agent.handle([1.0], 1.0, False).action
+    assert a1 == 1 and agent.learner.q[0, a0] == 1.0 + 5.0
+
+
+def test_abort_drops_the_episode_without_learning():
+    agent = make_agent()
+    agent.handle([0.0], 0.0, False)
+    agent.handle([1.0], -1.0, False)
+    q = agent.learner.q.copy()
+    aborted = agent.abort()
+    assert aborted.aborted and aborted.actions == 2
+    assert np.array_equal(agent.learner.q, q) and not agent.in_episode
+    assert agent.abort() is None
+
+
+def test_states_outside_the_ranges_come_with_a_note():
+    mapping, _ = mapping_from_description([0.0], [5.0])
+    agent = ProtocolAgent(QLearning(2), StateIndex(mapping), np.random.default_rng(0))
+    assert agent.handle([9.0], 0.0, False).notes == (
+        'state [9.0] lies outside the description state ranges',
+    )
+    assert agent.handle([1.0], 0.0, False).notes == ()
+
+
+@pytest.mark.parametrize('count', [0, -1, 2.5, math.nan, math.inf])
+def test_descriptions_with_an_unusable_action_count_are_rejected(count):
+    with pytest.raises(BadInputError, match='environment description: action count'):
+        parse_description(count, 0, [0.0], [1.0], 1.0, 2.0, False, True, 'x')
+
+
+def test_a_description_parses():
+    description = parse_description(4.0, 0, [0.0, 0.0], [10.0, 5.0], 1, 2, True, True, 'lg')
+    assert description.num_actions == 4 and description.identity()['title'] == 'lg'
+
+
+def test_progress_line_reports_return_steps_outcomes_and_epsilon():
+    results = [
+        EpisodeResult(0, 0, 5.0, 10, 10.0, 0.1),
+        EpisodeResult(1, 1, -20.0, 4, -10.0, 0.1),
+        EpisodeResult(2, 2, -3.0, 100, -1.0, 0.05),
+    ]
+    line = format_progress(results, table_rows=42)
+    for part in (
+        'episodes 0-2 (learner total 3)',
+        'return mean -6.000 [min -20.000, max 5.000], last -3.000',
+        'steps mean 38.0, last 100',
+        'outcomes: negative end 2, positive end 1',
+        'epsilon 0.0500',
+        'table 42 states',
+    ):
+        assert part in line
+    assert 'outcomes: detected 1, success 2' in format_progress(
+        results, table_rows=1, named_outcomes={'success': 2, 'detected': 1}
+    )
+    assert outcome_mix([EpisodeResult(0, 0, 0.0, 0, None, 0.0, aborted=True)]) == {'aborted': 1}
