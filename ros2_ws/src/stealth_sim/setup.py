@@ -18,6 +18,10 @@ setup(
     description='Kinematic diff-drive simulator with noisy odometry and localisation.',
     license='Apache-2.0',
     entry_points={
-        'console_scripts': [],
+        'console_scripts': [
+            'image_to_bw = stealth_sim.map_tools:image_to_bw_main',
+            'png_to_ros_map = stealth_sim.map_tools:png_to_ros_map_main',
+            'render_map = stealth_sim.map_tools:render_map_main',
+        ],
     },
 )

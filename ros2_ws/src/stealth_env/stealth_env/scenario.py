@@ -1,0 +1,388 @@
+"""Scenarios: a map, a start, goals by difficulty, searchlights and the task's numbers.
+
+A scenario is one YAML file (``scenarios/<name>.yaml``), validated completely on load: every
+problem is one :class:`ScenarioError` naming the file, the field and what was expected, and no
+Scenario is built until everything checked out. Angles are degrees in the file (counter-clockwise
+from +x) and radians in the :class:`Scenario`. Example, every field::
+
+    name: map1                      # default: the file's stem
+    map: ../maps/map1.yaml          # nav2 map YAML, relative to this file
+    start: {x: 2.5, y: 2.5, yaw: 90}
+    goals:                          # any of easy, medium, hard; radius defaults to goal_radius
+      easy: {x: 15.0, y: 9.5}
+      hard: {x: 18.0, y: 14.5, radius: 0.5}
+    default_goal: hard              # default: the hardest goal given
+    robot_radius: 0.2               # m
+    step_distance: 0.5              # m per move (up, down, left, right)
+    state_cell: 0.5                 # m, the agent's state grid; default: step_distance
+    goal_radius: 0.5                # m
+    detection_threshold: 0.3        # total visibility at which the robot is seen
+    detection_mode: threshold       # or probabilistic
+    step_limit: 300                 # moves per episode
+    lights:
+      - name: kitchen               # default: L<number>
+        x: 13.0
+        y: 8.5
+        direction: 180              # degrees
+        fov: 40                     # full opening angle, degrees, in (0, 360]
+        range: 6.0                  # m
+        delta: 0.1                  # intensity at the range, in (0, 1)
+        soft_edge: 0.0              # optional, in [0, 1]
+        motion: {type: sweep, min_direction: 150, max_direction: 210, angular_speed: 10}
+        # or {type: patrol, waypoints: [[13, 8.5], [13, 10]], speed: 0.3}
+    rewards: {goal_reward: 1000.0}  # any RewardWeights field; the rest keep their defaults
+
+Validation checks the fields' types and ranges, that the start and goals lie in free cells of
+the map, that the start has ``robot_radius`` of clearance, that every goal is reachable from the
+start on the robot's move lattice (:mod:`stealth_env.move_lattice`) and that every light and
+patrol waypoint lies inside the map (a lamp may sit on a wall, as ``stealth_env.lighting``
+allows). Whether the goals can be reached unseen is a property of the shipped scenarios, proved
+by their tests, not a load-time check.
+"""
+
+import dataclasses
+import math
+import os
+from pathlib import Path
+from typing import Any, NamedTuple
+
+from stealth_sim.occupancy_map import (
+    FieldReader,
+    MapError,
+    OccupancyMap,
+    load_map,
+    read_yaml_mapping,
+)
+
+from stealth_env.move_lattice import MoveLattice
+from stealth_env.reward import (
+    DETECTION_MODES,
+    RewardError,
+    RewardWeights,
+    check_well_posed,
+    undetected_visibility_bound,
+)
+from stealth_env.searchlight import LightError, PatrolMotion, Searchlight, SweepMotion
+
+DIFFICULTIES = ('easy', 'medium', 'hard')
+SCENARIOS_ENV = 'STEALTH_NAV_SCENARIOS'
+FIELDS = (
+    'name',
+    'map',
+    'start',
+    'goals',
+    'default_goal',
+    'robot_radius',
+    'step_distance',
+    'state_cell',
+    'goal_radius',
+    'detection_threshold',
+    'detection_mode',
+    'step_limit',
+    'lights',
+    'rewards',
+)
+LIGHT_FIELDS = ('name', 'x', 'y', 'direction', 'fov', 'range', 'delta', 'soft_edge', 'motion')
+POSITIVE = 'a number > 0'
+
+
+class ScenarioError(ValueError):
+    """A scenario file that cannot be used; the message names file, field and expectation."""
+
+
+class Goal(NamedTuple):
+    """A goal point (m, map frame) and the distance within which it counts as reached."""
+
+    name: str
+    x: float
+    y: float
+    radius: float
+
+    @property
+    def point(self) -> tuple[float, float]:
+        return (self.x, self.y)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Scenario:
+    """One validated scenario; lengths in metres, angles in radians."""
+
+    name: str
+    path: Path
+    map_path: Path
+    map: OccupancyMap
+    start: tuple[float, float, float]  # x, y, yaw
+    goals: dict[str, Goal]  # easy / medium / hard, in that order
+    default_goal: str
+    lights: tuple[Searchlight, ...]
+    robot_radius: float
+    step_distance: float
+    state_cell: float
+    goal_radius: float
+    detection_threshold: float
+    detection_mode: str
+    step_limit: int
+    rewards: RewardWeights
+
+    @property
+    def goal(self) -> Goal:
+        """The goal pursued unless another is asked for."""
+        return self.goals[self.default_goal]
+
+
+# --- finding scenarios --------------------------------------------------------------------------
+
+
+def scenario_search_path() -> list[Path]:
+    """Where bare scenario names are looked up: $STEALTH_NAV_SCENARIOS (a ':'-separated list),
+    then the repository's scenarios/ directory."""
+    extra = [Path(p) for p in os.environ.get(SCENARIOS_ENV, '').split(os.pathsep) if p]
+    repository = Path(__file__).resolve().parents[4] / 'scenarios'
+    return [*extra, repository]
+
+
+def scenario_paths() -> list[Path]:
+    """Every scenario file on the search path, one per name (earlier directories win)."""
+    found: dict[str, Path] = {}
+    for directory in scenario_search_path():
+        for path in sorted(directory.glob('*.yaml')):
+            found.setdefault(path.stem, path)
+    return sorted(found.values(), key=lambda p: p.stem)
+
+
+def find_scenario(name_or_path: str | os.PathLike) -> Path:
+    """A scenario file from a path, or from a bare name such as ``lgfloor``."""
+    candidate = Path(name_or_path)
+    if candidate.suffix in ('.yaml', '.yml') or candidate.exists() or len(candidate.parts) > 1:
+        return candidate
+    for directory in scenario_search_path():
+        path = directory / f'{candidate}.yaml'
+        if path.is_file():
+            return path
+    names = ', '.join(p.stem for p in scenario_paths()) or 'none'
+    raise ScenarioError(f'scenario {str(name_or_path)!r}: not found (known scenarios: {names})')
+
+
+# --- loading ------------------------------------------------------------------------------------
+
+
+def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
+    """Load and validate a scenario by name or path; ScenarioError on any problem."""
+    path = find_scenario(name_or_path)
+    fields = FieldReader(path, read_yaml_mapping(path, ScenarioError, 'scenario'), ScenarioError)
+    fields.reject_unknown(FIELDS)
+    name = fields.string('name', 'a non-empty string', default=path.stem)
+    map_path, occupancy = _load_map(fields, path)
+    numbers = _task_numbers(fields)
+    start_fields = fields.mapping('start', 'a mapping {x, y, yaw} (m, m, degrees)')
+    start_fields.reject_unknown(('x', 'y', 'yaw'))
+    start = (
+        *_point_in_free_space(start_fields, occupancy),
+        math.radians(start_fields.number('yaw', 'an angle in degrees', default=0.0)),
+    )
+    lattice = MoveLattice(occupancy, start[:2], numbers['step_distance'], numbers['robot_radius'])
+    if not lattice.is_valid((0, 0)):
+        fields.fail(
+            'start',
+            f'a pose with robot_radius {numbers["robot_radius"]:g} m of clearance from walls, '
+            'unknown space and the map edge',
+            list(start[:2]),
+        )
+    goals = _goals(fields, occupancy, lattice, numbers)
+    default_goal = fields.string('default_goal', f'one of {", ".join(goals)}', list(goals)[-1])
+    if default_goal not in goals:
+        fields.fail('default_goal', f'one of the goals given ({", ".join(goals)})', default_goal)
+    lights = _lights(fields, occupancy)
+    rewards = _rewards(fields, occupancy, numbers, len(lights))
+    return Scenario(
+        name=name,
+        path=path,
+        map_path=map_path,
+        map=occupancy,
+        start=start,
+        goals=goals,
+        default_goal=default_goal,
+        lights=lights,
+        rewards=rewards,
+        **numbers,
+    )
+
+
+def _load_map(fields: FieldReader, path: Path) -> tuple[Path, OccupancyMap]:
+    relative = fields.string('map', 'the path of a nav2 map YAML, relative to this file')
+    map_path = path.parent / Path(relative).expanduser()
+    try:
+        return map_path, load_map(map_path)
+    except MapError as error:
+        raise ScenarioError(f'{fields.where("map")}: {error}') from None
+
+
+def _task_numbers(fields: FieldReader) -> dict[str, Any]:
+    step = fields.number('step_distance', f'{POSITIVE} (m)', lambda v: v > 0)
+    mode = fields.string('detection_mode', f'one of {", ".join(DETECTION_MODES)}', 'threshold')
+    if mode not in DETECTION_MODES:
+        fields.fail('detection_mode', f'one of {", ".join(DETECTION_MODES)}', mode)
+    return {
+        'robot_radius': fields.number('robot_radius', 'a number >= 0 (m)', lambda v: v >= 0, 0.2),
+        'step_distance': step,
+        'state_cell': fields.number('state_cell', f'{POSITIVE} (m)', lambda v: v > 0, step),
+        'goal_radius': fields.number('goal_radius', f'{POSITIVE} (m)', lambda v: v > 0),
+        'detection_threshold': fields.number('detection_threshold', POSITIVE, lambda v: v > 0),
+        'detection_mode': mode,
+        'step_limit': fields.integer('step_limit', 'an integer >= 1', lambda v: v >= 1),
+    }
+
+
+def _inside(fields, occupancy: OccupancyMap, x, y, what: str, keys=('x', 'y')) -> None:
+    """Fail, naming the x or the y field (whichever is off), unless (x, y) lies on the map."""
+    if occupancy.contains_point(x, y):
+        return
+    x_min, y_min, x_max, y_max = occupancy.bounds
+    axis, key, value, low, high = ('x', keys[0], x, x_min, x_max)
+    if x_min <= x < x_max:
+        axis, key, value, low, high = ('y', keys[1], y, y_min, y_max)
+    fields.fail(key, f'{what} inside the map, {axis} in [{low:g}, {high:g})', value)
+
+
+def _point_in_free_space(fields: FieldReader, occupancy: OccupancyMap) -> tuple[float, float]:
+    x = fields.number('x', 'a number (m)')
+    y = fields.number('y', 'a number (m)')
+    _inside(fields, occupancy, x, y, 'a point')
+    col, row = occupancy.world_to_cell(x, y)
+    if occupancy.blocked[row, col]:
+        kind = 'unknown' if occupancy.unknown[row, col] else 'occupied'
+        where = fields.prefix.rstrip('.')
+        raise fields.error(
+            f"{fields.source}: field '{where}': expected a point in a free cell of the map, "
+            f'got ({x:g}, {y:g}) in an {kind} cell'
+        )
+    return x, y
+
+
+def _goals(fields, occupancy, lattice: MoveLattice, numbers) -> dict[str, Goal]:
+    expected = f'a mapping of goals by difficulty ({", ".join(DIFFICULTIES)})'
+    goal_fields = fields.mapping('goals', expected)
+    goal_fields.reject_unknown(DIFFICULTIES)
+    if not goal_fields.values:
+        fields.fail('goals', expected, {})
+    goals = {}
+    for difficulty in (d for d in DIFFICULTIES if goal_fields.has(d)):
+        one = goal_fields.mapping(difficulty, 'a mapping {x, y} (m), optionally radius (m)')
+        one.reject_unknown(('x', 'y', 'radius'))
+        x, y = _point_in_free_space(one, occupancy)
+        radius = one.number('radius', f'{POSITIVE} (m)', lambda v: v > 0, numbers['goal_radius'])
+        targets = set(lattice.nodes_within(x, y, radius))
+        if lattice.bfs((0, 0), goal=targets.__contains__) is None:
+            where = f"{fields.source}: field 'goals.{difficulty}'"
+            raise ScenarioError(
+                f'{where}: expected a goal reachable from the start by moves of '
+                f'{numbers["step_distance"]:g} m up, down, left and right with robot_radius '
+                f'{numbers["robot_radius"]:g} m, got ({x:g}, {y:g}): no lattice node within '
+                f'{radius:g} m of it can be reached'
+            )
+        goals[difficulty] = Goal(difficulty, x, y, radius)
+    return goals
+
+
+def _lights(fields: FieldReader, occupancy: OccupancyMap) -> tuple[Searchlight, ...]:
+    entries = fields.raw('lights', 'a list of searchlights')
+    if not isinstance(entries, list):
+        fields.fail('lights', 'a list of searchlights', entries)
+    lights, names = [], set()
+    for index, entry in enumerate(entries):
+        prefix = f'lights[{index}]'
+        if not isinstance(entry, dict):
+            fields.fail(prefix, 'a mapping of searchlight fields', entry)
+        light = FieldReader(fields.source, entry, ScenarioError, f'{prefix}.')
+        light.reject_unknown(LIGHT_FIELDS)
+        name = light.string('name', 'a non-empty string', default=f'L{index + 1}')
+        if name in names:
+            light.fail('name', 'a name no other light has', name)
+        names.add(name)
+        x = light.number('x', 'a number (m)')
+        y = light.number('y', 'a number (m)')
+        _inside(light, occupancy, x, y, 'a light position')
+        direction = light.number('direction', 'an angle in degrees')
+        try:
+            lights.append(
+                Searchlight(
+                    name=name,
+                    x=x,
+                    y=y,
+                    direction=math.radians(direction),
+                    fov=math.radians(
+                        light.number('fov', 'a full angle in (0, 360] degrees', _in_fov_range)
+                    ),
+                    range=light.number('range', f'{POSITIVE} (m)', lambda v: v > 0),
+                    delta=light.number('delta', 'a number in (0, 1)', lambda v: 0 < v < 1, 0.1),
+                    soft_edge=light.number(
+                        'soft_edge', 'a number in [0, 1]', lambda v: 0 <= v <= 1, 0.0
+                    ),
+                    motion=_motion(light, occupancy, direction),
+                )
+            )
+        except LightError as error:
+            raise ScenarioError(f'{fields.where(prefix)}: {error}') from None
+    return tuple(lights)
+
+
+def _in_fov_range(degrees: float) -> bool:
+    return 0 < degrees <= 360
+
+
+def _motion(light: FieldReader, occupancy, direction: float) -> SweepMotion | PatrolMotion | None:
+    if not light.has('motion'):
+        return None
+    expected = 'a mapping with type: sweep or type: patrol'
+    motion = light.mapping('motion', expected)
+    kind = motion.string('type', 'sweep or patrol')
+    if kind == 'sweep':
+        motion.reject_unknown(('type', 'min_direction', 'max_direction', 'angular_speed'))
+        low = motion.number('min_direction', 'an angle in degrees')
+        high = motion.number(
+            'max_direction',
+            f'an angle in degrees in [min_direction, min_direction + 360] = '
+            f'[{low:g}, {low + 360:g}]',
+            lambda v: low <= v <= low + 360,
+        )
+        speed = motion.number('angular_speed', 'a number >= 0 (degrees/s)', lambda v: v >= 0)
+        if (direction - low) % 360 > high - low + 1e-9 and (low - direction) % 360 > 1e-9:
+            light.fail('direction', f'an angle inside the sweep [{low:g}, {high:g}]', direction)
+        return SweepMotion(math.radians(low), math.radians(high), math.radians(speed))
+    if kind == 'patrol':
+        motion.reject_unknown(('type', 'waypoints', 'speed'))
+        entries = motion.raw('waypoints', 'a list of [x, y] points (m)')
+        if not isinstance(entries, list) or not entries:
+            motion.fail('waypoints', 'a non-empty list of [x, y] points (m)', entries)
+        waypoints = []
+        for index, entry in enumerate(entries):
+            key = f'waypoints[{index}]'
+            point = FieldReader(motion.source, {key: entry}, ScenarioError, motion.prefix)
+            x, y = point.numbers(key, 2, 'an [x, y] point (m)')
+            _inside(point, occupancy, x, y, 'a waypoint', keys=(key, key))
+            waypoints.append((x, y))
+        speed = motion.number('speed', 'a number >= 0 (m/s)', lambda v: v >= 0)
+        return PatrolMotion(tuple(waypoints), speed)
+    motion.fail('type', 'sweep or patrol', kind)
+
+
+def _rewards(fields: FieldReader, occupancy, numbers, n_lights: int) -> RewardWeights:
+    """The weights, checked to make getting caught never pay (reward.check_well_posed)."""
+    known = tuple(f.name for f in dataclasses.fields(RewardWeights))
+    rewards = fields.mapping('rewards', 'a mapping of reward weights', default={})
+    rewards.reject_unknown(known)
+    given = {key: rewards.number(key, 'a number >= 0', lambda v: v >= 0) for key in rewards.values}
+    x_min, y_min, x_max, y_max = occupancy.bounds
+    try:
+        weights = RewardWeights(**given)
+        check_well_posed(
+            weights,
+            max_distance=math.hypot(x_max - x_min, y_max - y_min),
+            max_visibility=undetected_visibility_bound(
+                numbers['detection_mode'], numbers['detection_threshold'], n_lights
+            ),
+            max_steps=numbers['step_limit'],
+        )
+    except RewardError as error:
+        raise ScenarioError(f'{fields.where("rewards")}: {error}') from None
+    return weights

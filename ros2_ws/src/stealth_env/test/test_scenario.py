@@ -1,0 +1,477 @@
+"""Scenario files: the shipped four, the format, and one clear error per kind of bad input."""
+
+import copy
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from stealth_env.reward import RewardWeights
+from stealth_env.scenario import (
+    Goal,
+    ScenarioError,
+    find_scenario,
+    load_scenario,
+    scenario_paths,
+)
+from stealth_env.searchlight import PatrolMotion, SweepMotion
+from stealth_env.visibility import visibility_field
+from stealth_sim.occupancy_map import OccupancyMap, save_map
+import yaml
+
+REPO = Path(__file__).resolve().parents[4]
+SHIPPED = ['floorplan', 'lgfloor', 'map1', 'simple-maze']
+
+
+# --- the shipped scenarios ----------------------------------------------------------------------
+
+
+def test_the_four_scenarios_are_found_by_name():
+    assert [path.stem for path in scenario_paths()] == SHIPPED
+    assert find_scenario('lgfloor') == REPO / 'scenarios' / 'lgfloor.yaml'
+
+
+@pytest.mark.parametrize('name', SHIPPED)
+def test_shipped_scenario_loads_and_validates(name):
+    scenario = load_scenario(name)
+    assert scenario.name == name
+    assert scenario.map_path.resolve() == REPO / 'maps' / f'{name}.yaml'
+    assert list(scenario.goals) == ['easy', 'medium', 'hard']
+    assert scenario.default_goal == 'hard' and scenario.goal is scenario.goals['hard']
+    assert scenario.step_distance == 0.5 and scenario.state_cell == 0.5
+    assert scenario.goal_radius == 0.5 and scenario.robot_radius == 0.2
+    assert scenario.detection_threshold == 0.3 and scenario.detection_mode == 'threshold'
+    assert 100 <= scenario.step_limit <= 1000
+    assert scenario.lights
+
+
+def lit_by(scenario) -> np.ndarray:
+    """Per light, the cells it lights (occlusion included), (n_lights, height, width)."""
+    occupancy = scenario.map
+    _, per_light = visibility_field(
+        occupancy.blocked, occupancy.resolution, occupancy.origin, scenario.lights
+    )
+    return per_light > 0
+
+
+def test_lgfloor_has_four_lights_two_of_them_overlapping():
+    scenario = load_scenario('lgfloor')
+    assert len(scenario.lights) == 4
+    overlap = lit_by(scenario).sum(axis=0) >= 2
+    assert overlap.any()
+
+
+def test_map1_has_three_lights_one_close_to_the_goal():
+    scenario = load_scenario('map1')
+    assert len(scenario.lights) == 3
+    goal = scenario.goals['hard']
+    assert min(math.dist((light.x, light.y), goal.point) for light in scenario.lights) < 3.0
+
+
+def test_floorplan_lights_stand_in_different_rooms_on_the_way():
+    scenario = load_scenario('floorplan')
+    assert len(scenario.lights) >= 2
+    xs = sorted(light.x for light in scenario.lights)
+    start_x, goal_x = scenario.start[0], scenario.goals['hard'].x
+    assert all(start_x < x < goal_x for x in xs)
+    for light in scenario.lights:  # inside a room, not in the corridor y in [11, 14]
+        assert not 11.0 <= light.y <= 14.0
+
+
+def test_simple_maze_lights_have_very_wide_ranges():
+    scenario = load_scenario('simple-maze')
+    diagonal = math.hypot(scenario.map.width, scenario.map.height) * scenario.map.resolution
+    assert all(light.range >= 0.9 * diagonal for light in scenario.lights)
+
+
+# --- the format, on a small map of our own ------------------------------------------------------
+
+
+def small_map() -> OccupancyMap:
+    """10 x 8 m at 0.1 m: a wall x in [4, 5], y < 5; unknown x > 8, y > 6; a sealed room."""
+    data = np.zeros((80, 100), np.int8)
+    data[0:50, 40:50] = 100
+    data[60:80, 80:100] = -1
+    data[5:36, 65:96] = 100
+    data[7:34, 67:94] = 0  # the sealed room's inside, x in [6.7, 9.4], y in [0.7, 3.4]
+    return OccupancyMap(data, 0.1, (0.0, 0.0, 0.0))
+
+
+BASE = {
+    'name': 'small',
+    'map': '../maps/small.yaml',
+    'start': {'x': 1.0, 'y': 1.0, 'yaw': 90},
+    'goals': {
+        'easy': {'x': 2.0, 'y': 6.0},
+        'medium': {'x': 6.0, 'y': 6.0},
+        'hard': {'x': 6.0, 'y': 1.0},
+    },
+    'robot_radius': 0.2,
+    'step_distance': 0.5,
+    'goal_radius': 0.5,
+    'detection_threshold': 0.3,
+    'step_limit': 200,
+    'lights': [
+        {'name': 'a', 'x': 3.0, 'y': 3.0, 'direction': 90, 'fov': 60, 'range': 4.0},
+        {'x': 6.0, 'y': 7.0, 'direction': 180, 'fov': 360, 'range': 2.0, 'delta': 0.2},
+    ],
+    'rewards': {},
+}
+
+
+@pytest.fixture
+def write(tmp_path):
+    """Write the scenario BASE changed by ``change`` and return its path."""
+    (tmp_path / 'maps').mkdir()
+    (tmp_path / 'scenarios').mkdir()
+    save_map(small_map(), tmp_path / 'maps' / 'small')
+
+    def writer(change=lambda values: None, text: str | None = None) -> Path:
+        values = copy.deepcopy(BASE)
+        change(values)
+        path = tmp_path / 'scenarios' / 'small.yaml'
+        path.write_text(yaml.safe_dump(values, sort_keys=False) if text is None else text)
+        return path
+
+    return writer
+
+
+def test_a_valid_scenario(write):
+    scenario = load_scenario(write())
+    assert scenario.start == (1.0, 1.0, math.pi / 2)
+    assert scenario.goals['medium'] == Goal('medium', 6.0, 6.0, 0.5)
+    assert scenario.default_goal == 'hard'
+    first, second = scenario.lights
+    assert first.direction == pytest.approx(math.pi / 2) and first.fov == pytest.approx(
+        math.pi / 3
+    )
+    assert first.delta == 0.1 and first.soft_edge == 0.0 and first.motion is None
+    assert second.name == 'L2' and second.fov == pytest.approx(2 * math.pi)
+    assert scenario.state_cell == 0.5 and scenario.detection_mode == 'threshold'
+    assert scenario.rewards == RewardWeights()
+
+
+def test_optional_fields(write):
+    def change(values):
+        values['goals'] = {'easy': {'x': 2.0, 'y': 6.0, 'radius': 0.8}}
+        values['robot_radius'] = 0.1
+        values['state_cell'] = 0.25
+        values['detection_mode'] = 'probabilistic'
+        values['rewards'] = {'goal_reward': 500, 'detection_penalty': 5000}
+        values['lights'][0]['soft_edge'] = 0.25
+        values['lights'][0]['motion'] = {
+            'type': 'sweep',
+            'min_direction': 60,
+            'max_direction': 120,
+            'angular_speed': 30,
+        }
+        values['lights'][1]['motion'] = {
+            'type': 'patrol',
+            'waypoints': [[6, 5], [2, 7]],
+            'speed': 1,
+        }
+
+    scenario = load_scenario(write(change))
+    assert list(scenario.goals) == ['easy'] and scenario.goal.radius == 0.8
+    assert (scenario.robot_radius, scenario.state_cell) == (0.1, 0.25)
+    assert scenario.rewards.goal_reward == 500 and scenario.rewards.time_cost == 0.0
+    sweep, patrol = scenario.lights[0].motion, scenario.lights[1].motion
+    assert sweep == SweepMotion(math.radians(60), math.radians(120), math.radians(30))
+    assert patrol == PatrolMotion(((6.0, 5.0), (2.0, 7.0)), 1.0)
+    assert scenario.lights[0].soft_edge == 0.25
+
+
+def test_find_scenario_on_the_search_path(write, monkeypatch):
+    path = write()
+    monkeypatch.setenv('STEALTH_NAV_SCENARIOS', str(path.parent))
+    assert find_scenario('small') == path
+    assert load_scenario('small').name == 'small'
+
+
+# --- bad input ----------------------------------------------------------------------------------
+
+
+def assert_scenario_error(path: Path, *parts: str) -> None:
+    with pytest.raises(ScenarioError) as raised:
+        load_scenario(path)
+    message = str(raised.value)
+    assert message.startswith(str(path)), message
+    for part in parts:
+        assert part in message, message
+    assert '\n' not in message
+
+
+def setter(key_path: str, value):
+    """A change to BASE setting the field at a dotted path (numbers index lists)."""
+
+    def change(values):
+        *parents, last = key_path.split('.')
+        node = values
+        for key in parents:
+            node = node[int(key)] if key.isdigit() else node[key]
+        if value is DELETE:
+            del node[int(last) if last.isdigit() else last]
+        else:
+            node[int(last) if last.isdigit() else last] = value
+
+    return change
+
+
+DELETE = object()
+
+
+def test_unknown_scenario_name():
+    with pytest.raises(ScenarioError, match="scenario 'nowhere': not found .*lgfloor"):
+        find_scenario('nowhere')
+
+
+def test_missing_scenario_file(tmp_path):
+    assert_scenario_error(tmp_path / 'absent.yaml', 'cannot read scenario', 'No such file')
+
+
+def test_unreadable_scenario_file(tmp_path):
+    (tmp_path / 'folder.yaml').mkdir()
+    assert_scenario_error(tmp_path / 'folder.yaml', 'cannot read scenario')
+
+
+def test_yaml_syntax_error(write):
+    assert_scenario_error(write(text='name: x\nstart: {x: 1, y: 2\n'), 'YAML syntax error at line')
+
+
+def test_scenario_that_is_not_a_mapping(write):
+    assert_scenario_error(write(text='[1, 2]\n'), 'expected a YAML mapping of scenario fields')
+
+
+@pytest.mark.parametrize(
+    'field',
+    [
+        'map',
+        'start',
+        'goals',
+        'step_distance',
+        'goal_radius',
+        'detection_threshold',
+        'step_limit',
+        'lights',
+    ],
+)
+def test_missing_field(write, field):
+    assert_scenario_error(write(setter(field, DELETE)), f"field '{field}'", 'missing')
+
+
+@pytest.mark.parametrize(
+    ('field', 'value'),
+    [
+        ('step_distance', 'far'),
+        ('step_limit', 2.5),
+        ('step_limit', True),
+        ('robot_radius', True),
+        ('start', 'home'),
+        ('start.yaw', 'north'),
+        ('goals', ['easy']),
+        ('goals.easy.x', None),
+        ('lights', {'a': 1}),
+        ('lights.0', 'lamp'),
+        ('lights.0.direction', 'up'),
+        ('name', 7),
+        ('map', 3),
+        ('detection_mode', 'sometimes'),
+        ('rewards', [1, 2]),
+        ('rewards.goal_reward', 'lots'),
+        ('default_goal', 'impossible'),
+    ],
+)
+def test_wrongly_typed_field(write, field, value):
+    name = field.replace('.0', '[0]').replace('s[0].', 's[0].')
+    assert_scenario_error(write(setter(field, value)), f"field '{name}'", 'expected')
+
+
+@pytest.mark.parametrize(
+    'field', ['stepdistance', 'start.z', 'goals.extreme', 'goals.easy.yaw', 'lights.0.colour']
+)
+def test_unknown_field(write, field):
+    name = field.replace('.0.', '[0].')
+    assert_scenario_error(write(setter(field, 1)), f"field '{name}'", 'unknown field')
+
+
+@pytest.mark.parametrize(
+    ('field', 'value'), [('step_distance', 0), ('goal_radius', -1), ('detection_threshold', 0)]
+)
+def test_numbers_out_of_range(write, field, value):
+    assert_scenario_error(write(setter(field, value)), f"field '{field}'", 'expected a number > 0')
+
+
+def test_missing_map_file(write):
+    assert_scenario_error(
+        write(setter('map', '../maps/absent.yaml')), "field 'map'", 'cannot read map YAML'
+    )
+
+
+def test_bad_map(write, tmp_path):
+    path = write()
+    map_yaml = tmp_path / 'maps' / 'small.yaml'
+    map_yaml.write_text(map_yaml.read_text().replace('resolution: 0.100', 'resolution: -1'))
+    assert_scenario_error(path, "field 'map'", "field 'resolution'", 'expected a number > 0')
+
+
+@pytest.mark.parametrize(
+    ('field', 'value', 'named'),
+    [('start.x', -1.0, 'start.x'), ('start.y', 8.0, 'start.y'), ('start.x', 10.0, 'start.x')],
+)
+def test_start_outside_the_map(write, field, value, named):
+    assert_scenario_error(write(setter(field, value)), f"field '{named}'", 'inside the map')
+
+
+def test_start_in_an_occupied_cell(write):
+    assert_scenario_error(
+        write(setter('start.x', 4.5)), "field 'start'", 'free cell', 'occupied cell'
+    )
+
+
+def test_start_in_an_unknown_cell(write):
+    def change(values):
+        values['start'] = {'x': 9.0, 'y': 7.0}
+
+    assert_scenario_error(write(change), "field 'start'", 'free cell', 'unknown cell')
+
+
+def test_start_without_clearance(write):
+    assert_scenario_error(
+        write(setter('start.x', 3.85)), "field 'start'", 'robot_radius 0.2 m of clearance'
+    )
+
+
+def test_goal_outside_the_map(write):
+    assert_scenario_error(
+        write(setter('goals.hard.x', 12.0)), "field 'goals.hard.x'", 'inside the map'
+    )
+
+
+def test_goal_in_an_occupied_cell(write):
+    assert_scenario_error(write(setter('goals.hard.x', 4.2)), "field 'goals.hard'", 'occupied')
+
+
+def test_goal_in_an_unknown_cell(write):
+    def change(values):
+        values['goals']['medium'] = {'x': 9.5, 'y': 7.5}
+
+    assert_scenario_error(write(change), "field 'goals.medium'", 'unknown cell')
+
+
+def test_unreachable_goal(write):
+    def change(values):
+        values['goals']['hard'] = {'x': 8.0, 'y': 2.0}  # inside the sealed room
+
+    assert_scenario_error(write(change), "field 'goals.hard'", 'reachable from the start')
+
+
+@pytest.mark.parametrize(
+    ('field', 'value', 'named'),
+    [
+        ('lights.1.x', 10.5, 'lights[1].x'),
+        ('lights.0.y', -0.5, 'lights[0].y'),
+        ('lights.1.y', 8.0, 'lights[1].y'),
+    ],
+)
+def test_light_outside_the_map(write, field, value, named):
+    assert_scenario_error(
+        write(setter(field, value)), f"field '{named}'", 'a light position inside the map'
+    )
+
+
+@pytest.mark.parametrize('value', [0, -2.0])
+def test_light_range_not_positive(write, value):
+    assert_scenario_error(
+        write(setter('lights.0.range', value)), "field 'lights[0].range'", 'a number > 0 (m)'
+    )
+
+
+@pytest.mark.parametrize('value', [0, -10, 360.5, 400])
+def test_light_field_of_view_outside_0_360(write, value):
+    assert_scenario_error(
+        write(setter('lights.1.fov', value)), "field 'lights[1].fov'", 'in (0, 360] degrees'
+    )
+
+
+@pytest.mark.parametrize('value', [0, 1, 1.5, -0.1])
+def test_light_delta_outside_0_1(write, value):
+    assert_scenario_error(
+        write(setter('lights.0.delta', value)), "field 'lights[0].delta'", 'a number in (0, 1)'
+    )
+
+
+def test_light_soft_edge_outside_0_1(write):
+    assert_scenario_error(
+        write(setter('lights.0.soft_edge', 2)), "'lights[0].soft_edge'", '[0, 1]'
+    )
+
+
+def test_duplicate_light_names(write):
+    assert_scenario_error(
+        write(setter('lights.1.name', 'a')), "field 'lights[1].name'", 'a name no other light has'
+    )
+
+
+def test_unknown_motion_type(write):
+    assert_scenario_error(
+        write(setter('lights.0.motion', {'type': 'dance'})),
+        "field 'lights[0].motion.type'",
+        'sweep or patrol',
+    )
+
+
+def test_sweep_ends_out_of_order(write):
+    motion = {'type': 'sweep', 'min_direction': 90, 'max_direction': 30, 'angular_speed': 5}
+    assert_scenario_error(
+        write(setter('lights.0.motion', motion)), "'lights[0].motion.max_direction'", '[90, 450]'
+    )
+
+
+def test_sweep_that_does_not_hold_the_direction(write):
+    motion = {'type': 'sweep', 'min_direction': 120, 'max_direction': 150, 'angular_speed': 5}
+    assert_scenario_error(
+        write(setter('lights.0.motion', motion)),
+        "field 'lights[0].direction'",
+        'an angle inside the sweep [120, 150], got 90',
+    )
+
+
+def test_sweep_direction_is_taken_modulo_360(write):
+    motion = {'type': 'sweep', 'min_direction': 420, 'max_direction': 460, 'angular_speed': 5}
+    assert load_scenario(write(setter('lights.0.motion', motion))).lights[0].motion is not None
+
+
+def test_patrol_waypoint_outside_the_map(write):
+    motion = {'type': 'patrol', 'waypoints': [[1, 1], [1, 9]], 'speed': 0.5}
+    assert_scenario_error(
+        write(setter('lights.1.motion', motion)),
+        "field 'lights[1].motion.waypoints[1]'",
+        'a waypoint inside the map',
+    )
+
+
+def test_patrol_waypoint_not_a_point(write):
+    motion = {'type': 'patrol', 'waypoints': [[1, 1, 1]], 'speed': 0.5}
+    assert_scenario_error(
+        write(setter('lights.1.motion', motion)), "'lights[1].motion.waypoints[0]'", '[x, y]'
+    )
+
+
+def test_unknown_reward_weight(write):
+    assert_scenario_error(
+        write(setter('rewards', {'bonus': 1})), "field 'rewards.bonus'", 'goal_reward'
+    )
+
+
+def test_negative_reward_weight(write):
+    assert_scenario_error(
+        write(setter('rewards', {'time_cost': -1})), "field 'rewards.time_cost'", '>= 0'
+    )
+
+
+def test_ill_posed_rewards(write):
+    def change(values):
+        values['rewards'] = {'detection_penalty': 10.0}
+        values['step_limit'] = 1000
+
+    assert_scenario_error(write(change), "field 'rewards'", 'ill-posed')
