@@ -18,6 +18,8 @@ setup(
     description='Searchlights, occlusion, rewards and scenarios of stealth-nav.',
     license='Apache-2.0',
     entry_points={
-        'console_scripts': [],
+        'console_scripts': [
+            'render = stealth_env.render:main',
+        ],
     },
 )

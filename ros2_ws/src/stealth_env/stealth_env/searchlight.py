@@ -22,6 +22,7 @@ Time may be any finite number of seconds; both motions are periodic, so negative
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 import math
 import numbers
@@ -37,23 +38,24 @@ def _fail(name: str, field_name: str, expected: str, got: object) -> None:
     )
 
 
-def _number(name: str, field_name: str, value: object, expected: str = 'a finite number') -> float:
-    """Return value as a float, refusing bools, strings, NaN and infinities."""
+def _number(
+    name: str,
+    field_name: str,
+    value: object,
+    expected: str = 'a finite number',
+    valid: Callable[[float], bool] = lambda _: True,
+) -> float:
+    """Return value as a float, refusing bools, strings, NaN, infinities and invalid values."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         _fail(name, field_name, expected, value)
     number = float(value)
-    if not math.isfinite(number):
+    if not math.isfinite(number) or not valid(number):
         _fail(name, field_name, expected, value)
     return number
 
 
-def _check_range(name, field_name, value, low, high, low_open, high_open, expected):
-    number = _number(name, field_name, value, expected)
-    too_low = number <= low if low_open else number < low
-    too_high = number >= high if high_open else number > high
-    if too_low or too_high:
-        _fail(name, field_name, expected, value)
-    return number
+def _non_negative(value: float) -> bool:
+    return value >= 0.0
 
 
 @dataclass(frozen=True)
@@ -75,15 +77,12 @@ class SweepMotion:
                 ' (rad)',
                 self.max_direction,
             )
-        speed = _check_range(
+        speed = _number(
             light_name,
             'motion.angular_speed',
             self.angular_speed,
-            0.0,
-            math.inf,
-            False,
-            True,
             'a finite number >= 0 (rad/s)',
+            _non_negative,
         )
         return SweepMotion(low, high, speed)
 
@@ -140,15 +139,8 @@ class PatrolMotion:
                     _number(light_name, f'motion.waypoints[{index}].y', py),
                 )
             )
-        speed = _check_range(
-            light_name,
-            'motion.speed',
-            self.speed,
-            0.0,
-            math.inf,
-            False,
-            True,
-            'a finite number >= 0 (m/s)',
+        speed = _number(
+            light_name, 'motion.speed', self.speed, 'a finite number >= 0 (m/s)', _non_negative
         )
         return PatrolMotion(tuple(checked), speed)
 
@@ -194,17 +186,19 @@ class Searchlight:
             'x': _number(name, 'x', self.x),
             'y': _number(name, 'y', self.y),
             'direction': _number(name, 'direction', self.direction),
-            'fov': _check_range(
-                name, 'fov', self.fov, 0.0, 2 * math.pi, True, False, 'a number in (0, 2*pi] (rad)'
+            'fov': _number(
+                name,
+                'fov',
+                self.fov,
+                'a number in (0, 2*pi] (rad)',
+                lambda v: 0 < v <= 2 * math.pi,
             ),
-            'range': _check_range(
-                name, 'range', self.range, 0.0, math.inf, True, True, 'a finite number > 0 (m)'
+            'range': _number(
+                name, 'range', self.range, 'a finite number > 0 (m)', lambda v: v > 0
             ),
-            'delta': _check_range(
-                name, 'delta', self.delta, 0.0, 1.0, True, True, 'a number in (0, 1)'
-            ),
-            'soft_edge': _check_range(
-                name, 'soft_edge', self.soft_edge, 0.0, 1.0, False, False, 'a number in [0, 1]'
+            'delta': _number(name, 'delta', self.delta, 'a number in (0, 1)', lambda v: 0 < v < 1),
+            'soft_edge': _number(
+                name, 'soft_edge', self.soft_edge, 'a number in [0, 1]', lambda v: 0 <= v <= 1
             ),
         }
         if self.motion is not None:

@@ -1,0 +1,93 @@
+"""Benchmark: the vectorised visibility field against the per-point reference.
+
+A 600 x 600 cell map (0.05 m cells, 30 m x 30 m: rooms, doors, clutter, unknown patches) with
+four lights of up to 9 m range. The reference over all 360,000 cells would take minutes, so it
+is timed on a random sample of cells and extrapolated per cell; the output says so.
+Run: PYTHONPATH=ros2_ws/src/stealth_sim:ros2_ws/src/stealth_env python bench/bench_visibility.py
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from stealth_env.lighting import GridFrame, point_visibility
+from stealth_env.searchlight import Searchlight
+from stealth_env.visibility import visibility_field
+
+SIZE = 600
+RESOLUTION = 0.05
+ORIGIN = (0.0, 0.0, 0.0)
+SAMPLE_CELLS = 2000
+REPEATS = 3
+
+
+def bench_map(seed: int = 0) -> np.ndarray:
+    """Blocked mask of a floor plan: outer wall, a 3 x 3 grid of rooms with doors, clutter."""
+    rng = np.random.default_rng(seed)
+    blocked = np.zeros((SIZE, SIZE), dtype=bool)
+    blocked[:4, :] = blocked[-4:, :] = blocked[:, :4] = blocked[:, -4:] = True
+    for wall in (200, 400):
+        blocked[wall - 2 : wall + 2, :] = True
+        blocked[:, wall - 2 : wall + 2] = True
+        for door in (100, 300, 500):
+            blocked[wall - 2 : wall + 2, door - 20 : door + 20] = False
+            blocked[door - 20 : door + 20, wall - 2 : wall + 2] = False
+    for _ in range(60):  # furniture and unknown patches
+        col, row = rng.integers(10, SIZE - 40, 2)
+        blocked[row : row + rng.integers(4, 30), col : col + rng.integers(4, 30)] = True
+    return blocked
+
+
+def bench_lights() -> list[Searchlight]:
+    return [
+        Searchlight('L1', 5.1, 5.1, math.radians(45), math.radians(90), 9.0),
+        Searchlight('L2', 24.9, 5.1, math.radians(135), math.radians(120), 9.0, soft_edge=0.3),
+        Searchlight('L3', 15.0, 25.0, math.radians(-90), math.radians(180), 8.0),
+        Searchlight('L4', 15.1, 15.1, 0.0, 2 * math.pi, 9.0),
+    ]
+
+
+def run(report=print) -> dict:
+    blocked, lights = bench_map(), bench_lights()
+    field_seconds = math.inf
+    for _ in range(REPEATS):
+        started = time.perf_counter()
+        total, _ = visibility_field(blocked, RESOLUTION, ORIGIN, lights)
+        field_seconds = min(field_seconds, time.perf_counter() - started)
+
+    frame = GridFrame.of(blocked, RESOLUTION, ORIGIN)
+    sample = np.random.default_rng(1).choice(blocked.size, SAMPLE_CELLS, replace=False)
+    rows, cols = np.unravel_index(sample, blocked.shape)
+    centres = [tuple(map(float, frame.cell_centre(c, r))) for c, r in zip(cols, rows, strict=True)]
+    started = time.perf_counter()
+    reference = [point_visibility(blocked, RESOLUTION, ORIGIN, lights, x, y) for x, y in centres]
+    sample_seconds = time.perf_counter() - started
+    if not np.array_equal(np.array(reference), total[rows, cols]):
+        raise AssertionError('visibility field differs from the reference on the sample')
+    reference_seconds = sample_seconds / SAMPLE_CELLS * blocked.size
+    ratio = reference_seconds / field_seconds
+
+    report(f'visibility field, {SIZE} x {SIZE} cells, {len(lights)} lights up to 9 m range:')
+    report(f'  vectorised field (best of {REPEATS}): {field_seconds:.3f} s')
+    report(
+        f'  per-point reference: {sample_seconds:.3f} s for a random sample of {SAMPLE_CELLS}'
+        f' cells, extrapolated to all {blocked.size} cells: {reference_seconds:.1f} s'
+    )
+    report(f'  speed-up: {ratio:.0f}x (goal >= 100x, field < 1 s)')
+    return {
+        'visibility_field_seconds': round(field_seconds, 4),
+        'visibility_reference_seconds_extrapolated': round(reference_seconds, 2),
+        'visibility_reference_sample_cells': SAMPLE_CELLS,
+        'visibility_speedup': round(ratio, 1),
+        'visibility_goals_met': bool(ratio >= 100 and field_seconds < 1.0),
+    }
+
+
+def main() -> None:
+    run()
+
+
+if __name__ == '__main__':
+    main()

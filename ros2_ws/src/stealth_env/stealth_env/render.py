@@ -1,0 +1,381 @@
+"""Pictures of a scenario: walls, unknown space, the visibility heatmap, cones, start, goals and
+optionally paths, to PNG (for the README and for every run).
+
+    render lgfloor -o lgfloor.png --path run.csv --time 2.5
+    render --all                     # docs/images/scenarios/<name>.png for every scenario
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Iterable, Sequence
+import csv
+import math
+import os
+from pathlib import Path
+import sys
+from typing import NamedTuple
+
+from matplotlib import patches
+from matplotlib.colors import ListedColormap
+from matplotlib.figure import Figure  # no pyplot: no global state, no display needed (Agg)
+from matplotlib.lines import Line2D
+from mpl_toolkits.axes_grid1 import make_axes_locatable
+import numpy as np
+
+from stealth_env.searchlight import PatrolMotion, Searchlight, SweepMotion
+from stealth_env.visibility import scenario_visibility
+
+DEFAULT_OUT_DIR = Path('docs/images/scenarios')
+HEATMAP = 'YlOrRd'
+WALL_COLOUR = (0.08, 0.08, 0.1, 1.0)
+UNKNOWN_COLOUR = (0.62, 0.62, 0.65, 1.0)
+DARK_COLOUR = '#f4f6fb'  # free cells no light reaches
+LIGHT_COLOUR = '#1f4e9e'
+START_COLOUR = '#1a9641'
+GOAL_COLOUR = '#7b3294'
+PATH_COLOURS = ('#0571b0', '#d01c8b', '#018571', '#000000', '#8c510a', '#762a83')
+
+
+class GoalMark(NamedTuple):
+    name: str
+    x: float
+    y: float
+    radius: float
+
+
+def goal_marks(scenario) -> list[GoalMark]:
+    """The scenario's goals as (name, x, y, acceptance radius)."""
+    goals = scenario.goals
+    items = goals.items() if hasattr(goals, 'items') else ((goal.name, goal) for goal in goals)
+    marks = []
+    for name, goal in items:
+        marks.append(GoalMark(str(name), float(goal.x), float(goal.y), float(goal.radius)))
+    return marks
+
+
+def read_path_csv(path: str | os.PathLike) -> np.ndarray:
+    """(n, 2) array of x, y (m) from a CSV of 'x,y' rows; a first row of names is skipped."""
+    points = []
+    with open(path, newline='', encoding='utf-8') as stream:
+        for number, row in enumerate(csv.reader(stream), start=1):
+            if not row or row[0].lstrip().startswith('#'):
+                continue
+            try:
+                x, y = float(row[0]), float(row[1])
+            except (ValueError, IndexError):
+                if number == 1 and not points:
+                    continue  # header
+                message = f'{path}: line {number}: expected "x,y" numbers, got {row}'
+                raise ValueError(message) from None
+            if not (math.isfinite(x) and math.isfinite(y)):
+                raise ValueError(f'{path}: line {number}: coordinates must be finite, got {row}')
+            points.append((x, y))
+    if not points:
+        raise ValueError(f'{path}: no "x,y" rows')
+    return np.array(points)
+
+
+def _draw_map(ax, occupancy, total: np.ndarray, threshold: float | None):
+    """Heatmap of total visibility on free cells, walls black, unknown grey; returns the image."""
+    x0, y0, x1, y1 = occupancy.bounds
+    extent = (x0, x1, y0, y1)
+    blocked = occupancy.blocked
+    vmax = max(float(total[~blocked].max(initial=0.0)), threshold or 0.0, 1e-9)
+    heat = np.ma.masked_where(blocked | (total <= 0.0), total)  # dark cells show the background
+    image = ax.imshow(
+        heat,
+        origin='lower',
+        extent=extent,
+        cmap=HEATMAP,
+        vmin=0.0,
+        vmax=vmax,
+        interpolation='nearest',
+    )
+    layers = np.zeros(blocked.shape, dtype=np.int8)
+    layers[occupancy.unknown] = 1
+    layers[occupancy.occupied] = 2
+    walls = np.ma.masked_where(layers == 0, layers)
+    ax.imshow(
+        walls,
+        origin='lower',
+        extent=extent,
+        interpolation='nearest',
+        vmin=0,
+        vmax=2,
+        cmap=ListedColormap([(0, 0, 0, 0), UNKNOWN_COLOUR, WALL_COLOUR]),
+    )
+    if threshold is not None and total.max() >= threshold:
+        xs = x0 + (np.arange(total.shape[1]) + 0.5) * occupancy.resolution
+        ys = y0 + (np.arange(total.shape[0]) + 0.5) * occupancy.resolution
+        ax.contour(
+            xs,
+            ys,
+            np.where(blocked, 0.0, total),
+            levels=[threshold],
+            colors='#b2182b',
+            linewidths=1.0,
+            linestyles='--',
+        )
+    ax.set_xlim(x0, x1)
+    ax.set_ylim(y0, y1)
+    return image
+
+
+def _draw_cone(ax, light: Searchlight, **style):
+    """Outline of the cone: two edges and the range arc (a circle for a full-circle light)."""
+    half = light.fov / 2
+    if light.fov >= 2 * math.pi - 1e-9:
+        ax.add_patch(patches.Circle((light.x, light.y), light.range, fill=False, **style))
+        return
+    start, end = math.degrees(light.direction - half), math.degrees(light.direction + half)
+    ax.add_patch(patches.Wedge((light.x, light.y), light.range, start, end, fill=False, **style))
+
+
+def _draw_light(ax, light: Searchlight, t: float):
+    now = light.at(t)
+    if isinstance(light.motion, SweepMotion):  # the whole sweep, faint
+        low, high = light.motion.min_direction, light.motion.max_direction
+        sweep = Searchlight(
+            light.name,
+            now.x,
+            now.y,
+            (low + high) / 2,
+            min(high - low + light.fov, 2 * math.pi),
+            light.range,
+        )
+        _draw_cone(ax, sweep, edgecolor=LIGHT_COLOUR, linewidth=0.8, linestyle=':', alpha=0.7)
+    if isinstance(light.motion, PatrolMotion):  # the closed route, faint
+        route = np.array([(light.x, light.y), *light.motion.waypoints, (light.x, light.y)])
+        ax.plot(route[:, 0], route[:, 1], ':', color=LIGHT_COLOUR, linewidth=1.0, alpha=0.8)
+    _draw_cone(ax, now, edgecolor=LIGHT_COLOUR, linewidth=1.0, alpha=0.6)
+    ax.plot(now.x, now.y, marker='*', markersize=13, color='#ffd92f', markeredgecolor='black')
+    ax.annotate(
+        now.name,
+        (now.x, now.y),
+        xytext=(6, 6),
+        textcoords='offset points',
+        fontsize=8,
+        color=LIGHT_COLOUR,
+        fontweight='bold',
+        bbox={'boxstyle': 'round,pad=0.15', 'facecolor': 'white', 'alpha': 0.75, 'linewidth': 0},
+    )
+
+
+def _label(ax, x, y, text, colour):
+    ax.annotate(
+        text,
+        (x, y),
+        xytext=(7, -12),
+        textcoords='offset points',
+        fontsize=8,
+        color=colour,
+        fontweight='bold',
+        bbox={'boxstyle': 'round,pad=0.15', 'facecolor': 'white', 'alpha': 0.8, 'linewidth': 0},
+    )
+
+
+def render_scenario(
+    scenario,
+    out_png: str | os.PathLike,
+    paths: Iterable[Sequence[Sequence[float]]] = (),
+    field: np.ndarray | None = None,
+    t: float = 0.0,
+    goal: str | None = None,
+    path_labels: Sequence[str] | None = None,
+    title: str | None = None,
+    cache_dir: str | os.PathLike | None = None,
+) -> Path:
+    """Draw the scenario at time t (s) and write it to out_png; returns the path written.
+
+    field: total visibility (height, width) to show instead of computing (cached) the
+    scenario's; paths: sequences of (x, y) in metres; goal: the goal pursued, highlighted.
+    """
+    occupancy = scenario.map
+    if field is None:
+        field, _ = scenario_visibility(scenario, t=t, cache_dir=cache_dir)
+    if np.shape(field) != occupancy.blocked.shape:
+        raise ValueError(f'field: expected shape {occupancy.blocked.shape}, got {np.shape(field)}')
+    threshold = getattr(scenario, 'detection_threshold', None)
+    x0, y0, x1, y1 = occupancy.bounds
+    aspect = (y1 - y0) / (x1 - x0)
+    width_in = 9.0 if aspect <= 1.2 else max(9.0 / aspect * 1.2, 5.0)
+    fig = Figure(figsize=(width_in + 1.4, width_in * aspect + 1.6), dpi=110)
+    ax = fig.add_subplot()
+    ax.set_facecolor(DARK_COLOUR)
+    image = _draw_map(ax, occupancy, np.asarray(field, dtype=float), threshold)
+    bar_axes = make_axes_locatable(ax).append_axes('right', size='3%', pad=0.12)
+    colourbar = fig.colorbar(image, cax=bar_axes)
+    colourbar.set_label('total visibility (sum of light intensities)')
+    if threshold is not None:
+        colourbar.ax.axhline(threshold, color='#b2182b', linestyle='--', linewidth=1.5)
+
+    for light in scenario.lights:
+        _draw_light(ax, light, t)
+
+    for number, points in enumerate(paths):
+        points = np.asarray(points, dtype=float).reshape(-1, 2)
+        label = path_labels[number] if path_labels else f'path {number + 1}'
+        colour = PATH_COLOURS[number % len(PATH_COLOURS)]
+        ax.plot(points[:, 0], points[:, 1], '-', color=colour, linewidth=1.8, label=label)
+        ax.plot(points[-1, 0], points[-1, 1], 'o', color=colour, markersize=4)
+
+    for mark in goal_marks(scenario):
+        pursued = goal is None or mark.name == goal
+        alpha = 1.0 if pursued else 0.45
+        ax.add_patch(
+            patches.Circle(
+                (mark.x, mark.y),
+                mark.radius,
+                facecolor=GOAL_COLOUR,
+                alpha=0.25 * alpha,
+                edgecolor=GOAL_COLOUR,
+                linewidth=1.2,
+            )
+        )
+        ax.plot(
+            mark.x,
+            mark.y,
+            marker='X',
+            markersize=10,
+            color=GOAL_COLOUR,
+            alpha=alpha,
+            markeredgecolor='white',
+            linestyle='none',
+        )
+        _label(ax, mark.x, mark.y, f'goal {mark.name}', GOAL_COLOUR)
+    start_x, start_y = scenario.start[0], scenario.start[1]
+    ax.plot(
+        start_x,
+        start_y,
+        marker='o',
+        markersize=10,
+        color=START_COLOUR,
+        markeredgecolor='white',
+        linestyle='none',
+    )
+    _label(ax, start_x, start_y, 'start', START_COLOUR)
+
+    legend = [
+        patches.Patch(color=WALL_COLOUR, label='occupied'),
+        patches.Patch(color=UNKNOWN_COLOUR, label='unknown (blocks light)'),
+        Line2D(
+            [],
+            [],
+            marker='*',
+            color=LIGHT_COLOUR,
+            markerfacecolor='#ffd92f',
+            markersize=11,
+            markeredgecolor='black',
+            label='searchlight and cone at t',
+        ),
+        Line2D([], [], marker='o', color=START_COLOUR, linestyle='none', label='start'),
+        Line2D([], [], marker='X', color=GOAL_COLOUR, linestyle='none', label='goal'),
+    ]
+    if any(light.motion is not None for light in scenario.lights):
+        legend.append(
+            Line2D([], [], color=LIGHT_COLOUR, linestyle=':', label='sweep / patrol route')
+        )
+    if threshold is not None:
+        legend.append(
+            Line2D([], [], color='#b2182b', linestyle='--', label=f'detection {threshold:g}')
+        )
+    handles = legend + ax.get_legend_handles_labels()[0]
+    ax.legend(
+        handles=handles,
+        loc='upper left',
+        bbox_to_anchor=(0.0, -0.07),
+        ncol=4,
+        fontsize=8,
+        frameon=False,
+    )
+    ax.set_aspect('equal')
+    ax.set_xlabel('x (m)')
+    ax.set_ylabel('y (m)')
+    name = getattr(scenario, 'name', 'scenario')
+    ax.set_title(title or f'{name}: visibility at t = {t:g} s')
+    out_png = Path(out_png)
+    out_png.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out_png, bbox_inches='tight', pad_inches=0.15)
+    return out_png
+
+
+def shipped_scenarios() -> list[Path]:
+    """Every scenarios/*.yaml of the repository."""
+    from stealth_env.scenario import scenario_paths
+
+    return list(scenario_paths())
+
+
+def render_all(out_dir: str | os.PathLike = DEFAULT_OUT_DIR, cache_dir=None) -> list[Path]:
+    """Write <out_dir>/<name>.png for every shipped scenario."""
+    from stealth_env.scenario import load_scenario
+
+    written = []
+    for path in shipped_scenarios():
+        scenario = load_scenario(path)
+        written.append(
+            render_scenario(scenario, Path(out_dir) / f'{scenario.name}.png', cache_dir=cache_dir)
+        )
+    return written
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog='render',
+        description='Render a stealth-nav scenario (walls, unknown, visibility heatmap, cones,'
+        ' start, goals, paths) to PNG.',
+    )
+    parser.add_argument('scenario', nargs='?', help='scenario name (e.g. lgfloor) or YAML path')
+    parser.add_argument('-o', '--output', help='PNG to write (default: <scenario name>.png)')
+    parser.add_argument(
+        '--path',
+        action='append',
+        default=[],
+        metavar='FILE.csv',
+        help='path to draw, a CSV of x,y rows in metres (repeatable)',
+    )
+    parser.add_argument('--goal', help='name of the goal pursued (highlighted)')
+    parser.add_argument('--time', type=float, default=0.0, help='time (s) for moving lights')
+    parser.add_argument(
+        '--all',
+        action='store_true',
+        help=f'render every shipped scenario into --out-dir (default {DEFAULT_OUT_DIR})',
+    )
+    parser.add_argument('--out-dir', default=str(DEFAULT_OUT_DIR), help='directory for --all')
+    parser.add_argument('--cache-dir', help='visibility cache (default $STEALTH_NAV_CACHE)')
+    args = parser.parse_args(argv)
+
+    try:
+        if args.all:
+            for written in render_all(args.out_dir, args.cache_dir):
+                print(written)
+            return 0
+        if not args.scenario:
+            parser.error('give a scenario name or path, or --all')
+        from stealth_env.scenario import find_scenario, load_scenario
+
+        scenario = load_scenario(find_scenario(args.scenario))
+        if args.goal is not None and args.goal not in [m.name for m in goal_marks(scenario)]:
+            parser.error(f'--goal {args.goal!r}: the scenario has no such goal')
+        paths = [read_path_csv(path) for path in args.path]
+        out = args.output or f'{scenario.name}.png'
+        labels = [Path(path).stem for path in args.path]
+        written = render_scenario(
+            scenario,
+            out,
+            paths=paths,
+            t=args.time,
+            goal=args.goal,
+            path_labels=labels,
+            cache_dir=args.cache_dir,
+        )
+    except (OSError, ValueError) as error:
+        print(f'render: {error}', file=sys.stderr)
+        return 1
+    print(written)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
