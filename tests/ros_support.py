@@ -107,6 +107,11 @@ class NodeProcesses:
         self.log_dir = log_dir
         self.processes: list[subprocess.Popen] = []
 
+    @property
+    def any_killed(self) -> bool:
+        """True when some process ended by SIGKILL (it cannot have cleaned up its segments)."""
+        return any(p.returncode == -signal.SIGKILL for p in self.processes)
+
     def start(self, args: list[str], name: str, **popen_kwargs) -> subprocess.Popen:
         """Start one process (its own process group) with output captured to a log file."""
         log = open(self.log_dir / f'{name}.log', 'w')  # noqa: SIM115 - closed in stop_all
@@ -155,3 +160,13 @@ def leaked_shm_segments(before: set[str]) -> set[str]:
         return set()
     clean_shm()
     return (shm_segments() - before) - mapped_shm_names()
+
+
+def remove_orphaned_shm(before: set[str]) -> None:
+    """Unlink the segments a SIGKILLed participant left: new since `before`, mapped by nobody.
+
+    `fastdds shm clean` removes zombie segments it knows, but not the `fastrtps_port*` segments
+    of a killed process, so those that no live process maps are unlinked here.
+    """
+    for name in leaked_shm_segments(before):
+        (SHM_DIR / name).unlink(missing_ok=True)

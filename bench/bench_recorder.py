@@ -1,0 +1,167 @@
+"""Benchmark: how many messages a second the MCAP recorder keeps up with, and what it loses.
+
+A publisher process blasts COUNT StepInfo messages (the per-step RL record, ~150 bytes of CDR)
+as fast as rclpy publishes, reliable with a history as deep as the burst, so DDS never drops
+one; the recorder (default settings: zstd chunks closed every 0.5 s or 256 KiB) records them
+in a private ROS domain. Reported per compression: publish rate, recording rate (messages over
+the span of their log times), messages missing, file size. Then SIGKILL trials: the recorder
+is killed during 100 Hz traffic and `bag recover` salvages the file; reported is the span of
+messages lost before the kill.
+Run: source scripts/ros_env.sh && python bench/bench_recorder.py
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+from mcap.reader import make_reader
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'tests'))
+from ros_support import (  # noqa: E402
+    REPO_ROOT,
+    NodeProcesses,
+    remove_orphaned_shm,
+    reserved_domain_id,
+    shm_segments,
+)
+
+COUNT = 20000
+KILL_TRIALS = 3
+BIN = REPO_ROOT / 'ros2_ws' / 'install' / 'stealth_bringup' / 'lib' / 'stealth_bringup'
+
+# argv: count (0: endless at 100 Hz)
+PUBLISHER = """
+import sys, time
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from stealth_interfaces.msg import StepInfo
+
+count = int(sys.argv[1])
+rclpy.init()
+node = rclpy.create_node('bench_publisher')
+publisher = node.create_publisher(
+    StepInfo, 'bench', QoSProfile(depth=max(count, 100), reliability=ReliabilityPolicy.RELIABLE))
+try:
+    while publisher.get_subscription_count() == 0:
+        time.sleep(0.05)
+    time.sleep(0.5)
+    message = StepInfo(state=[1.5, 2.5])
+    message.header.frame_id = 'map'
+    started = time.monotonic()
+    i = 0
+    while count == 0 or i < count:
+        message.step = i
+        publisher.publish(message)
+        i += 1
+        if count == 0:
+            time.sleep(0.01)
+    print(f'published {count} in {time.monotonic() - started:.3f} s', flush=True)
+    rclpy.spin(node)
+except (KeyboardInterrupt, ExternalShutdownException):
+    pass
+finally:
+    node.destroy_node()
+    rclpy.try_shutdown()
+"""
+
+
+def wait_for(process, text: str, timeout: float = 120.0) -> str:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        output = process.log_path.read_text()
+        if text in output:
+            return output
+        if process.poll() is not None:
+            raise RuntimeError(f'{process.args} exited:\n{output}')
+        time.sleep(0.05)
+    raise TimeoutError(f'no {text!r} within {timeout} s')
+
+
+def bench_log_times(path: Path) -> list[int]:
+    with open(path, 'rb') as stream:
+        return [m.log_time for _, _, m in make_reader(stream).iter_messages(topics=['/bench'])]
+
+
+def throughput(processes: NodeProcesses, work: Path, compression: str) -> None:
+    output = work / f'throughput_{compression}.mcap'
+    recorder = processes.start(
+        [str(BIN / 'recorder'), '--ros-args', '-p', f'output:={output}',
+         '-p', f'compression:={compression}', '-p', 'topics:=[/bench]'],
+        f'recorder_{compression}',
+    )  # fmt: skip
+    publisher = processes.start_python(PUBLISHER, f'publisher_{compression}', str(COUNT))
+    published = wait_for(publisher, 'published').strip().splitlines()[-1]
+    publish_seconds = float(published.split(' in ')[1].split()[0])
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline:  # until the recorder has caught up (chunks flushed)
+        time.sleep(1.0)
+        size = output.stat().st_size
+        time.sleep(1.0)
+        if output.stat().st_size == size:
+            break
+    os.killpg(recorder.pid, signal.SIGINT)
+    recorder.wait(60)
+    times = bench_log_times(output)
+    span = (max(times) - min(times)) / 1e9
+    print(
+        f'{compression:>5}: published {COUNT} at {COUNT / publish_seconds:,.0f} msg/s; recorded '
+        f'{len(times)} at {len(times) / span:,.0f} msg/s (missing {COUNT - len(times)}); '
+        f'file {output.stat().st_size / 1024:.0f} KiB'
+    )
+    os.killpg(publisher.pid, signal.SIGINT)
+    publisher.wait(30)
+
+
+def kill_trial(processes: NodeProcesses, work: Path, trial: int) -> float:
+    output = work / f'killed_{trial}.mcap'
+    recorder = processes.start(
+        [str(BIN / 'recorder'), '--ros-args', '-p', f'output:={output}', '-p', 'topics:=[/bench]'],
+        f'killed_{trial}',
+    )
+    publisher = processes.start_python(PUBLISHER, f'steady_{trial}', '0')
+    wait_for(recorder, "Subscribed to topic '/bench'")
+    time.sleep(2.0 + 0.37 * trial)  # different phases of the 0.5 s chunk cycle
+    killed_ns = time.time_ns()
+    os.killpg(recorder.pid, signal.SIGKILL)
+    recorder.wait(10)
+    recovered = work / f'recovered_{trial}.mcap'
+    subprocess.run(
+        [str(BIN / 'stealth'), 'bag', 'recover', str(output), '-o', str(recovered)],
+        env=processes.env,
+        check=True,
+        capture_output=True,
+    )
+    os.killpg(publisher.pid, signal.SIGINT)
+    publisher.wait(30)
+    return (killed_ns - max(bench_log_times(recovered))) / 1e6
+
+
+def main() -> None:
+    before = shm_segments()
+    with reserved_domain_id() as domain_id, tempfile.TemporaryDirectory() as work_dir:
+        work = Path(work_dir)
+        processes = NodeProcesses(domain_id, work)
+        try:
+            print(f'recorder throughput, {COUNT} StepInfo messages in a burst:')
+            for compression in ('zstd', 'none'):
+                throughput(processes, work, compression)
+            losses = [kill_trial(processes, work, trial) for trial in range(KILL_TRIALS)]
+            print(
+                f'SIGKILL during 100 Hz traffic, {KILL_TRIALS} trials: lost the last '
+                + ', '.join(f'{loss:.0f}' for loss in losses)
+                + ' ms'
+            )
+        finally:
+            processes.stop_all()
+            remove_orphaned_shm(before)  # what the SIGKILLed recorders left
+
+
+if __name__ == '__main__':
+    main()

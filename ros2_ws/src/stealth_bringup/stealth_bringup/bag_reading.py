@@ -1,0 +1,221 @@
+"""Reading recordings: which file a bag path means, its summary, and `ros2 bag info`'s text.
+
+A bag path is a .mcap file or a rosbag2 directory holding one. The summary comes from the MCAP
+summary section; a recording that was never closed (SIGKILL, power loss) has none, and its
+numbers come from a salvage scan instead, flagged so the caller can suggest `bag recover`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import os
+from pathlib import Path
+import time
+
+from mcap.exceptions import McapError
+from mcap.reader import SeekingReader, make_reader
+import yaml
+
+from stealth_bringup.bag_format import ROSBAG2_METADATA_NAME, STORAGE_ID, BagError
+
+MCAP_MAGIC = b'\x89MCAP0\r\n'
+INFO_INDENT = 19  # rosbag2: the longest field name ('Topic information: ') plus one
+
+
+@dataclass(frozen=True)
+class TopicInfo:
+    name: str
+    type: str
+    count: int
+    serialization_format: str
+    offered_qos_profiles: str = ''
+
+
+@dataclass(frozen=True)
+class BagInfo:
+    """What `ros2 bag info` shows of one MCAP file."""
+
+    path: Path
+    size: int
+    ros_distro: str
+    start_ns: int
+    end_ns: int
+    message_count: int
+    topics: tuple[TopicInfo, ...]
+    indexed: bool = True
+
+    @property
+    def duration_ns(self) -> int:
+        return self.end_ns - self.start_ns
+
+
+def resolve_bag_file(path: str | os.PathLike) -> Path:
+    """The .mcap a bag path names: the file itself, or the one .mcap in a bag directory."""
+    path = Path(path)
+    if path.is_dir():
+        files = sorted(path.glob('*.mcap'))
+        if not files:
+            raise BagError(f'{path} is a directory without an .mcap file')
+        if len(files) > 1:
+            names = ', '.join(f.name for f in files)
+            raise BagError(f'{path} holds several .mcap files ({names}); name one of them')
+        return files[0]
+    if not path.exists():
+        raise BagError(f'{path}: no such file or directory')
+    with open(path, 'rb') as stream:
+        if stream.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
+            raise BagError(f'{path} is not an MCAP file (bad magic bytes)')
+    return path
+
+
+def open_indexed_reader(stream) -> SeekingReader:
+    """A seeking reader over a complete MCAP; BagError if the summary is missing or broken."""
+    reader = make_reader(stream)
+    try:
+        summary = reader.get_summary()
+    except (McapError, ValueError, EOFError, OSError) as error:
+        summary = None
+        reason = str(error) or type(error).__name__
+    else:
+        reason = 'it has no summary section'
+    if summary is None or summary.statistics is None:
+        name = getattr(stream, 'name', 'the file')
+        raise BagError(
+            f'{name} is not a complete MCAP ({reason}): the recording was cut off; '
+            f'`stealth bag recover {name}` rebuilds it'
+        )
+    return reader
+
+
+def _distro_in(record) -> str:
+    """ROS_DISTRO of one rosbag2 metadata record ('' if it has none)."""
+    try:
+        loaded = yaml.safe_load(record.metadata.get('serialized_metadata', '')) or {}
+    except yaml.YAMLError:
+        loaded = {}
+    return str(loaded.get('ros_distro') or record.metadata.get('ROS_DISTRO', ''))
+
+
+def ros_distro_of(metadata_records) -> str:
+    """ROS_DISTRO as rosbag2 reads it: from the last rosbag2 metadata record that has one."""
+    distro = ''
+    for record in metadata_records:
+        if record.name == ROSBAG2_METADATA_NAME:
+            distro = _distro_in(record) or distro
+    return distro
+
+
+def _topics(channels: dict, schemas: dict, counts: dict) -> tuple[TopicInfo, ...]:
+    return tuple(
+        TopicInfo(
+            name=channel.topic,
+            type=schemas[channel.schema_id].name if channel.schema_id in schemas else '',
+            count=counts.get(channel_id, 0),
+            serialization_format=channel.message_encoding,
+            offered_qos_profiles=channel.metadata.get('offered_qos_profiles', ''),
+        )
+        for channel_id, channel in sorted(channels.items())
+    )
+
+
+def read_bag_info(path: str | os.PathLike) -> BagInfo:
+    """Info of a bag from its summary, or from a salvage scan when it has none."""
+    mcap_path = resolve_bag_file(path)
+    size = mcap_path.stat().st_size
+    with open(mcap_path, 'rb') as stream:
+        try:
+            reader = open_indexed_reader(stream)
+        except BagError:
+            return _scanned_bag_info(mcap_path, size)
+        summary = reader.get_summary()
+        statistics = summary.statistics
+        return BagInfo(
+            path=mcap_path,
+            size=size,
+            ros_distro=ros_distro_of(reader.iter_metadata()),
+            start_ns=statistics.message_start_time,
+            end_ns=statistics.message_end_time,
+            message_count=statistics.message_count,
+            topics=_topics(summary.channels, summary.schemas, statistics.channel_message_counts),
+        )
+
+
+def _scanned_bag_info(mcap_path: Path, size: int) -> BagInfo:
+    """Info of a truncated MCAP, counted record by record up to where it breaks off."""
+    from mcap.records import Channel, Message, Metadata, Schema
+
+    from stealth_bringup.bag_recover import salvage_records
+
+    channels, schemas, counts, metadata = {}, {}, {}, []
+    start, end, total = None, 0, 0
+    with open(mcap_path, 'rb') as stream:
+        for record in salvage_records(stream):
+            if isinstance(record, Schema):
+                schemas[record.id] = record
+            elif isinstance(record, Channel):
+                channels[record.id] = record
+            elif isinstance(record, Message):
+                counts[record.channel_id] = counts.get(record.channel_id, 0) + 1
+                start = record.log_time if start is None else min(start, record.log_time)
+                end = max(end, record.log_time)
+                total += 1
+            elif isinstance(record, Metadata):
+                metadata.append(record)
+    return BagInfo(
+        path=mcap_path,
+        size=size,
+        ros_distro=ros_distro_of(metadata),
+        start_ns=start or 0,
+        end_ns=end,
+        message_count=total,
+        topics=_topics(channels, schemas, counts),
+        indexed=False,
+    )
+
+
+def format_file_size(size: int) -> str:
+    """'1.5 MiB' as rosbag2 prints sizes (no decimals for bytes)."""
+    value, unit = float(size), 0
+    units = ('B', 'KiB', 'MiB', 'GiB', 'TiB')
+    while value >= 1024 and unit < len(units) - 1:
+        value /= 1024
+        unit += 1
+    return f'{value:.0f} {units[unit]}' if unit == 0 else f'{value:.1f} {units[unit]}'
+
+
+def _seconds_text(nanoseconds: int) -> str:
+    return f'{nanoseconds // 10**9}.{nanoseconds % 10**9:09d}'
+
+
+def format_time_point(nanoseconds: int) -> str:
+    """'Jan  5 2025 14:03:07.123456789 (1736085787.123456789)' in local time, as rosbag2."""
+    local = time.localtime(nanoseconds // 10**9)
+    fraction = f'{nanoseconds % 10**9:09d}'
+    stamp = time.strftime('%b %e %Y %H:%M:%S', local)
+    return f'{stamp}.{fraction} ({_seconds_text(nanoseconds)})'
+
+
+def format_bag_info(info: BagInfo, shown_path: str | None = None) -> str:
+    """The text `ros2 bag info` prints for the bag (rosbag2_py's format_bag_meta_data)."""
+    pad = ' ' * INFO_INDENT
+    topic_lines = [
+        f'Topic: {t.name} | Type: {t.type} | Count: {t.count} | '
+        f'Serialization Format: {t.serialization_format}'
+        for t in info.topics
+    ]
+    topics_text = ('\n' + pad).join(topic_lines)
+    lines = [
+        '',
+        f'Files:             {shown_path or info.path}',
+        f'Bag size:          {format_file_size(info.size)}',
+        f'Storage id:        {STORAGE_ID}',
+        f'ROS Distro:        {info.ros_distro or "unknown"}',
+        f'Duration:          {_seconds_text(info.duration_ns)}s',
+        f'Start:             {format_time_point(info.start_ns)}',
+        f'End:               {format_time_point(info.end_ns)}',
+        f'Messages:          {info.message_count}',
+        f'Topic information: {topics_text}',
+        'Service:           0',
+        'Service information: ',
+    ]
+    return '\n'.join(lines) + '\n'

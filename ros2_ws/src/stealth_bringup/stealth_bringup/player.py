@@ -1,0 +1,180 @@
+"""Replay of an MCAP onto its topics with the original timing, as `ros2 bag play`.
+
+Messages are published as recorded (serialized bytes, never deserialized), in log-time order,
+each when its log time comes due on a timeline that runs `rate` times real time. Each topic is
+offered the QoS its recorded publishers offered (from `offered_qos_profiles`), so transient
+local topics stay latched and reliable ones reliable. With `clock_hz`, /clock carries the
+playback's bag time, so nodes under use_sim_time follow the replayed run.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import threading
+import time
+
+from rclpy.duration import Duration
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+from stealth_bringup.bag_format import BagError
+from stealth_bringup.bag_reading import open_indexed_reader, resolve_bag_file
+from stealth_bringup.interfaces import InterfaceError, message_class
+from stealth_bringup.qos_text import parse_offered_qos_yaml, playback_profile
+from stealth_bringup.ros_session import absolute_topic, qos_profile
+from stealth_bringup.timing import NS, PlaybackTimeline
+
+ACK_TIMEOUT = 2.0  # s to let reliable subscribers acknowledge the last messages before exiting
+CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)  # rclcpp::ClockQoS
+
+
+@dataclass(frozen=True)
+class PlayOptions:
+    """`bag play` options, with ros2 bag play's meaning."""
+
+    bag: str
+    rate: float = 1.0
+    topics: tuple[str, ...] = ()
+    clock_hz: float = 0.0
+    loop: bool = False
+    start_offset: float = 0.0  # s into the bag
+    delay: float = 0.0  # s to wait (for discovery) before the first message
+
+
+class _Publishers:
+    """A publisher per replayed channel, created with the recorded QoS."""
+
+    def __init__(self, node, summary, topics: tuple[str, ...]):
+        wanted = {absolute_topic(t) for t in topics}
+        self.by_channel: dict[int, object] = {}
+        self.reliable: list[object] = []
+        bag_topics = {channel.topic for channel in summary.channels.values()}
+        if wanted and not wanted & bag_topics:
+            raise BagError(
+                f'none of {", ".join(sorted(wanted))} is in the bag '
+                f'(it has {", ".join(sorted(bag_topics)) or "no topics"})'
+            )
+        for channel_id, channel in sorted(summary.channels.items()):
+            if wanted and channel.topic not in wanted:
+                continue
+            schema = summary.schemas.get(channel.schema_id)
+            try:
+                msg_type = message_class(schema.name if schema else '')
+            except InterfaceError as error:
+                node.get_logger().warning(f"Not replaying '{channel.topic}': {error}")
+                continue
+            offers = parse_offered_qos_yaml(channel.metadata.get('offered_qos_profiles', ''))
+            profile, agreed = playback_profile(offers)
+            if not agreed:
+                node.get_logger().warning(
+                    f"'{channel.topic}': its publishers offered different QoS; replaying with "
+                    'the default profile'
+                )
+            publisher = node.create_publisher(msg_type, channel.topic, qos_profile(profile))
+            self.by_channel[channel_id] = publisher
+            if profile.reliability == 'reliable':
+                self.reliable.append(publisher)
+
+    @property
+    def topics(self) -> list[str]:
+        return sorted(p.topic_name for p in self.by_channel.values())
+
+    def wait_for_acks(self, timeout: float) -> None:
+        deadline = time.monotonic() + timeout
+        for publisher in self.reliable:
+            remaining = max(0.0, deadline - time.monotonic())
+            publisher.wait_for_all_acked(Duration(nanoseconds=int(remaining * NS)))
+
+
+class _ClockPublisher:
+    """Publishes the timeline's bag time on /clock at a fixed wall-clock rate."""
+
+    def __init__(self, node, hz: float):
+        from rosgraph_msgs.msg import Clock
+
+        self.message = Clock()
+        self.publisher = node.create_publisher(Clock, '/clock', CLOCK_QOS) if hz > 0 else None
+        self.period = 1.0 / hz if hz > 0 else None
+        self.next_tick = 0.0
+
+    def start(self, wall: float) -> None:
+        self.next_tick = wall
+
+    def due_before(self, wall: float) -> float:
+        """The next tick if it comes before `wall`, else `wall`."""
+        return min(wall, self.next_tick) if self.publisher else wall
+
+    def tick_if_due(self, timeline: PlaybackTimeline, now: float) -> None:
+        if self.publisher is None or now < self.next_tick:
+            return
+        stamp = timeline.bag_time(self.next_tick)
+        self.message.clock.sec, self.message.clock.nanosec = divmod(stamp, NS)
+        self.publisher.publish(self.message)
+        self.next_tick += self.period
+
+
+def _wait_until(
+    due: float, timeline: PlaybackTimeline, clock: _ClockPublisher, stop: threading.Event
+) -> bool:
+    """Sleep until `due`, ticking /clock on the way; False if stopped."""
+    while True:
+        now = time.monotonic()
+        clock.tick_if_due(timeline, now)
+        if now >= due:
+            return True
+        if stop.wait(max(0.0, clock.due_before(due) - now)):
+            return False
+
+
+def play(node, options: PlayOptions, stop: threading.Event) -> int:
+    """Publish the bag's messages on schedule; the number published."""
+    if options.rate <= 0:
+        raise BagError('--rate must be positive')
+    path = resolve_bag_file(options.bag)
+    published = 0
+    with open(path, 'rb') as stream:
+        reader = open_indexed_reader(stream)
+        summary = reader.get_summary()
+        publishers = _Publishers(node, summary, options.topics)
+        clock = _ClockPublisher(node, options.clock_hz)
+        node.get_logger().info(
+            f'Playing {path} ({", ".join(publishers.topics) or "no topics"}) at rate '
+            f'{options.rate:g}'
+        )
+        if stop.wait(options.delay):
+            return 0
+        first = summary.statistics.message_start_time + round(options.start_offset * NS)
+        channels = set(publishers.by_channel)
+        while not stop.is_set():
+            timeline = PlaybackTimeline(first, time.monotonic(), options.rate)
+            clock.start(timeline.wall_start)
+            this_pass = 0
+            messages = reader.iter_messages(log_time_order=True, starting_at=first)
+            for _, channel, message in messages:
+                if channel.id not in channels:
+                    continue
+                if not _wait_until(timeline.wall_time(message.log_time), timeline, clock, stop):
+                    break
+                publishers.by_channel[channel.id].publish(bytes(message.data))
+                this_pass += 1
+            published += this_pass
+            if not options.loop or not this_pass:
+                break
+        publishers.wait_for_acks(ACK_TIMEOUT)
+    return published
+
+
+def play_bag(options: PlayOptions, stop: threading.Event) -> int:
+    """`bag play` in an initialised rclpy session: a node, the playback, cleanup."""
+    import rclpy
+
+    node = rclpy.create_node('player', enable_rosout=False)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        count = play(node, options, stop)
+        node.get_logger().info(f'Published {count} messages')
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+    return 0
