@@ -22,6 +22,7 @@ setup(
             'image_to_bw = stealth_sim.map_tools:image_to_bw_main',
             'png_to_ros_map = stealth_sim.map_tools:png_to_ros_map_main',
             'render_map = stealth_sim.map_tools:render_map_main',
+            'sim_node = stealth_sim.sim_node:main',
         ],
     },
 )

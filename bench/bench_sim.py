@@ -1,0 +1,166 @@
+"""Benchmark: RL moves per second through the simulator node's sim/execute_move service.
+
+The same seeded random walk (grid moves of 0.5 m on a project map, chosen from the returned
+estimate) runs twice: in-process on a ``Simulator`` (the baseline) and through the service of a
+``sim_node`` process at real_time_factor 0, called from this process. Both runs see identical
+moves and poses, so the ratio is the cost of ROS alone. Needs the workspace built
+(``make setup``). Run: ``source scripts/ros_env.sh && python bench/bench_sim.py``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+from pathlib import Path
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO_ROOT / 'tests'))
+sys.path.insert(0, str(REPO_ROOT / 'ros2_ws' / 'src' / 'stealth_sim'))
+
+from ros_support import NodeProcesses, reserved_domain_id  # noqa: E402
+from stealth_sim.kinematics import DiscFootprint, Pose  # noqa: E402
+from stealth_sim.move_executor import GRID_HEADINGS, Move, execute_move  # noqa: E402
+from stealth_sim.occupancy_map import load_map  # noqa: E402
+from stealth_sim.simulator import SimConfig, Simulator  # noqa: E402
+
+MAP = REPO_ROOT / 'maps' / 'simple-maze.yaml'
+START = Pose(1.5, 1.5, math.pi / 2)  # the simple-maze scenario's start
+MOVES = 150
+STEP = 0.5
+SEED = 7
+SIM_NODE = REPO_ROOT / 'ros2_ws' / 'install' / 'stealth_sim' / 'lib' / 'stealth_sim' / 'sim_node'
+
+
+class MoveChooser:
+    """A seeded random grid move that keeps the robot's disc (plus a margin) clear of walls."""
+
+    def __init__(self, occupancy_map, radius: float, seed: int):
+        self.footprint = DiscFootprint(occupancy_map, radius + 0.1)
+        self.rng = np.random.default_rng(seed)
+
+    def choose(self, x: float, y: float) -> int:
+        possible = [
+            kind
+            for kind, heading in GRID_HEADINGS.items()
+            if self.footprint.sweep_is_free(
+                x, y, x + STEP * math.cos(heading), y + STEP * math.sin(heading)
+            )
+        ]
+        return int(self.rng.choice(possible or list(GRID_HEADINGS)))
+
+
+def in_process(occupancy_map) -> tuple[float, float, list]:
+    """Moves per second and simulated seconds per move, calling the core directly."""
+    sim = Simulator(occupancy_map, SimConfig(seed=SEED), START)
+    chooser = MoveChooser(occupancy_map, sim.config.robot_radius, SEED)
+    truths = []
+    started = time.perf_counter()
+    for _ in range(MOVES):
+        estimate = sim.estimate
+        execute_move(sim, Move(chooser.choose(estimate.x, estimate.y), STEP))
+        truths.append(sim.ground_truth[:2])
+    elapsed = time.perf_counter() - started
+    return MOVES / elapsed, sim.time / MOVES, truths
+
+
+@contextlib.contextmanager
+def ros_client(domain_id: int):
+    """An rclpy context and node on the benchmark's private domain."""
+    import rclpy
+
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    os.environ.pop('ROS_LOCALHOST_ONLY', None)
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=domain_id)
+    node = rclpy.create_node('bench_sim_client', context=context)
+    try:
+        yield node
+    finally:
+        node.destroy_node()
+        context.try_shutdown()
+
+
+def through_service(occupancy_map) -> tuple[float, list]:
+    """Moves per second through sim/execute_move of a sim_node process."""
+    from rclpy.executors import SingleThreadedExecutor
+    from stealth_interfaces.srv import ExecuteMove
+
+    with reserved_domain_id() as domain_id, tempfile.TemporaryDirectory() as logs:
+        processes = NodeProcesses(domain_id, Path(logs))
+        try:
+            processes.start(
+                [
+                    str(SIM_NODE),
+                    '--ros-args',
+                    '-p',
+                    f'map:={MAP}',
+                    '-p',
+                    f'initial_pose:=[{START.x}, {START.y}, {START.yaw}]',
+                    '-p',
+                    f'seed:={SEED}',
+                    '-p',
+                    'real_time_factor:=0.0',
+                ],
+                'sim_node',
+            )
+            with ros_client(domain_id) as node:
+                client = node.create_client(ExecuteMove, 'sim/execute_move')
+                if not client.wait_for_service(timeout_sec=30.0):
+                    raise RuntimeError('sim/execute_move did not come up within 30 s')
+                executor = SingleThreadedExecutor(context=node.context)
+                executor.add_node(node)
+                chooser = MoveChooser(occupancy_map, SimConfig().robot_radius, SEED)
+                estimate = START
+                truths = []
+                started = time.perf_counter()
+                for _ in range(MOVES):
+                    request = ExecuteMove.Request(
+                        kind=chooser.choose(estimate.x, estimate.y), distance=STEP
+                    )
+                    future = client.call_async(request)
+                    executor.spin_until_future_complete(future, timeout_sec=60.0)
+                    response = future.result()
+                    position = response.estimate.pose.position
+                    estimate = Pose(position.x, position.y, 0.0)
+                    truths.append((response.true_pose.position.x, response.true_pose.position.y))
+                elapsed = time.perf_counter() - started
+                executor.shutdown()
+        finally:
+            processes.stop_all()
+    return MOVES / elapsed, truths
+
+
+def run(report=print) -> dict:
+    occupancy_map = load_map(MAP)
+    local_rate, sim_seconds, local_truths = in_process(occupancy_map)
+    service_rate, service_truths = through_service(occupancy_map)
+    same = np.allclose(local_truths, service_truths, atol=1e-9)
+    report(f'simulator moves, {MOVES} grid moves of {STEP} m on {MAP.stem} (seed {SEED}):')
+    report(
+        f'  in-process Simulator: {local_rate:.1f} moves/s '
+        f'({sim_seconds:.2f} simulated s per move, {local_rate * sim_seconds:.0f}x real time)'
+    )
+    report(f'  through sim/execute_move from another process: {service_rate:.1f} moves/s')
+    report(f'  service / in-process: {service_rate / local_rate:.2f}')
+    report(f'  identical trajectories in both runs: {same}')
+    return {
+        'sim_moves_per_second_service': round(service_rate, 1),
+        'sim_moves_per_second_in_process': round(local_rate, 1),
+        'sim_service_to_in_process_ratio': round(service_rate / local_rate, 3),
+        'sim_simulated_seconds_per_move': round(sim_seconds, 3),
+        'sim_trajectories_identical': bool(same),
+    }
+
+
+def main() -> dict:
+    return run()
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,223 @@
+"""One RL move, executed closed-loop on the localisation estimate in simulated time.
+
+A move is "turn to a heading, then drive a distance" (or only the turn). The controller sees only
+the estimate, as a robot running on AMCL would: it turns in place until the estimated heading is
+within tolerance, then drives towards the target point fixed at the start of the drive
+(estimated start + distance along the heading), steering onto it, and finally brakes to rest.
+Speeds follow ``sqrt(2 a d)`` so the robot can stop within the acceleration limit. Simulated time
+runs as fast as the CPU allows; ``on_step`` lets a caller publish or pace it.
+
+The four grid moves are the original's actions: up (+y), down (-y), left (-x), right (+x) of the
+map frame, each a drive of the given step.
+"""
+
+from collections.abc import Callable
+import dataclasses
+import enum
+import math
+
+from stealth_sim.kinematics import Pose, wrap_angle
+from stealth_sim.simulator import Simulator
+
+
+class MoveKind(enum.IntEnum):
+    """The kinds of stealth_interfaces/ExecuteMove (same numbers)."""
+
+    UP = 0
+    DOWN = 1
+    LEFT = 2
+    RIGHT = 3
+    TURN_TO_HEADING = 4
+    DRIVE_DISTANCE = 5
+
+
+class Outcome(enum.IntEnum):
+    """The outcomes of stealth_interfaces/ExecuteMove (same numbers)."""
+
+    DONE = 0
+    BUMPED = 1
+    REJECTED = 2
+    TIMED_OUT = 3
+
+
+GRID_HEADINGS = {
+    MoveKind.UP: math.pi / 2,
+    MoveKind.DOWN: -math.pi / 2,
+    MoveKind.LEFT: math.pi,
+    MoveKind.RIGHT: 0.0,
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class Move:
+    """A move request: ``distance`` (m) for the drives, ``heading`` (rad, map) for the turn."""
+
+    kind: int
+    distance: float = 0.0
+    heading: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class MoveResult:
+    outcome: Outcome
+    message: str = ''
+    duration: float = 0.0  # simulated s
+    steps: int = 0
+
+
+@dataclasses.dataclass(frozen=True)
+class ControllerConfig:
+    """Tolerances (rad, m), gains (1/s) and the time limit of the move controller."""
+
+    heading_tolerance: float = 0.02
+    position_tolerance: float = 0.01
+    heading_gain: float = 4.0
+    # Deceleration planned with this share of the acceleration limit, so braking never lags.
+    braking_share: float = 0.8
+    # Aim at the target point until this close, then hold the drive's heading.
+    aim_distance: float = 0.1
+    stopped_speed: float = 1e-3  # m/s and rad/s
+    # The time limit: this many times the nominal duration, plus the margin (s).
+    time_limit_factor: float = 4.0
+    time_limit_margin: float = 5.0
+
+
+def move_problem(move: Move, max_distance: float) -> str | None:
+    """Why a move request cannot be executed, or None when it can."""
+    try:
+        kind = MoveKind(move.kind)
+    except ValueError:
+        kinds = ', '.join(f'{k.value} ({k.name})' for k in MoveKind)
+        return f'kind: expected one of {kinds}, got {move.kind!r}'
+    if kind == MoveKind.TURN_TO_HEADING:
+        if not math.isfinite(move.heading):
+            return f'heading: expected a finite angle (rad), got {move.heading!r}'
+        return None
+    distance = move.distance
+    if not math.isfinite(distance) or distance <= 0:
+        return f'distance: expected a finite number > 0 (m), got {distance!r}'
+    if distance > max_distance:
+        return (
+            f'distance: {distance:g} m is longer than the map diagonal ({max_distance:.2f} m); '
+            'no single move can be that long'
+        )
+    return None
+
+
+def execute_move(
+    sim: Simulator,
+    move: Move,
+    on_step: Callable[[Simulator], None] | None = None,
+    controller: ControllerConfig = ControllerConfig(),
+) -> MoveResult:
+    """Run ``move`` to its end; a rejected move leaves the simulator untouched."""
+    problem = move_problem(move, sim.max_move_distance)
+    if problem:
+        return MoveResult(Outcome.REJECTED, problem)
+    kind = MoveKind(move.kind)
+    if kind == MoveKind.DRIVE_DISTANCE:
+        heading = sim.estimate.yaw
+    elif kind == MoveKind.TURN_TO_HEADING:
+        heading = wrap_angle(move.heading)
+    else:
+        heading = GRID_HEADINGS[kind]
+    distance = 0.0 if kind == MoveKind.TURN_TO_HEADING else move.distance
+    run = _MoveRun(sim, controller, on_step, _nominal_duration(sim, heading, distance))
+    outcome = run.turn_to(heading)
+    if outcome is None and distance > 0:
+        start = sim.estimate
+        target = (start.x + distance * math.cos(heading), start.y + distance * math.sin(heading))
+        outcome = run.drive_to(target, heading)
+    if outcome in (None, Outcome.TIMED_OUT):
+        # Always end at rest; only a bump can interrupt the braking.
+        outcome = run.brake(timed=False) or outcome or Outcome.DONE
+    sim.localise_now()
+    messages = {
+        Outcome.DONE: '',
+        Outcome.BUMPED: 'the robot touched a wall or unknown space and stopped',
+        Outcome.TIMED_OUT: f'the move did not finish within {run.time_limit:.1f} s',
+    }
+    return MoveResult(outcome, messages[outcome], sim.time - run.start_time, run.steps)
+
+
+def _nominal_duration(sim: Simulator, heading: float, distance: float) -> float:
+    """Time for the turn and the drive at full speed, ignoring acceleration (s)."""
+    limits = sim.config.limits
+    turn = abs(wrap_angle(heading - sim.estimate.yaw))
+    return turn / limits.max_angular_speed + distance / limits.max_linear_speed
+
+
+class _MoveRun:
+    """The state of one move in progress: steps taken, time limit, the step hook."""
+
+    def __init__(self, sim, controller, on_step, nominal_duration):
+        self.sim = sim
+        self.controller = controller
+        self.on_step = on_step
+        self.start_time = sim.time
+        self.steps = 0
+        self.time_limit = (
+            controller.time_limit_factor * nominal_duration + controller.time_limit_margin
+        )
+
+    def _step(self, linear: float, angular: float, timed: bool = True) -> Outcome | None:
+        bumped = self.sim.step(linear, angular)
+        self.steps += 1
+        if self.on_step is not None:
+            self.on_step(self.sim)
+        if bumped:
+            return Outcome.BUMPED
+        if timed and self.sim.time - self.start_time > self.time_limit:
+            return Outcome.TIMED_OUT
+        return None
+
+    def _turn_rate(self, error: float) -> float:
+        """Turn rate towards a heading error: proportional, capped so it can stop in time."""
+        limits, controller = self.sim.config.limits, self.controller
+        stoppable = math.sqrt(
+            2.0 * controller.braking_share * limits.max_angular_accel * abs(error)
+        )
+        rate = min(controller.heading_gain * abs(error), stoppable, limits.max_angular_speed)
+        return math.copysign(rate, error)
+
+    def turn_to(self, heading: float) -> Outcome | None:
+        """Turn in place until the estimated heading is within tolerance, then stop (None)."""
+        tolerance = self.controller.heading_tolerance
+        while True:
+            error = wrap_angle(heading - self.sim.estimate.yaw)
+            if abs(error) <= tolerance:
+                return self.brake()
+            outcome = self._step(0.0, self._turn_rate(error))
+            if outcome is not None:
+                return outcome
+
+    def drive_to(self, target: tuple[float, float], heading: float) -> Outcome | None:
+        """Drive until the target is within tolerance along the drive's line (None)."""
+        limits, controller = self.sim.config.limits, self.controller
+        direction = (math.cos(heading), math.sin(heading))
+        while True:
+            pose: Pose = self.sim.estimate
+            dx, dy = target[0] - pose.x, target[1] - pose.y
+            remaining = dx * direction[0] + dy * direction[1]  # along the drive's line
+            if remaining <= controller.position_tolerance:
+                return None
+            aim = math.atan2(dy, dx) if math.hypot(dx, dy) > controller.aim_distance else heading
+            error = wrap_angle(aim - pose.yaw)
+            speed = min(
+                limits.max_linear_speed,
+                math.sqrt(2.0 * controller.braking_share * limits.max_linear_accel * remaining),
+            )
+            # Slow down while badly misaligned rather than drive sideways off the line.
+            speed *= max(0.0, math.cos(error))
+            outcome = self._step(speed, self._turn_rate(error))
+            if outcome is not None:
+                return outcome
+
+    def brake(self, timed: bool = True) -> Outcome | None:
+        """Command zero until the robot is at rest (None), unless it bumps or runs out of time."""
+        stopped = self.controller.stopped_speed
+        while abs(self.sim.state.linear) > stopped or abs(self.sim.state.angular) > stopped:
+            outcome = self._step(0.0, 0.0, timed)
+            if outcome is not None:
+                return outcome
+        return None
