@@ -1,0 +1,114 @@
+"""The experiment harness, small: the convergence criterion, one run, the reports, and a policy
+trained in-process that the ROS agent's code runs on ROS-style states."""
+
+import csv
+
+import numpy as np
+import pytest
+from stealth_agent.policy_store import check_compatible, load_policy
+from stealth_agent.protocol import ProtocolAgent
+from stealth_env import experiments
+from stealth_env.experiments import RunSpec, policy_path, run, settled_within
+from stealth_env.gym_env import lattice_model
+from stealth_env.reward import Outcome
+from stealth_env.task import StealthTask
+
+SCENARIO = 'simple-maze'
+
+
+@pytest.fixture(scope='module')
+def trained(tmp_path_factory):
+    """Dyna-Q on simple-maze for 150 episodes (it settles by ~70), policy saved."""
+    policy_dir = tmp_path_factory.mktemp('policies')
+    return run(RunSpec(SCENARIO, 'dyna', 3, episodes=150, policy_dir=str(policy_dir)))
+
+
+def test_settled_means_staying_within_five_percent():
+    at = np.array([10, 20, 30, 40, 50])
+    assert settled_within(at, [900, 990, 900, 985, 999], 1000.0) == 40
+    assert settled_within(at, [990, 990, 990, 990, 990], 1000.0) == 10
+    assert settled_within(at, [990, 990, 990, 990, 900], 1000.0) is None
+    assert settled_within(at, [-1050] * 5, -1000.0) == 10  # 5 % of |optimum| below it
+    assert settled_within(at, [-1051] * 5, -1000.0) is None
+
+
+def test_every_learner_gets_the_same_settings():
+    configs = {name: experiments.tuned_config(name) for name in ('qlearning', 'sarsa', 'dyna')}
+    assert len(set(configs.values())) == 1
+    assert configs['dyna'].alpha(0) == 1.0 and experiments.tuned_config('q', True).alpha(0) == 0.3
+    with pytest.raises(ValueError):
+        experiments.tuned_config('ppo')
+
+
+def test_a_run_learns_the_optimal_path(trained):
+    optimum = lattice_model(SCENARIO)
+    assert trained.optimum == pytest.approx(experiments.value_iteration(optimum).optimal_return)
+    assert len(trained.train_returns) == len(trained.train_outcomes) == 150
+    assert trained.eval_at.tolist() == list(range(10, 151, 10))
+    assert trained.episodes_to_within is not None and trained.episodes_to_within <= 150
+    assert trained.final['outcome'] == Outcome.SUCCESS
+    assert trained.final['total_reward'] == pytest.approx(trained.eval_returns[-1])
+    assert trained.final['points'].shape == (trained.final['steps'] + 1, 2)
+
+
+def test_a_run_is_reproducible(trained):
+    again = run(RunSpec(SCENARIO, 'dyna', seed=3, episodes=30, eval_every=10))
+    np.testing.assert_array_equal(again.train_returns, trained.train_returns[:30])
+    np.testing.assert_array_equal(again.eval_returns, trained.eval_returns[:3])
+
+
+def test_the_saved_policy_runs_on_states_the_ros_environment_sends(trained):
+    """Train in-process, save, reload into a ProtocolAgent (as the agent node does) and act
+    greedily on states made by StealthTask.state_of from poses anywhere in the cell, as the
+    ROS environment makes them from the localisation estimate: the robot reaches the goal
+    on the optimal path with the optimal return."""
+    policy = load_policy(policy_path(trained.spec))
+    model = lattice_model(SCENARIO)
+    task = StealthTask(model.task.scenario)
+    check_compatible(policy, num_actions=4, state_dim=2, learner='dyna', scenario_title=task.title)
+    agent = ProtocolAgent(policy.learner, policy.index, np.random.default_rng(0), learning=False)
+    noise = np.random.default_rng(1)
+    node, reward, total = model.start, 0.0, 0.0
+    for step_index in range(1, task.step_limit + 1):
+        x, y = model.points[node] + noise.uniform(0.0, task.cell * 0.99, size=2)
+        state = np.array(task.state_of(x, y), dtype=np.float32)
+        assert policy.index.lookup(state) is not None, 'a state the policy never saw'
+        action = agent.first_action(state) if step_index == 1 else agent.next_action(reward, state)
+        node = int(model.successors[node, action])
+        judgement = task.judge(*model.points[node], 0.0, step_index)
+        reward = judgement.reward
+        total += reward
+        if judgement.terminal:
+            break
+    assert judgement.outcome is Outcome.SUCCESS
+    assert total == pytest.approx(trained.final['total_reward'])
+
+
+def test_evaluate_writes_the_table_csv_and_pictures(tmp_path):
+    rows = experiments.evaluate(
+        [SCENARIO], ['qlearning'], [0], episodes=20, eval_every=10, out=tmp_path, progress=False
+    )
+    methods = [row['method'] for row in rows]
+    assert methods == ['A*', 'Dark Path', 'value iteration', 'qlearning']
+    with open(tmp_path / 'results.csv', encoding='utf-8') as stream:
+        assert [row['method'] for row in csv.DictReader(stream)] == methods
+    text = (tmp_path / 'results.md').read_text()
+    assert '| simple-maze | A* | detected |' in text
+    assert 'not within 5 % in 20' in text  # 20 episodes are not enough, and the table says so
+    for name in ('learning_curves.png', f'curves_{SCENARIO}.png', f'paths_{SCENARIO}.png'):
+        assert (tmp_path / name).stat().st_size > 10_000
+    assert (tmp_path / 'policies' / f'{SCENARIO}-qlearning-seed0.npz').is_file()
+
+
+def test_the_command_line(tmp_path, capsys):
+    with pytest.raises(SystemExit) as stop:
+        experiments.main(['--help'])
+    assert stop.value.code == 0 and '--scenarios' in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        experiments.main(['--episodes', '0'])
+    code = experiments.main(
+        ['--scenarios', SCENARIO, '--learners', 'sarsa', '--seeds', '1', '--episodes', '10',
+         '--jobs', '1', '--no-plots', '--out', str(tmp_path)]
+    )  # fmt: skip
+    assert code == 0 and (tmp_path / 'results.md').is_file()
+    assert not (tmp_path / 'learning_curves.png').exists()

@@ -1,0 +1,202 @@
+"""The shared task core: states, judging, bounds and episode statistics."""
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from stealth_env.lighting import point_visibility
+from stealth_env.reward import Outcome, detection_reward, step_reward, success_reward
+from stealth_env.scenario import load_scenario
+from stealth_env.task import EpisodeSummaryFields, StealthTask
+
+MSG_DIR = Path(__file__).resolve().parents[2] / 'stealth_interfaces' / 'msg'
+
+
+def msg_fields(name: str) -> list[str]:
+    """Field names of a .msg file, in order (no comments, no constants, no header)."""
+    names = []
+    for line in (MSG_DIR / f'{name}.msg').read_text().splitlines():
+        words = line.split('#', 1)[0].split()
+        if len(words) == 2 and '=' not in words[1] and words[1] != 'header':
+            names.append(words[1])
+    return names
+
+
+@pytest.fixture(scope='module')
+def map1():
+    return load_scenario('map1')
+
+
+@pytest.fixture(scope='module')
+def lgfloor():
+    return load_scenario('lgfloor')
+
+
+@pytest.fixture(scope='module')
+def task(map1):
+    return StealthTask(map1)
+
+
+def lit_node_point(task):
+    """A lattice node at or above the detection threshold."""
+    for node in task.lattice.valid_nodes():
+        x, y = task.lattice.node_to_point(node)
+        if task.visibility(x, y) >= task.scenario.detection_threshold:
+            return x, y
+    raise AssertionError('no lit node')
+
+
+# --- states -------------------------------------------------------------------------------------
+
+
+def test_state_floors_to_the_cell_towards_minus_infinity(lgfloor):
+    task = StealthTask(lgfloor)  # cell 0.5 m, coordinates on both sides of 0
+    assert task.state_of(0.74, 0.26) == (0.5, 0.0)
+    assert task.state_of(-0.01, -0.49) == (-0.5, -0.5)  # towards zero would give (0, 0)
+    assert task.state_of(-12.0, 0.0) == (-12.0, 0.0)
+
+
+def test_points_on_the_grid_keep_their_cell_despite_rounding(map1):
+    task = StealthTask(dataclasses.replace(map1, state_cell=0.1))
+    assert 0.1 * 3 < 0.3 or 0.1 * 3 > 0.3  # 0.30000000000000004: not exact in binary
+    assert task.state_of(0.1 + 0.2, 0.7) == pytest.approx((0.3, 0.7))
+    assert task.state_of(0.3 - 1e-6, 0.7 - 1e-6) == pytest.approx((0.2, 0.6))
+
+
+def test_each_lattice_node_has_its_own_state_when_the_step_is_the_cell(task):
+    nodes = list(task.lattice.valid_nodes())
+    states = {task.state_of(*task.lattice.node_to_point(n)) for n in nodes}
+    assert len(states) == len(nodes)
+    for node in nodes[:50]:
+        x, y = task.lattice.node_to_point(node)
+        assert task.state_of(x, y) == (x, y)  # nodes lie on the 0.5 m grid in map1
+
+
+def test_state_bounds_cover_every_point_of_the_map(lgfloor):
+    task = StealthTask(lgfloor)
+    low, high = task.state_bounds()
+    x_min, y_min, x_max, y_max = lgfloor.map.bounds
+    assert low == task.state_of(x_min, y_min)
+    almost = (x_max - 1e-6, y_max - 1e-6)
+    assert high == task.state_of(*almost)
+    for node in task.lattice.valid_nodes():
+        state = task.state_of(*task.lattice.node_to_point(node))
+        assert low[0] <= state[0] <= high[0] and low[1] <= state[1] <= high[1]
+
+
+def test_description_has_the_rl_env_description_fields(task):
+    description = task.description(stochastic=True)
+    assert list(description) == msg_fields('RLEnvDescription')
+    assert description['num_actions'] == 4
+    assert description['title'] == 'stealth-nav: map1 (hard)'
+    assert description['stochastic'] is True
+    assert description['num_states'] == sum(1 for _ in task.lattice.valid_nodes())
+
+
+# --- rewards ------------------------------------------------------------------------------------
+
+
+def test_reward_bounds_span_success_at_the_goal_and_detection_far_away(task, map1):
+    max_reward, reward_range = task.reward_bounds()
+    assert max_reward == success_reward(0.0, map1.goal.radius, map1.rewards)
+    far = max(math.hypot(x - 18.0, y - 14.5) for x in (0, 20) for y in (0, 20))
+    assert task.max_distance == pytest.approx(far)
+    assert reward_range == pytest.approx(max_reward - detection_reward(far, map1.rewards))
+
+
+def test_an_ordinary_step_pays_the_step_reward(task, map1):
+    x, y = map1.start[:2]
+    judgement = task.judge(x, y, 0.0, 1)
+    visibility = point_visibility(
+        map1.map.blocked, map1.map.resolution, map1.map.origin, map1.lights, x, y
+    )
+    distance = math.hypot(x - 18.0, y - 14.5)
+    assert judgement.visibility == visibility
+    assert judgement.distance_to_goal == pytest.approx(distance)
+    assert judgement.reward == pytest.approx(step_reward(visibility, distance, map1.rewards))
+    assert (judgement.terminal, judgement.outcome, judgement.detected) == (False, None, False)
+
+
+def test_the_goal_ends_the_episode_with_success(task, map1):
+    judgement = task.judge(18.0, 14.5, 0.0, 7)
+    assert judgement.outcome is Outcome.SUCCESS and judgement.terminal
+    assert judgement.reward == success_reward(0.0, 0.5, map1.rewards)
+
+
+def test_a_lit_pose_is_detected(task):
+    x, y = lit_node_point(task)
+    judgement = task.judge(x, y, 0.0, 3)
+    assert judgement.outcome is Outcome.DETECTED and judgement.detected and judgement.terminal
+    assert judgement.visibility >= task.scenario.detection_threshold
+
+
+def test_the_step_limit_times_out(task, map1):
+    x, y = map1.start[:2]
+    assert not task.judge(x, y, 0.0, map1.step_limit - 1).terminal
+    judgement = task.judge(x, y, 0.0, map1.step_limit)
+    assert judgement.outcome is Outcome.TIMEOUT and judgement.terminal
+
+
+def test_a_given_visibility_is_used_as_is(task, map1):
+    x, y = map1.start[:2]
+    assert task.judge(x, y, 0.0, 1, visibility=0.5).outcome is Outcome.DETECTED
+
+
+@pytest.mark.parametrize('bad', [0, -1, 1.0, True])
+def test_step_index_counts_from_one(task, bad):
+    with pytest.raises(ValueError, match='step_index'):
+        task.judge(2.5, 2.5, 0.0, bad)
+
+
+def test_probabilistic_detection_draws_from_the_task_rng(map1):
+    scenario = dataclasses.replace(map1, detection_mode='probabilistic')
+    probe = StealthTask(scenario)
+    x, y = lit_node_point(probe)
+
+    def draws(seed):
+        task = StealthTask(scenario, rng=np.random.default_rng(seed))
+        return [task.judge(x, y, 0.0, 1).detected for _ in range(200)]
+
+    assert draws(1) == draws(1)
+    assert 0 < sum(draws(1)) < 200  # seen sometimes, not always
+    with pytest.raises(ValueError, match='rng'):
+        probe.judge(x, y, 0.0, 1)
+
+
+def test_goals_by_name_and_default(map1):
+    assert StealthTask(map1).goal == map1.goals['hard']
+    assert StealthTask(map1, 'easy').goal == map1.goals['easy']
+    assert StealthTask(map1, map1.goals['medium']).goal.name == 'medium'
+    with pytest.raises(ValueError, match='easy, medium, hard'):
+        StealthTask(map1, 'impossible')
+
+
+# --- episode statistics -------------------------------------------------------------------------
+
+
+def test_episode_stats_accumulate_what_episode_summary_reports(task, map1):
+    stats = task.start_episode(2.5, 2.5, episode=4)
+    poses = [(2.5, 3.0), (2.5, 3.5), (3.0, 3.5)]
+    judgements = [task.judge(x, y, 0.0, i) for i, (x, y) in enumerate(poses, start=1)]
+    for (x, y), judgement in zip(poses, judgements, strict=True):
+        stats.add(x, y, judgement)
+    summary = stats.summary(Outcome.TIMEOUT)
+    assert summary.episode == 4 and summary.goal == 'hard' and summary.steps == 3
+    assert summary.outcome == Outcome.TIMEOUT == 2
+    assert summary.total_reward == pytest.approx(sum(j.reward for j in judgements))
+    assert summary.accumulated_visibility == pytest.approx(sum(j.visibility for j in judgements))
+    assert summary.peak_visibility == max(j.visibility for j in judgements)
+    assert summary.path_length == pytest.approx(1.5)
+    assert summary.final_distance_to_goal == judgements[-1].distance_to_goal
+
+
+def test_a_fresh_episode_summary_is_at_the_start(task):
+    summary = task.start_episode(2.5, 2.5).summary(Outcome.ABORTED)
+    assert (summary.steps, summary.total_reward, summary.path_length) == (0, 0.0, 0.0)
+    assert summary.final_distance_to_goal == pytest.approx(math.hypot(15.5, 12.0))
+
+
+def test_summary_fields_are_episode_summary_msg_fields():
+    assert list(EpisodeSummaryFields._fields) == msg_fields('EpisodeSummary')
