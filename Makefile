@@ -25,7 +25,7 @@ BUILD_STAMP := $(STAMPS)/build-$(shell (echo $(VENV_STAMP); printf '%s\n' $(WS_S
 .PHONY: help setup venv build test test-packages test-system lint format clean distclean
 
 help: ## List the targets
-	@grep -hE '^[a-zA-Z_-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-12s %s\n", $$1, $$2}'
+	@grep -hE '^[a-zA-Z_-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
 
 setup: $(BUILD_STAMP) ## Create .venv from pinned wheels and colcon-build ros2_ws (only what changed)
 
@@ -77,7 +77,13 @@ distclean: clean ## Also remove .venv
 
 -include maps/maps.mk
 
-.PHONY: run
+.PHONY: run eval bench
 run: setup ## The main job: train the agent on the default scenario
 	@echo "make run: the running system (environment node, orchestration, recording) is issue 7" \
 		"and is not built yet; 'make test' exercises what exists." >&2; exit 1
+
+eval: setup ## Learners vs A*, Dark Path and value iteration on every scenario (runs/eval/)
+	@$(ROS_ENV) && python -m stealth_env.experiments --out runs/eval
+
+bench: setup ## Benchmarks, each a ratio measured in the same run; writes bench/results.json
+	@$(ROS_ENV) && python bench/run_all.py

@@ -89,7 +89,7 @@ def bench_log_times(path: Path) -> list[int]:
         return [m.log_time for _, _, m in make_reader(stream).iter_messages(topics=['/bench'])]
 
 
-def throughput(processes: NodeProcesses, work: Path, compression: str) -> None:
+def throughput(processes: NodeProcesses, work: Path, compression: str, report) -> None:
     output = work / f'throughput_{compression}.mcap'
     recorder = processes.start(
         [str(BIN / 'recorder'), '--ros-args', '-p', f'output:={output}',
@@ -110,13 +110,20 @@ def throughput(processes: NodeProcesses, work: Path, compression: str) -> None:
     recorder.wait(60)
     times = bench_log_times(output)
     span = (max(times) - min(times)) / 1e9
-    print(
-        f'{compression:>5}: published {COUNT} at {COUNT / publish_seconds:,.0f} msg/s; recorded '
-        f'{len(times)} at {len(times) / span:,.0f} msg/s (missing {COUNT - len(times)}); '
-        f'file {output.stat().st_size / 1024:.0f} KiB'
+    publish_rate, record_rate = COUNT / publish_seconds, len(times) / span
+    report(
+        f'{compression:>5}: published {COUNT} at {publish_rate:,.0f} msg/s; recorded '
+        f'{len(times)} at {record_rate:,.0f} msg/s (ratio {record_rate / publish_rate:.2f}, '
+        f'missing {COUNT - len(times)}); file {output.stat().st_size / 1024:.0f} KiB'
     )
     os.killpg(publisher.pid, signal.SIGINT)
     publisher.wait(30)
+    return {
+        f'recorder_{compression}_publish_msgs_per_s': round(publish_rate),
+        f'recorder_{compression}_record_msgs_per_s': round(record_rate),
+        f'recorder_{compression}_ratio': round(record_rate / publish_rate, 3),
+        f'recorder_{compression}_missing': COUNT - len(times),
+    }
 
 
 def kill_trial(processes: NodeProcesses, work: Path, trial: int) -> float:
@@ -143,17 +150,20 @@ def kill_trial(processes: NodeProcesses, work: Path, trial: int) -> float:
     return (killed_ns - max(bench_log_times(recovered))) / 1e6
 
 
-def main() -> None:
+def run(report=print) -> dict:
+    """Recorder throughput against its publisher, per compression, and the SIGKILL loss."""
+    figures = {}
     before = shm_segments()
     with reserved_domain_id() as domain_id, tempfile.TemporaryDirectory() as work_dir:
         work = Path(work_dir)
         processes = NodeProcesses(domain_id, work)
         try:
-            print(f'recorder throughput, {COUNT} StepInfo messages in a burst:')
+            report(f'recorder throughput, {COUNT} StepInfo messages in a burst:')
             for compression in ('zstd', 'none'):
-                throughput(processes, work, compression)
+                figures.update(throughput(processes, work, compression, report))
             losses = [kill_trial(processes, work, trial) for trial in range(KILL_TRIALS)]
-            print(
+            figures['recorder_sigkill_lost_ms'] = [round(loss) for loss in losses]
+            report(
                 f'SIGKILL during 100 Hz traffic, {KILL_TRIALS} trials: lost the last '
                 + ', '.join(f'{loss:.0f}' for loss in losses)
                 + ' ms'
@@ -161,7 +171,8 @@ def main() -> None:
         finally:
             processes.stop_all()
             remove_orphaned_shm(before)  # what the SIGKILLed recorders left
+    return figures
 
 
 if __name__ == '__main__':
-    main()
+    run()
