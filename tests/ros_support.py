@@ -159,7 +159,17 @@ def leaked_shm_segments(before: set[str]) -> set[str]:
     if not new:
         return set()
     clean_shm()
-    return (shm_segments() - before) - mapped_shm_names()
+    mapped = mapped_shm_names()
+    return {name for name in shm_segments() - before if segment_base(name) not in mapped}
+
+
+def segment_base(name: str) -> str:
+    """The data segment a Fast DDS file belongs to: its lock (`_el`) and mutex (`sem.*_mutex`)
+    files are never mapped themselves, but live as long as the segment's owner does."""
+    name = name.removeprefix('sem.')
+    for suffix in ('_el', '_mutex'):
+        name = name.removesuffix(suffix)
+    return name
 
 
 def remove_orphaned_shm(before: set[str]) -> None:

@@ -20,6 +20,8 @@ setup(
     entry_points={
         'console_scripts': [
             'render = stealth_env.render:main',
+            'env_node = stealth_env.env_node:main',
+            'experiments = stealth_env.experiments:main',
         ],
     },
 )

@@ -1,0 +1,374 @@
+"""Benchmark: RL steps per second through the whole ROS loop, beside a bare rclpy ping-pong.
+
+One step of the loop is: agent publishes RLAction -> env_node calls sim/execute_move ->
+sim_node runs the move -> env_node judges it and publishes RLStateReward (and StepInfo) ->
+agent answers at once with a random action. Episode ends and resets are part of the loop.
+Measured in the same run, each in a private ROS domain, one after the other (no two compete
+for the CPU):
+
+1. **ping-pong**: round trips per second between two bare rclpy processes (std_msgs/Int64,
+   reliable, each answering the other from its subscription callback): what one lockstep
+   exchange between two Python processes costs at best;
+2. **RL loop, sim_node**: sim_node with its cheapest settings (0.1 s physics steps, a fast
+   robot, 10 particles, 8 beams), env_node and a minimal agent process;
+3. **RL loop, stub simulator**: the same, with a stand-in for sim_node that answers each move
+   at once on the move lattice (no physics, no localisation): what the ROS plumbing costs.
+
+Each is measured REPEATS times and the best counts: other processes on the machine can only
+slow a run down.
+
+A step of the loop is two lockstep exchanges (topic and service) plus the simulator's work, so
+its rate is at most half the ping-pong's; the target is at least 0.3 of it. Also reported: the
+simulator's own moves per second in-process at the same settings, the bound the loop can never
+beat. Needs the workspace built (``make setup``).
+Run: ``source scripts/ros_env.sh && python bench/bench_ros_loop.py``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+import re
+import sys
+import tempfile
+import time
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO_ROOT / 'tests'))
+
+from ros_support import (  # noqa: E402
+    NodeProcesses,
+    remove_orphaned_shm,
+    reserved_domain_id,
+    shm_segments,
+)
+
+SCENARIO = 'simple-maze'
+ROUND_TRIPS = 3000
+STEPS = {'sim_node': 2000, 'stub': 3000}
+WARMUP = 200  # steps or round trips before the clock starts
+REPEATS = 2  # each measurement; the best counts (other load on the machine only slows down)
+TARGET_RATIO = 0.3
+TIMEOUT = 600.0  # s for any one measurement
+BIN = REPO_ROOT / 'ros2_ws' / 'install'
+SIM_NODE = BIN / 'stealth_sim' / 'lib' / 'stealth_sim' / 'sim_node'
+ENV_NODE = BIN / 'stealth_env' / 'lib' / 'stealth_env' / 'env_node'
+FAST_SIM = {
+    'physics_dt': 0.1,
+    'particles': 10,
+    'laser_beams': 8,
+    'max_linear_speed': 5.0,
+    'max_angular_speed': 10.0,
+    'max_linear_accel': 20.0,
+    'max_angular_accel': 50.0,
+}
+RELIABLE = """
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
+"""
+
+# argv: role (ping | pong), warm-up, count. The ping prints 'RESULT <count> <seconds>'.
+PING_PONG = (
+    """
+import sys, time
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.task import Future
+from std_msgs.msg import Int64
+"""
+    + RELIABLE
+    + """
+role, warmup, count = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+rclpy.init()
+node = rclpy.create_node(f'bench_{role}')
+executor = SingleThreadedExecutor()
+executor.add_node(node)
+try:
+    if role == 'pong':
+        pong = node.create_publisher(Int64, 'pong', QOS)
+        node.create_subscription(Int64, 'ping', pong.publish, QOS)
+        executor.spin()
+    else:
+        ping = node.create_publisher(Int64, 'ping', QOS)
+        done, clock = Future(), {}
+        def on_pong(message):
+            if message.data == warmup:
+                clock['start'] = time.perf_counter()
+            if message.data == warmup + count:
+                clock['end'] = time.perf_counter()
+                done.set_result(True)
+            else:
+                ping.publish(Int64(data=message.data + 1))
+        replies = node.create_subscription(Int64, 'pong', on_pong, QOS)
+        while ping.get_subscription_count() == 0 or replies.get_publisher_count() == 0:
+            executor.spin_once(timeout_sec=0.05)
+        executor.spin_until_future_complete(Future(), timeout_sec=0.5)  # let matching settle
+        ping.publish(Int64(data=0))
+        executor.spin_until_future_complete(done)
+        print(f"RESULT {count} {clock['end'] - clock['start']}", flush=True)
+        executor.spin()  # until stopped
+except (KeyboardInterrupt, ExternalShutdownException):
+    pass
+finally:
+    node.destroy_node()
+    rclpy.try_shutdown()
+"""
+)
+
+# argv: warm-up, steps, seed. Answers every state at once; prints 'RESULT <steps> <seconds>
+# <episodes>' once it has the state that answers its last action.
+AGENT = (
+    """
+import random, sys, time
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.task import Future
+from stealth_interfaces.msg import RLAction, RLExperimentInfo, RLStateReward
+"""
+    + RELIABLE
+    + """
+warmup, steps, seed = map(int, sys.argv[1:4])
+rclpy.init()
+node = rclpy.create_node('bench_agent')
+executor = SingleThreadedExecutor()
+executor.add_node(node)
+actions = node.create_publisher(RLAction, 'rl_agent/rl_action', QOS)
+infos = node.create_publisher(RLExperimentInfo, 'rl_agent/rl_experiment_info', QOS)
+rng = random.Random(seed)
+counts = {'sent': 0, 'episodes': 0, 'measured_episodes': 0}
+done, clock = Future(), {}
+
+def on_state(message):
+    sent = counts['sent']
+    if sent == warmup and 'start' not in clock:
+        clock['start'] = time.perf_counter()
+    if sent == warmup + steps and not done.done():
+        clock['end'] = time.perf_counter()
+        done.set_result(True)
+        return
+    if message.terminal:
+        infos.publish(RLExperimentInfo(episode_number=counts['episodes']))
+        counts['episodes'] += 1
+        counts['measured_episodes'] += 'start' in clock
+    else:
+        actions.publish(RLAction(action=rng.randrange(4)))
+        counts['sent'] += 1
+
+node.create_subscription(RLStateReward, 'rl_env/rl_state_reward', on_state, QOS)
+try:
+    executor.spin_until_future_complete(done)
+    print(f"RESULT {steps} {clock['end'] - clock['start']} {counts['measured_episodes']}",
+          flush=True)
+    executor.spin()
+except (KeyboardInterrupt, ExternalShutdownException):
+    pass
+finally:
+    node.destroy_node()
+    rclpy.try_shutdown()
+"""
+)
+
+# argv: scenario. sim_node's two services, answered at once on the move lattice: a move the
+# lattice forbids leaves the robot where it is (as a bump would), the estimate is the truth,
+# and each move takes 1 s of simulated time.
+STUB_SIM = """
+import math, sys
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from stealth_env.move_lattice import ACTIONS, MoveLattice
+from stealth_env.scenario import load_scenario
+from stealth_interfaces.srv import ExecuteMove, ResetRobot
+
+scenario = load_scenario(sys.argv[1])
+lattice = MoveLattice.from_scenario(scenario)
+HEADINGS = (math.pi / 2, -math.pi / 2, math.pi, 0.0)
+rclpy.init()
+node = rclpy.create_node('simulator')
+state = {'node': (0, 0), 'heading': scenario.start[2], 'time': 0.0}
+
+def set_pose(field):
+    x, y = lattice.node_to_point(state['node'])
+    field.position.x, field.position.y = x, y
+    field.orientation.z = math.sin(state['heading'] / 2)
+    field.orientation.w = math.cos(state['heading'] / 2)
+
+def execute_move(request, response):
+    if request.kind > 3:
+        response.outcome, response.message = ExecuteMove.Response.REJECTED, 'grid moves only'
+        return response
+    target = lattice.successor(state['node'], request.kind)
+    if target is None:
+        response.outcome = ExecuteMove.Response.BUMPED
+    else:
+        state['node'] = target
+    state['heading'] = HEADINGS[request.kind]
+    state['time'] += 1.0
+    set_pose(response.true_pose)
+    set_pose(response.estimate.pose)
+    response.duration = 1.0
+    response.stamp.sec = int(state['time'])
+    return response
+
+def reset(request, response):
+    state['node'] = lattice.point_to_node(request.x, request.y)
+    state['heading'] = request.yaw
+    response.success = True
+    return response
+
+node.create_service(ExecuteMove, 'sim/execute_move', execute_move)
+node.create_service(ResetRobot, 'sim/reset', reset)
+try:
+    rclpy.spin(node)
+except (KeyboardInterrupt, ExternalShutdownException):
+    pass
+finally:
+    node.destroy_node()
+    rclpy.try_shutdown()
+"""
+
+
+def _ros_args(params: dict) -> list[str]:
+    args = ['--ros-args']
+    for key, value in params.items():
+        args += ['-p', f'{key}:={value}']
+    return args
+
+
+def _result(process, what: str) -> list[float]:
+    """The numbers of the process's RESULT line, once it prints one."""
+    deadline = time.monotonic() + TIMEOUT
+    while time.monotonic() < deadline:
+        match = re.search(r'^RESULT (.*)$', process.log_path.read_text(), re.MULTILINE)
+        if match:
+            return [float(v) for v in match.group(1).split()]
+        if process.poll() is not None:
+            break
+        time.sleep(0.05)
+    raise RuntimeError(f'{what}: no result; its log:\n{process.log_path.read_text()}')
+
+
+class _Run:
+    """A private domain and processes that are gone (and their shared memory too) afterwards."""
+
+    def __enter__(self) -> NodeProcesses:
+        self._domain = reserved_domain_id()
+        domain_id = self._domain.__enter__()
+        self._logs = tempfile.TemporaryDirectory(prefix='bench_ros_loop_')
+        self._before = shm_segments()
+        self.processes = NodeProcesses(domain_id, Path(self._logs.name))
+        return self.processes
+
+    def __exit__(self, *exc_info) -> None:
+        try:
+            self.processes.stop_all()
+            if self.processes.any_killed:
+                remove_orphaned_shm(self._before)
+        finally:
+            self._logs.cleanup()
+            self._domain.__exit__(*exc_info)
+
+
+def ping_pong() -> float:
+    """Round trips per second between two bare rclpy processes."""
+    with _Run() as processes:
+        processes.start_python(PING_PONG, 'pong', 'pong', '0', '0')
+        ping = processes.start_python(PING_PONG, 'ping', 'ping', str(WARMUP), str(ROUND_TRIPS))
+        count, seconds = _result(ping, 'ping-pong')
+    return count / seconds
+
+
+def rl_loop(simulator: str) -> tuple[float, float]:
+    """(RL steps per second, episodes per second) with 'sim_node' or the 'stub'."""
+    from stealth_env.scenario import load_scenario
+
+    scenario = load_scenario(SCENARIO)
+    x, y, yaw = scenario.start
+    with _Run() as processes:
+        if simulator == 'sim_node':
+            params = {'map': scenario.map_path, 'initial_pose': f'[{x}, {y}, {yaw}]', **FAST_SIM}
+            processes.start([str(SIM_NODE), *_ros_args(params)], 'sim_node')
+        else:
+            processes.start_python(STUB_SIM, 'stub_sim', SCENARIO)
+        env_params = {'scenario': SCENARIO, 'marker_period': 0.0, 'log_every': 0}
+        processes.start([str(ENV_NODE), *_ros_args(env_params)], 'env_node')
+        steps = STEPS[simulator]
+        agent = processes.start_python(AGENT, 'agent', str(WARMUP), str(steps), '7')
+        steps, seconds, episodes = _result(agent, f'RL loop with {simulator}')
+    return steps / seconds, episodes / seconds
+
+
+def simulator_in_process(moves: int = 300) -> float:
+    """Moves per second of the Simulator core at FAST_SIM settings, no ROS at all."""
+    from stealth_env.scenario import load_scenario
+    from stealth_sim.kinematics import Limits, Pose
+    from stealth_sim.laser import LaserConfig
+    from stealth_sim.localisation import FilterConfig
+    from stealth_sim.move_executor import Move, execute_move
+    from stealth_sim.simulator import SimConfig, Simulator
+
+    scenario = load_scenario(SCENARIO)
+    config = SimConfig(
+        physics_dt=FAST_SIM['physics_dt'],
+        limits=Limits(
+            FAST_SIM['max_linear_speed'],
+            FAST_SIM['max_angular_speed'],
+            FAST_SIM['max_linear_accel'],
+            FAST_SIM['max_angular_accel'],
+        ),
+        laser=LaserConfig(beams=FAST_SIM['laser_beams']),
+        filter=FilterConfig(particles=FAST_SIM['particles']),
+    )
+    sim = Simulator(scenario.map, config, Pose(*scenario.start))
+    started = time.perf_counter()
+    for index in range(moves):
+        execute_move(sim, Move(index % 2, scenario.step_distance))  # up and down
+    return moves / (time.perf_counter() - started)
+
+
+def run(report=print) -> dict:
+    for path in (SIM_NODE, ENV_NODE):
+        if not path.exists():
+            raise RuntimeError(f'{path} is missing: build the workspace first (make setup)')
+    round_trips = max(ping_pong() for _ in range(REPEATS))
+    loop, episodes = max(rl_loop('sim_node') for _ in range(REPEATS))
+    stub, stub_episodes = max(rl_loop('stub') for _ in range(REPEATS))
+    core = simulator_in_process()
+    ratio, stub_ratio = loop / round_trips, stub / round_trips
+    verdict = 'met' if ratio >= TARGET_RATIO else 'NOT met'
+    report(
+        f'ROS loop, {SCENARIO}, a random agent answering at once (all in one run, best of '
+        f'{REPEATS}):'
+    )
+    report(f'  bare rclpy ping-pong (two processes): {round_trips:.0f} round trips/s')
+    report(
+        f'  RL loop through sim_node (cheapest settings): {loop:.0f} steps/s '
+        f'({episodes:.1f} episodes/s), {ratio:.2f} of ping-pong (target >= {TARGET_RATIO}: '
+        f'{verdict})'
+    )
+    report(
+        f'  RL loop through a stub simulator (no physics): {stub:.0f} steps/s, '
+        f'{stub_ratio:.2f} of ping-pong'
+    )
+    report(
+        f'  the simulator core alone at the same settings: {core:.0f} moves/s in-process '
+        f'(a bound on the loop through sim_node)'
+    )
+    return {
+        'ros_loop_ping_pong_round_trips_per_second': round(round_trips, 1),
+        'ros_loop_steps_per_second': round(loop, 1),
+        'ros_loop_ratio_to_ping_pong': round(ratio, 3),
+        'ros_loop_target_ratio': TARGET_RATIO,
+        'ros_loop_target_met': bool(ratio >= TARGET_RATIO),
+        'ros_loop_stub_steps_per_second': round(stub, 1),
+        'ros_loop_stub_ratio_to_ping_pong': round(stub_ratio, 3),
+        'ros_loop_sim_core_moves_per_second': round(core, 1),
+        'ros_loop_episodes_per_second': round(episodes, 2),
+        'ros_loop_stub_episodes_per_second': round(stub_episodes, 2),
+    }
+
+
+def main() -> dict:
+    return run()
+
+
+if __name__ == '__main__':
+    main()

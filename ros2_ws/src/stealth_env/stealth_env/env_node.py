@@ -1,0 +1,849 @@
+"""The environment node (``environment``): rl-texplore-ros-pkg's rl_env protocol over the
+simulator, judged by the shared core (``StealthTask`` via ``EpisodeFlow``).
+
+Topics (frame ``map``; RL topics reliable, volatile, KEEP_ALL: the protocol is lockstep and no
+step may be dropped silently):
+
+* publishes ``rl_env/rl_env_description`` (RLEnvDescription; reliable + transient local,
+  depth 1) once; ``rl_env/rl_state_reward`` (RLStateReward) at every episode start and after
+  every action; ``rl_env/step_info`` (StepInfo) after every action; ``rl_env/episode_summary``
+  (EpisodeSummary) at every episode end; ``searchlights`` (SearchlightArray, transient local)
+  and ``searchlight_markers`` (visualization_msgs/MarkerArray, transient local): the lights
+  and the scene for RViz and Foxglove, again every ``marker_period`` while lights move or when
+  a new viewer subscribes;
+* subscribes ``rl_agent/rl_action`` (RLAction) and ``rl_agent/rl_experiment_info``
+  (RLExperimentInfo);
+* StepInfo is built only while someone subscribes (a recorder, a viewer), as the simulator
+  does with its periodic topics;
+* calls ``sim/execute_move`` and ``sim/reset`` (stealth_interfaces) of the simulator node,
+  asynchronously: no callback ever blocks the executor; reads the simulator's latched ``map``
+  once to check it is the scenario's (an error line if not).
+
+Episode flow: the description goes out at once; the first episode starts when both simulator
+services answer and an agent is connected (its rl_state_reward reader matched, so the volatile
+first state is not lost), after ``start_delay``. Each action is a move of the scenario's step
+distance; the new state is the localisation estimate in the answer, truncated to the state
+cell; reward and terminal come from the core, judged on the true pose at the move's end time
+(``judge_on: estimate`` for the original's estimate-only way). Goal, detection or the step
+limit end an episode; the agent's RLExperimentInfo starts the next one. Actions that arrive
+out of turn or out of range are dropped with a warning. A move the simulator rejects, fails or
+does not answer within ``move_timeout`` ends the episode as ABORTED (a terminal state with
+reward 0 keeps the agent in step). An agent that goes away ends its episode as ABORTED, and
+the next agent to come gets a fresh one. Totals of actions and states are logged at shutdown.
+The decisions are ``stealth_env.episode_flow``'s; the marker geometry ``stealth_env.markers``'.
+
+Bad startup input (no or an unusable scenario, an unknown goal, a bad parameter value) stops
+the node with one line saying which and why, and exit code 2.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+import functools
+import math
+import re
+import time
+from typing import Any, NamedTuple
+
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Point, Pose2D
+from nav_msgs.msg import OccupancyGrid
+import numpy as np
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    SetParametersResult,
+)
+import rclpy
+from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_policy_name_from_kind,
+)
+from rclpy.task import Future
+from std_msgs.msg import ColorRGBA
+from stealth_interfaces.msg import (
+    EpisodeSummary,
+    RLAction,
+    RLEnvDescription,
+    RLExperimentInfo,
+    RLStateReward,
+    Searchlight,
+    SearchlightArray,
+    StepInfo,
+)
+from stealth_interfaces.srv import ExecuteMove, ResetRobot
+from visualization_msgs.msg import Marker, MarkerArray
+
+from stealth_env.episode_flow import (
+    JUDGE_ON,
+    Endpoint,
+    EpisodeFlow,
+    Phase,
+    PlanarPose,
+    agent_connected,
+    is_finite_pose,
+)
+from stealth_env.markers import WallMap, any_moving, scene_markers, searchlight_fields
+from stealth_env.reward import Outcome
+from stealth_env.scenario import ScenarioError, load_scenario
+from stealth_env.task import StealthTask
+
+NODE_NAME = 'environment'
+MAP_FRAME = 'map'
+TICK_PERIOD = 0.1  # s of wall time between housekeeping ticks (start, timeouts, agent presence)
+RESET_RETRY = 1.0  # s of wall time before a failed reset is tried again
+WAITING_LOG_PERIOD = 10.0  # s of wall time between 'still waiting' lines
+
+# Lockstep protocol: at most one message in flight, and a reliable KEEP_ALL queue anyway.
+RL_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_ALL,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+LATCHED_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+# Every QoS event handler is one more entity in each of the executor's waits, and every step
+# goes through two of them: endpoints on the step's path keep only the incompatible-QoS warning
+# that explains a silent agent (measured: ~10 % more steps/s than rclpy's default handlers).
+QUIET_PUBLISHER = PublisherEventCallbacks(use_default_callbacks=False)
+QUIET_SUBSCRIPTION = SubscriptionEventCallbacks(use_default_callbacks=False)
+TOPICS = {
+    'description': 'rl_env/rl_env_description',
+    'state': 'rl_env/rl_state_reward',
+    'step_info': 'rl_env/step_info',
+    'summary': 'rl_env/episode_summary',
+    'action': 'rl_agent/rl_action',
+    'experiment_info': 'rl_agent/rl_experiment_info',
+    'searchlights': 'searchlights',
+    'markers': 'searchlight_markers',
+}
+MOVE_SERVICE, RESET_SERVICE = 'sim/execute_move', 'sim/reset'
+MARKER_KINDS = {
+    'triangle_list': Marker.TRIANGLE_LIST,
+    'line_strip': Marker.LINE_STRIP,
+    'sphere': Marker.SPHERE,
+    'cylinder': Marker.CYLINDER,
+    'text': Marker.TEXT_VIEW_FACING,
+}
+
+
+class Param(NamedTuple):
+    """One ROS parameter of the node: default, description, range, fixed after startup."""
+
+    default: Any
+    description: str
+    bounds: tuple | None = None
+    read_only: bool = False
+
+
+PARAMETERS = {
+    'scenario': Param(
+        '',
+        'Scenario (required): a name such as lgfloor (scenarios/ or $STEALTH_NAV_SCENARIOS) '
+        'or the path of a scenario YAML.',
+        read_only=True,
+    ),
+    'goal': Param('', "Goal pursued: easy, medium or hard; '' = the scenario's default.",
+                  read_only=True),
+    'judge_on': Param(
+        'true',
+        "Pose that visibility, detection and the goal are judged on: 'true' (the lights see "
+        "the real robot) or 'estimate' (the original's estimate-only way). From the next step.",
+    ),
+    'seed': Param(0, "Seed of the random draws of 'probabilistic' detection.", (0, 2**31 - 1),
+                  read_only=True),
+    'move_timeout': Param(
+        60.0, 'Wall-clock seconds to wait for an answer of sim/execute_move or sim/reset; a '
+        'move without one ends the episode as ABORTED.', (0.1, 3600.0)
+    ),
+    'marker_period': Param(
+        1.0, 'Wall-clock seconds between updates of searchlights and searchlight_markers '
+        '(moving lights drawn at the latest simulated time); 0 = publish once.', (0.0, 3600.0)
+    ),
+    'start_delay': Param(
+        0.0, 'Wall-clock seconds to wait, once the simulator and an agent are there, before '
+        'the first episode starts (time for recorders and viewers to connect).', (0.0, 3600.0)
+    ),
+    'log_every': Param(100, 'Log a progress line every this many episodes (0 = never).',
+                       (0, 2**31 - 1)),
+}  # fmt: skip
+
+
+class StartupError(RuntimeError):
+    """Parameters or a scenario that make it impossible to start; the message says which."""
+
+
+def descriptor(param: Param) -> ParameterDescriptor:
+    result = ParameterDescriptor(description=param.description, read_only=param.read_only)
+    if param.bounds is not None and isinstance(param.bounds[0], int):
+        low, high = param.bounds
+        result.integer_range = [IntegerRange(from_value=low, to_value=high, step=1)]
+    elif param.bounds is not None:
+        low, high = param.bounds
+        result.floating_point_range = [FloatingPointRange(from_value=low, to_value=high, step=0.0)]
+    return result
+
+
+# --- message conversions ------------------------------------------------------------------------
+
+
+def time_msg(seconds: float) -> Time:
+    nanoseconds = round(seconds * 1e9)
+    return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
+
+
+def seconds(stamp: Time) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def planar_pose(pose) -> PlanarPose:
+    """(x, y, yaw) of a geometry_msgs/Pose."""
+    q = pose.orientation
+    yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+    return PlanarPose(pose.position.x, pose.position.y, yaw)
+
+
+def pose2d_msg(pose: PlanarPose) -> Pose2D:
+    return Pose2D(x=float(pose.x), y=float(pose.y), theta=float(pose.yaw))
+
+
+def description_msg(fields: dict) -> RLEnvDescription:
+    return RLEnvDescription(
+        num_actions=float(fields['num_actions']),
+        num_states=float(fields['num_states']),
+        min_state_range=[float(v) for v in fields['min_state_range']],
+        max_state_range=[float(v) for v in fields['max_state_range']],
+        max_reward=float(fields['max_reward']),
+        reward_range=float(fields['reward_range']),
+        stochastic=bool(fields['stochastic']),
+        episodic=bool(fields['episodic']),
+        title=fields['title'],
+    )
+
+
+def step_info_msg(report, state: list, reward: float, stamp: Time) -> StepInfo:
+    judgement = report.judgement
+    info = StepInfo(
+        episode=report.episode,
+        step=report.step,
+        action=report.action,
+        state=state,
+        reward=reward,
+        visibility=_float32(judgement.visibility),
+        distance_to_goal=_float32(judgement.distance_to_goal),
+        detected=judgement.detected,
+        terminal=report.terminal,
+        estimated_pose=pose2d_msg(report.estimate),
+        true_pose=pose2d_msg(report.truth),
+    )
+    info.header.stamp, info.header.frame_id = stamp, MAP_FRAME
+    return info
+
+
+def summary_msg(summary, stamp: Time) -> EpisodeSummary:
+    message = EpisodeSummary(
+        episode=summary.episode,
+        outcome=summary.outcome,
+        steps=summary.steps,
+        total_reward=_float32(summary.total_reward),
+        peak_visibility=_float32(summary.peak_visibility),
+        accumulated_visibility=_float32(summary.accumulated_visibility),
+        path_length=_float32(summary.path_length),
+        final_distance_to_goal=_float32(summary.final_distance_to_goal),
+        goal=summary.goal,
+    )
+    message.header.stamp, message.header.frame_id = stamp, MAP_FRAME
+    return message
+
+
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def _float32(value: float) -> float:
+    """A value a float32 field accepts (rclpy refuses values beyond float32's range)."""
+    return float(min(max(value, -_FLOAT32_MAX), _FLOAT32_MAX))
+
+
+def searchlight_array_msg(lights, t: float) -> SearchlightArray:
+    stamp = time_msg(t)
+    array = SearchlightArray()
+    array.header.stamp, array.header.frame_id = stamp, MAP_FRAME
+    for light in lights:
+        fields = searchlight_fields(light, t)
+        x, y = fields.pop('position')
+        waypoints = [Point(x=float(px), y=float(py)) for px, py in fields.pop('waypoints')]
+        message = Searchlight(
+            position=Point(x=float(x), y=float(y)), waypoints=waypoints, **fields
+        )
+        message.header.stamp, message.header.frame_id = stamp, MAP_FRAME
+        array.lights.append(message)
+    return array
+
+
+def marker_array_msg(specs, t: float) -> MarkerArray:
+    """The scene: a DELETEALL (stale markers of an earlier scene go), then every marker."""
+    stamp = time_msg(t)
+    clear = Marker(action=Marker.DELETEALL)
+    clear.header.stamp, clear.header.frame_id = stamp, MAP_FRAME
+    markers = [clear]
+    for spec in specs:
+        marker = Marker(ns=spec.namespace, id=spec.id, type=MARKER_KINDS[spec.kind])
+        marker.action = Marker.ADD
+        marker.header.stamp, marker.header.frame_id = stamp, MAP_FRAME
+        marker.pose.position.x, marker.pose.position.y, marker.pose.position.z = spec.position
+        marker.pose.orientation.w = 1.0
+        marker.scale.x, marker.scale.y, marker.scale.z = (float(v) for v in spec.scale)
+        marker.color = _colour(spec.color)
+        marker.points = [Point(x=p[0], y=p[1], z=p[2]) for p in spec.points]
+        marker.colors = [_colour(c) for c in spec.colors]
+        marker.text = spec.text
+        markers.append(marker)
+    return MarkerArray(markers=markers)
+
+
+def _colour(rgba) -> ColorRGBA:
+    return ColorRGBA(r=float(rgba[0]), g=float(rgba[1]), b=float(rgba[2]), a=float(rgba[3]))
+
+
+def map_mismatch(occupancy, grid: OccupancyGrid) -> str:
+    """How a nav_msgs/OccupancyGrid differs from a map ('' when it does not)."""
+    info = grid.info
+    x, y, _ = occupancy.origin
+    origin = info.origin.position
+    theirs = (info.width, info.height, info.resolution, origin.x, origin.y)
+    ours = (occupancy.width, occupancy.height, occupancy.resolution, x, y)
+    if theirs[:2] != ours[:2] or not np.allclose(theirs[2:], ours[2:], rtol=0, atol=1e-6):
+        return f'{_grid_text(*theirs)}, expected {_grid_text(*ours)}'
+    different = int(np.count_nonzero(np.asarray(grid.data) != occupancy.data.ravel()))
+    return f'{different} cells differ' if different else ''
+
+
+def _grid_text(width, height, resolution, x, y) -> str:
+    return f'{width} x {height} cells of {resolution:g} m from ({x:g}, {y:g})'
+
+
+class Pending(NamedTuple):
+    """A request to the simulator on its way."""
+
+    token: int
+    future: Future
+    client: Any
+    deadline: float  # time.monotonic()
+    what: str
+
+
+# --- the node -----------------------------------------------------------------------------------
+
+
+class EnvironmentNode(Node):
+    """stealth-nav's rl_env: scenario, judging and episodes over the simulator's moves."""
+
+    def __init__(self, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        try:
+            self._set_up()
+        except StartupError:
+            self.destroy_node()  # leave no DDS participant (and shared memory) behind
+            raise
+
+    def _set_up(self) -> None:
+        self._configured = False
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+        values = self._declare_parameters()
+        self.scenario = self._load_scenario(values['scenario'])
+        try:
+            self.task = StealthTask(
+                self.scenario, values['goal'] or None, rng=np.random.default_rng(values['seed'])
+            )
+        except ValueError as error:
+            raise StartupError(f'parameter goal: {error}') from None
+        self.flow = EpisodeFlow(self.task, values['judge_on'])
+        self.move_timeout = values['move_timeout']
+        self.start_delay = values['start_delay']
+        self.log_every = values['log_every']
+        self._walls = WallMap.of(self.scenario.map)
+        self._moving_lights = any_moving(self.scenario)
+        self._sim_time = 0.0  # the latest simulated time the simulator reported (s)
+        self._pending: Pending | None = None
+        self._ready_since: float | None = None
+        self._retry_at = 0.0
+        self._waiting_logged = time.monotonic()
+        self._window: list = []  # EpisodeSummaryFields since the last progress line
+        self._scene_published = {'searchlights': (-1.0, 0), 'markers': (-1.0, 0)}
+        self._markers_cache: tuple[float, MarkerArray] | None = None
+
+        self._description_pub = self.create_publisher(
+            RLEnvDescription, TOPICS['description'], LATCHED_QOS
+        )
+        self._state_pub = self.create_publisher(
+            RLStateReward,
+            TOPICS['state'],
+            RL_QOS,
+            event_callbacks=PublisherEventCallbacks(
+                incompatible_qos=self._on_incompatible_reader, use_default_callbacks=False
+            ),
+        )
+        self._step_pub = self._quiet_publisher(StepInfo, TOPICS['step_info'], RL_QOS)
+        self._summary_pub = self._quiet_publisher(EpisodeSummary, TOPICS['summary'], RL_QOS)
+        self._lights_pub = self._quiet_publisher(
+            SearchlightArray, TOPICS['searchlights'], LATCHED_QOS
+        )
+        self._markers_pub = self._quiet_publisher(MarkerArray, TOPICS['markers'], LATCHED_QOS)
+        self._action_sub = self.create_subscription(
+            RLAction,
+            TOPICS['action'],
+            self._on_action,
+            RL_QOS,
+            event_callbacks=SubscriptionEventCallbacks(
+                incompatible_qos=self._on_incompatible_writer, use_default_callbacks=False
+            ),
+        )
+        self.create_subscription(
+            RLExperimentInfo,
+            TOPICS['experiment_info'],
+            self._on_experiment_info,
+            RL_QOS,
+            event_callbacks=QUIET_SUBSCRIPTION,
+        )
+        self.create_subscription(
+            OccupancyGrid, 'map', self._check_map, LATCHED_QOS, event_callbacks=QUIET_SUBSCRIPTION
+        )
+        self._move_client = self.create_client(ExecuteMove, MOVE_SERVICE)
+        self._reset_client = self.create_client(ResetRobot, RESET_SERVICE)
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(TICK_PERIOD, self._on_tick, clock=self._steady)
+        self._scene_timer = None
+        self._schedule_scene(values['marker_period'])
+
+        description = self.task.description(stochastic=True)
+        self._description_pub.publish(description_msg(description))
+        self._publish_scene(force=True)
+        self._configured = True
+        goal = self.task.goal
+        self.get_logger().info(
+            f"environment '{self.task.title}' from {self.scenario.path}: "
+            f'{int(description["num_states"])} states, goal {goal.name} at '
+            f'({goal.x:g}, {goal.y:g}), step {self.scenario.step_distance:g} m, step limit '
+            f'{self.task.step_limit}, {len(self.scenario.lights)} lights, judged on the '
+            f'{"true pose" if self.flow.judge_on == "true" else "estimate"}; waiting for '
+            f'{MOVE_SERVICE}, {RESET_SERVICE} and an agent'
+        )
+
+    def _quiet_publisher(self, message_type, topic: str, qos: QoSProfile):
+        return self.create_publisher(message_type, topic, qos, event_callbacks=QUIET_PUBLISHER)
+
+    def _on_incompatible_reader(self, event) -> None:
+        self.get_logger().warning(
+            f'a subscription to {self._state_pub.topic_name} requests QoS this environment '
+            f'cannot offer ({qos_policy_name_from_kind(event.last_policy_kind)}): it gets no '
+            'states; the RL topics are reliable and volatile'
+        )
+
+    def _on_incompatible_writer(self, event) -> None:
+        self.get_logger().warning(
+            f'a publisher of {self._action_sub.topic_name} offers QoS this environment cannot '
+            f'accept ({qos_policy_name_from_kind(event.last_policy_kind)}): its actions never '
+            'arrive; the RL topics are reliable and volatile'
+        )
+
+    # --- parameters -----------------------------------------------------------------------------
+
+    def _declare_parameters(self) -> dict:
+        values = {}
+        for name, param in PARAMETERS.items():
+            try:
+                parameter = self.declare_parameter(name, param.default, descriptor(param))
+            except Exception as error:  # rclpy's type, range and validation errors
+                raise StartupError(f'parameter {name}: {error}') from None
+            values[name] = parameter.value
+        return values
+
+    def _load_scenario(self, name: str):
+        if not name:
+            raise StartupError(
+                'parameter scenario: required, a scenario name (e.g. lgfloor) or the path of a '
+                'scenario YAML'
+            )
+        try:
+            return load_scenario(name)
+        except (ScenarioError, OSError, ValueError) as error:
+            raise StartupError(f'parameter scenario: {error}') from None
+
+    def _validate_parameters(self, changes) -> SetParametersResult:
+        """rclpy checks types, ranges and read-only; this checks what it cannot."""
+        for change in changes:
+            if change.name == 'judge_on' and change.value not in JUDGE_ON:
+                return SetParametersResult(
+                    successful=False,
+                    reason=f'judge_on must be one of {", ".join(JUDGE_ON)}, got {change.value!r}',
+                )
+            if isinstance(change.value, float) and not math.isfinite(change.value):
+                return SetParametersResult(
+                    successful=False, reason=f'{change.name} must be finite, got {change.value}'
+                )
+        return SetParametersResult(successful=True)
+
+    def _apply_parameters(self, changes) -> None:
+        if not self._configured:
+            return
+        for change in changes:
+            if change.name == 'judge_on':
+                self.flow.judge_on = change.value
+            elif change.name == 'move_timeout':
+                self.move_timeout = change.value
+            elif change.name == 'start_delay':
+                self.start_delay = change.value
+            elif change.name == 'log_every':
+                self.log_every = change.value
+            elif change.name == 'marker_period':
+                self._schedule_scene(change.value)
+        names = ', '.join(f'{c.name}={c.value}' for c in changes)
+        self.get_logger().info(f'parameters changed: {names}')
+
+    # --- startup, timeouts, agent presence ------------------------------------------------------
+
+    def _services_ready(self) -> bool:
+        return self._move_client.service_is_ready() and self._reset_client.service_is_ready()
+
+    def _agent_connected(self) -> bool:
+        if self._action_sub.get_publisher_count() == 0:
+            return False
+        writers = [
+            Endpoint(_node_of(info))
+            for info in self.get_publishers_info_by_topic(self._action_sub.topic_name)
+        ]
+        readers = [
+            Endpoint(
+                _node_of(info),
+                info.qos_profile.durability != DurabilityPolicy.TRANSIENT_LOCAL,
+            )
+            for info in self.get_subscriptions_info_by_topic(self._state_pub.topic_name)
+        ]
+        return agent_connected(writers, readers, self._state_pub.get_subscription_count())
+
+    def _on_tick(self) -> None:
+        now = time.monotonic()
+        pending = self._pending
+        if pending is not None and now > pending.deadline:
+            self._pending = None
+            pending.client.remove_pending_request(pending.future)
+            self._request_failed(
+                pending, f'no answer from {pending.what} within move_timeout '
+                f'{self.move_timeout:g} s (is the simulator running?)'
+            )  # fmt: skip
+        phase = self.flow.phase
+        if phase is Phase.WAITING:
+            self._maybe_start(now)
+        elif self._action_sub.get_publisher_count() == 0:
+            self._agent_gone()
+
+    def _agent_gone(self) -> None:
+        withdrawn = self.flow.counts.episodes_withdrawn
+        summary = self.flow.agent_lost()
+        if self._pending is not None:  # its answer is stale now
+            self._pending.client.remove_pending_request(self._pending.future)
+            self._pending = None
+        gone = f'the agent went away (no {TOPICS["action"]} publisher)'
+        if summary is not None:
+            self._publish_summary(summary)
+            self.get_logger().warning(
+                f'{gone}; episode {summary.episode} ended as ABORTED after {summary.steps} steps'
+            )
+        elif self.flow.counts.episodes_withdrawn > withdrawn:
+            self.get_logger().info(
+                f'{gone} before its first action in episode {self.flow.episode + 1}: withdrawn, '
+                'the next agent starts it again'
+            )
+        else:
+            self.get_logger().info(gone)
+
+    def _maybe_start(self, now: float) -> None:
+        services, agent = self._services_ready(), self._agent_connected()
+        if not (services and agent):
+            self._ready_since = None
+            if now - self._waiting_logged >= WAITING_LOG_PERIOD:
+                self._waiting_logged = now
+                missing = [
+                    what
+                    for what, there in (
+                        (f'the simulator ({MOVE_SERVICE}, {RESET_SERVICE})', services),
+                        (
+                            f'an agent (publishing {TOPICS["action"]}, subscribed to '
+                            f'{TOPICS["state"]})',
+                            agent,
+                        ),
+                    )
+                    if not there
+                ]
+                self.get_logger().info(f'still waiting for {" and ".join(missing)}')
+            return
+        if self._ready_since is None:
+            self._ready_since = now
+        if now - self._ready_since >= self.start_delay and now >= self._retry_at:
+            self._start_episode()
+
+    def _start_episode(self) -> None:
+        """Reset the robot to the start; the episode's first state follows the answer."""
+        token, (x, y, yaw) = self.flow.begin_reset()
+        request = ResetRobot.Request(x=x, y=y, yaw=yaw)  # zero covariance: the node's default
+        self._send(self._reset_client, request, token, RESET_SERVICE, self._on_reset_answer)
+
+    def _send(self, client, request, token: int, what: str, on_answer) -> None:
+        future = client.call_async(request)
+        self._pending = Pending(token, future, client, time.monotonic() + self.move_timeout, what)
+        future.add_done_callback(functools.partial(on_answer, token))
+
+    def _request_failed(self, pending: Pending, reason: str) -> None:
+        if pending.what == RESET_SERVICE:
+            self._reset_failed(pending.token, reason)
+        else:
+            self._abort(pending.token, reason)
+
+    # --- the simulator's answers ----------------------------------------------------------------
+
+    def _take_answer(self, token: int, future: Future):
+        """The response of a request that is still current, or None (stale or failed)."""
+        if self._pending is not None and self._pending.token == token:
+            self._pending = None
+        if future.cancelled():
+            return None, 'the request was cancelled'
+        error = future.exception()
+        if error is not None:
+            return None, f'the call failed: {error!r}'
+        return future.result(), ''
+
+    def _on_reset_answer(self, token: int, future: Future) -> None:
+        response, problem = self._take_answer(token, future)
+        if response is None or not response.success:
+            self._reset_failed(token, problem or response.message)
+            return
+        state = self.flow.reset_done(token)
+        if state is None:
+            return  # stale: the agent went away meanwhile
+        self._state_pub.publish(RLStateReward(state=list(state), reward=0.0, terminal=False))
+        self.get_logger().debug(f'episode {self.flow.episode} started at state {list(state)}')
+
+    def _reset_failed(self, token: int, reason: str) -> None:
+        if self.flow.reset_failed(token):
+            self._retry_at = time.monotonic() + RESET_RETRY
+            self.get_logger().error(
+                f'{RESET_SERVICE} failed: {reason}; trying again in {RESET_RETRY:g} s',
+                throttle_duration_sec=10.0,
+            )
+
+    def _on_move_answer(self, token: int, future: Future) -> None:
+        response, problem = self._take_answer(token, future)
+        if response is None:
+            self._abort(token, f'{MOVE_SERVICE}: {problem}')
+            return
+        if response.outcome == ExecuteMove.Response.REJECTED:
+            self._abort(token, f'the simulator rejected the move: {response.message}')
+            return
+        estimate = planar_pose(response.estimate.pose)
+        truth = planar_pose(response.true_pose)
+        if not is_finite_pose(*estimate, *truth):
+            self._abort(token, f'the simulator answered a non-finite pose ({estimate}, {truth})')
+            return
+        t = seconds(response.stamp)
+        self._sim_time = max(self._sim_time, t)
+        try:
+            report = self.flow.finish_move(token, estimate, truth, t)
+        except ValueError as error:
+            self._abort(token, f"{error}: does the simulator run the scenario's map?")
+            return
+        if report is None:
+            return  # stale: already aborted (timeout) or the agent went away
+        if response.outcome != ExecuteMove.Response.DONE:
+            self.get_logger().info(
+                f'move {report.action} of episode {report.episode}, step {report.step}: '
+                f'{response.message}',
+                throttle_duration_sec=5.0,
+            )
+        self._publish_step(report, response.stamp)
+
+    def _abort(self, token: int, reason: str) -> None:
+        aborted = self.flow.abort(token, reason)
+        if aborted is None:
+            return
+        self._state_pub.publish(
+            RLStateReward(state=list(aborted.state), reward=0.0, terminal=True)
+        )
+        self._publish_summary(aborted.summary)
+        self.get_logger().error(
+            f'episode {aborted.summary.episode} ABORTED after {aborted.summary.steps} steps: '
+            f'{reason}'
+        )
+
+    def _check_map(self, grid: OccupancyGrid) -> None:
+        """The simulator's map must be the scenario's, or the judge sees other walls."""
+        problem = map_mismatch(self.scenario.map, grid)
+        if problem:
+            self.get_logger().error(
+                f"the simulator's map is not the map of scenario {self.scenario.name!r} "
+                f'({self.scenario.map_path}): {problem}; start the simulator with that map'
+            )
+        else:
+            self.get_logger().debug("the simulator's map is the scenario's")
+
+    # --- the agent's messages -------------------------------------------------------------------
+
+    def _on_action(self, message: RLAction) -> None:
+        problem = self.flow.accept_action(message.action)
+        if problem is not None:
+            counts = self.flow.counts
+            self.get_logger().warning(
+                f'{problem} ({counts.actions_dropped} of {counts.actions_received} actions '
+                'dropped so far)'
+            )
+            return
+        if not self._move_client.service_is_ready():
+            self._abort(self.flow.token, f'{MOVE_SERVICE} is not available')
+            return
+        request = ExecuteMove.Request(
+            kind=self.flow.action, distance=float(self.scenario.step_distance)
+        )
+        self._send(self._move_client, request, self.flow.token, MOVE_SERVICE, self._on_move_answer)
+
+    def _on_experiment_info(self, message: RLExperimentInfo) -> None:
+        problem = self.flow.experiment_info()
+        if problem is not None:
+            self.get_logger().warning(
+                f'{problem} (episode_number {message.episode_number}, '
+                f'{message.number_actions} actions)'
+            )
+            return
+        self._start_episode()
+
+    # --- publishing -----------------------------------------------------------------------------
+
+    def _publish_step(self, report, stamp: Time) -> None:
+        state = list(report.state)
+        reward = _float32(report.reward)
+        self._state_pub.publish(
+            RLStateReward(state=state, reward=reward, terminal=report.terminal)
+        )
+        if self._step_pub.get_subscription_count():  # as the simulator: built when wanted
+            self._step_pub.publish(step_info_msg(report, state, reward, stamp))
+        if report.summary is not None:
+            self._publish_summary(report.summary, stamp)
+
+    def _publish_summary(self, summary, stamp: Time | None = None) -> None:
+        self._summary_pub.publish(summary_msg(summary, stamp or time_msg(self._sim_time)))
+        self.get_logger().debug(
+            f'episode {summary.episode}: {Outcome(summary.outcome).name} after {summary.steps} '
+            f'steps, return {summary.total_reward:.2f}'
+        )
+        self._window.append(summary)
+        if self.log_every and len(self._window) >= self.log_every:
+            self.get_logger().info(_progress(self._window))
+            self._window = []
+
+    def _schedule_scene(self, period: float) -> None:
+        if self._scene_timer is not None:
+            self.destroy_timer(self._scene_timer)
+            self._scene_timer = None
+        if period > 0:
+            self._scene_timer = self.create_timer(period, self._publish_scene, clock=self._steady)
+
+    def _scene_time(self) -> float:
+        """The simulated time the lights are drawn at: the latest the simulator reported, or
+        the ROS clock under use_sim_time."""
+        t = self._sim_time
+        if self.get_parameter('use_sim_time').value:
+            t = max(t, self.get_clock().now().nanoseconds * 1e-9)
+        return t
+
+    def _publish_scene(self, force: bool = False) -> None:
+        """SearchlightArray and markers: when lights moved since they were last sent, or when a
+        new subscriber came (a volatile viewer gets nothing from transient local)."""
+        t = self._scene_time() if self._moving_lights else 0.0
+        for key, publisher, build in (
+            ('searchlights', self._lights_pub, self._searchlights_msg),
+            ('markers', self._markers_pub, self._markers_msg),
+        ):
+            subscribers = publisher.get_subscription_count()
+            last_t, last_subscribers = self._scene_published[key]
+            if force or (subscribers and (t != last_t or subscribers > last_subscribers)):
+                publisher.publish(build(t))
+                last_t = t
+            self._scene_published[key] = (last_t, subscribers)
+
+    def _searchlights_msg(self, t: float) -> SearchlightArray:
+        return searchlight_array_msg(self.scenario.lights, t)
+
+    def _markers_msg(self, t: float) -> MarkerArray:
+        if self._markers_cache is None or self._markers_cache[0] != t:
+            specs = scene_markers(self.scenario, self.task.goal.name, t, self._walls)
+            self._markers_cache = (t, marker_array_msg(specs, t))
+        return self._markers_cache[1]
+
+    # --- shutdown -------------------------------------------------------------------------------
+
+    def log_totals(self) -> None:
+        """The counts that show nothing was lost (after Ctrl-C /rosout is gone: plain logger)."""
+        logger = (
+            self.get_logger()
+            if self.context.ok()
+            else rclpy.logging.get_logger(f'{NODE_NAME}.exit')
+        )
+        note = ''
+        if self.flow.in_episode:
+            note = f'; episode {self.flow.episode} was running ({self.flow.steps} steps)'
+        logger.info(f'totals: {self.flow.counts.describe()}{note}')
+
+
+def _node_of(info) -> str:
+    namespace = info.node_namespace.rstrip('/')
+    return f'{namespace}/{info.node_name}'
+
+
+def _progress(window) -> str:
+    outcomes = Counter(Outcome(s.outcome).name.lower() for s in window)
+    names = ', '.join(f'{name} {outcomes[name]}' for name in sorted(outcomes))
+    mean_return = sum(s.total_reward for s in window) / len(window)
+    mean_steps = sum(s.steps for s in window) / len(window)
+    return (
+        f'episodes {window[0].episode}-{window[-1].episode}: {names}; mean return '
+        f'{mean_return:.2f}, mean steps {mean_steps:.1f}'
+    )
+
+
+def main(args=None) -> int:
+    try:
+        rclpy.init(args=args)
+    except Exception as error:  # e.g. an unreadable --params-file
+        reason = re.sub(r', at [^,]*:\d+', '', str(error))  # rcl's source locations
+        rclpy.logging.get_logger(NODE_NAME).fatal(f'not starting: bad arguments: {reason}')
+        return 2
+    try:
+        node = EnvironmentNode()
+    except Exception as error:  # StartupError, or rcl's own (e.g. a bad remapping)
+        rclpy.logging.get_logger(NODE_NAME).fatal(f'not starting: {error}')
+        rclpy.try_shutdown()
+        return 2
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.log_totals()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,361 @@
+"""The environment node's episode state machine: pure Python, no rclpy.
+
+The node only turns messages and service answers into calls of :class:`EpisodeFlow` and what
+the calls return into messages; every decision of the rl_msgs protocol (rl-texplore-ros-pkg's
+rl_env) is made here, on top of the shared judging core ``stealth_env.task.StealthTask``::
+
+    flow = EpisodeFlow(task, judge_on='true')
+    token, pose = flow.begin_reset()             # WAITING/ENDED -> RESETTING: call sim/reset
+    state = flow.reset_done(token)               # -> RUNNING: publish the first state (reward 0)
+    problem = flow.accept_action(action)         # None: RUNNING -> MOVING, call sim/execute_move
+    report = flow.finish_move(token, estimate, truth, t)   # -> RUNNING or ENDED
+    aborted = flow.abort(token, reason)          # the move failed: -> ENDED (ABORTED)
+    problem = flow.experiment_info()             # None: the agent closed the episode, reset
+
+Phases: WAITING (for the simulator and an agent) -> RESETTING -> RUNNING <-> MOVING -> ENDED ->
+RESETTING ... Every request sent to the simulator carries the ``token`` current when it was
+sent; an answer with an older token (a move that timed out and was aborted, a reset overtaken
+by the agent leaving) is stale and changes nothing.
+
+Decisions:
+
+- **States**: ``task.state_of`` of the localisation estimate after the move. The first state
+  of an episode is that of the reset pose (the simulator re-initialises localisation there,
+  as AMCL does on /initialpose), with reward 0 and terminal false.
+- **Judging**: ``judge_on='true'`` judges visibility, detection and the goal on the true pose
+  (the lights see the real robot); ``'estimate'`` on the estimate, as the original did. An
+  estimate off the map (possible only with very poor localisation) is judged at the nearest
+  point of the map. Episode statistics follow EpisodeSummary: path length and final distance
+  to the goal are always the true pose's.
+- **Actions** are accepted only while the flow waits for one (RUNNING) and only when they are
+  0-3; anything else is dropped with a reason for the log, never queued: an action that
+  arrives during a move or after a terminal state would otherwise be applied to a state the
+  agent never saw.
+- **Aborts**: a move the simulator rejects, fails or does not answer in time ends the episode
+  as ABORTED. The agent still gets a terminal RLStateReward (its last state again, reward 0):
+  rl_msgs has no other way to end an episode, and without it a lockstep agent would wait
+  forever. An agent that goes away ends the running episode as ABORTED too (nothing is sent:
+  there is nobody to send it to); the next agent gets a fresh episode. An episode the agent
+  left before its first action (an agent that stops after its last episode) is withdrawn: no
+  summary, and its number is used again.
+- **Counts**: every action received and every state handed out is counted, so the node can
+  log totals that prove nothing was lost.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Iterable
+import dataclasses
+import enum
+import math
+from typing import NamedTuple
+
+from stealth_env.move_lattice import ACTIONS
+from stealth_env.reward import Outcome
+from stealth_env.task import EpisodeStats, EpisodeSummaryFields, StealthTask, StepJudgement
+
+JUDGE_ON = ('true', 'estimate')
+NUM_ACTIONS = len(ACTIONS)
+_ON_MAP_MARGIN = 1e-6  # m: how far inside the map an off-map estimate is moved to be judged
+
+
+class FlowError(RuntimeError):
+    """A call that the current phase does not allow (a bug in the caller, not bad input)."""
+
+
+class Phase(enum.Enum):
+    WAITING = 'waiting for the simulator and an agent'
+    RESETTING = 'resetting the robot'
+    RUNNING = "waiting for the agent's action"
+    MOVING = 'executing a move'
+    ENDED = "the episode is over, waiting for the agent's RLExperimentInfo"
+
+
+class PlanarPose(NamedTuple):
+    x: float  # m, map frame
+    y: float
+    yaw: float = 0.0  # rad
+
+
+class StepReport(NamedTuple):
+    """One executed action: what to publish (RLStateReward, StepInfo, maybe EpisodeSummary)."""
+
+    episode: int
+    step: int  # action index within the episode, from 1
+    action: int
+    state: tuple[float, float]
+    judgement: StepJudgement
+    estimate: PlanarPose
+    truth: PlanarPose
+    judged: PlanarPose  # the pose the judgement is about (truth or estimate)
+    t: float  # simulated time of the judgement (s)
+    summary: EpisodeSummaryFields | None  # when this step ended the episode
+
+    @property
+    def reward(self) -> float:
+        return self.judgement.reward
+
+    @property
+    def terminal(self) -> bool:
+        return self.judgement.terminal
+
+
+class Aborted(NamedTuple):
+    """An episode ended from outside: the terminal state to send and the summary."""
+
+    state: tuple[float, float]
+    summary: EpisodeSummaryFields
+    reason: str
+
+
+@dataclasses.dataclass
+class Counts:
+    """Totals since the node started."""
+
+    actions_received: int = 0
+    actions_dropped: int = 0
+    moves: int = 0  # actions executed (sent to the simulator)
+    states_sent: int = 0  # RLStateReward handed out: first states, step results, abort states
+    episodes_started: int = 0
+    episodes_withdrawn: int = 0  # first state sent, but the agent went away before acting
+    outcomes: Counter = dataclasses.field(default_factory=Counter)  # by Outcome name
+
+    def describe(self) -> str:
+        ended = sum(self.outcomes.values())
+        names = ', '.join(
+            f'{o.name.lower()} {self.outcomes[o.name]}' for o in Outcome if self.outcomes[o.name]
+        )
+        withdrawn = self.episodes_withdrawn
+        return (
+            f'{self.actions_received} actions received ({self.actions_dropped} dropped, '
+            f'{self.moves} executed), {self.states_sent} states sent, '
+            f'{self.episodes_started} episodes started, {ended} ended'
+            + (f' ({names})' if names else '')
+            + (f', {withdrawn} withdrawn before a first action' if withdrawn else '')
+        )
+
+
+class EpisodeFlow:
+    """Episodes of one task, driven by the node's messages and the simulator's answers."""
+
+    def __init__(self, task: StealthTask, judge_on: str = 'true'):
+        if judge_on not in JUDGE_ON:
+            raise ValueError(f'judge_on: expected one of {", ".join(JUDGE_ON)}, got {judge_on!r}')
+        self.task = task
+        self.judge_on = judge_on
+        self.phase = Phase.WAITING
+        self.token = 0
+        self.counts = Counts()
+        self.episode = -1  # number of the current (or last) episode; the first is 0
+        self.steps = 0  # actions executed in the current episode
+        self.action: int | None = None  # the action being executed
+        self.state: tuple[float, float] | None = None  # the last state sent
+        self.stats: EpisodeStats | None = None
+
+    # --- episodes -------------------------------------------------------------------------------
+
+    @property
+    def in_episode(self) -> bool:
+        """True while an episode runs (its last state was not terminal)."""
+        return self.phase in (Phase.RUNNING, Phase.MOVING)
+
+    def ready_to_start(self) -> bool:
+        return self.phase is Phase.WAITING
+
+    def begin_reset(self) -> tuple[int, tuple[float, float, float]]:
+        """Start the next episode: (token, start pose (x, y, yaw)) to reset the robot to."""
+        if self.phase not in (Phase.WAITING, Phase.ENDED):
+            raise FlowError(f'cannot reset while {self.phase.value}')
+        self.phase = Phase.RESETTING
+        self.token += 1
+        return self.token, tuple(float(v) for v in self.task.scenario.start)
+
+    def reset_done(self, token: int) -> tuple[float, float] | None:
+        """The robot is at the start: the episode's first state, or None when stale."""
+        if token != self.token or self.phase is not Phase.RESETTING:
+            return None
+        x, y, _ = self.task.scenario.start
+        self.episode += 1
+        self.steps = 0
+        self.stats = self.task.start_episode(x, y, self.episode)
+        self.state = self.task.state_of(x, y)
+        self.phase = Phase.RUNNING
+        self.counts.episodes_started += 1
+        self.counts.states_sent += 1
+        return self.state
+
+    def reset_failed(self, token: int) -> bool:
+        """The reset did not happen: back to WAITING (True), unless the answer is stale."""
+        if token != self.token or self.phase is not Phase.RESETTING:
+            return False
+        self.phase = Phase.WAITING
+        return True
+
+    def experiment_info(self) -> str | None:
+        """The agent's RLExperimentInfo: None when it closes the episode (reset next), else why
+        it is ignored."""
+        if self.phase is Phase.ENDED:
+            return None
+        return (
+            f'RLExperimentInfo ignored: it closes an episode, but the environment is {self._now}'
+        )
+
+    def agent_lost(self) -> EpisodeSummaryFields | None:
+        """No agent any more: back to WAITING; the summary of the episode this cut short.
+
+        An episode the agent never acted in (it stopped after its last episode, say) is
+        withdrawn instead: no summary, and the next episode takes its number.
+        """
+        if self.phase is Phase.WAITING:
+            return None
+        summary = None
+        if self.phase is Phase.RUNNING and self.steps == 0:
+            self.episode -= 1
+            self.counts.episodes_started -= 1
+            self.counts.episodes_withdrawn += 1
+        elif self.in_episode:
+            summary = self._end(Outcome.ABORTED)
+        self.phase = Phase.WAITING
+        self.token += 1  # an answer still on its way is stale now
+        return summary
+
+    # --- steps ----------------------------------------------------------------------------------
+
+    def accept_action(self, action) -> str | None:
+        """Count an RLAction; None when it is to be executed (-> MOVING), else why it is
+        dropped."""
+        self.counts.actions_received += 1
+        problem = self._action_problem(action)
+        if problem is not None:
+            self.counts.actions_dropped += 1
+            return problem
+        self.phase = Phase.MOVING
+        self.token += 1
+        self.action = int(action)
+        self.counts.moves += 1
+        return None
+
+    def _action_problem(self, action) -> str | None:
+        if (
+            isinstance(action, bool)
+            or not isinstance(action, int)
+            or not (0 <= action < NUM_ACTIONS)
+        ):
+            names = ', '.join(f'{i} {name}' for i, (name, _) in enumerate(ACTIONS))
+            return f'action {action!r} dropped: expected one of {names}'
+        if self.phase is not Phase.RUNNING:
+            return f'action {action} dropped: the environment is {self._now}'
+        return None
+
+    @property
+    def _now(self) -> str:
+        if self.phase is Phase.MOVING:
+            return f'{self.phase.value} (action {self.action}, step {self.steps + 1})'
+        if self.phase is Phase.ENDED:
+            return f'between episodes ({self.phase.value})'
+        return self.phase.value
+
+    def finish_move(
+        self, token: int, estimate: PlanarPose, truth: PlanarPose, t: float
+    ) -> StepReport | None:
+        """The move ended with these poses at simulated time t: judge it (None when stale).
+
+        ValueError (and nothing changes) for a true pose off the scenario's map: the simulator
+        runs another map than the scenario's, and the caller should abort the episode.
+        """
+        if token != self.token or self.phase is not Phase.MOVING:
+            return None
+        task = self.task
+        action = self.action
+        judged = estimate if self.judge_on == 'estimate' else truth
+        if not task.scenario.map.contains_point(truth.x, truth.y):
+            raise ValueError(
+                f'the true pose ({truth.x:.3f}, {truth.y:.3f}) lies outside the map of scenario '
+                f'{task.scenario.name!r} ({task.scenario.map_path})'
+            )
+        judgement = task.judge(*self._on_map(judged.x, judged.y), t, self.steps + 1)
+        self.steps += 1
+        counted = judgement
+        if judged is not truth:  # EpisodeSummary's distances are the true pose's
+            distance = task.distance_to_goal(truth.x, truth.y)
+            counted = judgement._replace(distance_to_goal=distance)
+        self.stats.add(truth.x, truth.y, counted)
+        self.state = task.state_of(estimate.x, estimate.y)
+        self.counts.states_sent += 1
+        summary = None
+        if judgement.terminal:
+            summary = self._end(judgement.outcome)
+        else:
+            self.phase = Phase.RUNNING
+        return StepReport(
+            self.episode,
+            self.steps,
+            action,
+            self.state,
+            judgement,
+            PlanarPose(*estimate),
+            PlanarPose(*truth),
+            PlanarPose(*judged),
+            float(t),
+            summary,
+        )
+
+    def abort(self, token: int, reason: str) -> Aborted | None:
+        """The move in flight failed (rejected, no answer, ...): end the episode as ABORTED.
+        None when stale."""
+        if token != self.token or self.phase is not Phase.MOVING:
+            return None
+        self.counts.states_sent += 1
+        return Aborted(self.state, self._end(Outcome.ABORTED), reason)
+
+    def _end(self, outcome: Outcome) -> EpisodeSummaryFields:
+        self.phase = Phase.ENDED
+        self.action = None
+        self.counts.outcomes[Outcome(outcome).name] += 1
+        return self.stats.summary(outcome)
+
+    def _on_map(self, x: float, y: float) -> tuple[float, float]:
+        occupancy = self.task.scenario.map
+        if occupancy.contains_point(x, y):
+            return x, y
+        x_min, y_min, x_max, y_max = occupancy.bounds
+        margin = min(_ON_MAP_MARGIN, occupancy.resolution / 2)
+        return (
+            min(max(x, x_min), x_max - margin),
+            min(max(y, y_min), y_max - margin),
+        )
+
+
+# --- who is there -------------------------------------------------------------------------------
+
+
+class Endpoint(NamedTuple):
+    """One endpoint on the ROS graph: its node's fully qualified name, and whether a reader
+    matches the environment's writer (reliable or best effort, volatile)."""
+
+    node: str
+    compatible: bool = True
+
+
+def agent_connected(
+    action_writers: Iterable[Endpoint], state_readers: Iterable[Endpoint], matched: int
+) -> bool:
+    """Whether an agent can be sent the first state without losing it.
+
+    action_writers: the publishers of rl_agent/rl_action on the graph (the agents);
+    state_readers: the subscriptions of rl_env/rl_state_reward on the graph; matched: how many
+    readers the state writer is matched with. True when some agent also reads the states and
+    the writer is matched with at least as many readers as can match: a volatile message
+    published before the agent's reader is matched is lost, and a recorder's reader must not
+    pass for the agent's.
+    """
+    agents = {writer.node for writer in action_writers}
+    readers = list(state_readers)
+    if not agents or not any(reader.node in agents for reader in readers):
+        return False
+    return matched >= sum(1 for reader in readers if reader.compatible)
+
+
+def is_finite_pose(*values: float) -> bool:
+    return all(math.isfinite(v) for v in values)

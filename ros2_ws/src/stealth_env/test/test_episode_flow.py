@@ -1,0 +1,254 @@
+"""The environment node's episode state machine, without ROS."""
+
+import dataclasses
+import math
+
+import pytest
+from stealth_env.episode_flow import (
+    Endpoint,
+    EpisodeFlow,
+    FlowError,
+    Phase,
+    PlanarPose,
+    agent_connected,
+)
+from stealth_env.reward import Outcome
+from stealth_env.scenario import load_scenario
+from stealth_env.task import StealthTask
+
+
+@pytest.fixture(scope='module')
+def map1():
+    return load_scenario('map1')
+
+
+def lit_and_dark_points(task):
+    """A lattice point the lights detect the robot at, and one they do not."""
+    lit = dark = None
+    threshold = task.scenario.detection_threshold
+    for node in task.lattice.valid_nodes():
+        x, y = task.lattice.node_to_point(node)
+        visibility = task.visibility(x, y)
+        if lit is None and visibility >= threshold:
+            lit = (x, y)
+        if dark is None and visibility == 0.0 and task.distance_to_goal(x, y) > 2:
+            dark = (x, y)
+    return PlanarPose(*lit), PlanarPose(*dark)
+
+
+def started(task, judge_on='true') -> EpisodeFlow:
+    flow = EpisodeFlow(task, judge_on)
+    token, _ = flow.begin_reset()
+    flow.reset_done(token)
+    return flow
+
+
+def step(flow, action, estimate, truth=None, t=0.0):
+    assert flow.accept_action(action) is None
+    return flow.finish_move(flow.token, estimate, truth or estimate, t)
+
+
+def test_an_episode_starts_at_the_scenario_start_with_its_state(map1):
+    task = StealthTask(map1)
+    flow = EpisodeFlow(task)
+    assert flow.phase is Phase.WAITING and flow.ready_to_start()
+    token, pose = flow.begin_reset()
+    assert pose == map1.start and flow.phase is Phase.RESETTING
+    assert flow.reset_done(token) == task.state_of(*map1.start[:2]) == (2.5, 2.5)
+    assert (flow.phase, flow.episode, flow.steps) == (Phase.RUNNING, 0, 0)
+    assert flow.counts.episodes_started == flow.counts.states_sent == 1
+
+
+def test_a_failed_or_stale_reset_changes_nothing_it_should_not(map1):
+    flow = EpisodeFlow(StealthTask(map1))
+    token, _ = flow.begin_reset()
+    assert not flow.reset_failed(token + 1)  # stale
+    assert flow.reset_failed(token) and flow.phase is Phase.WAITING
+    assert flow.reset_done(token) is None  # a late answer to the failed reset
+    assert flow.counts.states_sent == 0
+    token, _ = flow.begin_reset()
+    assert flow.reset_done(token) is not None
+    with pytest.raises(FlowError, match='cannot reset while'):
+        flow.begin_reset()
+
+
+def test_the_state_is_the_estimate_and_the_judgement_the_true_pose(map1):
+    task = StealthTask(map1)
+    lit, dark = lit_and_dark_points(task)
+    flow = started(task)
+    estimate = PlanarPose(lit.x + 0.26, lit.y + 0.01, 0.3)
+    report = step(flow, 3, estimate, dark, t=4.5)
+    assert report.state == task.state_of(estimate.x, estimate.y)
+    assert report.judgement == task.judge(dark.x, dark.y, 4.5, 1)
+    assert (report.judged, report.truth, report.estimate) == (dark, dark, estimate)
+    assert (report.episode, report.step, report.action, report.t) == (0, 1, 3, 4.5)
+    assert not report.terminal and report.summary is None and flow.phase is Phase.RUNNING
+
+    # The original's way: everything on the estimate, which is in the light here.
+    flow = started(task, judge_on='estimate')
+    report = step(flow, 0, lit, dark)
+    assert report.judged == lit and report.judgement.detected and report.terminal
+    assert report.summary.outcome == Outcome.DETECTED
+    # EpisodeSummary's distances stay the true pose's.
+    assert report.summary.final_distance_to_goal == pytest.approx(
+        task.distance_to_goal(dark.x, dark.y)
+    )
+    assert report.judgement.distance_to_goal == pytest.approx(task.distance_to_goal(*lit[:2]))
+
+
+def test_an_estimate_off_the_map_is_judged_at_the_nearest_point_of_it(map1):
+    task = StealthTask(map1)
+    flow = started(task, judge_on='estimate')
+    x_min, y_min, _, _ = map1.map.bounds
+    report = step(flow, 2, PlanarPose(x_min - 0.3, 2.5), PlanarPose(0.6, 2.5))
+    assert report.judgement == task.judge(x_min, 2.5, 0.0, 1)
+    assert report.state == task.state_of(x_min - 0.3, 2.5)
+
+
+@pytest.mark.parametrize('action', [4, -1, True, 1.0, None])
+def test_actions_out_of_range_are_dropped(map1, action):
+    flow = started(StealthTask(map1))
+    problem = flow.accept_action(action)
+    assert problem.startswith(f'action {action!r} dropped: expected one of 0 up, 1 down')
+    assert flow.phase is Phase.RUNNING
+    assert (flow.counts.actions_received, flow.counts.actions_dropped) == (1, 1)
+
+
+def test_actions_out_of_turn_are_dropped_not_queued(map1):
+    task = StealthTask(map1)
+    flow = EpisodeFlow(task)
+    assert 'waiting for the simulator and an agent' in flow.accept_action(0)
+    token, _ = flow.begin_reset()
+    assert 'resetting the robot' in flow.accept_action(0)
+    flow.reset_done(token)
+    assert flow.accept_action(1) is None and flow.action == 1
+    assert flow.accept_action(2) == (
+        'action 2 dropped: the environment is executing a move (action 1, step 1)'
+    )
+    assert flow.action == 1 and flow.phase is Phase.MOVING
+    assert flow.counts.moves == 1 and flow.counts.actions_dropped == 3
+
+
+def test_answers_with_an_old_token_are_ignored(map1):
+    flow = started(StealthTask(map1))
+    assert flow.accept_action(0) is None
+    old = flow.token
+    pose = PlanarPose(2.5, 3.0)
+    assert flow.finish_move(old - 1, pose, pose, 1.0) is None
+    assert flow.abort(old - 1, 'late') is None
+    assert flow.finish_move(old, pose, pose, 1.0) is not None
+    assert flow.finish_move(old, pose, pose, 1.0) is None  # answered already
+
+
+def test_goal_ends_the_episode_and_the_experiment_info_starts_the_next(map1):
+    task = StealthTask(map1, goal='easy')
+    flow = started(task)
+    goal = PlanarPose(map1.goals['easy'].x, map1.goals['easy'].y)
+    first = step(flow, 3, PlanarPose(3.0, 2.5))
+    last = step(flow, 0, goal)
+    assert last.terminal and last.judgement.outcome is Outcome.SUCCESS
+    summary = last.summary
+    assert (summary.episode, summary.outcome, summary.steps, summary.goal) == (
+        0,
+        Outcome.SUCCESS,
+        2,
+        'easy',
+    )
+    assert summary.total_reward == pytest.approx(first.reward + last.reward)
+    assert summary.path_length == pytest.approx(0.5 + math.hypot(15.0 - 3.0, 9.5 - 2.5))
+    assert flow.phase is Phase.ENDED and not flow.in_episode
+    assert 'between episodes' in flow.accept_action(0)
+    token, _ = flow.begin_reset()
+    assert 'resetting the robot' in flow.experiment_info()
+    flow.reset_done(token)
+    assert 'ignored' in flow.experiment_info()  # mid-episode
+    assert flow.episode == 1 and flow.steps == 0
+
+
+def test_the_step_limit_times_out(map1):
+    task = StealthTask(dataclasses.replace(map1, step_limit=3))
+    flow = started(task)
+    pose = PlanarPose(2.5, 2.5)
+    reports = [step(flow, 0, pose) for _ in range(3)]
+    assert [r.terminal for r in reports] == [False, False, True]
+    assert reports[-1].summary.outcome == Outcome.TIMEOUT
+    assert flow.experiment_info() is None
+
+
+def test_a_failed_move_aborts_with_a_terminal_copy_of_the_last_state(map1):
+    flow = started(StealthTask(map1))
+    report = step(flow, 0, PlanarPose(2.5, 3.0))
+    assert flow.accept_action(1) is None
+    aborted = flow.abort(flow.token, 'rejected')
+    assert aborted.state == report.state and aborted.reason == 'rejected'
+    assert (aborted.summary.outcome, aborted.summary.steps) == (Outcome.ABORTED, 1)
+    assert flow.phase is Phase.ENDED and flow.experiment_info() is None
+    counts = flow.counts
+    assert counts.states_sent == 3 and counts.outcomes == {'ABORTED': 1}
+    assert counts.describe() == (
+        '2 actions received (0 dropped, 2 executed), 3 states sent, 1 episodes started, '
+        '1 ended (aborted 1)'
+    )
+
+
+def test_an_agent_that_goes_away_aborts_the_running_episode_only(map1):
+    flow = started(StealthTask(map1))
+    step(flow, 0, PlanarPose(2.5, 3.0))
+    assert flow.accept_action(0) is None
+    token = flow.token
+    summary = flow.agent_lost()
+    assert summary.outcome == Outcome.ABORTED and flow.phase is Phase.WAITING
+    pose = PlanarPose(2.5, 3.0)
+    assert flow.finish_move(token, pose, pose, 1.0) is None  # the move's answer is stale
+    assert flow.agent_lost() is None
+    # After a finished episode there is nothing to abort.
+    flow = started(StealthTask(dataclasses.replace(map1, step_limit=1)))
+    assert step(flow, 0, pose).terminal
+    assert flow.agent_lost() is None and flow.phase is Phase.WAITING
+    assert flow.counts.outcomes == {'TIMEOUT': 1}
+
+
+def test_judge_on_must_be_true_or_estimate(map1):
+    with pytest.raises(ValueError, match="judge_on: expected one of true, estimate, got 'x'"):
+        EpisodeFlow(StealthTask(map1), 'x')
+
+
+@pytest.mark.parametrize(
+    ('writers', 'readers', 'matched', 'connected'),
+    [
+        ([], [Endpoint('/agent')], 1, False),  # no agent publishes actions
+        ([Endpoint('/agent')], [], 0, False),  # the agent does not read states (yet)
+        ([Endpoint('/agent')], [Endpoint('/agent')], 0, False),  # not matched yet
+        ([Endpoint('/agent')], [Endpoint('/agent')], 1, True),
+        # A recorder's reader matched first must not pass for the agent's.
+        ([Endpoint('/agent')], [Endpoint('/agent'), Endpoint('/recorder')], 1, False),
+        ([Endpoint('/agent')], [Endpoint('/agent'), Endpoint('/recorder')], 2, True),
+        # A reader that can never match (transient local) is not waited for.
+        ([Endpoint('/agent')], [Endpoint('/agent'), Endpoint('/viewer', False)], 1, True),
+        ([Endpoint('/agent')], [Endpoint('/other')], 1, False),
+    ],
+)
+def test_agent_connected(writers, readers, matched, connected):
+    assert agent_connected(writers, readers, matched) is connected
+
+
+def test_a_true_pose_off_the_map_is_refused_and_changes_nothing(map1):
+    flow = started(StealthTask(map1))
+    assert flow.accept_action(0) is None
+    with pytest.raises(ValueError, match=r'true pose \(25.000, 2.500\) lies outside the map'):
+        flow.finish_move(flow.token, PlanarPose(2.5, 3.0), PlanarPose(25.0, 2.5), 1.0)
+    assert (flow.phase, flow.steps, flow.counts.states_sent) == (Phase.MOVING, 0, 1)
+    assert flow.abort(flow.token, 'wrong map').summary.steps == 0
+
+
+def test_an_episode_the_agent_left_before_acting_is_withdrawn(map1):
+    flow = started(StealthTask(map1))
+    assert flow.agent_lost() is None and flow.phase is Phase.WAITING
+    counts = flow.counts
+    assert (flow.episode, counts.episodes_started, counts.episodes_withdrawn) == (-1, 0, 1)
+    token, _ = flow.begin_reset()
+    flow.reset_done(token)
+    assert flow.episode == 0  # the number is used again
+    assert counts.describe().endswith(
+        '1 episodes started, 0 ended, 1 withdrawn before a first action'
+    )
