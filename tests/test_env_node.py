@@ -325,7 +325,9 @@ def test_covert_path_reaches_the_goal_and_experiment_info_starts_the_next_episod
 def test_walking_into_a_light_is_detected_and_bad_actions_are_dropped(agent, node_processes):
     scenario = load_scenario(SCENARIO)
     task = StealthTask(scenario, 'easy')
-    start_sim(node_processes, scenario)
+    # At 20x real time a move takes ~0.15 s of wall time, so the second of two actions published
+    # back to back surely arrives while the first is moving (as fast as possible it could not).
+    start_sim(node_processes, scenario, real_time_factor=20.0)
     env = start_env(node_processes, scenario=SCENARIO, goal='easy', seed=5)
     agent.next_state()
 
