@@ -78,9 +78,10 @@ distclean: clean ## Also remove .venv
 -include maps/maps.mk
 
 .PHONY: run eval bench
-run: setup ## The main job: train the agent on the default scenario
-	@echo "make run: the running system (environment node, orchestration, recording) is issue 7" \
-		"and is not built yet; 'make test' exercises what exists." >&2; exit 1
+# The default scenario: simple-maze's easy goal trains to a greedy covert path in about 2 minutes.
+RUN_ARGS ?= --scenario simple-maze --goal easy
+run: setup ## The main job: train the agent on the default scenario (runs/<name>/)
+	@$(ROS_ENV) && stealth train $(RUN_ARGS)
 
 eval: setup ## Learners vs A*, Dark Path and value iteration on every scenario (runs/eval/)
 	@$(ROS_ENV) && python -m stealth_env.experiments --out runs/eval

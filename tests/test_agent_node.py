@@ -15,6 +15,7 @@ from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from ros_support import REPO_ROOT
 from stealth_interfaces.msg import (
+    AgentEpisodeInfo,
     EpisodeSummary,
     RLAction,
     RLEnvDescription,
@@ -350,3 +351,30 @@ def test_bad_startup_parameters_stop_the_node_with_a_reason(node_processes):
     agent = start_agent(node_processes, 'agent_bad_params', agent='texplore')
     assert agent.wait(20) == 2
     assert "unknown learner 'texplore'" in agent.log_path.read_text()
+
+
+def test_eval_every_makes_every_mth_episode_greedy_and_reports_it(env, node_processes):
+    """rl_agent/episode_info: greedy flag, epsilon, alpha, return, steps of every episode."""
+    reports: list[AgentEpisodeInfo] = []
+    env.node.create_subscription(AgentEpisodeInfo, 'rl_agent/episode_info', reports.append, RL_QOS)
+    env.describe()
+    agent = start_agent(
+        node_processes, 'agent_eval_every', agent='dyna', seed=5, eval_every=3, epsilon=0.2
+    )
+    wait_for_log(agent, f"environment '{TITLE}'")
+    env.wait_for_agent()
+    episodes = [env.episode() for _ in range(6)]
+    assert env.spin_until(lambda: len(reports) == 6, 10.0), reports
+    assert [r.episode for r in reports] == list(range(6))
+    assert [r.greedy for r in reports] == [False, False, True, False, False, True]
+    for report, (total, steps, _) in zip(reports, episodes, strict=True):
+        assert report.total_reward == pytest.approx(total) and report.steps == steps
+        expected = (0.0, 0.0) if report.greedy else (0.2, 0.3)
+        assert (report.epsilon, report.alpha) == pytest.approx(expected)
+    # Greedy episodes neither learn nor count as learning episodes.
+    assert [r.learner_episodes for r in reports] == [1, 2, 2, 3, 4, 4]
+    assert reports[2].learner_updates == reports[1].learner_updates
+    assert reports[3].learner_updates > reports[2].learner_updates
+    assert all(r.table_states >= 2 for r in reports)
+    log = wait_for_log(agent, 'greedy evaluation, episode 5 (after 4 learning episodes)')
+    assert 'greedy evaluation, episode 2 (after 2 learning episodes)' in log

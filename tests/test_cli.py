@@ -190,4 +190,6 @@ def test_bag_and_topic_errors_are_one_line(node_processes, tmp_path):
         stealth(node_processes, 'topic', 'echo', '/nope', '--spin-time', '0.3'),
         "stealth topic echo: could not determine the type of '/nope'",
     )
-    one_error_line(stealth(node_processes, 'train'), 'stealth train: not available yet')
+    one_error_line(
+        stealth(node_processes, 'train', '--scenario', 'nope'), "stealth train: scenario 'nope'"
+    )

@@ -9,6 +9,15 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
+        (
+            'share/' + package_name + '/config',
+            [
+                'config/agent.yaml',
+                'config/environment.yaml',
+                'config/recorder.yaml',
+                'config/simulator.yaml',
+            ],
+        ),
     ],
     install_requires=['setuptools'],
     extras_require={'test': ['pytest']},

@@ -1,8 +1,11 @@
 """The agent node: rl-texplore-ros-pkg's rl_agent protocol over the tabular learners.
 
 Subscribes rl_env/rl_env_description (reliable, transient local) and rl_env/rl_state_reward;
-publishes rl_agent/rl_action after every non-terminal state and rl_agent/rl_experiment_info at
-every terminal state. Everything it decides is in the plain-Python core (protocol.py,
+publishes rl_agent/rl_action after every non-terminal state, and rl_agent/rl_experiment_info and
+rl_agent/episode_info (stealth_interfaces/AgentEpisodeInfo: greedy or not, epsilon, alpha) at
+every terminal state. With eval_every M > 0, every M-th episode of a learning run is a greedy
+evaluation (epsilon 0, no updates, the schedules stand still), so an experiment can watch the
+learned policy itself. Everything it decides is in the plain-Python core (protocol.py,
 learners.py, state_index.py, policy_store.py); this node translates messages and parameters.
 
 Bad input (an unusable description, a state before any description, a state whose length
@@ -28,6 +31,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from stealth_interfaces.msg import (
+    AgentEpisodeInfo,
     EpisodeSummary,
     RLAction,
     RLEnvDescription,
@@ -42,6 +46,7 @@ from .protocol import (
     EnvDescription,
     ProtocolAgent,
     format_progress,
+    is_greedy_episode,
     parse_description,
 )
 from .schedules import SCHEDULE_KINDS, Schedule
@@ -147,6 +152,10 @@ PARAMETERS = (
           read_only=True),
     Param('log_every', 10, 'Log progress every this many episodes (0 = never).',
           ints=_int(0, 2**31 - 1)),
+    Param('eval_every', 0,
+          'Every this many episodes one greedy evaluation episode (epsilon 0, no learning, the '
+          'schedules stand still): episodes eval_every-1, 2*eval_every-1, ...; 0 = never.',
+          ints=_int(0, 2**31 - 1)),
     Param('episode_summary_topic', 'rl_env/episode_summary',
           'stealth_interfaces/EpisodeSummary topic for named outcomes in the progress log '
           '(optional, any rl_msgs environment works without it); empty = off.',
@@ -188,6 +197,9 @@ class AgentNode(Node):
         self._action_pub = self.create_publisher(RLAction, 'rl_agent/rl_action', RL_QOS)
         self._info_pub = self.create_publisher(
             RLExperimentInfo, 'rl_agent/rl_experiment_info', RL_QOS
+        )
+        self._episode_info_pub = self.create_publisher(
+            AgentEpisodeInfo, 'rl_agent/episode_info', RL_QOS
         )
         self.create_subscription(
             RLEnvDescription, 'rl_env/rl_env_description', self._on_description, DESCRIPTION_QOS
@@ -238,7 +250,7 @@ class AgentNode(Node):
 
     def _apply_parameters(self, parameters) -> None:
         names = {p.name for p in parameters}
-        if self._core is not None and self._core.learning and LIVE_LEARNER_PARAMETERS & names:
+        if self._core is not None and self._learning_run and LIVE_LEARNER_PARAMETERS & names:
             self._core.learner.set_config(self._learner_config())
             changed = ', '.join(f'{p.name}={p.value}' for p in parameters)
             self.get_logger().info(f'learner settings changed: {changed}')
@@ -276,6 +288,11 @@ class AgentNode(Node):
             self._learner_config()
         except ValueError as error:
             raise ConfigError(str(error)) from None
+
+    @property
+    def _learning_run(self) -> bool:
+        """Whether this run learns (greedy evaluation episodes in between or not)."""
+        return not self._param('evaluate')
 
     # --- messages ----------------------------------------------------------------------------
 
@@ -409,6 +426,9 @@ class AgentNode(Node):
                     f'rl_state_reward skipped: the agent is not usable ({self._setup_error})'
                 )
             return
+        if not self._core.in_episode and self._learning_run:
+            greedy = is_greedy_episode(self._core.episode, self._param('eval_every'))
+            self._core.set_learning(not greedy)
         try:
             step = self._core.handle(msg.state, msg.reward, msg.terminal)
         except BadInputError as error:
@@ -432,6 +452,25 @@ class AgentNode(Node):
                 number_actions=result.actions,
             )
         )
+        learner = self._core.learner
+        info = AgentEpisodeInfo(
+            episode=result.episode,
+            greedy=not result.learning,
+            epsilon=float(result.epsilon),
+            alpha=float(learner.alpha) if result.learning else 0.0,
+            total_reward=reward,
+            steps=result.actions,
+            learner_episodes=learner.episodes,
+            learner_updates=learner.updates,
+            table_states=len(self._core.index),
+        )
+        info.header.stamp = self.get_clock().now().to_msg()
+        self._episode_info_pub.publish(info)
+        if self._learning_run and not result.learning:
+            self.get_logger().info(
+                f'greedy evaluation, episode {result.episode} (after {learner.episodes} '
+                f'learning episodes): return {reward:.3f} in {result.actions} steps'
+            )
         self._window.append(result)
         log_every = self._param('log_every')
         if log_every and len(self._window) >= log_every:
@@ -445,7 +484,7 @@ class AgentNode(Node):
             self._window = []
             self._named_outcomes = Counter()
         save_every = self._param('save_every')
-        if save_every and self._core.learning and self._core.episode % save_every == 0:
+        if save_every and self._learning_run and self._core.episode % save_every == 0:
             self.save(f'every {save_every} episodes')
 
     def _on_summary(self, msg: EpisodeSummary) -> None:
@@ -456,7 +495,7 @@ class AgentNode(Node):
     def save(self, reason: str) -> bool:
         """Save the learned policy atomically, if learning with a policy file."""
         path = self._param('policy_file')
-        if self._core is None or not self._core.learning or not path:
+        if self._core is None or not self._learning_run or not path:
             return False
         learner, index = self._core.learner, self._core.index
         # After Ctrl-C the context is already shut down and /rosout cannot take the message.

@@ -215,6 +215,13 @@ class ProtocolAgent:
         self._s = self._a = None
         return result
 
+    def set_learning(self, learning: bool) -> None:
+        """Switch between learning and greedy evaluation (epsilon 0, no updates, the schedules
+        stand still); only between episodes, RuntimeError in the middle of one."""
+        if self.in_episode:
+            raise RuntimeError('the learning mode can only change between episodes')
+        self.learning = bool(learning)
+
     def _finish(self, r: float, *, terminal_reward, truncated=False) -> EpisodeResult:
         actions = self.number_actions if self.in_episode else 0
         total = self.episode_reward + r if self.in_episode else 0.0
@@ -256,6 +263,17 @@ class ProtocolAgent:
     def _check_in_episode(self) -> None:
         if not self.in_episode:
             raise BadInputError('no episode in progress (expected the first state of an episode)')
+
+
+def is_greedy_episode(episode: int, eval_every: int) -> bool:
+    """Whether episode number `episode` (from 0) of a learning run is a greedy evaluation: every
+    eval_every-th episode, i.e. episodes eval_every - 1, 2 * eval_every - 1, ...; never when
+    eval_every is 0 (so with 5, episodes 4, 9, 14, ... evaluate the policy learned so far)."""
+    if isinstance(eval_every, bool) or not isinstance(eval_every, int | np.integer):
+        raise ValueError(f'eval_every must be an integer >= 0, got {eval_every!r}')
+    if eval_every < 0:
+        raise ValueError(f'eval_every must be an integer >= 0, got {eval_every}')
+    return eval_every > 0 and (int(episode) + 1) % eval_every == 0
 
 
 def outcome_mix(results: Sequence[EpisodeResult]) -> Counter:

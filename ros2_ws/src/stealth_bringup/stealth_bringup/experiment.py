@@ -1,0 +1,203 @@
+"""Following a training run episode by episode: pairing the environment's EpisodeSummary with the
+agent's AgentEpisodeInfo, the figures of the progress bar and the end criteria. No rclpy.
+
+Both messages carry the episode number, counted from 0 in a run by the environment and by the
+agent alike, so they are paired by it. An episode is complete when both have arrived, or when
+the environment reports it ABORTED (the agent may never have seen it end).
+
+End criteria: the episode budget (every episode counts, greedy evaluations included), or K
+greedy evaluation episodes in a row reaching the goal (a greedy episode that does not resets
+the streak; the training episodes in between do not count).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+import dataclasses
+import math
+
+OUTCOMES = ('SUCCESS', 'DETECTED', 'TIMEOUT', 'ABORTED')  # EpisodeSummary's constants 0-3
+PROGRESS_WINDOW = 20  # episodes over which the progress bar's rates and means are taken
+
+
+def outcome_name(value: int) -> str:
+    return OUTCOMES[value] if 0 <= value < len(OUTCOMES) else f'OUTCOME_{value}'
+
+
+@dataclasses.dataclass(frozen=True)
+class EpisodeRecord:
+    """One finished episode: the environment's summary and the agent's report, joined."""
+
+    episode: int
+    outcome: str  # SUCCESS, DETECTED, TIMEOUT or ABORTED
+    steps: int
+    total_reward: float
+    peak_visibility: float
+    accumulated_visibility: float
+    path_length: float  # m
+    final_distance_to_goal: float  # m
+    greedy: bool  # a greedy evaluation episode (no exploration, no learning)
+    epsilon: float  # nan when the agent did not report the episode
+    alpha: float
+    learner_episodes: int  # training episodes the learner had finished after it (-1: unknown)
+    learner_updates: int
+    table_states: int
+    wall_time: float  # s from the start of the run to the episode's completion
+
+    @property
+    def success(self) -> bool:
+        return self.outcome == 'SUCCESS'
+
+    def as_row(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+CSV_FIELDS = tuple(f.name for f in dataclasses.fields(EpisodeRecord))
+
+
+def summary_fields(msg) -> dict:
+    """The fields of a stealth_interfaces/EpisodeSummary used here."""
+    return {
+        'episode': int(msg.episode),
+        'outcome': outcome_name(int(msg.outcome)),
+        'steps': int(msg.steps),
+        'total_reward': float(msg.total_reward),
+        'peak_visibility': float(msg.peak_visibility),
+        'accumulated_visibility': float(msg.accumulated_visibility),
+        'path_length': float(msg.path_length),
+        'final_distance_to_goal': float(msg.final_distance_to_goal),
+    }
+
+
+def agent_fields(msg) -> dict:
+    """The fields of a stealth_interfaces/AgentEpisodeInfo used here."""
+    return {
+        'greedy': bool(msg.greedy),
+        'epsilon': float(msg.epsilon),
+        'alpha': float(msg.alpha),
+        'learner_episodes': int(msg.learner_episodes),
+        'learner_updates': int(msg.learner_updates),
+        'table_states': int(msg.table_states),
+    }
+
+
+UNREPORTED = {
+    'greedy': False,
+    'epsilon': math.nan,
+    'alpha': math.nan,
+    'learner_episodes': -1,
+    'learner_updates': -1,
+    'table_states': -1,
+}
+
+
+class Tracker:
+    """Joins the two reports of each episode and keeps the run's figures."""
+
+    def __init__(self, budget: int | None = None, streak_goal: int | None = None):
+        self.budget = budget
+        self.streak_goal = streak_goal
+        self.records: list[EpisodeRecord] = []
+        self._summaries: dict[int, dict] = {}
+        self._agent: dict[int, dict] = {}
+        self._done: set[int] = set()
+        self.streak = 0  # greedy successes in a row so far
+        self.streak_start: int | None = None  # episode of the first greedy success of the streak
+        self.greedy_count = 0
+
+    # --- input ------------------------------------------------------------------------------
+
+    def add_summary(self, fields: dict, wall_time: float) -> list[EpisodeRecord]:
+        episode = fields['episode']
+        if episode in self._done:
+            return []
+        self._summaries[episode] = fields
+        if fields['outcome'] == 'ABORTED' and episode not in self._agent:
+            return self._complete(episode, UNREPORTED, wall_time)
+        return self._try(episode, wall_time)
+
+    def add_agent_info(self, episode: int, fields: dict, wall_time: float) -> list[EpisodeRecord]:
+        if episode in self._done:
+            return []
+        self._agent[episode] = fields
+        return self._try(episode, wall_time)
+
+    def _try(self, episode: int, wall_time: float) -> list[EpisodeRecord]:
+        if episode in self._summaries and episode in self._agent:
+            return self._complete(episode, self._agent.pop(episode), wall_time)
+        return []
+
+    def _complete(self, episode: int, agent: dict, wall_time: float) -> list[EpisodeRecord]:
+        summary = self._summaries.pop(episode)
+        self._agent.pop(episode, None)
+        record = EpisodeRecord(**summary, **agent, wall_time=wall_time)
+        self._done.add(episode)
+        self.records.append(record)
+        if record.greedy:
+            self.greedy_count += 1
+            if record.success:
+                if self.streak == 0:
+                    self.streak_start = record.episode
+                self.streak += 1
+            else:
+                self.streak, self.streak_start = 0, None
+        return [record]
+
+    # --- figures ----------------------------------------------------------------------------
+
+    @property
+    def episodes(self) -> int:
+        return len(self.records)
+
+    def recent(self, window: int = PROGRESS_WINDOW) -> list[EpisodeRecord]:
+        return self.records[-window:]
+
+    def success_rate(self, window: int = PROGRESS_WINDOW) -> float:
+        recent = self.recent(window)
+        return sum(r.success for r in recent) / len(recent) if recent else 0.0
+
+    def mean_return(self, window: int = PROGRESS_WINDOW) -> float:
+        recent = self.recent(window)
+        return sum(r.total_reward for r in recent) / len(recent) if recent else 0.0
+
+    @property
+    def epsilon(self) -> float:
+        """The exploration rate of the latest training episode (nan before any)."""
+        for record in reversed(self.records):
+            if not record.greedy and not math.isnan(record.epsilon):
+                return record.epsilon
+        return math.nan
+
+    def last_greedy(self) -> EpisodeRecord | None:
+        for record in reversed(self.records):
+            if record.greedy:
+                return record
+        return None
+
+    def outcome_counts(self, records: Iterable[EpisodeRecord] | None = None) -> dict[str, int]:
+        counts = dict.fromkeys(OUTCOMES, 0)
+        for record in self.records if records is None else records:
+            counts[record.outcome] = counts.get(record.outcome, 0) + 1
+        return counts
+
+    # --- end criteria -----------------------------------------------------------------------
+
+    def stop_reason(self) -> str | None:
+        """'streak' or 'budget' once an end criterion holds, else None."""
+        if self.streak_goal and self.streak >= self.streak_goal:
+            return 'streak'
+        if self.budget is not None and self.episodes >= self.budget:
+            return 'budget'
+        return None
+
+    def postfix(self) -> str:
+        """The progress bar's figures."""
+        epsilon = self.epsilon
+        parts = [
+            f'success {self.success_rate():.0%}',
+            f'return {self.mean_return():.1f}',
+            'eps -' if math.isnan(epsilon) else f'eps {epsilon:.3f}',
+        ]
+        if self.streak_goal:
+            parts.append(f'greedy streak {self.streak}/{self.streak_goal}')
+        return ', '.join(parts)

@@ -1,0 +1,330 @@
+"""What a run is made of, before anything starts: the nodes, their parameter files, the
+scenario-derived and run-specific parameters, `--set` overrides, the run directory. No rclpy.
+
+Parameter files are ROS 2 params files, one per node::
+
+    agent:
+      ros__parameters:
+        epsilon: 0.1
+
+The defaults live in share/stealth_bringup/config/<node>.yaml; `--params-dir DIR` takes
+<node>.yaml from DIR instead where it exists. A run writes the *effective* file of every node
+(the file's parameters, then what the orchestrator fills in from the scenario and the run, then
+`--set node.param=value`) to runs/<name>/params/<node>.yaml and starts the node with
+`--ros-args --params-file` that file (and the `--set` values again as `-p`, so a process list
+shows them). Every problem is a RunConfigError whose message is one line naming the file, node
+or parameter and what was expected.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime
+import json
+import math
+import os
+from pathlib import Path
+import re
+from typing import Any
+
+import yaml
+
+# Start order; shutdown goes the other way round except that the recorder stops last.
+NODE_ORDER = ('recorder', 'simulator', 'environment', 'agent')
+STOP_ORDER = ('agent', 'environment', 'simulator', 'recorder')
+
+
+@dataclasses.dataclass(frozen=True)
+class NodeSpec:
+    """A node of the system: its name on the graph and where its executable is."""
+
+    name: str  # node name, also the params file's stem and the log file's
+    package: str
+    executable: str
+    role: str  # one line for messages and the README
+
+
+NODES = {
+    'recorder': NodeSpec(
+        'recorder', 'stealth_bringup', 'recorder', 'MCAP recorder of every topic'
+    ),
+    'simulator': NodeSpec(
+        'simulator', 'stealth_sim', 'sim_node', 'robot, odometry, laser, localisation'
+    ),
+    'environment': NodeSpec(
+        'environment', 'stealth_env', 'env_node', 'scenario, searchlights, rewards, episodes'
+    ),
+    'agent': NodeSpec('agent', 'stealth_agent', 'agent_node', 'tabular learner (rl_msgs)'),
+}
+
+# Parameters the orchestrator sets itself, and the option that sets them instead of --set.
+MANAGED = {
+    'simulator.map': '--scenario',
+    'simulator.initial_pose': '--scenario',
+    'simulator.robot_radius': '--scenario',
+    'environment.scenario': '--scenario',
+    'environment.goal': '--goal',
+    'agent.policy_file': '--name/--runs-dir (train) or --run/--policy (eval)',
+    'agent.evaluate': 'stealth eval',
+    'agent.load_policy': 'stealth eval',
+    'agent.eval_every': '--eval-every',
+    'recorder.output': '--name/--runs-dir',
+}
+ROS_PARAMETERS = 'ros__parameters'
+_NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
+
+
+class RunConfigError(ValueError):
+    """Input that cannot make a run; the message is one line saying which and why."""
+
+
+# --- parameter files ----------------------------------------------------------------------------
+
+
+def _is_parameter_value(value: Any) -> bool:
+    """What a ROS parameter can hold: a scalar or a flat list of scalars of one kind."""
+    scalar = (bool, int, float, str)
+    if isinstance(value, scalar):
+        return not (isinstance(value, float) and math.isnan(value))
+    if isinstance(value, list):
+        kinds = {bool if isinstance(v, bool) else type(v) for v in value}
+        if not all(isinstance(v, scalar) for v in value):
+            return False
+        return len(kinds) <= 1 or kinds == {int, float}
+    return False
+
+
+def read_params_file(path: Path, node: str) -> dict[str, Any]:
+    """The ros__parameters of `node` in a params file; RunConfigError when unusable."""
+    try:
+        text = Path(path).read_text(encoding='utf-8')
+    except OSError as error:
+        raise RunConfigError(f'parameter file {path}: cannot read it ({error.strerror})') from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as error:
+        where = getattr(error, 'problem_mark', None)
+        line = f' (line {where.line + 1})' if where is not None else ''
+        problem = getattr(error, 'problem', None) or str(error).splitlines()[0]
+        raise RunConfigError(f'parameter file {path}: not valid YAML{line}: {problem}') from None
+    expected = f'a mapping "{node}: {{{ROS_PARAMETERS}: {{name: value, ...}}}}"'
+    if not isinstance(data, dict):
+        raise RunConfigError(f'parameter file {path}: expected {expected}, got {_kind(data)}')
+    section = None
+    for key in (node, f'/{node}', '/**'):
+        if key in data:
+            section = data[key]
+            break
+    if section is None:
+        found = ', '.join(str(k) for k in data) or 'nothing'
+        raise RunConfigError(
+            f'parameter file {path}: no section for node {node!r} (it has: {found})'
+        )
+    if not isinstance(section, dict) or set(section) != {ROS_PARAMETERS}:
+        raise RunConfigError(f'parameter file {path}: expected {expected}')
+    parameters = section[ROS_PARAMETERS] or {}
+    if not isinstance(parameters, dict):
+        raise RunConfigError(f'parameter file {path}: expected {expected}')
+    for name, value in parameters.items():
+        if not isinstance(name, str) or not _NAME.match(name):
+            raise RunConfigError(f'parameter file {path}: {name!r} is not a parameter name')
+        if isinstance(value, dict):
+            raise RunConfigError(
+                f'parameter file {path}: {node}.{name}: nested parameters are not used by '
+                'stealth-nav nodes'
+            )
+        if not _is_parameter_value(value):
+            raise RunConfigError(
+                f'parameter file {path}: {node}.{name}: {value!r} is not a parameter value '
+                '(a number, string, bool or a list of one of them)'
+            )
+    return dict(parameters)
+
+
+def _kind(value: Any) -> str:
+    return 'an empty file' if value is None else f'a {type(value).__name__}'
+
+
+def params_sources(defaults_dir: Path, params_dir: Path | None, nodes) -> dict[str, Path]:
+    """{node: params file}: <params_dir>/<node>.yaml where it exists, else the default."""
+    if params_dir is not None and not Path(params_dir).is_dir():
+        raise RunConfigError(f'--params-dir {params_dir}: no such directory')
+    sources = {}
+    for node in nodes:
+        own = Path(params_dir) / f'{node}.yaml' if params_dir is not None else None
+        sources[node] = (
+            own if own is not None and own.exists() else Path(defaults_dir) / f'{node}.yaml'
+        )
+    return sources
+
+
+# --- --set ---------------------------------------------------------------------------------------
+
+
+def parse_value(text: str) -> Any:
+    """A parameter value as ROS reads `-p name:=value`: YAML (1.0 float, 1 int, true, [1, 2])."""
+    try:
+        value = yaml.safe_load(text) if text.strip() else ''
+    except yaml.YAMLError:
+        return text
+    if value is None:
+        return text
+    return value
+
+
+def parse_set(items: list[str], nodes) -> dict[str, dict[str, Any]]:
+    """{node: {param: value}} from `node.param=value` items; RunConfigError naming a bad one."""
+    result: dict[str, dict[str, Any]] = {}
+    for item in items:
+        key, sep, text = item.partition('=')
+        node, dot, name = key.strip().partition('.')
+        if not sep or not dot or not name:
+            raise RunConfigError(f'--set {item!r}: expected node.parameter=value')
+        if node not in nodes:
+            raise RunConfigError(f'--set {item!r}: no node {node!r} (nodes: {", ".join(nodes)})')
+        if not _NAME.match(name):
+            raise RunConfigError(f'--set {item!r}: {name!r} is not a parameter name')
+        if f'{node}.{name}' in MANAGED:
+            raise RunConfigError(
+                f'--set {item!r}: {node}.{name} is set by the run itself; use '
+                f'{MANAGED[f"{node}.{name}"]}'
+            )
+        value = parse_value(text)
+        if not _is_parameter_value(value):
+            raise RunConfigError(f'--set {item!r}: {text!r} is not a parameter value')
+        result.setdefault(node, {})[name] = value
+    return result
+
+
+def coerce_like(value: Any, default: Any) -> Any:
+    """An int given for a float parameter becomes a float (rclpy would refuse the int)."""
+    if isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if (
+        isinstance(default, list)
+        and default
+        and all(isinstance(v, float) for v in default)
+        and isinstance(value, list)
+        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
+    ):
+        return [float(v) for v in value]
+    return value
+
+
+def ros_arg_value(value: Any) -> str:
+    """A value as `-p name:=<text>` text that ROS reads back as the same type."""
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, list):
+        return '[' + ', '.join(ros_arg_value(v) for v in value) + ']'
+    if isinstance(value, str):
+        return json.dumps(value)
+    return str(value)
+
+
+# --- effective parameters -----------------------------------------------------------------------
+
+
+@dataclasses.dataclass
+class NodeParameters:
+    """One node's effective parameters and where they came from."""
+
+    node: str
+    source: Path  # the params file they started from
+    values: dict[str, Any]
+    overrides: dict[str, Any]  # from --set (also passed as -p)
+
+    def ros_args(self, params_file: Path) -> list[str]:
+        args = ['--ros-args', '--params-file', str(params_file)]
+        for name, value in self.overrides.items():
+            args += ['-p', f'{name}:={ros_arg_value(value)}']
+        return args
+
+
+def effective_parameters(
+    node: str,
+    source: Path,
+    run_values: dict[str, Any],
+    overrides: dict[str, Any],
+) -> NodeParameters:
+    """The file's parameters, then the run's (scenario, paths, seeds), then --set's."""
+    values = read_params_file(source, node)
+    for name, value in run_values.items():
+        values[name] = value
+    coerced = {}
+    for name, value in overrides.items():
+        coerced[name] = coerce_like(value, values.get(name))
+        values[name] = coerced[name]
+    return NodeParameters(node, Path(source), values, coerced)
+
+
+def write_params_file(parameters: NodeParameters, path: Path, header: str) -> Path:
+    """The effective parameters as a ROS 2 params file (what the node is started with)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    lines = [f'{parameters.node}:', f'  {ROS_PARAMETERS}:']
+    for name, value in parameters.values.items():
+        text = yaml.safe_dump(value, default_flow_style=True, width=10_000).strip()
+        text = text.removesuffix('...').strip()
+        lines.append(f'    {name}: {text}')
+    body = '\n'.join(lines) + '\n'
+    if yaml.safe_load(body) != {parameters.node: {ROS_PARAMETERS: parameters.values}}:
+        raise RunConfigError(f'{path}: the parameters of {parameters.node} do not survive YAML')
+    comments = ''.join(f'# {line}\n' for line in header.splitlines())
+    path.write_text(comments + body, encoding='utf-8')
+    return path
+
+
+def scenario_parameters(scenario, goal: str) -> dict[str, dict[str, Any]]:
+    """What the nodes must agree on, filled in from the scenario so users only name it."""
+    x, y, yaw = scenario.start
+    return {
+        'simulator': {
+            'map': str(Path(scenario.map_path).resolve()),
+            'initial_pose': [float(x), float(y), float(yaw)],
+            'robot_radius': float(scenario.robot_radius),
+        },
+        'environment': {'scenario': str(Path(scenario.path).resolve()), 'goal': goal},
+    }
+
+
+# --- names and directories ----------------------------------------------------------------------
+
+
+def utc_stamp(now: datetime.datetime | None = None) -> str:
+    now = now or datetime.datetime.now(datetime.UTC)
+    return now.strftime('%Y%m%dT%H%M%SZ')
+
+
+def run_directory(runs_dir: Path, name: str | None, default_name: str) -> Path:
+    """A new run directory: runs_dir/name (must not exist) or runs_dir/default_name[-2, -3...]."""
+    if name is not None:
+        if not name or '/' in name or name in ('.', '..'):
+            raise RunConfigError(f'--name {name!r}: expected a plain directory name')
+        path = Path(runs_dir) / name
+        if path.exists():
+            raise RunConfigError(f'run directory {path} exists already; choose another --name')
+    else:
+        path = Path(runs_dir) / default_name
+        number = 2
+        while path.exists():
+            path = Path(runs_dir) / f'{default_name}-{number}'
+            number += 1
+    try:
+        path.mkdir(parents=True)
+    except OSError as error:
+        raise RunConfigError(
+            f'run directory {path}: cannot create it ({error.strerror})'
+        ) from None
+    return path
+
+
+def relative_to_cwd(path: Path) -> str:
+    """A path as the user would type it from here (relative when below the working directory)."""
+    try:
+        return (
+            os.path.relpath(path) if Path(path).resolve().is_relative_to(Path.cwd()) else str(path)
+        )
+    except ValueError:
+        return str(path)

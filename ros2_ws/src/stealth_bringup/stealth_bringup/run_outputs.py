@@ -1,0 +1,242 @@
+"""What a run leaves in runs/<name>/ besides the recording, policy, parameters and logs:
+episodes.csv, summary.json, learning_curve.png and path.png. No rclpy.
+
+    learning_curve.png  return of every episode (colour: outcome; diamonds: greedy evaluations),
+                        the moving average of the training returns, steps per episode and epsilon
+    path.png            the scenario (walls, visibility, cones) with the robot's true path in the
+                        last greedy episode and the value-iteration optimum on the move lattice
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+import csv
+import json
+import math
+import os
+from pathlib import Path
+
+from matplotlib.figure import Figure  # no pyplot: no global state, no display (Agg)
+from matplotlib.lines import Line2D
+import numpy as np
+
+from stealth_bringup.experiment import CSV_FIELDS, OUTCOMES, EpisodeRecord
+
+OUTCOME_COLOURS = {
+    'SUCCESS': '#1a9641',
+    'DETECTED': '#d7191c',
+    'TIMEOUT': '#fdae61',
+    'ABORTED': '#7f7f7f',
+}
+AVERAGE_WINDOW = 20
+
+
+def write_episodes_csv(records: Sequence[EpisodeRecord], path: Path) -> Path:
+    """One row per episode, the columns of EpisodeRecord."""
+    with open(path, 'w', newline='', encoding='utf-8') as stream:
+        writer = csv.DictWriter(stream, fieldnames=CSV_FIELDS)
+        writer.writeheader()
+        for record in records:
+            row = record.as_row()
+            writer.writerow({k: _csv_value(v) for k, v in row.items()})
+    return path
+
+
+def _csv_value(value):
+    if isinstance(value, float):
+        return '' if math.isnan(value) else f'{value:.6g}'
+    return value
+
+
+def write_json(data: dict, path: Path) -> Path:
+    """JSON with NaN written as null (strict JSON readers refuse NaN)."""
+    path.write_text(json.dumps(_finite(data), indent=2) + '\n', encoding='utf-8')
+    return path
+
+
+def _finite(value):
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
+    return value
+
+
+def moving_average(values: Sequence[float], window: int = AVERAGE_WINDOW) -> np.ndarray:
+    """Mean of the last `window` values at every index (fewer at the start)."""
+    values = np.asarray(values, dtype=float)
+    if values.size == 0:
+        return values
+    sums = np.cumsum(np.insert(values, 0, 0.0))
+    index = np.arange(1, values.size + 1)
+    low = np.maximum(0, index - window)
+    return (sums[index] - sums[low]) / (index - low)
+
+
+def plot_learning_curve(
+    records: Sequence[EpisodeRecord],
+    path: Path,
+    title: str,
+    streak_start: int | None = None,
+    optimal_return: float | None = None,
+) -> Path | None:
+    """Returns, outcomes, greedy evaluations, moving average; steps and epsilon below."""
+    if not records:
+        return None
+    fig = Figure(figsize=(10.5, 7.0), dpi=110)
+    top, bottom = fig.subplots(
+        2, 1, sharex=True, gridspec_kw={'height_ratios': [3, 1.3], 'hspace': 0.08}
+    )
+    training = [r for r in records if not r.greedy]
+    greedy = [r for r in records if r.greedy]
+    for outcome in OUTCOMES:
+        chosen = [r for r in training if r.outcome == outcome]
+        if chosen:
+            top.scatter(
+                [r.episode for r in chosen],
+                [r.total_reward for r in chosen],
+                s=14,
+                color=OUTCOME_COLOURS[outcome],
+                alpha=0.7,
+                linewidths=0,
+                zorder=2,
+            )
+        chosen = [r for r in greedy if r.outcome == outcome]
+        if chosen:
+            top.scatter(
+                [r.episode for r in chosen],
+                [r.total_reward for r in chosen],
+                s=60,
+                marker='D',
+                color=OUTCOME_COLOURS[outcome],
+                edgecolors='black',
+                linewidths=0.9,
+                zorder=4,
+            )
+    if training:
+        top.plot(
+            [r.episode for r in training],
+            moving_average([r.total_reward for r in training]),
+            color='#253494',
+            linewidth=2.0,
+            zorder=3,
+        )
+    if optimal_return is not None:
+        top.axhline(optimal_return, color='#253494', linestyle=':', linewidth=1.2, zorder=1)
+    if streak_start is not None:
+        for axes in (top, bottom):
+            axes.axvline(streak_start, color='#1a9641', linestyle='--', linewidth=1.2, zorder=1)
+    top.set_ylabel('return (sum of rewards)')
+    top.grid(True, alpha=0.3)
+    top.set_title(title)
+
+    handles = [
+        Line2D([], [], marker='o', linestyle='none', color=OUTCOME_COLOURS[o], label=o.lower())
+        for o in OUTCOMES
+        if any(r.outcome == o for r in records)
+    ]
+    handles.append(
+        Line2D(
+            [],
+            [],
+            marker='D',
+            linestyle='none',
+            color='white',
+            markeredgecolor='black',
+            label='greedy evaluation',
+        )
+    )
+    if training:
+        handles.append(
+            Line2D(
+                [],
+                [],
+                color='#253494',
+                linewidth=2,
+                label=f'mean of the last {AVERAGE_WINDOW} training episodes',
+            )
+        )
+    if optimal_return is not None:
+        handles.append(
+            Line2D([], [], color='#253494', linestyle=':', label='optimum (value iteration)')
+        )
+    if streak_start is not None:
+        handles.append(
+            Line2D(
+                [],
+                [],
+                color='#1a9641',
+                linestyle='--',
+                label=f'greedy success streak from {streak_start}',
+            )
+        )
+    top.legend(handles=handles, loc='lower right', fontsize=8, framealpha=0.85)
+
+    bottom.bar(
+        [r.episode for r in records],
+        [r.steps for r in records],
+        width=1.0,
+        color=[OUTCOME_COLOURS.get(r.outcome, '#7f7f7f') for r in records],
+        alpha=0.75,
+    )
+    bottom.set_ylabel('steps')
+    bottom.set_xlabel('episode')
+    bottom.grid(True, alpha=0.3)
+    epsilons = [(r.episode, r.epsilon) for r in training if not math.isnan(r.epsilon)]
+    if epsilons:
+        twin = bottom.twinx()
+        twin.plot(*zip(*epsilons, strict=True), color='black', linewidth=1.2)
+        twin.set_ylabel('epsilon (training)')
+        twin.set_ylim(0, max(0.05, max(e for _, e in epsilons) * 1.15))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, bbox_inches='tight')
+    return path
+
+
+def optimal_path(scenario, goal: str):
+    """The value-iteration optimum on the move lattice: (points (n, 2), PathResult), or None."""
+    from stealth_env.planners import LatticeModel, follow, value_iteration, walk
+    from stealth_env.task import StealthTask
+
+    model = LatticeModel.build(StealthTask(scenario, goal))
+    optimum = value_iteration(model)
+    path = follow(model, lambda i: int(optimum.policy[i]))
+    result = walk(model, path)
+    return result.points, result
+
+
+def plot_path(
+    scenario,
+    goal: str,
+    path: Path,
+    learned: Sequence[Sequence[float]] | None,
+    learned_label: str,
+    optimum: Sequence[Sequence[float]] | None,
+    optimum_label: str,
+    title: str,
+    cache_dir: str | os.PathLike | None = None,
+) -> Path | None:
+    """The scenario with the learned true path and the value-iteration optimum."""
+    from stealth_env.render import render_scenario
+
+    paths, labels = [], []
+    # The optimum first, so the learned path is drawn over it where they coincide.
+    if optimum is not None and len(optimum) >= 2:
+        paths.append(np.asarray(optimum, dtype=float))
+        labels.append(optimum_label)
+    if learned is not None and len(learned) >= 2:
+        paths.append(np.asarray(learned, dtype=float))
+        labels.append(learned_label)
+    if not paths:
+        return None
+    return render_scenario(
+        scenario,
+        path,
+        paths=paths,
+        goal=goal,
+        path_labels=labels,
+        title=title,
+        cache_dir=cache_dir,
+    )

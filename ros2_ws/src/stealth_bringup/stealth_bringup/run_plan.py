@@ -1,0 +1,433 @@
+"""What `stealth train` and `stealth eval` are asked to do, checked before anything starts: the
+command lines, the scenario and goal, the parameter files and --set, the executables, the policy
+to evaluate, and the run directory laid out with every node's effective parameters (RunPlan).
+Every problem is a RunConfigError with one line to print. No rclpy.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+import contextlib
+import dataclasses
+import json
+import math
+import os
+from pathlib import Path
+import re
+import shlex
+
+from stealth_bringup.run_config import (
+    NODE_ORDER,
+    NODES,
+    NodeParameters,
+    RunConfigError,
+    effective_parameters,
+    params_sources,
+    parse_set,
+    run_directory,
+    scenario_parameters,
+    utc_stamp,
+)
+
+DEFAULT_SCENARIO = 'simple-maze'
+DEFAULT_GOAL = 'easy'  # of the default scenario; other scenarios default to their own goal
+DEFAULT_EPISODES = 400
+DEFAULT_EVAL_EVERY = 5
+DEFAULT_STREAK = 3
+DEFAULT_EVAL_EPISODES = 5
+STARTUP_TIMEOUT = 60.0  # s for every node to appear on the graph
+STALL_TIMEOUT = 120.0  # s without a step before the run is declared stuck
+WATCH_PUBLISH_RATE = 10.0  # Hz of odom, ground_truth, scan, clock under --watch
+
+# --- command line -------------------------------------------------------------------------------
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f'{text} is not a positive integer')
+    return value
+
+
+def _non_negative_int(text: str) -> int:
+    value = int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f'{text} is negative')
+    return value
+
+
+def _positive_float(text: str) -> float:
+    value = float(text)
+    if not value > 0 or not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f'{text} is not a positive number')
+    return value
+
+
+def _common_options(parser: argparse.ArgumentParser, evaluating: bool = False) -> None:
+    parser.add_argument(
+        '--runs-dir',
+        default='runs',
+        metavar='DIR',
+        help='where run directories go (default: %(default)s)'
+        + ('; with --run the evaluation goes into the run directory' if evaluating else ''),
+    )
+    parser.add_argument(
+        '--name',
+        metavar='RUN',
+        help='name of the new directory (default: '
+        + ('eval-<UTC time> in the run, else eval-<scenario>-<goal>-<UTC time>)'
+           if evaluating else '<scenario>-<goal>-<UTC time>)'),
+    )  # fmt: skip
+    parser.add_argument(
+        '--seed',
+        type=_non_negative_int,
+        metavar='S',
+        help='seed of the simulator, the environment and the agent (default: their files)',
+    )
+    parser.add_argument(
+        '--params-dir',
+        metavar='DIR',
+        help='take <node>.yaml (recorder, simulator, environment, agent) from DIR where it '
+        'exists instead of the installed defaults (share/stealth_bringup/config)'
+        + ("; default with --run: the run's params/" if evaluating else ''),
+    )
+    parser.add_argument(
+        '--set',
+        dest='overrides',
+        action='append',
+        default=[],
+        metavar='NODE.PARAM=VALUE',
+        help='override one parameter, e.g. --set agent.epsilon=0.2 (repeatable; values as '
+        'in -p name:=value)',
+    )
+    parser.add_argument('--no-record', action='store_true', help='do not start the recorder')
+    parser.add_argument(
+        '--watch',
+        action='store_true',
+        help='simulate in real time (simulator real_time_factor 1, publish_rate 10) to watch '
+        'in Foxglove/RViz',
+    )
+    parser.add_argument(
+        '--startup-timeout',
+        type=_positive_float,
+        default=STARTUP_TIMEOUT,
+        metavar='S',
+        help='seconds for every node to come up (default: %(default)s)',
+    )
+    parser.add_argument(
+        '--stall-timeout',
+        type=_positive_float,
+        default=STALL_TIMEOUT,
+        metavar='S',
+        help='give up when no step happens for S seconds (default: %(default)s)',
+    )
+    parser.add_argument(
+        '--executable',
+        action='append',
+        default=[],
+        metavar='NODE=PATH',
+        help='run PATH instead of the installed node (e.g. your own rl_msgs agent)',
+    )
+
+
+def train_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog='stealth train',
+        description='Train the agent on a scenario: start simulator, environment, agent and '
+        'recorder as separate processes in a private ROS domain, show progress, stop on the '
+        'episode budget or when the greedy policy reached the goal K evaluations in a row, '
+        'and leave runs/<name>/ with the recording, parameters, policy, summary and plots.',
+    )
+    parser.add_argument(
+        '--scenario',
+        default=DEFAULT_SCENARIO,
+        metavar='NAME|PATH',
+        help='scenario name (scenarios/) or YAML path (default: %(default)s)',
+    )
+    parser.add_argument(
+        '--goal',
+        help=f'goal: easy, medium or hard (default: {DEFAULT_GOAL} for {DEFAULT_SCENARIO}, '
+        "else the scenario's default_goal)",
+    )
+    parser.add_argument(
+        '--episodes',
+        type=_positive_int,
+        default=DEFAULT_EPISODES,
+        metavar='N',
+        help='episode budget, greedy evaluations included (default: %(default)s)',
+    )
+    parser.add_argument(
+        '--eval-every',
+        type=_non_negative_int,
+        default=DEFAULT_EVAL_EVERY,
+        metavar='M',
+        help='every M-th episode is a greedy evaluation, no exploration and no learning '
+        '(0 = never; default: %(default)s)',
+    )
+    parser.add_argument(
+        '--success-streak',
+        type=_non_negative_int,
+        default=DEFAULT_STREAK,
+        metavar='K',
+        help='stop once K greedy evaluations in a row reached the goal (0 = run the whole '
+        'budget; default: %(default)s)',
+    )
+    _common_options(parser)
+    return parser
+
+
+def eval_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog='stealth eval',
+        description='Run a saved policy greedily, without learning (agent evaluate), on its '
+        'scenario and record it: runs/<run>/eval-<time>/ for --run, else a new run directory.',
+    )
+    source = parser.add_mutually_exclusive_group(required=True)
+    source.add_argument('--run', metavar='DIR', help='a training run directory (runs/<name>)')
+    source.add_argument('--policy', metavar='FILE', help='a policy file (.npz)')
+    parser.add_argument(
+        '--scenario',
+        metavar='NAME|PATH',
+        help="scenario (default: the run's, or the one named in the policy file)",
+    )
+    parser.add_argument('--goal', help="goal (default: the run's or the policy file's)")
+    parser.add_argument(
+        '--episodes',
+        type=_positive_int,
+        default=DEFAULT_EVAL_EPISODES,
+        metavar='N',
+        help='episodes to run (default: %(default)s)',
+    )
+    _common_options(parser, evaluating=True)
+    return parser
+
+
+# --- input checks (nothing has started yet) ----------------------------------------------------
+
+
+def _defaults_dir() -> Path:
+    """share/stealth_bringup/config of the install space (or the source tree's config/)."""
+    from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+
+    with contextlib.suppress(PackageNotFoundError):
+        installed = Path(get_package_share_directory('stealth_bringup')) / 'config'
+        if installed.is_dir():
+            return installed
+    return Path(__file__).resolve().parent.parent / 'config'
+
+
+def _load_scenario(name: str):
+    from stealth_env.scenario import ScenarioError, load_scenario
+
+    try:
+        return load_scenario(name)
+    except ScenarioError as error:
+        raise RunConfigError(str(error)) from None
+    except OSError as error:
+        raise RunConfigError(f'scenario {name!r}: {error}') from None
+
+
+def _check_goal(scenario, goal: str | None, default: str | None = None) -> str:
+    goal = goal or default or scenario.default_goal
+    if goal not in scenario.goals:
+        raise RunConfigError(
+            f'--goal {goal!r}: scenario {scenario.name!r} has no such goal '
+            f'(it has: {", ".join(scenario.goals)})'
+        )
+    return goal
+
+
+def _executables(no_record: bool, replacements: list[str]) -> dict[str, list[str]]:
+    """{node: command prefix}; RunConfigError for an executable that is not there."""
+    from stealth_bringup.executables import ExecutableNotFoundError, find_executable
+
+    given = {}
+    for item in replacements:
+        node, sep, path = item.partition('=')
+        if not sep or node not in NODES or not path:
+            raise RunConfigError(
+                f'--executable {item!r}: expected NODE=PATH with NODE one of {", ".join(NODES)}'
+            )
+        given[node] = path
+    commands = {}
+    for name in NODE_ORDER:
+        if name == 'recorder' and no_record:
+            continue
+        spec = NODES[name]
+        if name in given:
+            path = Path(given[name])
+            if not path.is_file():
+                raise RunConfigError(f'{name}: executable {path} does not exist')
+            if not os.access(path, os.X_OK):
+                raise RunConfigError(f'{name}: {path} is not executable')
+            commands[name] = [str(path)]
+            continue
+        try:
+            commands[name] = [str(find_executable(spec.package, spec.executable))]
+        except ExecutableNotFoundError as error:
+            raise RunConfigError(
+                f'{name}: {error}; build the workspace (make setup) and source scripts/ros_env.sh'
+            ) from None
+    return commands
+
+
+@dataclasses.dataclass
+class RunPlan:
+    """Everything decided before anything starts."""
+
+    mode: str  # 'train' or 'eval'
+    command_line: str
+    scenario: object
+    goal: str
+    directory: Path
+    episodes: int
+    eval_every: int
+    streak: int
+    parameters: dict[str, NodeParameters]
+    commands: dict[str, list[str]]
+    startup_timeout: float
+    stall_timeout: float
+    policy_path: Path
+    record: bool
+
+    @property
+    def title(self) -> str:
+        return f'{self.scenario.name} ({self.goal})'
+
+    def file(self, name: str) -> Path:
+        return self.directory / name
+
+
+def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
+    """Check every input and lay out the run; RunConfigError before anything exists."""
+    if mode == 'train':
+        scenario = _load_scenario(args.scenario)
+        default_goal = DEFAULT_GOAL if args.scenario == DEFAULT_SCENARIO else None
+        goal = _check_goal(scenario, args.goal, default_goal)
+        source_policy = None
+        params_dir = args.params_dir
+    else:
+        scenario, goal, source_policy, params_dir = _eval_source(args)
+    nodes = [n for n in NODE_ORDER if not (n == 'recorder' and args.no_record)]
+    sources = params_sources(_defaults_dir(), params_dir and Path(params_dir), nodes)
+    overrides = parse_set(args.overrides, nodes)
+    commands = _executables(args.no_record, args.executable)
+
+    # The run's own values, on top of the parameter files.
+    run_values = {n: {} for n in nodes}
+    for node, values in scenario_parameters(scenario, goal).items():
+        run_values[node].update(values)
+    if args.seed is not None:
+        for node in ('simulator', 'environment', 'agent'):
+            run_values[node]['seed'] = args.seed
+    if args.watch:  # real time, and the simulator's topics at a rate a viewer shows smoothly
+        run_values['simulator'].update(real_time_factor=1.0, publish_rate=WATCH_PUBLISH_RATE)
+    # Read the files before creating anything, so a bad one stops us with nothing to undo.
+    parameters = {
+        node: effective_parameters(node, sources[node], run_values[node], overrides.get(node, {}))
+        for node in nodes
+    }
+
+    stamp = utc_stamp()
+    if mode == 'train':
+        directory = run_directory(
+            Path(args.runs_dir), args.name, f'{scenario.name}-{goal}-{stamp}'
+        )
+        policy_path = directory / 'policy.npz'
+        agent = {'policy_file': str(policy_path.resolve()), 'eval_every': args.eval_every}
+        agent.update(evaluate=False, load_policy=False)
+    else:
+        if args.run is not None:  # the evaluation goes into the run's directory
+            runs_dir, default = Path(args.run), f'eval-{stamp}'
+        else:
+            runs_dir, default = Path(args.runs_dir), f'eval-{scenario.name}-{goal}-{stamp}'
+        directory = run_directory(runs_dir, args.name, default)
+        policy_path = source_policy
+        agent = {
+            'policy_file': str(source_policy.resolve()),
+            'evaluate': True,
+            'load_policy': False,
+            'eval_every': 0,
+        }
+    parameters['agent'].values.update(agent)
+    if 'recorder' in parameters:
+        parameters['recorder'].values['output'] = str((directory / 'recording.mcap').resolve())
+    return RunPlan(
+        mode=mode,
+        command_line=' '.join(['stealth', mode, *map(shlex.quote, argv)]),
+        scenario=scenario,
+        goal=goal,
+        directory=directory,
+        episodes=args.episodes,
+        eval_every=args.eval_every if mode == 'train' else 0,
+        streak=args.success_streak if mode == 'train' and args.eval_every else 0,
+        parameters=parameters,
+        commands=commands,
+        startup_timeout=args.startup_timeout,
+        stall_timeout=args.stall_timeout,
+        policy_path=policy_path,
+        record='recorder' in parameters,
+    )
+
+
+_TITLE = re.compile(r'^stealth-nav: (?P<scenario>.+) \((?P<goal>[^()]+)\)$')
+
+
+def _eval_source(args):
+    """(scenario, goal, policy path, params dir) of `stealth eval`."""
+    from stealth_agent.policy_store import PolicyFileError, load_policy
+
+    run_summary = {}
+    params_dir = args.params_dir
+    if args.run is not None:
+        run = Path(args.run)
+        if not run.is_dir():
+            raise RunConfigError(f'--run {run}: no such run directory')
+        policy = run / 'policy.npz'
+        if not policy.is_file():
+            raise RunConfigError(f'--run {run}: it has no policy.npz (did the run save one?)')
+        run_summary = _read_run_summary(run)
+        if params_dir is None and (run / 'params').is_dir():
+            params_dir = str(run / 'params')
+    else:
+        policy = Path(args.policy)
+        if not policy.is_file():
+            raise RunConfigError(f'--policy {policy}: no such file')
+        run_summary = _read_run_summary(policy.parent)
+    try:
+        saved = load_policy(policy)
+    except PolicyFileError as error:
+        raise RunConfigError(str(error)) from None
+    title = str(saved.scenario.get('title', ''))
+    named = _TITLE.match(title)
+    scenario_name = (
+        args.scenario
+        or run_summary.get('scenario', {}).get('path')
+        or (named.group('scenario') if named else None)
+    )
+    if scenario_name is None:
+        raise RunConfigError(f'{policy}: it names no scenario; give --scenario')
+    scenario = _load_scenario(scenario_name)
+    default_goal = run_summary.get('goal') or (named.group('goal') if named else None)
+    goal = _check_goal(scenario, args.goal, default_goal)
+    from stealth_env.task import StealthTask
+
+    expected = StealthTask(scenario, goal).title
+    if title and title != expected:
+        raise RunConfigError(
+            f'{policy} was trained on {title!r}, not on {expected!r}; give the matching '
+            '--scenario and --goal'
+        )
+    return scenario, goal, policy, params_dir
+
+
+def _read_run_summary(directory: Path) -> dict:
+    path = directory / 'summary.json'
+    if not path.is_file():
+        return {}
+    try:
+        data = json.loads(path.read_text(encoding='utf-8'))
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}

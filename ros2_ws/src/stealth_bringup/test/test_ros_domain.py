@@ -1,0 +1,47 @@
+"""The run's private domain id and the clean-up of a killed node's shared memory (no ROS)."""
+
+import os
+
+from stealth_bringup import ros_domain
+from stealth_bringup.ros_domain import (
+    private_environment,
+    remove_orphaned_shm,
+    reserved_domain_id,
+    segment_base,
+)
+
+
+def test_domain_ids_are_exclusive_while_held(tmp_path):
+    with reserved_domain_id(tmp_path) as first, reserved_domain_id(tmp_path) as second:
+        assert first != second and 1 <= first <= 101 and 1 <= second <= 101
+    with reserved_domain_id(tmp_path) as again:
+        assert 1 <= again <= 101
+
+
+def test_the_node_environment_is_private_and_local(monkeypatch):
+    monkeypatch.setenv('ROS_LOCALHOST_ONLY', '1')
+    env = private_environment(42)
+    assert env['ROS_DOMAIN_ID'] == '42'
+    assert env['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST'
+    assert 'ROS_LOCALHOST_ONLY' not in env and env['PYTHONUNBUFFERED'] == '1'
+    assert os.environ['ROS_LOCALHOST_ONLY'] == '1'  # the orchestrator's own is left alone
+
+
+def test_only_new_unmapped_segments_are_removed_with_their_lock_files(tmp_path, monkeypatch):
+    monkeypatch.setattr(ros_domain, 'clean_shm', lambda: None)
+    names = ('fastrtps_old', 'fastrtps_dead', 'fastrtps_dead_el', 'sem.fastrtps_dead_mutex',
+             'fastrtps_live', 'fastrtps_live_el', 'sem.fastrtps_live_mutex', 'other')  # fmt: skip
+    before = {'fastrtps_old'}
+    for name in names:
+        (tmp_path / name).write_bytes(b'')
+    monkeypatch.setattr(ros_domain, 'mapped_shm_names', lambda: {'fastrtps_live'})
+    removed = remove_orphaned_shm(before, tmp_path)
+    assert removed == ['fastrtps_dead', 'fastrtps_dead_el', 'sem.fastrtps_dead_mutex']
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        'fastrtps_live',
+        'fastrtps_live_el',
+        'fastrtps_old',
+        'other',
+        'sem.fastrtps_live_mutex',
+    ]
+    assert segment_base('sem.fastrtps_port7411_mutex') == 'fastrtps_port7411'

@@ -1,0 +1,97 @@
+"""episodes.csv, summary.json and the two pictures of a run (no ROS)."""
+
+import csv
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+from stealth_bringup.experiment import CSV_FIELDS, EpisodeRecord
+from stealth_bringup.run_outputs import (
+    moving_average,
+    optimal_path,
+    plot_learning_curve,
+    plot_path,
+    write_episodes_csv,
+    write_json,
+)
+
+
+def record(episode, outcome, greedy=False, reward=-100.0):
+    return EpisodeRecord(
+        episode=episode,
+        outcome=outcome,
+        steps=40 + episode,
+        total_reward=reward,
+        peak_visibility=0.1,
+        accumulated_visibility=1.0,
+        path_length=20.0,
+        final_distance_to_goal=0.3,
+        greedy=greedy,
+        epsilon=0.0 if greedy else 0.1,
+        alpha=0.0 if greedy else 0.3,
+        learner_episodes=episode,
+        learner_updates=10 * episode,
+        table_states=50,
+        wall_time=float(episode),
+    )
+
+
+RECORDS = [
+    record(0, 'TIMEOUT'),
+    record(1, 'DETECTED', reward=-1100.0),
+    record(2, 'SUCCESS', greedy=True, reward=980.0),
+    record(3, 'SUCCESS', reward=950.0),
+    dataclasses.replace(record(4, 'ABORTED', reward=0.0), epsilon=math.nan),
+]
+
+
+def test_moving_average_uses_what_there_is_at_the_start():
+    assert np.allclose(moving_average([1, 3, 5, 7], window=2), [1, 2, 4, 6])
+    assert moving_average([]).size == 0
+
+
+def test_episodes_csv_has_a_row_per_episode(tmp_path):
+    path = write_episodes_csv(RECORDS, tmp_path / 'episodes.csv')
+    rows = list(csv.DictReader(path.open()))
+    assert tuple(rows[0]) == CSV_FIELDS
+    assert [r['outcome'] for r in rows] == ['TIMEOUT', 'DETECTED', 'SUCCESS', 'SUCCESS', 'ABORTED']
+    assert rows[2]['greedy'] == 'True' and rows[4]['epsilon'] == ''
+
+
+def test_summary_json_is_strict_json(tmp_path):
+    path = write_json({'a': math.nan, 'b': [1.0, math.inf], 'c': {'d': 2}}, tmp_path / 's.json')
+    assert json.loads(path.read_text()) == {'a': None, 'b': [1.0, None], 'c': {'d': 2}}
+    assert 'NaN' not in path.read_text()
+
+
+def test_the_learning_curve_is_drawn(tmp_path):
+    path = plot_learning_curve(
+        RECORDS, tmp_path / 'curve.png', 'maze (easy)', streak_start=2, optimal_return=989.6
+    )
+    assert path.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+    assert plot_learning_curve([], tmp_path / 'none.png', 'x') is None
+
+
+@pytest.mark.parametrize('scenario_name', ['simple-maze'])
+def test_the_path_picture_shows_the_learned_path_and_the_optimum(tmp_path, scenario_name):
+    from stealth_env.scenario import load_scenario
+
+    scenario = load_scenario(scenario_name)
+    points, result = optimal_path(scenario, 'easy')
+    assert result.outcome.name == 'SUCCESS' and len(points) == result.steps + 1
+    learned = [tuple(scenario.start[:2]), (1.5, 2.0), (1.5, 2.5)]
+    path = plot_path(
+        scenario,
+        'easy',
+        tmp_path / 'path.png',
+        learned,
+        'learned',
+        points,
+        'optimum',
+        'title',
+        cache_dir=tmp_path / 'cache',
+    )
+    assert path.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+    assert plot_path(scenario, 'easy', tmp_path / 'n.png', None, 'l', None, 'o', 't') is None
