@@ -173,8 +173,10 @@ PARAMETERS = {
         '(moving lights drawn at the latest simulated time); 0 = publish once.', (0.0, 3600.0)
     ),
     'start_delay': Param(
-        0.0, 'Wall-clock seconds to wait, once the simulator and an agent are there, before '
-        'the first episode starts (time for recorders and viewers to connect).', (0.0, 3600.0)
+        0.5, 'Wall-clock seconds to wait, once the simulator and an agent are there, before '
+        'the first episode starts: time for recorders and viewers to connect, and for the '
+        "agent's side of the DDS match (a writer sees a reader before the reader sees the "
+        'writer, and a volatile first state sent in between is lost).', (0.0, 3600.0)
     ),
     'log_every': Param(100, 'Log a progress line every this many episodes (0 = never).',
                        (0, 2**31 - 1)),
