@@ -28,6 +28,7 @@ from rcl_interfaces.msg import (
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from stealth_interfaces.msg import (
@@ -531,6 +532,9 @@ def main(args=None):
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except _rclpy.RCLError:
+        if rclpy.ok():  # a real failure, not rclpy's race of SIGINT with building a wait set
+            raise
     finally:
         node.save('shutdown')
         node.destroy_node()
