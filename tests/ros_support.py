@@ -6,44 +6,27 @@ DDS shared-memory segments a killed process leaves in /dev/shm.
 """
 
 import contextlib
-import fcntl
 import functools
 import os
 import pathlib
-import random
 import signal
 import subprocess
 import sys
 import time
 
+from stealth_bringup.ros_domain import (  # the runs' implementation: one lock space for both
+    SHM_DIR,  # noqa: F401 - re-exported for the tests
+    clean_shm,
+    mapped_shm_names,
+    private_environment,
+    remove_orphaned_shm,  # noqa: F401 - re-exported for the tests
+    reserved_domain_id,  # noqa: F401 - re-exported for the tests
+    segment_base,
+    shm_segments,
+)
+
 REPO_ROOT = pathlib.Path(__file__).resolve().parent.parent
 VENV = REPO_ROOT / '.venv'
-DOMAIN_LOCK_DIR = pathlib.Path('/tmp/stealth_nav_domains')
-SHM_DIR = pathlib.Path('/dev/shm')
-# Linux keeps ids 0-101 clear of the ephemeral port range; 0 is everyone's default, so skip it.
-DOMAIN_IDS = range(1, 102)
-
-
-@contextlib.contextmanager
-def reserved_domain_id():
-    """Hold a ROS_DOMAIN_ID that no other test run on this machine holds at the same time."""
-    DOMAIN_LOCK_DIR.mkdir(parents=True, exist_ok=True)
-    candidates = list(DOMAIN_IDS)
-    random.shuffle(candidates)
-    for domain_id in candidates:
-        lock_file = open(DOMAIN_LOCK_DIR / f'{domain_id}.lock', 'w')  # noqa: SIM115
-        try:
-            fcntl.flock(lock_file, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            lock_file.close()
-            continue
-        try:
-            yield domain_id
-        finally:
-            fcntl.flock(lock_file, fcntl.LOCK_UN)
-            lock_file.close()
-        return
-    raise RuntimeError(f'all ROS domain ids {DOMAIN_IDS} are held by other test runs')
 
 
 @functools.cache
@@ -61,41 +44,7 @@ def _sourced_environment() -> tuple[tuple[str, str], ...]:
 
 def ros_environment(domain_id: int) -> dict[str, str]:
     """The environment of a node process: the venv and install space, a private domain."""
-    env = dict(_sourced_environment())
-    env.pop('ROS_LOCALHOST_ONLY', None)  # it overrides the discovery range below
-    env['ROS_DOMAIN_ID'] = str(domain_id)
-    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    env['PYTHONUNBUFFERED'] = '1'
-    return env
-
-
-def shm_segments() -> set[str]:
-    """Fast DDS shared-memory segment and semaphore names currently in /dev/shm."""
-    return {p.name for p in SHM_DIR.glob('*fastrtps*')} | {
-        p.name for p in SHM_DIR.glob('*fastdds*')
-    }
-
-
-def mapped_shm_names() -> set[str]:
-    """Names of /dev/shm files some live process still has mapped (those are not leaks)."""
-    names = set()
-    for maps in pathlib.Path('/proc').glob('[0-9]*/maps'):
-        with contextlib.suppress(OSError):
-            for line in maps.read_text().splitlines():
-                if '/dev/shm/' in line:
-                    names.add(line.rsplit('/dev/shm/', 1)[1].split(' ')[0])
-    return names
-
-
-def clean_shm() -> None:
-    """Remove zombie Fast DDS segments (what a SIGKILLed participant leaves behind)."""
-    subprocess.run(
-        [str(VENV / 'bin' / 'fastdds'), 'shm', 'clean'],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        check=False,
-        timeout=60,
-    )
+    return private_environment(domain_id, base=dict(_sourced_environment()))
 
 
 class NodeProcesses:
@@ -155,28 +104,8 @@ class NodeProcesses:
 
 def leaked_shm_segments(before: set[str]) -> set[str]:
     """Segments created since `before` that no live process maps, after a `fastdds shm clean`."""
-    new = shm_segments() - before
-    if not new:
+    if not shm_segments() - before:
         return set()
     clean_shm()
     mapped = mapped_shm_names()
     return {name for name in shm_segments() - before if segment_base(name) not in mapped}
-
-
-def segment_base(name: str) -> str:
-    """The data segment a Fast DDS file belongs to: its lock (`_el`) and mutex (`sem.*_mutex`)
-    files are never mapped themselves, but live as long as the segment's owner does."""
-    name = name.removeprefix('sem.')
-    for suffix in ('_el', '_mutex'):
-        name = name.removesuffix(suffix)
-    return name
-
-
-def remove_orphaned_shm(before: set[str]) -> None:
-    """Unlink the segments a SIGKILLed participant left: new since `before`, mapped by nobody.
-
-    `fastdds shm clean` removes zombie segments it knows, but not the `fastrtps_port*` segments
-    of a killed process, so those that no live process maps are unlinked here.
-    """
-    for name in leaked_shm_segments(before):
-        (SHM_DIR / name).unlink(missing_ok=True)
