@@ -20,12 +20,21 @@ hash_files = $(shell cat $(1) 2>/dev/null | sha256sum | cut -c1-16)
 VENV_INPUTS := requirements.in requirements.lock scripts/fix_ros_wheels.py
 VENV_STAMP := $(STAMPS)/venv-$(call hash_files,$(VENV_INPUTS))
 WS_SOURCES := $(shell find ros2_ws/src -type f -not -path '*/__pycache__/*' -not -name '*.pyc' | LC_ALL=C sort)
-BUILD_STAMP := $(STAMPS)/build-$(shell (echo $(VENV_STAMP); printf '%s\n' $(WS_SOURCES); cat $(WS_SOURCES)) | sha256sum | cut -c1-16)
+# tf2_msgs has no PyPI wheel: ros2_ws/src/vendor/tf2_msgs builds it, unless an underlay on
+# AMENT_PREFIX_PATH (a sourced /opt/ros/jazzy, say) already has it; then that one is used.
+UNDERLAY_TF2_MSGS := $(firstword $(foreach prefix,$(subst :, ,$(AMENT_PREFIX_PATH)),\
+	$(if $(filter $(WS)/install $(WS)/install/%,$(prefix)),,$(wildcard $(prefix)/share/tf2_msgs))))
+SKIP_PACKAGES := $(if $(UNDERLAY_TF2_MSGS),--packages-skip tf2_msgs)
+BUILD_STAMP := $(STAMPS)/build-$(shell (echo $(VENV_STAMP) $(UNDERLAY_TF2_MSGS); printf '%s\n' $(WS_SOURCES); cat $(WS_SOURCES)) | sha256sum | cut -c1-16)
 
 .PHONY: help setup venv build test test-packages test-system lint format clean distclean
 
 help: ## List the targets
 	@grep -hE '^[a-zA-Z_-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
+
+# Foxglove's MCAP libraries, for tests/test_bag_compat.py only (make run does not need node).
+JS_CHECK := tools/mcap-js-check
+JS_STAMP := $(STAMPS)/mcap-js-$(call hash_files,$(JS_CHECK)/package.json $(JS_CHECK)/package-lock.json $(JS_CHECK)/.npmrc)
 
 setup: $(BUILD_STAMP) ## Create .venv from pinned wheels and colcon-build ros2_ws (only what changed)
 
@@ -44,7 +53,8 @@ build: $(BUILD_STAMP) ## colcon build the workspace (symlink install)
 
 $(BUILD_STAMP): $(VENV_STAMP)
 	@echo "setup: colcon build ros2_ws"
-	@cd $(WS) && $(ROS_ENV) && colcon build --symlink-install \
+	@$(if $(UNDERLAY_TF2_MSGS),echo "setup: using $(UNDERLAY_TF2_MSGS) (vendored tf2_msgs skipped)" && rm -rf $(WS)/build/tf2_msgs $(WS)/install/tf2_msgs,true)
+	@cd $(WS) && $(ROS_ENV) && colcon build --symlink-install $(SKIP_PACKAGES) \
 		--event-handlers status- --cmake-args -DBUILD_TESTING=OFF -Wno-dev
 	@rm -f $(STAMPS)/build-* && echo "$@" > $@
 
@@ -56,11 +66,11 @@ test: setup ## Build if needed, run every package's tests (colcon test) and the 
 
 test-packages: setup ## colcon test: each package's pytest suite
 	@cd $(WS) && $(ROS_ENV) && rc=0 && \
-	colcon test --return-code-on-test-failure --event-handlers console_direct+ status- \
+	colcon test $(SKIP_PACKAGES) --return-code-on-test-failure --event-handlers console_direct+ status- \
 		--pytest-args -q -p no:cacheprovider || rc=$$?; \
 	colcon test-result --verbose || rc=1; exit $$rc
 
-test-system: setup ## The top-level system tests in tests/
+test-system: setup $(JS_STAMP) ## The top-level system tests in tests/
 	@$(ROS_ENV) && python -m pytest tests -q -p no:cacheprovider
 
 lint: venv ## ruff check and format check over the whole repository
@@ -69,11 +79,17 @@ lint: venv ## ruff check and format check over the whole repository
 format: venv ## Apply ruff's fixes and formatting
 	@$(VENV)/bin/ruff check --fix . && $(VENV)/bin/ruff format .
 
+$(JS_STAMP):
+	@command -v node >/dev/null && command -v npm >/dev/null || { echo "setup: node (18+) and npm are missing (Debian: sudo apt-get install nodejs npm); tests/test_bag_compat.py needs them" >&2; exit 1; }
+	@echo "setup: npm ci $(JS_CHECK) (Foxglove's MCAP libraries, pinned)"
+	@npm ci --prefix $(JS_CHECK) --no-audit --no-fund --loglevel=error
+	@mkdir -p $(STAMPS) && rm -f $(STAMPS)/mcap-js-* && echo "$@" > $@
+
 clean: ## Remove colcon's build, install and log spaces
 	rm -rf $(WS)/build $(WS)/install $(WS)/log $(STAMPS)/build-*
 
-distclean: clean ## Also remove .venv
-	rm -rf $(VENV) $(STAMPS)
+distclean: clean ## Also remove .venv and the JS check's node_modules
+	rm -rf $(VENV) $(STAMPS) $(JS_CHECK)/node_modules
 
 -include maps/maps.mk
 
