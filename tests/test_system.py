@@ -40,6 +40,7 @@ TOPICS = {
     '/ground_truth': 'nav_msgs/msg/Odometry',
     '/scan': 'sensor_msgs/msg/LaserScan',
     '/clock': 'rosgraph_msgs/msg/Clock',
+    '/tf': 'tf2_msgs/msg/TFMessage',
     '/rosout': 'rcl_interfaces/msg/Log',
 }
 OUTCOMES = ('SUCCESS', 'DETECTED', 'TIMEOUT', 'ABORTED')

@@ -55,7 +55,7 @@ def compose(pose: Pose, forward: float, left: float, turn: float) -> Pose:
     return Pose(
         pose.x + forward * cos_yaw - left * sin_yaw,
         pose.y + forward * sin_yaw + left * cos_yaw,
-        wrap_angle(pose.yaw + turn),
+        math.remainder(pose.yaw + turn, TWO_PI),
     )
 
 
@@ -66,7 +66,7 @@ def relative(origin: Pose, pose: Pose) -> tuple[float, float, float]:
     return (
         dx * cos_yaw + dy * sin_yaw,
         -dx * sin_yaw + dy * cos_yaw,
-        wrap_angle(pose.yaw - origin.yaw),
+        math.remainder(pose.yaw - origin.yaw, TWO_PI),
     )
 
 
@@ -79,6 +79,8 @@ def require_finite(**values: float) -> None:
 
 def is_finite_number(value) -> bool:
     """True for finite ints and floats, numpy's included; not for booleans."""
+    if type(value) is float:  # the common case, without the slower abstract-class check
+        return math.isfinite(value)
     return (
         isinstance(value, numbers.Real)
         and not isinstance(value, bool | np.bool_)
@@ -127,7 +129,7 @@ def integrate(pose: Pose, linear: float, angular: float, dt: float) -> Pose:
     return Pose(
         pose.x + chord * math.cos(heading),
         pose.y + chord * math.sin(heading),
-        wrap_angle(pose.yaw + angular * dt),
+        math.remainder(pose.yaw + angular * dt, TWO_PI),
     )
 
 

@@ -81,33 +81,44 @@ class LikelihoodField:
         self.range_max = range_max
         self.inverse_resolution = 1.0 / occupancy_map.resolution
         self.origin_x, self.origin_y = occupancy_map.origin[:2]
+        self._flat_score = self.score.ravel()
 
-    def _cells(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Padded-grid (row, col) of each point; points off the map land on the ring."""
+    def to_grid(self, x, y):
+        """Continuous padded-grid coordinates (col, row) of points (m), +1 for the ring."""
+        inverse = self.inverse_resolution
+        return (x - self.origin_x) * inverse + 1.0, (y - self.origin_y) * inverse + 1.0
+
+    def _flat_cells(self, cols: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """Flat index of the cells at padded-grid coordinates; off the map is the ring."""
         height, width = self.score.shape
-        # +1 for the ring; clipping before the cast makes truncation act as floor.
-        cols = np.clip((x - self.origin_x) * self.inverse_resolution + 1.0, 0.0, width - 1)
-        rows = np.clip((y - self.origin_y) * self.inverse_resolution + 1.0, 0.0, height - 1)
-        return rows.astype(np.intp), cols.astype(np.intp)
+        # Clipping before the cast makes truncation act as floor.
+        cols = np.clip(cols, 0.0, width - 1).astype(np.intp)
+        rows = np.clip(rows, 0.0, height - 1).astype(np.intp)
+        rows *= width
+        rows += cols
+        return rows
 
     def lookup(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Distance (m) from each point to the nearest obstacle; ``max_occ_dist`` off the map."""
-        return self.distance[self._cells(x, y)]
+        return self.distance.ravel()[self._flat_cells(*self.to_grid(x, y))]
 
     def scores(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """``pz^3`` of beam endpoints at the given points."""
-        return self.score[self._cells(x, y)]
+        return self.grid_scores(*self.to_grid(x, y))
+
+    def grid_scores(self, cols: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """``pz^3`` of beam endpoints at padded-grid coordinates (see :meth:`to_grid`)."""
+        return self._flat_score[self._flat_cells(cols, rows)]
 
 
 def covariance_from_spread(poses: np.ndarray, weights: np.ndarray) -> tuple[Pose, np.ndarray]:
     """Weighted mean pose (circular mean of yaw) and the 3x3 covariance of (x, y, yaw)."""
-    x_mean = float(weights @ poses[:, 0])
-    y_mean = float(weights @ poses[:, 1])
-    yaw_mean = math.atan2(weights @ np.sin(poses[:, 2]), weights @ np.cos(poses[:, 2]))
-    deviations = np.column_stack(
-        [poses[:, 0] - x_mean, poses[:, 1] - y_mean, wrap_angle(poses[:, 2] - yaw_mean)]
-    )
-    covariance = (deviations * weights[:, None]).T @ deviations
+    x_mean, y_mean, _ = (weights @ poses).tolist()
+    heading = weights @ np.exp(1j * poses[:, 2])
+    yaw_mean = math.atan2(heading.imag, heading.real)
+    deviations = poses - (x_mean, y_mean, yaw_mean)
+    deviations[:, 2] = wrap_angle(deviations[:, 2])
+    covariance = (deviations.T * weights) @ deviations
     return Pose(x_mean, y_mean, yaw_mean), covariance
 
 
@@ -158,8 +169,11 @@ class ParticleFilter:
         """Move every particle by the odometry's motion with sampled AMCL noise."""
         stddevs = noise_stddevs(delta, self.motion_noise)
         normals = self.rng.standard_normal(self.particles.shape)
-        x, y, yaw = apply_noisy_motion(*self.particles.T, delta, stddevs, normals)
-        self.particles = np.column_stack([x, y, yaw])
+        moved = np.empty_like(self.particles)
+        moved[:, 0], moved[:, 1], moved[:, 2] = apply_noisy_motion(
+            *self.particles.T, delta, stddevs, normals
+        )
+        self.particles = moved
 
     def correct(self, ranges: np.ndarray, bearings: np.ndarray) -> None:
         """Weigh the particles by AMCL's likelihood-field model of one scan."""
@@ -168,13 +182,15 @@ class ParticleFilter:
         ranges, bearings = ranges[usable], bearings[usable]
         if ranges.size == 0:
             return
-        # Endpoints in the robot frame, rotated into each particle's frame (no trig per pair).
-        forward, left = ranges * np.cos(bearings), ranges * np.sin(bearings)
-        x, y, yaw = self.particles.T
-        cos_yaw, sin_yaw = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
-        end_x = x[:, None] + cos_yaw * forward - sin_yaw * left
-        end_y = y[:, None] + sin_yaw * forward + cos_yaw * left
-        weights = self.weights * (1.0 + self.field.scores(end_x, end_y).sum(axis=1))
+        # Endpoints as complex grid coordinates col + i row: the beams in the robot frame (in
+        # cells) turned into every particle's frame by one outer product (no trig per pair).
+        poses, field = self.particles, self.field
+        cols, rows = field.to_grid(poses[:, 0], poses[:, 1])
+        beams = (ranges * field.inverse_resolution) * np.exp(1j * bearings)
+        ends = np.multiply.outer(np.exp(1j * poses[:, 2]), beams)
+        ends += (cols + 1j * rows)[:, None]
+        scores = field.grid_scores(ends.real, ends.imag)
+        weights = self.weights * (1.0 + scores.sum(axis=1))
         self.weights = weights / weights.sum()
 
     def resample(self) -> None:

@@ -4,8 +4,10 @@ A move is "turn to a heading, then drive a distance" (or only the turn). The con
 the estimate, as a robot running on AMCL would: it turns in place until the estimated heading is
 within tolerance, then drives towards the target point fixed at the start of the drive
 (estimated start + distance along the heading), steering onto it, and finally brakes to rest.
-Speeds follow ``sqrt(2 a d)`` so the robot can stop within the acceleration limit. Simulated time
-runs as fast as the CPU allows; ``on_step`` lets a caller publish or pace it.
+Speeds follow the discrete-time braking curve of the physics step, so the robot can always stop
+within the acceleration limit and, near the target, covers the rest in one step (no slow
+proportional tail). Simulated time runs as fast as the CPU allows; ``on_step`` lets a caller
+publish or pace it.
 
 The four grid moves are the original's actions: up (+y), down (-y), left (-x), right (+x) of the
 map frame, each a drive of the given step.
@@ -67,11 +69,10 @@ class MoveResult:
 
 @dataclasses.dataclass(frozen=True)
 class ControllerConfig:
-    """Tolerances (rad, m), gains (1/s) and the time limit of the move controller."""
+    """Tolerances (rad, m), braking and the time limit of the move controller."""
 
     heading_tolerance: float = 0.02
     position_tolerance: float = 0.01
-    heading_gain: float = 4.0
     # Deceleration planned with this share of the acceleration limit, so braking never lags.
     braking_share: float = 0.8
     # Aim at the target point until this close, then hold the drive's heading.
@@ -171,13 +172,22 @@ class _MoveRun:
             return Outcome.TIMED_OUT
         return None
 
+    def _approach_speed(self, distance: float, max_speed: float, max_accel: float) -> float:
+        """The fastest speed (<= max_speed) from which, after one physics step at it, the robot
+        can still brake to rest within ``distance`` at ``braking_share`` of ``max_accel``.
+
+        It solves ``v dt + v^2 / 2a = d``: ``sqrt(2 a d)`` far out, ``d / dt`` (deadbeat) near
+        the target, and following it never asks to slow by more than ``a dt`` per step.
+        """
+        decel = self.controller.braking_share * max_accel
+        dt = self.sim.config.physics_dt
+        speed = decel * (math.sqrt(dt * dt + 2.0 * distance / decel) - dt)
+        return min(speed, max_speed)
+
     def _turn_rate(self, error: float) -> float:
-        """Turn rate towards a heading error: proportional, capped so it can stop in time."""
-        limits, controller = self.sim.config.limits, self.controller
-        stoppable = math.sqrt(
-            2.0 * controller.braking_share * limits.max_angular_accel * abs(error)
-        )
-        rate = min(controller.heading_gain * abs(error), stoppable, limits.max_angular_speed)
+        """Turn rate towards a heading error, on the braking curve."""
+        limits = self.sim.config.limits
+        rate = self._approach_speed(abs(error), limits.max_angular_speed, limits.max_angular_accel)
         return math.copysign(rate, error)
 
     def turn_to(self, heading: float) -> Outcome | None:
@@ -203,9 +213,8 @@ class _MoveRun:
                 return None
             aim = math.atan2(dy, dx) if math.hypot(dx, dy) > controller.aim_distance else heading
             error = wrap_angle(aim - pose.yaw)
-            speed = min(
-                limits.max_linear_speed,
-                math.sqrt(2.0 * controller.braking_share * limits.max_linear_accel * remaining),
+            speed = self._approach_speed(
+                remaining, limits.max_linear_speed, limits.max_linear_accel
             )
             # Slow down while badly misaligned rather than drive sideways off the line.
             speed *= max(0.0, math.cos(error))

@@ -23,7 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from stealth_sim.kinematics import Pose, is_finite_number, wrap_angle
+from stealth_sim.kinematics import TWO_PI, Pose, is_finite_number, wrap_angle
 
 # AMCL's threshold below which a motion has no meaningful bearing (m).
 MIN_BEARING_TRANSLATION = 0.01
@@ -64,14 +64,14 @@ def decompose(start: Pose, end: Pose) -> MotionDelta:
     """The exact (rot1, trans, rot2) of the motion from ``start`` to ``end``."""
     dx, dy = end.x - start.x, end.y - start.y
     trans = math.hypot(dx, dy)
-    rot1 = wrap_angle(math.atan2(dy, dx) - start.yaw) if trans > 0.0 else 0.0
-    rot2 = wrap_angle(end.yaw - start.yaw - rot1)
+    rot1 = math.remainder(math.atan2(dy, dx) - start.yaw, TWO_PI) if trans > 0.0 else 0.0
+    rot2 = math.remainder(end.yaw - start.yaw - rot1, TWO_PI)
     return MotionDelta(rot1, trans, rot2)
 
 
 def _rotation_for_noise(rotation: float) -> float:
     """A rotation's size modulo pi: driving backwards is as noisy as driving forwards."""
-    return min(abs(wrap_angle(rotation)), abs(wrap_angle(rotation - math.pi)))
+    return abs(math.remainder(rotation, math.pi))
 
 
 def noise_stddevs(delta: MotionDelta, noise: MotionNoise) -> tuple[float, float, float]:
@@ -92,13 +92,26 @@ def apply_noisy_motion(x, y, yaw, delta: MotionDelta, stddevs, normals):
     """Poses after ``delta`` perturbed by ``stddevs`` times standard ``normals``.
 
     ``x``, ``y``, ``yaw`` are floats or arrays of N poses; ``normals`` has shape (3,) or (N, 3).
+    One pose takes plain ``math`` (numpy's per-call overhead would dominate).
     """
-    normals = np.asarray(normals, dtype=float)
-    rot1 = delta.rot1 - stddevs[0] * normals[..., 0]
-    trans = delta.trans - stddevs[1] * normals[..., 1]
-    rot2 = delta.rot2 - stddevs[2] * normals[..., 2]
-    heading = yaw + rot1
-    return x + trans * np.cos(heading), y + trans * np.sin(heading), wrap_angle(heading + rot2)
+    if not isinstance(x, np.ndarray):
+        rot1 = delta.rot1 - stddevs[0] * normals[0]
+        trans = delta.trans - stddevs[1] * normals[1]
+        heading = yaw + rot1
+        rot2 = delta.rot2 - stddevs[2] * normals[2]
+        return (
+            x + trans * math.cos(heading),
+            y + trans * math.sin(heading),
+            math.remainder(heading + rot2, TWO_PI),
+        )
+    noisy = np.subtract(delta, normals * np.asarray(stddevs))  # rot1, trans, rot2 per pose
+    heading = yaw + noisy[..., 0]
+    trans = noisy[..., 1]
+    return (
+        x + trans * np.cos(heading),
+        y + trans * np.sin(heading),
+        wrap_angle(heading + noisy[..., 2]),
+    )
 
 
 class NoisyOdometry:
@@ -131,7 +144,7 @@ class NoisyOdometry:
         self.pose = pose
         self._segment_true_start = pose
         self._segment_odom_start = pose
-        self._normals = self.rng.standard_normal(3)
+        self._normals = self.rng.standard_normal(3).tolist()
 
     def update(self, true_pose: Pose) -> Pose:
         """The odometry after the robot has moved to ``true_pose``."""
@@ -149,10 +162,10 @@ class NoisyOdometry:
             noise_stddevs(delta, self.noise),
             self._normals,
         )
-        self.pose = Pose(float(x), float(y), float(yaw))
-        turned = abs(wrap_angle(true_pose.yaw - start.yaw))
+        self.pose = Pose(x, y, yaw)
+        turned = abs(math.remainder(true_pose.yaw - start.yaw, TWO_PI))
         if delta.trans >= self.segment_distance or turned >= self.segment_angle:
             self._segment_true_start = true_pose
             self._segment_odom_start = self.pose
-            self._normals = self.rng.standard_normal(3)
+            self._normals = self.rng.standard_normal(3).tolist()
         return self.pose

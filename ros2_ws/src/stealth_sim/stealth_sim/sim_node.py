@@ -13,7 +13,11 @@ It stands in for Stage and AMCL. Topics (frames ``map``, ``odom``, ``base_link``
   ``initialpose`` (re-initialises localisation, as AMCL does; an all-zero covariance means the
   default spread).
 
-There is no /tf (the wheels hold no tf2_msgs); every header names its frame.
+``/tf`` (tf2_msgs/TFMessage, reliable, volatile, depth 100, as tf2_ros's TransformBroadcaster):
+``map -> odom`` (the localisation's correction, estimate * odometry^-1, as AMCL publishes it) and
+``odom -> base_link`` (the odometry), stamped with the simulated time, with ``odom`` and only
+when someone subscribes (math in :mod:`stealth_sim.frames`). No ``/tf_static``: there is no fixed
+frame, the laser sits at base_link's origin and its scans are in base_link.
 
 Services ``sim/execute_move`` and ``sim/reset`` (stealth_interfaces) run the motion interface.
 
@@ -33,7 +37,13 @@ from typing import Any, NamedTuple
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Pose as PoseMsg
-from geometry_msgs.msg import PoseWithCovariance, PoseWithCovarianceStamped, Quaternion, Twist
+from geometry_msgs.msg import (
+    PoseWithCovariance,
+    PoseWithCovarianceStamped,
+    Quaternion,
+    TransformStamped,
+    Twist,
+)
 from nav_msgs.msg import OccupancyGrid, Odometry
 import numpy as np
 from rcl_interfaces.msg import (
@@ -52,7 +62,15 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import LaserScan
 from stealth_interfaces.srv import ExecuteMove, ResetRobot
+from tf2_msgs.msg import TFMessage
 
+from stealth_sim.frames import (
+    BASE_FRAME,
+    MAP_FRAME,
+    ODOM_FRAME,
+    FrameTransform,
+    robot_transforms,
+)
 from stealth_sim.kinematics import Limits, Pose
 from stealth_sim.laser import LaserConfig
 from stealth_sim.localisation import FilterConfig
@@ -61,7 +79,6 @@ from stealth_sim.occupancy_map import MapError, OccupancyMap, load_map, to_occup
 from stealth_sim.odometry_noise import MotionNoise
 from stealth_sim.simulator import SimConfig, Simulator, most_open_pose
 
-MAP_FRAME, ODOM_FRAME, BASE_FRAME = 'map', 'odom', 'base_link'
 IDLE_PERIOD = 0.02  # s of wall time between idle ticks (50 Hz: teleop is smooth, idling cheap)
 MAX_CATCH_UP = 0.25  # s of simulated time an idle tick may run before the clock is re-anchored
 # Indices of x, y and yaw in a row-major 6x6 pose covariance (x, y, z, roll, pitch, yaw).
@@ -70,6 +87,7 @@ POSE_COVARIANCE_AXES = (0, 1, 5)
 _DEFAULTS = SimConfig()
 _NOISE = _DEFAULTS.odometry_noise
 _LIMITS = _DEFAULTS.limits
+_FILTER = _DEFAULTS.filter
 
 
 class Spec(NamedTuple):
@@ -104,12 +122,14 @@ PARAMETERS = {
     'laser_range': Spec(_DEFAULTS.laser.range_max, 'Laser range (m).', (0.5, 100.0), True),
     'laser_noise': Spec(_DEFAULTS.laser.noise_std, 'Laser range noise, std. dev. (m).', UNIT),
     'particles': Spec(_DEFAULTS.filter.particles, 'Filter particles.', (10, 100_000), True),
+    'update_min_d': Spec(_FILTER.update_min_d, 'AMCL update distance (m).', (0.0, 5.0), True),
+    'update_min_a': Spec(_FILTER.update_min_a, 'AMCL update turn (rad).', (0.0, math.pi), True),
     'seed': Spec(_DEFAULTS.seed, 'Seed of every random stream.', (0, 2**31 - 1), True),
     'real_time_factor': Spec(
         0.0, 'Simulated s per wall s; 0: moves run as fast as possible.', (0.0, 1000.0)
     ),
     'cmd_vel_timeout': Spec(0.5, 'Drop a cmd_vel older than this (s, simulated).', (0.01, 60.0)),
-    'publish_rate': Spec(10.0, 'Rate of odom, ground_truth, scan, clock (Hz).', (0.1, 1000.0)),
+    'publish_rate': Spec(10.0, 'Rate of odom, ground_truth, scan, clock, tf (Hz).', (0.1, 1000.0)),
 }
 
 
@@ -134,7 +154,11 @@ def sim_config(values: dict) -> SimConfig:
             range_max=values['laser_range'],
             noise_std=values['laser_noise'],
         ),
-        filter=FilterConfig(particles=values['particles']),
+        filter=FilterConfig(
+            particles=values['particles'],
+            update_min_d=values['update_min_d'],
+            update_min_a=values['update_min_a'],
+        ),
         seed=values['seed'],
     )
 
@@ -183,6 +207,15 @@ def planar_covariance(covariance_6x6) -> np.ndarray:
     return np.asarray(covariance_6x6, dtype=float).reshape(6, 6)[
         np.ix_(POSE_COVARIANCE_AXES, POSE_COVARIANCE_AXES)
     ]
+
+
+def transform_msg(transform: FrameTransform, stamp: Time) -> TransformStamped:
+    result = TransformStamped(child_frame_id=transform.child)
+    result.header.stamp, result.header.frame_id = stamp, transform.parent
+    pose = transform.pose
+    result.transform.translation.x, result.transform.translation.y = pose.x, pose.y
+    result.transform.rotation = yaw_quaternion(pose.yaw)
+    return result
 
 
 def occupancy_grid(occupancy_map: OccupancyMap) -> OccupancyGrid:
@@ -262,6 +295,13 @@ class SimulatorNode(Node):
         self.truth_pub = self.create_publisher(Odometry, 'ground_truth', 10)
         self.scan_pub = self.create_publisher(LaserScan, 'scan', 5)
         self.clock_pub = self.create_publisher(ClockMsg, 'clock', 10)
+        # tf2_ros's TransformBroadcaster: absolute /tf, reliable, volatile, depth 100.
+        tf_qos = QoSProfile(
+            depth=100,
+            reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.VOLATILE,
+        )
+        self.tf_pub = self.create_publisher(TFMessage, '/tf', tf_qos)
         self.create_subscription(Twist, 'cmd_vel', self._on_cmd_vel, 10)
         self.create_subscription(
             PoseWithCovarianceStamped, 'initialpose', self._on_initial_pose, 10
@@ -394,7 +434,7 @@ class SimulatorNode(Node):
         self.get_logger().info(
             f'initial pose set to ({estimate.x:.2f}, {estimate.y:.2f}, {estimate.yaw:.2f})'
         )
-        self._publish_estimate()
+        self._publish_state(everything=True)  # the new estimate and its map -> odom, as AMCL
 
     # --- services ----------------------------------------------------------------------------
 
@@ -435,7 +475,7 @@ class SimulatorNode(Node):
     # --- publishing --------------------------------------------------------------------------
 
     def _publish_state(self, everything: bool = False) -> None:
-        """Odometry, ground truth, scan and clock to whoever subscribes; with ``everything``
+        """Odometry, ground truth, scan, clock and /tf to whoever subscribes; with ``everything``
         also the estimate, which is latched for late subscribers."""
         sim, stamp = self.sim, time_msg(self.sim.time)
         self._next_publish = sim.time + self.publish_period
@@ -454,6 +494,9 @@ class SimulatorNode(Node):
                 publisher.publish(message)
         if self.scan_pub.get_subscription_count():
             self.scan_pub.publish(self._scan_message(stamp))
+        if self.tf_pub.get_subscription_count():
+            tree = robot_transforms(sim.estimate, sim.odometry_pose)
+            self.tf_pub.publish(TFMessage(transforms=[transform_msg(t, stamp) for t in tree]))
         if everything:
             self._publish_estimate()
 

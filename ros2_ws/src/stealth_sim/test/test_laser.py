@@ -4,8 +4,8 @@ import math
 
 import numpy as np
 import pytest
-from sim_test_maps import as_map, room
-from stealth_sim.laser import LaserConfig, RayCaster, noisy_ranges
+from sim_test_maps import PROJECT_MAPS, as_map, maze_map, project_map_and_start, room
+from stealth_sim.laser import LaserConfig, RayCaster, noisy_ranges, ray_entry
 from stealth_sim.occupancy_map import OCCUPIED, UNKNOWN
 
 # room(100, 60): walls are the outer ring of cells, so the free interior is
@@ -79,3 +79,51 @@ def test_laser_config_rejects_bad_values():
         LaserConfig(noise_std=math.nan)
     with pytest.raises(ValueError, match='laser_range'):
         LaserConfig(range_max=-1.0)
+
+
+def reference_cast(occupancy_map, range_max, x, y, yaw, bearings) -> np.ndarray:
+    """The caster as first written, every sample of every beam marched in numpy: the
+    definition the fast paths must reproduce exactly (same hit cell, same entry range)."""
+    blocked = np.pad(occupancy_map.blocked, 1, constant_values=True)
+    res = occupancy_map.resolution
+    origin_x, origin_y = occupancy_map.origin[:2]
+    step = res / 4
+    steps = np.arange(1, math.ceil(range_max / step) + 2) * step / res
+    angles = yaw + np.asarray(bearings, dtype=float)
+    cos_a, sin_a = np.cos(angles), np.sin(angles)
+    height, width = blocked.shape
+    cols = np.clip((x - origin_x) / res + 1.0 + np.outer(cos_a, steps), 0, width - 1)
+    rows = np.clip((y - origin_y) / res + 1.0 + np.outer(sin_a, steps), 0, height - 1)
+    cols, rows = cols.astype(np.intp), rows.astype(np.intp)
+    hit = blocked[rows, cols]
+    first = np.argmax(hit, axis=1)
+    beams = np.arange(len(angles))
+    has_hit = hit[beams, first]
+    left = origin_x + (cols[beams, first] - 1) * res
+    bottom = origin_y + (rows[beams, first] - 1) * res
+    ranges = np.maximum(ray_entry(x, y, cos_a, sin_a, left, bottom, res), 0.0)
+    return np.where(has_hit & (ranges <= range_max), ranges, np.inf)
+
+
+@pytest.mark.parametrize('name', ['maze', *PROJECT_MAPS])
+@pytest.mark.parametrize('beams', [1, 8, 24, 60])
+def test_casting_is_exactly_the_reference_march(name, beams):
+    loaded = (maze_map(), None) if name == 'maze' else project_map_and_start(name)
+    if loaded is None:
+        pytest.skip(f'map {name} is not built')
+    occupancy_map = loaded[0]
+    rng = np.random.default_rng(beams)
+    free = np.argwhere(~occupancy_map.blocked)
+    for range_max in (12.0, 1.3):
+        caster = RayCaster(occupancy_map, range_max)
+        for trial in range(40):
+            row, col = free[rng.integers(len(free))]
+            if trial < 3:  # also starts in a wall or off the map (the general path)
+                row, col = rng.integers(-5, occupancy_map.blocked.shape[0] + 5, 2)
+            x = occupancy_map.origin[0] + (col + rng.random()) * occupancy_map.resolution
+            y = occupancy_map.origin[1] + (row + rng.random()) * occupancy_map.resolution
+            bearings = rng.uniform(-math.pi, math.pi, beams)
+            bearings[: min(beams, 4)] = (0.0, math.pi / 2, math.pi, -math.pi / 2)[: min(beams, 4)]
+            yaw = 0.0 if trial % 2 else float(rng.uniform(-4.0, 4.0))
+            expected = reference_cast(occupancy_map, range_max, x, y, yaw, bearings)
+            assert np.array_equal(caster.cast(x, y, yaw, bearings), expected)

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 from sim_test_maps import angle_error, maze_map
-from stealth_sim.kinematics import Pose
+from stealth_sim.kinematics import Limits, Pose
 from stealth_sim.move_executor import (
     ControllerConfig,
     Move,
@@ -208,3 +208,19 @@ def test_without_noise_the_odometry_is_the_ground_truth_after_any_moves():
     for kind in (MoveKind.UP, MoveKind.RIGHT, MoveKind.TURN_TO_HEADING, MoveKind.DOWN):
         execute_move(sim, Move(kind, 0.5, heading=2.0))
         assert sim.odometry_pose == pytest.approx(sim.ground_truth, abs=1e-9)
+
+
+def test_a_coarse_physics_step_finishes_moves_in_few_steps_without_overshooting():
+    # A fast robot at 0.1 s steps: the braking curve of the step covers the last stretch in
+    # one step instead of a proportional tail, and never asks for more than it can brake.
+    sim = make_sim(
+        physics_dt=0.1,
+        limits=Limits(5.0, 10.0, 20.0, 50.0),
+        odometry_noise=MotionNoise(0.0, 0.0, 0.0, 0.0),
+    )
+    for kind, target in ((MoveKind.RIGHT, (3.5, 2.0)), (MoveKind.UP, (3.5, 2.5))):
+        result = execute_move(sim, Move(kind, 0.5))
+        assert result.outcome == Outcome.DONE and result.steps <= 12
+        truth = sim.ground_truth
+        assert math.hypot(truth.x - target[0], truth.y - target[1]) < 0.02
+        assert (sim.state.linear, sim.state.angular) == (0.0, 0.0)
