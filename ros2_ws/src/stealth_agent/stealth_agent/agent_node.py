@@ -26,11 +26,18 @@ from rcl_interfaces.msg import (
     SetParametersResult,
 )
 import rclpy
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_policy_name_from_kind,
+)
 from stealth_interfaces.msg import (
     AgentEpisodeInfo,
     EpisodeSummary,
@@ -67,6 +74,8 @@ DESCRIPTION_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
+QUIET_PUB = PublisherEventCallbacks(use_default_callbacks=False)  # no QoS event handlers
+QUIET_SUB = SubscriptionEventCallbacks(use_default_callbacks=False)
 FLOAT32_MAX = float(np.finfo(np.float32).max)
 OUTCOME_NAMES = {
     EpisodeSummary.SUCCESS: 'success',
@@ -195,26 +204,58 @@ class AgentNode(Node):
         self._declared = True
         self._check_startup_parameters()
 
-        self._action_pub = self.create_publisher(RLAction, 'rl_agent/rl_action', RL_QOS)
+        # Every QoS event handler is one more entity in each of the executor's waits (rclpy's
+        # defaults: several per endpoint, most of the agent's per-step executor work): only the
+        # two endpoints of the step keep one, the incompatible-QoS warning of a silent loop.
+        self._action_pub = self.create_publisher(
+            RLAction,
+            'rl_agent/rl_action',
+            RL_QOS,
+            event_callbacks=PublisherEventCallbacks(
+                incompatible_qos=self._on_incompatible_qos, use_default_callbacks=False
+            ),
+        )
         self._info_pub = self.create_publisher(
-            RLExperimentInfo, 'rl_agent/rl_experiment_info', RL_QOS
+            RLExperimentInfo, 'rl_agent/rl_experiment_info', RL_QOS, event_callbacks=QUIET_PUB
         )
         self._episode_info_pub = self.create_publisher(
-            AgentEpisodeInfo, 'rl_agent/episode_info', RL_QOS
+            AgentEpisodeInfo, 'rl_agent/episode_info', RL_QOS, event_callbacks=QUIET_PUB
         )
         self.create_subscription(
-            RLEnvDescription, 'rl_env/rl_env_description', self._on_description, DESCRIPTION_QOS
+            RLEnvDescription,
+            'rl_env/rl_env_description',
+            self._on_description,
+            DESCRIPTION_QOS,
+            event_callbacks=QUIET_SUB,
         )
-        self.create_subscription(RLStateReward, 'rl_env/rl_state_reward', self._on_state, RL_QOS)
+        self.create_subscription(
+            RLStateReward,
+            'rl_env/rl_state_reward',
+            self._on_state,
+            RL_QOS,
+            event_callbacks=SubscriptionEventCallbacks(
+                incompatible_qos=self._on_incompatible_qos, use_default_callbacks=False
+            ),
+        )
         summary_topic = self._param('episode_summary_topic')
         if summary_topic:
-            self.create_subscription(EpisodeSummary, summary_topic, self._on_summary, RL_QOS)
+            self.create_subscription(
+                EpisodeSummary, summary_topic, self._on_summary, RL_QOS, event_callbacks=QUIET_SUB
+            )
         mode = 'evaluating (greedy, no learning)' if self._param('evaluate') else 'learning'
         self.get_logger().info(
             f'agent {self._param("agent")} {mode}; waiting for rl_env/rl_env_description'
         )
 
     # --- parameters --------------------------------------------------------------------------
+
+    def _on_incompatible_qos(self, event) -> None:
+        policy = qos_policy_name_from_kind(event.last_policy_kind)
+        self.get_logger().warning(
+            f'an environment endpoint of the RL loop has QoS incompatible with the agent '
+            f'({policy}): states or actions do not get through; the RL topics are reliable '
+            'and volatile'
+        )
 
     def _param(self, name: str):
         return self.get_parameter(name).value

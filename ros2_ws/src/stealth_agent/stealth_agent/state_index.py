@@ -4,8 +4,9 @@ Two mappings, as in rl-texplore-ros-pkg's rl_agent:
 
 - ``exact`` (default; rl_agent's QLearner without --nstates): every distinct state vector (its
   float32 values) gets its own row, in the order first seen. Exact for any environment whose
-  states are already discrete; stealth_env sends [x, y] truncated to its state cell (e.g. 0.5 m),
-  so each cell is one row and nothing needs to know the cell size.
+  states are already discrete; stealth_env sends [x, y] rounded to its state grid (start +
+  k*cell, e.g. 0.5 m cells centred on the move lattice's nodes), so each cell is one row and
+  nothing needs to know the cell size.
 - ``grid`` (rl_agent's DiscretizationAgent, --nstates): each feature is binned with a width,
   either the description's range divided by `nstates` (rl_agent's rule) or a given resolution
   (e.g. the scenario's cell size, which RLEnvDescription cannot carry). As in rl_agent, bins are

@@ -3,8 +3,9 @@
 A layout is a list of rows, top row first: 'S' start, 'G' goal (terminal), 'L' lit by a
 searchlight (terminal, detected), '#' wall (moving into it, or off the grid, stays put),
 '.' free. Actions as stealth_env: 0 up (+y), 1 down (-y), 2 left (-x), 3 right (+x).
-Observations are float32 [x, y] of the cell's corner in metres, like stealth_env's truncated
-pose, so the learners see what they would see from the real environment.
+Observations are float32 [x, y] on a grid of the cell size in metres, like stealth_env's states
+(the lattice nodes, each the centre of its state cell), so the learners see what they would see
+from the real environment.
 """
 
 from dataclasses import dataclass, field

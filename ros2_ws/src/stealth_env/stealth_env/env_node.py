@@ -22,15 +22,16 @@ step may be dropped silently):
 Episode flow: the description goes out at once; the first episode starts when both simulator
 services answer and an agent is connected (its rl_state_reward reader matched, so the volatile
 first state is not lost), after ``start_delay``. Each action is a move of the scenario's step
-distance; the new state is the localisation estimate in the answer, truncated to the state
-cell; reward and terminal come from the core, judged on the true pose at the move's end time
-(``judge_on: estimate`` for the original's estimate-only way). Goal, detection or the step
-limit end an episode; the agent's RLExperimentInfo starts the next one. Actions that arrive
-out of turn or out of range are dropped with a warning. A move the simulator rejects, fails or
-does not answer within ``move_timeout`` ends the episode as ABORTED (a terminal state with
-reward 0 keeps the agent in step). An agent that goes away ends its episode as ABORTED, and
-the next agent to come gets a fresh one. Totals of actions and states are logged at shutdown.
-The decisions are ``stealth_env.episode_flow``'s; the marker geometry ``stealth_env.markers``'.
+distance; the new state is the localisation estimate in the answer, rounded to the state grid
+(cells centred on the move lattice's nodes); reward and terminal come from the core, judged on
+the true pose at the move's end time (``judge_on: estimate`` for the original's estimate-only
+way). Goal, detection or the step limit end an episode; the agent's RLExperimentInfo starts the
+next one. Actions that arrive out of turn or out of range are dropped with a warning. A move
+the simulator rejects, fails or does not answer within ``move_timeout`` ends the episode as
+ABORTED (a terminal state with reward 0 keeps the agent in step). An agent that goes away ends
+its episode as ABORTED, and the next agent to come gets a fresh one. Totals of actions and
+states are logged at shutdown. The decisions are ``stealth_env.episode_flow``'s; the marker
+geometry ``stealth_env.markers``'.
 
 Bad startup input (no or an unusable scenario, an unknown goal, a bad parameter value) stops
 the node with one line saying which and why, and exit code 2.
@@ -102,6 +103,8 @@ MAP_FRAME = 'map'
 TICK_PERIOD = 0.1  # s of wall time between housekeeping ticks (start, timeouts, agent presence)
 RESET_RETRY = 1.0  # s of wall time before a failed reset is tried again
 WAITING_LOG_PERIOD = 10.0  # s of wall time between 'still waiting' lines
+MOVE_NOTE_LOG_PERIOD = 5.0  # s of wall time between lines about bumped moves
+RESET_FAILED_LOG_PERIOD = 10.0  # s of wall time between lines about failed resets
 
 # Lockstep protocol: at most one message in flight, and a reliable KEEP_ALL queue anyway.
 RL_QOS = QoSProfile(
@@ -337,6 +340,23 @@ def _grid_text(width, height, resolution, x, y) -> str:
     return f'{width} x {height} cells of {resolution:g} m from ({x:g}, {y:g})'
 
 
+class Throttle:
+    """True at most once per ``period`` s of wall time: checked before calling the logger,
+    because rclpy's own ``throttle_duration_sec`` first finds the caller by reading source
+    (inspect), ~2 ms per call even when it then drops the line."""
+
+    def __init__(self, period: float):
+        self.period = period
+        self._next = -math.inf
+
+    def __call__(self) -> bool:
+        now = time.monotonic()
+        if now < self._next:
+            return False
+        self._next = now + self.period
+        return True
+
+
 class Pending(NamedTuple):
     """A request to the simulator on its way."""
 
@@ -387,6 +407,8 @@ class EnvironmentNode(Node):
         self._window: list = []  # EpisodeSummaryFields since the last progress line
         self._scene_published = {'searchlights': (-1.0, 0), 'markers': (-1.0, 0)}
         self._markers_cache: tuple[float, MarkerArray] | None = None
+        self._move_note_log = Throttle(MOVE_NOTE_LOG_PERIOD)
+        self._reset_failed_log = Throttle(RESET_FAILED_LOG_PERIOD)
 
         self._description_pub = self.create_publisher(
             RLEnvDescription, TOPICS['description'], LATCHED_QOS
@@ -642,10 +664,10 @@ class EnvironmentNode(Node):
     def _reset_failed(self, token: int, reason: str) -> None:
         if self.flow.reset_failed(token):
             self._retry_at = time.monotonic() + RESET_RETRY
-            self.get_logger().error(
-                f'{RESET_SERVICE} failed: {reason}; trying again in {RESET_RETRY:g} s',
-                throttle_duration_sec=10.0,
-            )
+            if self._reset_failed_log():
+                self.get_logger().error(
+                    f'{RESET_SERVICE} failed: {reason}; trying again in {RESET_RETRY:g} s'
+                )
 
     def _on_move_answer(self, token: int, future: Future) -> None:
         response, problem = self._take_answer(token, future)
@@ -669,11 +691,10 @@ class EnvironmentNode(Node):
             return
         if report is None:
             return  # stale: already aborted (timeout) or the agent went away
-        if response.outcome != ExecuteMove.Response.DONE:
+        if response.outcome != ExecuteMove.Response.DONE and self._move_note_log():
             self.get_logger().info(
                 f'move {report.action} of episode {report.episode}, step {report.step}: '
-                f'{response.message}',
-                throttle_duration_sec=5.0,
+                f'{response.message}'
             )
         self._publish_step(report, response.stamp)
 

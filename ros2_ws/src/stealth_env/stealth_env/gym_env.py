@@ -63,9 +63,9 @@ class StealthNavEnv(gym.Env):
 
     ## Observation Space
 
-    ``Box(low, high, (2,), float32)``: ``[x, y]`` of the robot (m, map frame) floored to a
-    multiple of the scenario's ``state_cell``, exactly the state the ROS environment sends
-    (``StealthTask.state_of``); low and high span the map.
+    ``Box(low, high, (2,), float32)``: ``[x, y]`` of the robot (m, map frame) rounded to the
+    state grid ``start + k*state_cell`` (cells centred on the move lattice's nodes), exactly the
+    state the ROS environment sends (``StealthTask.state_of``); low and high span the map.
 
     ## Rewards
 

@@ -11,16 +11,23 @@ judge every step identically (pure Python + numpy, no rclpy).
 
 Decisions:
 
-- **State**: ``[x, y]`` of a pose truncated *down* (floor, towards -inf) to a multiple of the
-  scenario's ``state_cell``, as the original truncated AMCL's pose. Floor rather than towards
-  zero, so that on maps with negative coordinates (lgfloor) the cells either side of 0 are
-  the same size: towards zero would merge (-cell, cell) into one double-width cell at 0. A pose
-  within 1e-9 of a cell of the boundary above counts as on it, so points that lie on a multiple
-  of the cell in exact arithmetic (the lattice nodes) do not drop a cell through rounding.
+- **State**: ``[x, y]`` of a pose rounded to the nearest point of the state grid
+  ``start + k*state_cell`` (k an integer, per axis): ``start + floor((x - start)/cell + 1/2)
+  * cell``, i.e. cells of ``state_cell`` centred on those points. The robot's move lattice is
+  anchored at the start too, so (with ``state_cell`` = ``step_distance``, as in every shipped
+  scenario) each lattice node is the centre of its own cell and its state is the node itself:
+  localisation error of up to half a cell keeps the node's state. (The original truncated
+  AMCL's pose to multiples of the cell, which put every node on a cell edge: a few cm of error
+  then moved about one step in six into the neighbouring state.) ``floor(u + 1/2)`` rather
+  than Python's round-half-even, so every cell is the same size (on both sides of 0 too, for
+  maps with negative coordinates such as lgfloor); a point exactly half-way belongs to the cell
+  above.
 - **Visibility** of a pose at time t is the per-point lighting model
   (``lighting.point_visibility``) at the pose itself: the definition of the model, not the
-  cell-centre field. Callers that judge the same points over and over (the Gym environment, the
-  planners) may fill a table once with ``visibility`` and pass the value to ``judge``.
+  cell-centre field. It is computed by ``visibility.PointVisibility``, equal to the reference to
+  the last bit, with its lines of sight cached per lamp cell (tens of microseconds a step).
+  Callers that judge the same points over and over (the Gym environment, the planners) may
+  fill a table once with ``visibility`` and pass the value to ``judge``.
 - **Judging** is ``reward.step_outcome`` with the goal's own radius: detection first (in
   'probabilistic' mode drawn from ``task.rng``), then the goal, then an ordinary step, which is
   terminal with ``Outcome.TIMEOUT`` when ``step_index`` (actions taken so far, this one
@@ -40,13 +47,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-from stealth_env.lighting import point_visibility
 from stealth_env.move_lattice import ACTIONS, MoveLattice
 from stealth_env.reward import Outcome, detection_reward, step_outcome, success_reward
 from stealth_env.scenario import Goal, Scenario
+from stealth_env.visibility import PointVisibility, scenario_point_visibility
 
 NUM_ACTIONS = len(ACTIONS)  # 0 up (+y), 1 down (-y), 2 left (-x), 3 right (+x)
-_CELL_TOLERANCE = 1e-9  # in cells: see "State" in the module docstring
+_CELL_TOLERANCE = 1e-9  # in cells: a map edge this close to a cell boundary counts as on it
 
 
 class StepJudgement(NamedTuple):
@@ -133,6 +140,7 @@ class StealthTask:
         self.rng = rng
         self.cell = float(scenario.state_cell)
         self.step_limit = int(scenario.step_limit)
+        self._anchor = (float(scenario.start[0]), float(scenario.start[1]))  # state grid origin
 
     @property
     def title(self) -> str:
@@ -147,20 +155,24 @@ class StealthTask:
     # --- states ---------------------------------------------------------------------------------
 
     def state_of(self, x: float, y: float) -> tuple[float, float]:
-        """The agent's state for a pose: (x, y) floored to multiples of the state cell."""
-        return (self._floor(x), self._floor(y))
+        """The agent's state for a pose: (x, y) rounded to the nearest point of the state grid
+        ``start + k*state_cell`` (see "State" in the module docstring)."""
+        return (self._centre(x, self._anchor[0]), self._centre(y, self._anchor[1]))
 
-    def _floor(self, value: float) -> float:
-        return math.floor(float(value) / self.cell + _CELL_TOLERANCE) * self.cell
+    def _centre(self, value: float, anchor: float) -> float:
+        return anchor + math.floor((float(value) - anchor) / self.cell + 0.5) * self.cell
 
     def state_bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
         """(min, max) state over every point of the map: RLEnvDescription's state ranges."""
         x_min, y_min, x_max, y_max = self.scenario.map.bounds
-        x_high, y_high = (self._last_multiple_below(v) for v in (x_max, y_max))
-        return self.state_of(x_min, y_min), (x_high, y_high)
+        (x_anchor, y_anchor) = self._anchor
+        high = (self._last_centre_below(x_max, x_anchor), self._last_centre_below(y_max, y_anchor))
+        return self.state_of(x_min, y_min), high
 
-    def _last_multiple_below(self, value: float) -> float:
-        return (math.ceil(value / self.cell - _CELL_TOLERANCE) - 1) * self.cell
+    def _last_centre_below(self, value: float, anchor: float) -> float:
+        """The state of the points just below ``value`` (the map's upper edge, excluded)."""
+        last = math.ceil((value - anchor) / self.cell + 0.5 - _CELL_TOLERANCE) - 1
+        return anchor + last * self.cell
 
     def reward_bounds(self) -> tuple[float, float]:
         """(max_reward, reward_range) of one step, for RLEnvDescription.
@@ -206,16 +218,11 @@ class StealthTask:
     def visibility(self, x: float, y: float, t: float = 0.0) -> float:
         """Total visibility at (x, y) m at time t s, by the per-point model (ValueError off the
         map)."""
-        occupancy = self.scenario.map
-        return point_visibility(
-            occupancy.blocked,
-            occupancy.resolution,
-            occupancy.origin,
-            self.scenario.lights,
-            x,
-            y,
-            t,
-        )
+        return self._point_visibility(x, y, t)
+
+    @cached_property
+    def _point_visibility(self) -> PointVisibility:
+        return scenario_point_visibility(self.scenario)
 
     def distance_to_goal(self, x: float, y: float) -> float:
         return math.hypot(x - self.goal.x, y - self.goal.y)

@@ -59,9 +59,9 @@ def test_a_run_is_reproducible(trained):
 
 def test_the_saved_policy_runs_on_states_the_ros_environment_sends(trained):
     """Train in-process, save, reload into a ProtocolAgent (as the agent node does) and act
-    greedily on states made by StealthTask.state_of from poses anywhere in the cell, as the
-    ROS environment makes them from the localisation estimate: the robot reaches the goal
-    on the optimal path with the optimal return."""
+    greedily on states made by StealthTask.state_of from poses anywhere in the cell around each
+    node, as the ROS environment makes them from the localisation estimate: the robot reaches
+    the goal on the optimal path with the optimal return."""
     policy = load_policy(policy_path(trained.spec))
     model = lattice_model(SCENARIO)
     task = StealthTask(model.task.scenario)
@@ -70,7 +70,7 @@ def test_the_saved_policy_runs_on_states_the_ros_environment_sends(trained):
     noise = np.random.default_rng(1)
     node, reward, total = model.start, 0.0, 0.0
     for step_index in range(1, task.step_limit + 1):
-        x, y = model.points[node] + noise.uniform(0.0, task.cell * 0.99, size=2)
+        x, y = model.points[node] + noise.uniform(-0.49, 0.49, size=2) * task.cell
         state = np.array(task.state_of(x, y), dtype=np.float32)
         assert policy.index.lookup(state) is not None, 'a state the policy never saw'
         action = agent.first_action(state) if step_index == 1 else agent.next_action(reward, state)

@@ -51,18 +51,36 @@ def lit_node_point(task):
 # --- states -------------------------------------------------------------------------------------
 
 
-def test_state_floors_to_the_cell_towards_minus_infinity(lgfloor):
-    task = StealthTask(lgfloor)  # cell 0.5 m, coordinates on both sides of 0
-    assert task.state_of(0.74, 0.26) == (0.5, 0.0)
-    assert task.state_of(-0.01, -0.49) == (-0.5, -0.5)  # towards zero would give (0, 0)
+def test_state_cells_are_centred_on_the_start_and_its_multiples_of_the_cell(lgfloor):
+    task = StealthTask(lgfloor)  # cell 0.5 m, start (-12, 0): coordinates on both sides of 0
     assert task.state_of(-12.0, 0.0) == (-12.0, 0.0)
+    assert task.state_of(0.74, 0.26) == (0.5, 0.5)
+    assert task.state_of(0.76, 0.24) == (1.0, 0.0)
+    assert task.state_of(-0.01, -0.24) == (0.0, 0.0)  # a cell straddles 0, the same size
+    assert task.state_of(-0.26, -0.74) == (-0.5, -0.5)
+    assert task.state_of(0.25, -0.25) == (0.5, 0.0)  # half-way: the cell above
 
 
-def test_points_on_the_grid_keep_their_cell_despite_rounding(map1):
-    task = StealthTask(dataclasses.replace(map1, state_cell=0.1))
-    assert 0.1 * 3 < 0.3 or 0.1 * 3 > 0.3  # 0.30000000000000004: not exact in binary
-    assert task.state_of(0.1 + 0.2, 0.7) == pytest.approx((0.3, 0.7))
-    assert task.state_of(0.3 - 1e-6, 0.7 - 1e-6) == pytest.approx((0.2, 0.6))
+def test_estimates_within_half_a_cell_of_a_lattice_node_map_to_its_state():
+    """What the ROS loop needs: a localisation error of up to 0.49 cell in any direction keeps
+    the node's state, on every shipped scenario and for a cell that is not a binary fraction."""
+    rng = np.random.default_rng(0)
+    for name in ('simple-maze', 'map1', 'lgfloor', 'floorplan'):
+        scenario = load_scenario(name)
+        for cell in (scenario.state_cell, 0.1):
+            changed = dataclasses.replace(scenario, step_distance=cell, state_cell=cell)
+            task = StealthTask(changed)
+            lattice = task.lattice
+            nodes = list(lattice.valid_nodes())
+            for index in rng.choice(len(nodes), size=min(len(nodes), 200), replace=False):
+                x, y = lattice.node_to_point(nodes[index])
+                state = task.state_of(x, y)
+                assert state == (x, y)  # the node itself: the values are today's
+                corners = [(dx, dy) for dx in (-0.49, 0.49) for dy in (-0.49, 0.49)]
+                for dx, dy in [*corners, *rng.uniform(-0.49, 0.49, size=(8, 2))]:
+                    assert task.state_of(x + dx * cell, y + dy * cell) == state
+                assert task.state_of(x + 0.51 * cell, y)[0] > state[0]
+                assert task.state_of(x, y - 0.51 * cell)[1] < state[1]
 
 
 def test_each_lattice_node_has_its_own_state_when_the_step_is_the_cell(task):
@@ -71,7 +89,7 @@ def test_each_lattice_node_has_its_own_state_when_the_step_is_the_cell(task):
     assert len(states) == len(nodes)
     for node in nodes[:50]:
         x, y = task.lattice.node_to_point(node)
-        assert task.state_of(x, y) == (x, y)  # nodes lie on the 0.5 m grid in map1
+        assert task.state_of(x, y) == (x, y)  # each node is its cell's centre
 
 
 def test_state_bounds_cover_every_point_of_the_map(lgfloor):

@@ -8,7 +8,12 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 from stealth_env import visibility
-from stealth_env.lighting import GridFrame, point_light_visibilities
+from stealth_env.lighting import (
+    GridFrame,
+    line_of_sight,
+    point_light_visibilities,
+    point_visibility,
+)
 from stealth_env.searchlight import PatrolMotion, Searchlight, SweepMotion
 from stealth_env.visibility import (
     cache_key,
@@ -226,3 +231,101 @@ def test_scenario_visibility_uses_the_scenario_map_and_lights(tmp_path):
     expected = visibility_field(grid.blocked, 0.1, grid.origin, lights)
     np.testing.assert_array_equal(total, expected[0])
     assert os.listdir(tmp_path)
+
+
+# --- PointVisibility: the per-point fast path ---------------------------------------------------
+
+
+def corner_case_points(frame: GridFrame, blocked: np.ndarray, rng) -> list[tuple[float, float]]:
+    """Cell corners and edges (at and just inside), points in and beside blocking cells."""
+    res = frame.resolution
+    points = []
+    rows, cols = np.nonzero(blocked)
+    pick = rng.permutation(len(rows))[:40]
+    for col, row in [*zip(cols[pick], rows[pick], strict=True), (0, 0)]:
+        for d_col, d_row in ((-1, 0), (1, 0), (0, -1), (0, 1), (1, 1), (0, 0)):
+            c, r = int(col) + d_col, int(row) + d_row
+            if 0 <= c < frame.width and 0 <= r < frame.height:
+                x0, y0 = frame.origin_x + c * res, frame.origin_y + r * res
+                for fx, fy in ((0.0, 0.0), (0.5, 0.5), (1e-9, 0.999999), (0.999999, 0.0)):
+                    points.append((x0 + fx * res, y0 + fy * res))
+    return points
+
+
+@pytest.mark.parametrize('seed', range(40))
+def test_point_visibility_equals_the_reference_on_random_and_corner_points(seed):
+    blocked, resolution, origin, lights = random_case(seed)
+    rng = np.random.default_rng(1000 + seed)
+    frame = GridFrame.of(blocked, resolution, origin)
+    fast = visibility.PointVisibility(blocked, resolution, origin, lights, max_tiles=5)
+    fast.TILE = int(rng.integers(1, 9))  # blocks straddle the map; a tiny cache evicts often
+    x0, y0 = frame.origin_x, frame.origin_y
+    x1, y1 = x0 + frame.width * resolution, y0 + frame.height * resolution
+    points = [(float(rng.uniform(x0, x1)), float(rng.uniform(y0, y1))) for _ in range(300)]
+    points += corner_case_points(frame, blocked, rng)
+    points += [(light.x, light.y) for light in lights]
+    for x, y in points:
+        if not (x0 <= x < x1 and y0 <= y < y1):
+            continue
+        expected = point_light_visibilities(blocked, resolution, origin, lights, x, y)
+        assert fast.light_visibilities(x, y) == expected, (x, y)
+        assert fast(x, y) == point_visibility(blocked, resolution, origin, lights, x, y)
+
+
+@pytest.mark.parametrize('seed', range(10))
+def test_point_visibility_line_of_sight_equals_bresenham_on_every_cell(seed):
+    blocked, resolution, origin, lights = random_case(seed)
+    fast = visibility.PointVisibility(blocked, resolution, origin, lights)
+    height, width = blocked.shape
+    lamps = [(0, 0), (width - 1, height - 1), (width // 2, height // 2)]
+    for lamp in lamps:
+        for row in range(height):
+            for col in range(width):
+                expected = line_of_sight(blocked, lamp, (col, row))
+                assert fast.line_of_sight(lamp, (col, row)) == expected, (lamp, col, row)
+
+
+def test_point_visibility_of_moving_lights_equals_the_reference():
+    blocked = np.zeros((30, 30), dtype=bool)
+    blocked[10:20, 14] = True
+    blocked[5, 3:25] = True
+    sweep = Searchlight('sweep', 1.55, 1.55, 0.3, 0.6, 2.5, motion=SweepMotion(0.0, PI / 2, 1.0))
+    patrol = Searchlight(
+        'patrol', 0.5, 2.5, -PI / 2, 1.0, 2.0, motion=PatrolMotion(((2.5, 2.5), (2.5, 0.5)), 0.8)
+    )
+    lights = [sweep, patrol]
+    fast = visibility.PointVisibility(blocked, 0.1, (0.0, 0.0), lights, max_tiles=20)
+    rng = np.random.default_rng(3)
+    for _ in range(600):
+        x, y, t = (float(v) for v in rng.uniform((0.0, 0.0, 0.0), (3.0, 3.0, 20.0)))
+        expected = point_light_visibilities(blocked, 0.1, (0.0, 0.0), lights, x, y, t)
+        assert fast.light_visibilities(x, y, t) == expected
+
+
+def test_point_visibility_refuses_what_the_reference_refuses():
+    blocked = np.zeros((10, 10), dtype=bool)
+    light = Searchlight('L', 0.5, 0.5, 0.0, PI, 2.0)
+    fast = visibility.PointVisibility(blocked, 0.1, (0.0, 0.0), [light])
+    for x, y in ((1.0, 0.5), (-0.01, 0.5), (math.nan, 0.5), (0.5, math.inf)):
+        with pytest.raises(ValueError, match='outside the map|finite'):
+            fast(x, y)
+    with pytest.raises(ValueError, match='time t'):
+        fast(0.5, 0.5, math.nan)
+
+
+def test_task_visibility_is_the_reference_on_every_scenario_lattice():
+    from stealth_env.scenario import load_scenario, scenario_paths
+    from stealth_env.task import StealthTask
+
+    for path in scenario_paths():
+        scenario = load_scenario(path)
+        task, occupancy = StealthTask(scenario), scenario.map
+        lattice = task.lattice
+        for node in list(lattice.valid_nodes())[::7]:
+            x, y = lattice.node_to_point(node)
+            for t in (0.0, 3.0):
+                expected = point_visibility(
+                    occupancy.blocked, occupancy.resolution, occupancy.origin,
+                    scenario.lights, x + 0.013, y - 0.021, t,
+                )  # fmt: skip
+                assert task.visibility(x + 0.013, y - 0.021, t) == expected
