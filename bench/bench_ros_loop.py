@@ -10,7 +10,7 @@ for the CPU):
    reliable, each answering the other from its subscription callback): what one lockstep
    exchange between two Python processes costs at best;
 2. **RL loop, sim_node**: sim_node with its cheapest settings (0.1 s physics steps, a fast
-   robot, 10 particles, 8 beams), env_node and a minimal agent process;
+   robot, 10 particles, 8 beams, one filter update per move), env_node and a minimal agent process;
 3. **RL loop, stub simulator**: the same, with a stand-in for sim_node that answers each move
    at once on the move lattice (no physics, no localisation): what the ROS plumbing costs.
 
@@ -56,6 +56,9 @@ FAST_SIM = {
     'physics_dt': 0.1,
     'particles': 10,
     'laser_beams': 8,
+    # A filter update only at the end of each move (AMCL's forced update on a stop).
+    'update_min_d': 5.0,
+    'update_min_a': 3.14,
     'max_linear_speed': 5.0,
     'max_angular_speed': 10.0,
     'max_linear_accel': 20.0,
@@ -315,7 +318,11 @@ def simulator_in_process(moves: int = 300) -> float:
             FAST_SIM['max_angular_accel'],
         ),
         laser=LaserConfig(beams=FAST_SIM['laser_beams']),
-        filter=FilterConfig(particles=FAST_SIM['particles']),
+        filter=FilterConfig(
+            particles=FAST_SIM['particles'],
+            update_min_d=FAST_SIM['update_min_d'],
+            update_min_a=FAST_SIM['update_min_a'],
+        ),
     )
     sim = Simulator(scenario.map, config, Pose(*scenario.start))
     started = time.perf_counter()
