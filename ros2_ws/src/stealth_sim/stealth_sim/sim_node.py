@@ -206,7 +206,8 @@ def pose_msg(pose: Pose) -> PoseMsg:
 def pose_with_covariance(pose: Pose, covariance: np.ndarray) -> PoseWithCovariance:
     full = np.zeros((6, 6))
     full[np.ix_(POSE_COVARIANCE_AXES, POSE_COVARIANCE_AXES)] = covariance
-    return PoseWithCovariance(pose=pose_msg(pose), covariance=full.ravel().tolist())
+    # An ndarray is taken as is; a list is checked element by element (measured: 5x slower).
+    return PoseWithCovariance(pose=pose_msg(pose), covariance=full.ravel())
 
 
 def planar_covariance(covariance_6x6) -> np.ndarray:
@@ -320,6 +321,13 @@ class SimulatorNode(Node):
             durability=DurabilityPolicy.VOLATILE,
         )
         self.tf_pub = self.create_publisher(TFMessage, '/tf', tf_qos, event_callbacks=quiet)
+        self._periodic = (
+            self.clock_pub,
+            self.odom_pub,
+            self.truth_pub,
+            self.scan_pub,
+            self.tf_pub,
+        )
         self.create_subscription(
             Twist,
             'cmd_vel',
@@ -526,8 +534,11 @@ class SimulatorNode(Node):
     def _publish_state(self, everything: bool = False) -> None:
         """Odometry, ground truth, scan, clock and /tf to whoever subscribes; with ``everything``
         also the estimate, which is latched for late subscribers."""
-        sim, stamp = self.sim, time_msg(self.sim.time)
+        sim = self.sim
         self._next_publish = sim.time + self.publish_period
+        if not everything and not any(p.get_subscription_count() for p in self._periodic):
+            return  # the usual case in training: nobody listens, so build nothing
+        stamp = time_msg(sim.time)
         if self.clock_pub.get_subscription_count():
             self.clock_pub.publish(ClockMsg(clock=stamp))
         for publisher, frame, pose in (
