@@ -109,3 +109,30 @@ def leaked_shm_segments(before: set[str]) -> set[str]:
     clean_shm()
     mapped = mapped_shm_names()
     return {name for name in shm_segments() - before if segment_base(name) not in mapped}
+
+
+class SpinningNode:
+    """A test's own node with its own executor, spun only when the test waits for something."""
+
+    def __init__(self, name: str, context):
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+
+        self.node = rclpy.create_node(name, context=context)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+
+    def close(self) -> None:
+        self.executor.remove_node(self.node)
+        self.executor.shutdown()
+        self.node.destroy_node()
+
+    def spin_until(self, predicate, timeout: float) -> bool:
+        """Spin until ``predicate()`` holds or ``timeout`` s pass; the predicate's last value."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline and not predicate():
+            self.executor.spin_once(timeout_sec=0.02)
+        return predicate()
+
+    def spin_for(self, seconds: float) -> None:
+        self.spin_until(lambda: False, seconds)

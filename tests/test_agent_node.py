@@ -8,12 +8,10 @@ import time
 
 import numpy as np
 import pytest
-import rclpy
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from ros_support import REPO_ROOT
+from ros_support import REPO_ROOT, SpinningNode
 from stealth_interfaces.msg import (
     AgentEpisodeInfo,
     EpisodeSummary,
@@ -38,13 +36,11 @@ GOAL = 5  # corridor cells 0..5, start 0, goal 5: optimal episode 5 actions, ret
 FIRST_REWARD = 1000.0  # sent with every episode's first state; the agent must ignore it
 
 
-class FakeCorridorEnv:
+class FakeCorridorEnv(SpinningNode):
     """A tiny rl_msgs environment: action 0 left, 1 right, -1 per step, +10 at the goal."""
 
     def __init__(self, context, max_steps=25):
-        self.node = rclpy.create_node('fake_corridor_env', context=context)
-        self.executor = SingleThreadedExecutor(context=context)
-        self.executor.add_node(self.node)
+        super().__init__('fake_corridor_env', context)
         self.max_steps = max_steps
         self.description_pub = self.node.create_publisher(
             RLEnvDescription, 'rl_env/rl_env_description', DESCRIPTION_QOS
@@ -60,19 +56,6 @@ class FakeCorridorEnv:
         self.info_sub = self.node.create_subscription(
             RLExperimentInfo, 'rl_agent/rl_experiment_info', self.infos.append, RL_QOS
         )
-
-    def close(self):
-        self.executor.remove_node(self.node)
-        self.executor.shutdown()
-        self.node.destroy_node()
-
-    def spin_until(self, predicate, timeout: float) -> bool:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if predicate():
-                return True
-            self.executor.spin_once(timeout_sec=0.02)
-        return predicate()
 
     def describe(self, num_actions=2.0, title=TITLE):
         self.description_pub.publish(

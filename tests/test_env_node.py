@@ -10,12 +10,10 @@ import time
 
 import numpy as np
 import pytest
-import rclpy
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from ros_support import REPO_ROOT
+from ros_support import REPO_ROOT, SpinningNode
 from stealth_env.gym_env import lattice_model
 from stealth_env.move_lattice import ACTIONS
 from stealth_env.planners import dark_path
@@ -81,13 +79,11 @@ def copy_scenario(directory, name: str, **changes):
     return path
 
 
-class ScriptedAgent:
+class ScriptedAgent(SpinningNode):
     """The agent's side of rl_msgs, plus monitors of everything else the environment sends."""
 
     def __init__(self, context):
-        self.node = rclpy.create_node('scripted_agent', context=context)
-        self.executor = SingleThreadedExecutor(context=context)
-        self.executor.add_node(self.node)
+        super().__init__('scripted_agent', context)
         self.received = {key: [] for key in ('description', 'lights', 'markers')}
         self.states: list[RLStateReward] = []
         self.steps: list[StepInfo] = []
@@ -121,20 +117,6 @@ class ScriptedAgent:
     def disconnect(self):
         self.node.destroy_subscription(self.state_sub)
         self.node.destroy_publisher(self.action_pub)
-
-    def close(self):
-        self.executor.remove_node(self.node)
-        self.executor.shutdown()
-        self.node.destroy_node()
-
-    def spin_until(self, predicate, timeout: float) -> bool:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline and not predicate():
-            self.executor.spin_once(timeout_sec=0.02)
-        return predicate()
-
-    def spin_for(self, seconds: float) -> None:
-        self.spin_until(lambda: False, seconds)
 
     def next_state(self, timeout: float = 20.0) -> RLStateReward:
         count = len(self.states)

@@ -3,18 +3,15 @@ from the test process (topics, frames, the motion services, /initialpose, /cmd_v
 parameters)."""
 
 import math
-import time
 
 from geometry_msgs.msg import PoseWithCovarianceStamped, Twist
 from nav_msgs.msg import OccupancyGrid, Odometry
 import numpy as np
 import pytest
-import rclpy
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from ros_support import REPO_ROOT
+from ros_support import REPO_ROOT, SpinningNode
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
 from stealth_interfaces.srv import ExecuteMove, ResetRobot
@@ -43,13 +40,11 @@ def yaw_of(orientation) -> float:
     return 2.0 * math.atan2(orientation.z, orientation.w)
 
 
-class SimClient:
+class SimClient(SpinningNode):
     """The test's side of the simulator: topic buffers, service calls, a parameter client."""
 
     def __init__(self, context):
-        self.node = rclpy.create_node('sim_test_client', context=context)
-        self.executor = SingleThreadedExecutor(context=context)
-        self.executor.add_node(self.node)
+        super().__init__('sim_test_client', context)
         self.received = {name: [] for name in ('map', 'odom', 'truth', 'scan', 'clock', 'pose')}
         for message_type, topic, key, qos in (
             (OccupancyGrid, 'map', 'map', LATCHED),
@@ -67,20 +62,6 @@ class SimClient:
             PoseWithCovarianceStamped, 'initialpose', 10
         )
         self.parameters = AsyncParameterClient(self.node, 'simulator')
-
-    def close(self):
-        self.executor.remove_node(self.node)
-        self.executor.shutdown()
-        self.node.destroy_node()
-
-    def spin_until(self, predicate, timeout: float) -> bool:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline and not predicate():
-            self.executor.spin_once(timeout_sec=0.02)
-        return predicate()
-
-    def spin_for(self, seconds: float) -> None:
-        self.spin_until(lambda: False, seconds)
 
     def wait_for_simulator(self, process) -> None:
         up = self.spin_until(
