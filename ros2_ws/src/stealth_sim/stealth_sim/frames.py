@@ -6,12 +6,12 @@ localisation gives ``map -> odom``, the correction that makes the chain end at i
 ``(x, y, yaw)``: a child frame's origin and heading in its parent frame. No rclpy here.
 """
 
-import math
 from typing import NamedTuple
 
-from stealth_sim.kinematics import Pose, wrap_angle
+from stealth_sim.kinematics import Pose, compose, relative
 
 MAP_FRAME, ODOM_FRAME, BASE_FRAME = 'map', 'odom', 'base_link'
+ORIGIN = Pose(0.0, 0.0, 0.0)
 
 
 class FrameTransform(NamedTuple):
@@ -23,23 +23,15 @@ class FrameTransform(NamedTuple):
 
 
 def multiply(a: Pose, b: Pose) -> Pose:
-    """``a * b``: with ``a`` the pose of frame B in A and ``b`` that of C in B, C in A."""
-    cos_yaw, sin_yaw = math.cos(a.yaw), math.sin(a.yaw)
-    return Pose(
-        a.x + b.x * cos_yaw - b.y * sin_yaw,
-        a.y + b.x * sin_yaw + b.y * cos_yaw,
-        wrap_angle(a.yaw + b.yaw),
-    )
+    """``a * b``: with ``a`` the pose of frame B in A and ``b`` that of C in B, C in A (the
+    kinematics' ``compose``: moving by ``b`` in ``a``'s own frame)."""
+    return compose(a, *b)
 
 
 def inverse(a: Pose) -> Pose:
-    """``a^-1``: with ``a`` the pose of B in A, the pose of A in B (``a * a^-1`` = identity)."""
-    cos_yaw, sin_yaw = math.cos(a.yaw), math.sin(a.yaw)
-    return Pose(
-        -a.x * cos_yaw - a.y * sin_yaw,
-        a.x * sin_yaw - a.y * cos_yaw,
-        wrap_angle(-a.yaw),
-    )
+    """``a^-1``: with ``a`` the pose of B in A, the pose of A in B (the kinematics' ``relative``
+    of A's origin seen from ``a``)."""
+    return Pose(*relative(a, ORIGIN))
 
 
 def map_to_odom(estimate: Pose, odometry: Pose) -> Pose:
