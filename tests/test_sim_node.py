@@ -135,8 +135,9 @@ def test_topics_carry_the_documented_frames_and_the_map_is_latched(
     # Everything the move's end publishes has arrived (topics arrive in no fixed order).
     assert client.spin_until(
         lambda: (
-            all(received[k] and stamp_of(received[k][-1]) == end for k in ('odom', 'truth'))
-            and received['scan']
+            all(
+                received[k] and stamp_of(received[k][-1]) == end for k in ('odom', 'truth', 'scan')
+            )
             and received['clock']
             and received['clock'][-1].clock == answer.stamp
         ),

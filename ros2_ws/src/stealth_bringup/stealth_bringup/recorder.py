@@ -194,7 +194,6 @@ class Recorder(Node):
         # on a subscription that copies the publishers' QoS and type, yet each is one more entity
         # in every executor wait. Measured in `make run` (19 topics): the recorder's CPU time
         # went from 48 s to 35 s of a 65 s run.
-        quiet = SubscriptionEventCallbacks(use_default_callbacks=False)
         try:
             created = self.create_subscription(
                 msg_type,
@@ -207,6 +206,7 @@ class Recorder(Node):
                 ),
             )
         except UnsupportedEventTypeError:
+            quiet = SubscriptionEventCallbacks(use_default_callbacks=False)
             created = self.create_subscription(
                 msg_type, topic, callback, qos, raw=True, event_callbacks=quiet
             )
