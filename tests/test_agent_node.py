@@ -48,6 +48,7 @@ class FakeCorridorEnv(SpinningNode):
         self.state_pub = self.node.create_publisher(
             RLStateReward, 'rl_env/rl_state_reward', RL_QOS
         )
+        self.summary_pub = None  # set by report_outcomes(): then every episode's end is told
         self.actions: list[int] = []
         self.infos: list[RLExperimentInfo] = []
         self.action_sub = self.node.create_subscription(
@@ -85,6 +86,16 @@ class FakeCorridorEnv(SpinningNode):
     def wait_for_no_agent(self, timeout=10.0):
         assert self.spin_until(lambda: self.state_pub.get_subscription_count() == 0, timeout)
 
+    def report_outcomes(self):
+        """Publish EpisodeSummary at every episode end, as stealth_env's environment does."""
+        self.summary_pub = self.node.create_publisher(
+            EpisodeSummary, 'rl_env/episode_summary', RL_QOS
+        )
+        assert self.spin_until(lambda: self.summary_pub.get_subscription_count() >= 1, 10.0)
+
+    def summarise(self, episode, outcome, steps):
+        self.summary_pub.publish(EpisodeSummary(episode=episode, outcome=outcome, steps=steps))
+
     def send(self, state, reward, terminal=False):
         self.state_pub.publish(
             RLStateReward(state=[float(v) for v in state], reward=float(reward), terminal=terminal)
@@ -117,6 +128,9 @@ class FakeCorridorEnv(SpinningNode):
             total += reward
             terminal = position == GOAL or steps == self.max_steps
             self.send([position], reward, terminal)
+            if terminal and self.summary_pub is not None:
+                outcome = EpisodeSummary.SUCCESS if position == GOAL else EpisodeSummary.TIMEOUT
+                self.summarise(len(self.infos), outcome, steps)
             if terminal:
                 assert self.spin_until(lambda: len(self.infos) > count, 5.0), 'no episode info'
                 return total, steps, self.infos[count]
@@ -222,17 +236,14 @@ def test_agent_learns_reports_episodes_and_saves_a_reloadable_policy(
     )
     wait_for_log(resumed, f'from {policy_file} (40 episodes, 5 states), continuing its random')
     env.wait_for_agent()
-    summary_pub = env.node.create_publisher(EpisodeSummary, 'rl_env/episode_summary', RL_QOS)
-    assert env.spin_until(lambda: summary_pub.get_subscription_count() >= 1, 10.0)
+    env.report_outcomes()
     for number in range(5):
         total, steps, info = env.episode()
         assert info.episode_number == number and info.episode_reward == pytest.approx(total)
-        summary_pub.publish(EpisodeSummary(episode=number, outcome=EpisodeSummary.SUCCESS))
-        env.spin_until(lambda: False, 0.05)
     wait_for_log(resumed, 'episodes 0-4 (learner total 45)')
     stop(resumed)
     log = resumed.log_path.read_text()
-    assert 'outcomes: success 5' in log or 'outcomes: success 4' in log, log
+    assert 'outcomes: success 5' in log, log
     assert load_policy(policy_file).learner.episodes == 45
 
 
@@ -361,3 +372,70 @@ def test_eval_every_makes_every_mth_episode_greedy_and_reports_it(env, node_proc
     assert all(r.table_states >= 2 for r in reports)
     log = wait_for_log(agent, 'greedy evaluation, episode 5 (after 4 learning episodes)')
     assert 'greedy evaluation, episode 2 (after 2 learning episodes)' in log
+
+
+@pytest.mark.parametrize(
+    ('timeout_is_terminal', 'expected_q'), [(False, -1.0 + 0.5 * 10.0), (True, -1.0)]
+)
+def test_a_timeout_is_learned_as_a_truncation_not_as_a_terminal_state(
+    env, node_processes, tmp_path, timeout_is_terminal, expected_q
+):
+    """One-step episodes 0 -> 1 cut off by the step limit: with alpha 1, gamma 0.5 and every
+    new value 10, a truncation learns Q(0, a) = -1 + 0.5 * 10, a terminal state -1 (rl_agent's
+    biased way, kept behind timeout_is_terminal). An aborted episode teaches nothing."""
+    from stealth_agent.policy_store import load_policy
+
+    reports: list[AgentEpisodeInfo] = []
+    env.node.create_subscription(AgentEpisodeInfo, 'rl_agent/episode_info', reports.append, RL_QOS)
+    policy_file = tmp_path / 'timeout_policy.npz'
+    env.describe()
+    agent = start_agent(
+        node_processes,
+        f'agent_timeout_terminal_{timeout_is_terminal}',
+        alpha=1.0,
+        gamma=0.5,
+        epsilon=0.0,
+        initialvalue=10.0,
+        seed=2,
+        policy_file=policy_file,
+        save_every=0,
+        timeout_is_terminal=timeout_is_terminal,
+    )
+    wait_for_log(agent, f"environment '{TITLE}'")
+    env.wait_for_agent()
+    env.report_outcomes()
+    taken = set()
+    # The summary after the terminal state (the agent waits for it), then before it.
+    for episode, summary_first in enumerate((False, True)):
+        env.send([0.0], FIRST_REWARD)
+        action = env.answer()
+        taken.add(action)
+        if summary_first:
+            env.summarise(episode, EpisodeSummary.TIMEOUT, 1)
+            env.spin_until(lambda: False, 0.2)
+        env.send([1.0], -1.0, terminal=True)
+        if not summary_first:
+            env.spin_until(lambda: False, 0.2)
+            assert len(env.infos) == episode, 'the agent did not wait for the summary'
+            env.summarise(episode, EpisodeSummary.TIMEOUT, 1)
+        assert env.experiment_info() is not None
+    # An aborted episode: a terminal state with reward 0 that must not be learned.
+    env.send([0.0], FIRST_REWARD)
+    aborted_action = env.answer()
+    env.send([0.0], 0.0, terminal=True)
+    env.summarise(2, EpisodeSummary.ABORTED, 1)
+    assert env.experiment_info().episode_number == 2
+    assert env.spin_until(lambda: len(reports) == 3, 10.0)
+    expected_end = (
+        AgentEpisodeInfo.END_TERMINAL if timeout_is_terminal else AgentEpisodeInfo.END_TRUNCATED
+    )
+    ends = [expected_end, expected_end, AgentEpisodeInfo.END_ABORTED]
+    assert [r.ending for r in reports] == ends
+    assert [r.learner_episodes for r in reports] == [1, 2, 2]
+    stop(agent)
+    policy = load_policy(policy_file)
+    row = policy.index.lookup([0.0])
+    for action in taken:
+        assert policy.learner.q[row, action] == pytest.approx(expected_q)
+    if aborted_action not in taken:
+        assert policy.learner.q[row, aborted_action] == 10.0

@@ -3,7 +3,13 @@
 Subscribes rl_env/rl_env_description (reliable, transient local) and rl_env/rl_state_reward;
 publishes rl_agent/rl_action after every non-terminal state, and rl_agent/rl_experiment_info and
 rl_agent/episode_info (stealth_interfaces/AgentEpisodeInfo: greedy or not, epsilon, alpha) at
-every terminal state. With eval_every M > 0, every M-th episode of a learning run is a greedy
+every terminal state. An environment that also publishes stealth_interfaces/EpisodeSummary
+(stealth_env does) tells the agent how each episode ended: a TIMEOUT is then a truncation, not a
+terminal state (the last update bootstraps from the final state, so the agent does not learn
+that running out of time is cheap), and an ABORTED episode teaches nothing. A plain rl_msgs
+environment, with no summary publisher, gets rl_agent's behaviour.
+
+With eval_every M > 0, every M-th episode of a learning run is a greedy
 evaluation (epsilon 0, no updates, the schedules stand still), so an experiment can watch the
 learned policy itself. Everything it decides is in the plain-Python core (protocol.py,
 learners.py, state_index.py, policy_store.py); this node translates messages and parameters.
@@ -51,8 +57,11 @@ from .learners import LearnerConfig, canonical_learner_name, make_learner
 from .policy_store import PolicyFileError, check_compatible, load_policy, save_policy
 from .protocol import (
     BadInputError,
+    Ending,
     EnvDescription,
+    EpisodeEndMatcher,
     ProtocolAgent,
+    ResolvedEnd,
     format_progress,
     is_greedy_episode,
     parse_description,
@@ -82,6 +91,18 @@ OUTCOME_NAMES = {
     EpisodeSummary.DETECTED: 'detected',
     EpisodeSummary.TIMEOUT: 'timeout',
     EpisodeSummary.ABORTED: 'aborted',
+}
+# How the environment's outcome is learned (an unknown outcome: as rl_msgs says, terminal).
+OUTCOME_ENDINGS = {
+    EpisodeSummary.SUCCESS: Ending.TERMINATED,
+    EpisodeSummary.DETECTED: Ending.TERMINATED,
+    EpisodeSummary.TIMEOUT: Ending.TRUNCATED,
+    EpisodeSummary.ABORTED: Ending.ABORTED,
+}
+ENDING_FIELDS = {
+    Ending.TERMINATED: AgentEpisodeInfo.END_TERMINAL,
+    Ending.TRUNCATED: AgentEpisodeInfo.END_TRUNCATED,
+    Ending.ABORTED: AgentEpisodeInfo.END_ABORTED,
 }
 # Learner settings that may change while running (applied to the live learner).
 LIVE_LEARNER_PARAMETERS = {
@@ -167,9 +188,18 @@ PARAMETERS = (
           'schedules stand still): episodes eval_every-1, 2*eval_every-1, ...; 0 = never.',
           ints=_int(0, 2**31 - 1)),
     Param('episode_summary_topic', 'rl_env/episode_summary',
-          'stealth_interfaces/EpisodeSummary topic for named outcomes in the progress log '
-          '(optional, any rl_msgs environment works without it); empty = off.',
+          'stealth_interfaces/EpisodeSummary topic: how each episode ended (a TIMEOUT is '
+          'learned as a truncation, an ABORTED episode not at all) and named outcomes in the '
+          'progress log; optional, an rl_msgs environment without it gets terminal states '
+          'only; empty = off.',
           read_only=True),
+    Param('timeout_is_terminal', False,
+          "Learn a TIMEOUT episode's last state as terminal, as rl_agent does (biased: timing "
+          'out looks cheap); false = bootstrap through the time limit.'),
+    Param('summary_wait', 5.0,
+          'Seconds a terminal state waits for its EpisodeSummary (when a summary publisher '
+          'exists) before it is learned as terminal.',
+          floats=_fp(0.01, 3600.0), read_only=True),
 )  # fmt: skip
 
 
@@ -189,6 +219,8 @@ class AgentNode(Node):
         self._named_outcomes = Counter()
         self._out_of_range = 0
         self._declared = False
+        self._endings = EpisodeEndMatcher()
+        self._summary_sub = None
 
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
@@ -239,9 +271,11 @@ class AgentNode(Node):
         )
         summary_topic = self._param('episode_summary_topic')
         if summary_topic:
-            self.create_subscription(
+            self._summary_sub = self.create_subscription(
                 EpisodeSummary, summary_topic, self._on_summary, RL_QOS, event_callbacks=QUIET_SUB
             )
+        self._summary_timer = self.create_timer(self._param('summary_wait'), self._summary_late)
+        self._summary_timer.cancel()
         mode = 'evaluating (greedy, no learning)' if self._param('evaluate') else 'learning'
         self.get_logger().info(
             f'agent {self._param("agent")} {mode}; waiting for rl_env/rl_env_description'
@@ -378,6 +412,8 @@ class AgentNode(Node):
             )
             return
         aborted = self._core.abort()
+        self._endings.new_episode()
+        self._summary_timer.cancel()
         note = f'; dropped the episode in progress ({aborted.actions} actions)' if aborted else ''
         log.warning(
             f'environment description received again (environment restarted?); '
@@ -468,11 +504,20 @@ class AgentNode(Node):
                     f'rl_state_reward skipped: the agent is not usable ({self._setup_error})'
                 )
             return
-        if not self._core.in_episode and self._learning_run:
-            greedy = is_greedy_episode(self._core.episode, self._param('eval_every'))
-            self._core.set_learning(not greedy)
+        if not self._core.in_episode:
+            self._endings.new_episode()
+            if self._learning_run:
+                greedy = is_greedy_episode(self._core.episode, self._param('eval_every'))
+                self._core.set_learning(not greedy)
+        if msg.terminal and self._core.in_episode and self._environment_reports_endings():
+            self._wait_for_summary(msg)
+            return
+        self._process(msg.state, msg.reward, msg.terminal)
+
+    def _process(self, state, reward, terminal: bool, ending=Ending.TERMINATED) -> None:
+        log = self.get_logger()
         try:
-            step = self._core.handle(msg.state, msg.reward, msg.terminal)
+            step = self._core.handle(state, reward, terminal, ending)
         except BadInputError as error:
             log.error(f'rl_state_reward skipped: {error}')
             return
@@ -484,6 +529,42 @@ class AgentNode(Node):
             self._action_pub.publish(RLAction(action=step.action))
         if step.result is not None:
             self._episode_done(step.result)
+
+    # --- how an episode ended ----------------------------------------------------------------
+
+    def _environment_reports_endings(self) -> bool:
+        """Whether some environment publishes EpisodeSummary: then a terminal state waits for
+        its summary to know whether it ended the task or only the time allowed."""
+        return self._summary_sub is not None and self._summary_sub.get_publisher_count() > 0
+
+    def _wait_for_summary(self, msg: RLStateReward) -> None:
+        try:  # a bad terminal state is refused now, not after the wait
+            self._core.check_state_reward(msg.state, msg.reward)
+        except BadInputError as error:
+            self.get_logger().error(f'rl_state_reward skipped: {error}')
+            return
+        resolved = self._endings.terminal(msg.state, msg.reward, self._core.number_actions)
+        if resolved is None:
+            self._summary_timer.reset()
+        else:
+            self._end_episode(resolved)
+
+    def _summary_late(self) -> None:
+        self._summary_timer.cancel()
+        resolved = self._endings.give_up()
+        if resolved is not None:
+            self.get_logger().warning(
+                f'no EpisodeSummary within summary_wait ({self._param("summary_wait")} s) of '
+                'the terminal state; learned as terminal'
+            )
+            self._end_episode(resolved)
+
+    def _end_episode(self, resolved: ResolvedEnd) -> None:
+        self._summary_timer.cancel()
+        ending = resolved.ending
+        if ending is Ending.TRUNCATED and self._param('timeout_is_terminal'):
+            ending = Ending.TERMINATED
+        self._process(resolved.state, resolved.reward, True, ending)
 
     def _episode_done(self, result) -> None:
         reward = float(np.clip(result.reward, -FLOAT32_MAX, FLOAT32_MAX))
@@ -505,6 +586,7 @@ class AgentNode(Node):
             learner_episodes=learner.episodes,
             learner_updates=learner.updates,
             table_states=len(self._core.index),
+            ending=ENDING_FIELDS[_ending_of(result)],
         )
         info.header.stamp = self.get_clock().now().to_msg()
         self._episode_info_pub.publish(info)
@@ -531,6 +613,12 @@ class AgentNode(Node):
 
     def _on_summary(self, msg: EpisodeSummary) -> None:
         self._named_outcomes[OUTCOME_NAMES.get(msg.outcome, f'outcome {msg.outcome}')] += 1
+        if self._core is None or not self._core.in_episode:
+            return
+        ending = OUTCOME_ENDINGS.get(msg.outcome, Ending.TERMINATED)
+        resolved = self._endings.report(msg.steps, ending)
+        if resolved is not None:
+            self._end_episode(resolved)
 
     # --- policy file -------------------------------------------------------------------------
 
@@ -559,6 +647,12 @@ class AgentNode(Node):
             f'{len(index)} states)'
         )
         return True
+
+
+def _ending_of(result) -> Ending:
+    if result.aborted:
+        return Ending.ABORTED
+    return Ending.TRUNCATED if result.truncated else Ending.TERMINATED
 
 
 def main(args=None):

@@ -5,15 +5,23 @@ ignored); each later non-terminal state gets next_action(reward, state) (learn, 
 a terminal state gets last_action(reward) (Q += alpha * (r - Q)), no action, and the episode's
 RLExperimentInfo: episode number, sum of rewards after the first state, number of actions.
 
+rl_msgs has only `terminal`, so an episode cut off by the environment's step limit looks like a
+terminal state, and an agent that learns it as one learns that timing out is cheap (the
+time-limit bias of Pardo et al., "Time Limits in Reinforcement Learning", ICML 2018). When the
+environment says how the episode ended (stealth_env's EpisodeSummary), the caller passes an
+Ending: TRUNCATED bootstraps from the final state as a non-terminal step, ABORTED makes no
+update at all; EpisodeEndMatcher pairs the two messages.
+
 ProtocolAgent does exactly that on top of a learner, a state index and a random generator, and
 checks every input first: a bad one raises BadInputError naming the problem and leaves the table,
 the index and the episode untouched, so the caller can skip the message and carry on. The ROS
 node only converts messages; an in-process trainer can drive the same object.
 """
 
-from collections import Counter
+from collections import Counter, deque
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+import enum
 import math
 
 import numpy as np
@@ -24,6 +32,14 @@ from .state_index import StateError, StateIndex
 
 class BadInputError(ValueError):
     """A message the agent cannot use; the text names the problem."""
+
+
+class Ending(enum.Enum):
+    """How an episode ended, and so what its last update is."""
+
+    TERMINATED = 'terminated'  # a terminal state of the task: Q += alpha * (r - Q)
+    TRUNCATED = 'truncated'  # cut off by a time limit: bootstrap from the final state
+    ABORTED = 'aborted'  # ended from outside (a failed move): no update, nothing learned
 
 
 @dataclass(frozen=True)
@@ -134,8 +150,10 @@ class ProtocolAgent:
     def epsilon(self) -> float:
         return self.learner.epsilon if self.learning else 0.0
 
-    def handle(self, state, reward, terminal: bool) -> Step:
-        """One RLStateReward in, what to publish out; BadInputError leaves everything unchanged."""
+    def handle(self, state, reward, terminal: bool, ending: Ending = Ending.TERMINATED) -> Step:
+        """One RLStateReward in, what to publish out; BadInputError leaves everything unchanged.
+
+        `ending` says how a terminal state is to be learned (rl_msgs alone: TERMINATED)."""
         vector = self._check_state(state)
         notes = ()
         if self.index.mapping.out_of_range(vector):
@@ -144,9 +162,18 @@ class ProtocolAgent:
             if terminal:
                 return Step(None, self._finish(0.0, terminal_reward=None), notes)
             return Step(self.first_action(vector), None, notes)
-        if terminal:
-            return Step(None, self.last_action(reward), notes)
-        return Step(self.next_action(reward, vector), None, notes)
+        if not terminal:
+            return Step(self.next_action(reward, vector), None, notes)
+        if ending is Ending.TRUNCATED:
+            return Step(None, self.truncate(reward, vector), notes)
+        if ending is Ending.ABORTED:
+            return Step(None, self.end_aborted(reward), notes)
+        return Step(None, self.last_action(reward), notes)
+
+    def check_state_reward(self, state, reward) -> None:
+        """BadInputError when a state or reward is unusable (nothing changes either way)."""
+        self._check_state(state)
+        self._check_reward(reward)
 
     def first_action(self, state) -> int:
         """The first state of an episode: choose an action, its reward is ignored."""
@@ -197,6 +224,13 @@ class ProtocolAgent:
             self.learner.update(self._s, self._a, r, row, False, a_next=a_next, rng=self.rng)
         return self._finish(r, terminal_reward=None, truncated=True)
 
+    def end_aborted(self, reward) -> EpisodeResult:
+        """The environment ended the episode from outside (a failed move): it counts as an
+        episode of the run, but nothing is learned from it and the schedules stand still."""
+        self._check_in_episode()
+        r = self._check_reward(reward)
+        return self._finish(r, terminal_reward=None, aborted=True)
+
     def abort(self) -> EpisodeResult | None:
         """Drop the episode in progress without a final update (the environment restarted)."""
         if not self.in_episode:
@@ -222,7 +256,9 @@ class ProtocolAgent:
             raise RuntimeError('the learning mode can only change between episodes')
         self.learning = bool(learning)
 
-    def _finish(self, r: float, *, terminal_reward, truncated=False) -> EpisodeResult:
+    def _finish(
+        self, r: float, *, terminal_reward, truncated=False, aborted=False
+    ) -> EpisodeResult:
         actions = self.number_actions if self.in_episode else 0
         total = self.episode_reward + r if self.in_episode else 0.0
         result = EpisodeResult(
@@ -233,9 +269,10 @@ class ProtocolAgent:
             terminal_reward,
             self.epsilon,
             truncated=truncated,
+            aborted=aborted,
             learning=self.learning,
         )
-        if self.learning:
+        if self.learning and not aborted:
             self.learner.end_episode()
         self.episode += 1
         self.in_episode = False
@@ -263,6 +300,75 @@ class ProtocolAgent:
     def _check_in_episode(self) -> None:
         if not self.in_episode:
             raise BadInputError('no episode in progress (expected the first state of an episode)')
+
+
+@dataclass(frozen=True)
+class ResolvedEnd:
+    """A terminal RLStateReward together with how its episode ended."""
+
+    state: tuple[float, ...]
+    reward: float
+    ending: Ending
+
+
+class EpisodeEndMatcher:
+    """Pairs a terminal RLStateReward with the environment's report of how the episode ended.
+
+    The two come on different topics, so either may arrive first. They belong together when the
+    report's action count equals the agent's for the episode (or is one less for an ABORTED
+    episode: the move in flight when it was aborted is an action the environment never
+    judged); reports of other episodes (one
+    the agent never saw, one that came after the agent stopped waiting) match nothing and are
+    dropped when the next episode starts. Plain Python: the node feeds it messages.
+    """
+
+    def __init__(self, keep: int = 8):
+        self._pending: tuple[tuple[float, ...], float, int] | None = None
+        self._reports: deque[tuple[int, Ending]] = deque(maxlen=keep)
+
+    @property
+    def waiting(self) -> bool:
+        """True while a terminal state waits for its report."""
+        return self._pending is not None
+
+    def terminal(self, state, reward, actions: int) -> ResolvedEnd | None:
+        """A terminal state after `actions` actions: resolved when its report is already here,
+        else None (it waits)."""
+        for steps, ending in reversed(self._reports):
+            if _same_episode(steps, ending, actions):
+                self._reports.clear()
+                return ResolvedEnd(tuple(state), reward, ending)
+        self._pending = (tuple(state), reward, int(actions))
+        return None
+
+    def report(self, steps: int, ending: Ending) -> ResolvedEnd | None:
+        """The environment's report of an episode that took `steps` actions."""
+        if self._pending is not None and _same_episode(steps, ending, self._pending[2]):
+            state, reward, _ = self._pending
+            self._pending = None
+            self._reports.clear()
+            return ResolvedEnd(state, reward, ending)
+        self._reports.append((int(steps), ending))
+        return None
+
+    def give_up(self) -> ResolvedEnd | None:
+        """No report came: the waiting terminal state is learned as rl_msgs says (terminal)."""
+        if self._pending is None:
+            return None
+        state, reward, _ = self._pending
+        self._pending = None
+        return ResolvedEnd(state, reward, Ending.TERMINATED)
+
+    def new_episode(self) -> None:
+        """A first state: no report from before it can be about the episode it starts."""
+        self._pending = None
+        self._reports.clear()
+
+
+def _same_episode(reported_steps: int, ending: Ending, actions: int) -> bool:
+    if ending is Ending.ABORTED and reported_steps == actions - 1:
+        return True
+    return reported_steps == actions
 
 
 def is_greedy_episode(episode: int, eval_every: int) -> bool:

@@ -7,8 +7,11 @@ import pytest
 from stealth_agent.learners import LearnerConfig, QLearning, Sarsa, make_learner
 from stealth_agent.protocol import (
     BadInputError,
+    Ending,
+    EpisodeEndMatcher,
     EpisodeResult,
     ProtocolAgent,
+    ResolvedEnd,
     format_progress,
     outcome_mix,
     parse_description,
@@ -132,6 +135,56 @@ def test_truncation_bootstraps_instead_of_ending_at_the_reward():
     result = agent.truncate(1.0, [1.0])
     assert result.truncated and result.terminal_reward is None
     assert agent.learner.q[0, a] == 1.0 + 0.5 * 4.0
+
+
+def corridor_agent_with_a_valued_next_state():
+    """Q-learning with gamma 0.5, alpha 1, state [1.0] worth max 4: a timeout there must be
+    learned as 1 + 0.5 * 4 = 3, a terminal state as 1."""
+    agent = ProtocolAgent(
+        QLearning(2, LearnerConfig.constant(gamma=0.5, alpha=1.0, epsilon=0.0)),
+        StateIndex(),
+        np.random.default_rng(0),
+    )
+    agent.learner.ensure_rows(2)
+    agent.index.row([0.0]), agent.index.row([1.0])
+    agent.learner.q[1] = [4.0, 2.0]
+    return agent
+
+
+@pytest.mark.parametrize(
+    ('ending', 'learned', 'counted'),
+    [(Ending.TERMINATED, 1.0, 1), (Ending.TRUNCATED, 3.0, 1), (Ending.ABORTED, 0.0, 0)],
+)
+def test_a_terminal_rl_state_is_learned_as_its_ending_says(ending, learned, counted):
+    agent = corridor_agent_with_a_valued_next_state()
+    a = agent.handle([0.0], 0.0, False).action
+    step = agent.handle([1.0], 1.0, True, ending)
+    assert step.action is None and step.result.episode == 0 and agent.episode == 1
+    assert agent.learner.q[0, a] == learned  # a timeout is not learned as terminal
+    assert step.result.truncated == (ending is Ending.TRUNCATED)
+    assert step.result.aborted == (ending is Ending.ABORTED)
+    assert agent.learner.episodes == counted  # an aborted episode moves no schedule
+
+
+def test_the_end_matcher_pairs_a_terminal_state_with_its_report_in_either_order():
+    matcher = EpisodeEndMatcher()
+    assert matcher.terminal([1.0], -1.0, actions=7) is None and matcher.waiting
+    assert matcher.report(3, Ending.TERMINATED) is None  # another episode's report
+    assert matcher.report(7, Ending.TRUNCATED) == ResolvedEnd((1.0,), -1.0, Ending.TRUNCATED)
+    assert not matcher.waiting
+    # The report first, then its terminal state.
+    assert matcher.report(4, Ending.ABORTED) is None
+    assert matcher.terminal([2.0], 0.0, actions=4) == ResolvedEnd((2.0,), 0.0, Ending.ABORTED)
+    # A report left over from before an episode's first state never pairs with its end.
+    matcher.report(5, Ending.TRUNCATED)
+    matcher.new_episode()
+    assert matcher.terminal([3.0], 9.0, actions=5) is None
+    assert matcher.give_up() == ResolvedEnd((3.0,), 9.0, Ending.TERMINATED)
+    assert matcher.give_up() is None
+    # An abort during a move: the environment judged one action less than the agent took.
+    assert matcher.terminal([4.0], 0.0, actions=6) is None
+    assert matcher.report(5, Ending.TRUNCATED) is None
+    assert matcher.report(5, Ending.ABORTED) == ResolvedEnd((4.0,), 0.0, Ending.ABORTED)
 
 
 def test_sarsa_through_the_protocol_bootstraps_on_the_action_it_sends():
