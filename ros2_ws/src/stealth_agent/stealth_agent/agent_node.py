@@ -20,30 +20,13 @@ message skipped; the node stays up and the table is never touched by a rejected 
 """
 
 from collections import Counter
-import math
 import pathlib
-from typing import NamedTuple
 
 import numpy as np
-from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
-    SetParametersResult,
-)
+from rcl_interfaces.msg import SetParametersResult
 import rclpy
-from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
-from rclpy.qos import (
-    DurabilityPolicy,
-    HistoryPolicy,
-    QoSProfile,
-    ReliabilityPolicy,
-    qos_policy_name_from_kind,
-)
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from stealth_interfaces.msg import (
     AgentEpisodeInfo,
     EpisodeSummary,
@@ -52,6 +35,14 @@ from stealth_interfaces.msg import (
     RLExperimentInfo,
     RLStateReward,
 )
+from stealth_node_kit.endpoints import (
+    QUIET_PUBLISHER,
+    QUIET_SUBSCRIPTION,
+    warn_publisher,
+    warn_subscription,
+)
+from stealth_node_kit.parameters import Param, StartupError, declare_parameters, non_finite
+from stealth_node_kit.running import run_node
 
 from .learners import LearnerConfig, canonical_learner_name, make_learner
 from .policy_store import PolicyFileError, check_compatible, load_policy, save_policy
@@ -83,8 +74,6 @@ DESCRIPTION_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
-QUIET_PUB = PublisherEventCallbacks(use_default_callbacks=False)  # no QoS event handlers
-QUIET_SUB = SubscriptionEventCallbacks(use_default_callbacks=False)
 FLOAT32_MAX = float(np.finfo(np.float32).max)
 OUTCOME_NAMES = {
     EpisodeSummary.SUCCESS: 'success',
@@ -117,94 +106,107 @@ LIVE_LEARNER_PARAMETERS = {
     'alpha_final',
     'alpha_decay_episodes',
 }
+INCOMPATIBLE_QOS = (
+    'an environment endpoint of the RL loop has QoS incompatible with the agent ({policy}): '
+    'states or actions do not get through; the RL topics are reliable and volatile'
+)
 STRING_CHOICES = {
     'epsilon_schedule': SCHEDULE_KINDS,
     'alpha_schedule': SCHEDULE_KINDS,
 }
 
 
-def _fp(low: float, high: float) -> list[FloatingPointRange]:
-    return [FloatingPointRange(from_value=low, to_value=high, step=0.0)]
-
-
-def _int(low: int, high: int) -> list[IntegerRange]:
-    return [IntegerRange(from_value=low, to_value=high, step=1)]
-
-
-class Param(NamedTuple):
-    """One ROS parameter of the node."""
-
-    name: str
-    default: object
-    description: str
-    floats: list[FloatingPointRange] | None = None
-    ints: list[IntegerRange] | None = None
-    read_only: bool = False  # fixed once the node is up (the table depends on it)
-
-
-PARAMETERS = (
-    Param('agent', 'qlearning', 'Learner: qlearning (rl_agent qlearner), sarsa or dyna.',
-          read_only=True),
-    Param('seed', 1, 'Seed of the random generator (exploration, tie-breaking, Dyna planning).',
-          ints=_int(0, 2**31 - 1), read_only=True),
-    Param('gamma', 0.99, 'Discount factor.', floats=_fp(0.0, 1.0)),
-    Param('alpha', 0.3, 'Learning rate; the start of the alpha schedule.', floats=_fp(0.0, 1.0)),
-    Param('epsilon', 0.1, 'Exploration rate of epsilon-greedy; the start of its schedule.',
-          floats=_fp(0.0, 1.0)),
-    Param('initialvalue', 0.0, 'Initial Q value of every new state-action.', read_only=True),
-    Param('n', 10, 'Dyna-Q: planning updates from the learned model per real step.',
-          ints=_int(0, 1_000_000)),
-    Param('epsilon_schedule', 'constant', 'constant, linear or exponential (over episodes).'),
-    Param('epsilon_final', 0.01, 'Epsilon the schedule decays to.', floats=_fp(0.0, 1.0)),
-    Param('epsilon_decay_episodes', 1000.0,
-          'Linear: episodes to reach epsilon_final; exponential: time constant (episodes); > 0.',
-          floats=_fp(0.0, 1e12)),
-    Param('alpha_schedule', 'constant', 'constant, linear or exponential (over episodes).'),
-    Param('alpha_final', 0.05, 'Alpha the schedule decays to.', floats=_fp(0.0, 1.0)),
-    Param('alpha_decay_episodes', 1000.0,
-          'Linear: episodes to reach alpha_final; exponential: time constant (episodes); > 0.',
-          floats=_fp(0.0, 1e12)),
-    Param('nstates', 0,
-          'rl_agent --nstates: bins per state feature over the description ranges; '
-          '0 = one table row per distinct state vector.',
-          ints=_int(0, 1_000_000_000), read_only=True),
-    Param('state_resolution', 0.0,
-          'Bin width of every state feature (state units, e.g. the map cell in m); '
-          'overrides nstates; 0 = off.',
-          floats=_fp(0.0, 1e12), read_only=True),
-    Param('policy_file', '', 'Policy file (.npz) to save to and load from; empty = none.',
-          read_only=True),
-    Param('save_every', 100, 'Save the policy every this many episodes (0 = only at shutdown).',
-          ints=_int(0, 2**31 - 1)),
-    Param('load_policy', False, 'Resume learning from policy_file if it exists.',
-          read_only=True),
-    Param('evaluate', False,
-          'Greedy, no learning: run the policy in policy_file (rl_agent savedpolicy).',
-          read_only=True),
-    Param('log_every', 10, 'Log progress every this many episodes (0 = never).',
-          ints=_int(0, 2**31 - 1)),
-    Param('eval_every', 0,
-          'Every this many episodes one greedy evaluation episode (epsilon 0, no learning, the '
-          'schedules stand still): episodes eval_every-1, 2*eval_every-1, ...; 0 = never.',
-          ints=_int(0, 2**31 - 1)),
-    Param('episode_summary_topic', 'rl_env/episode_summary',
-          'stealth_interfaces/EpisodeSummary topic: how each episode ended (a TIMEOUT is '
-          'learned as a truncation, an ABORTED episode not at all) and named outcomes in the '
-          'progress log; optional, an rl_msgs environment without it gets terminal states '
-          'only; empty = off.',
-          read_only=True),
-    Param('timeout_is_terminal', False,
-          "Learn a TIMEOUT episode's last state as terminal, as rl_agent does (biased: timing "
-          'out looks cheap); false = bootstrap through the time limit.'),
-    Param('summary_wait', 5.0,
-          'Seconds a terminal state waits for its EpisodeSummary (when a summary publisher '
-          'exists) before it is learned as terminal.',
-          floats=_fp(0.01, 3600.0), read_only=True),
-)  # fmt: skip
-
-
-class ConfigError(ValueError):
-    """Parameters that do not make a usable agent."""
+PARAMETERS = {
+    'agent': Param(
+        'qlearning', 'Learner: qlearning (rl_agent qlearner), sarsa or dyna.', read_only=True
+    ),
+    'seed': Param(
+        1,
+        'Seed of the random generator (exploration, tie-breaking, Dyna planning).',
+        bounds=(0, 2**31 - 1),
+        read_only=True,
+    ),
+    'gamma': Param(0.99, 'Discount factor.', bounds=(0.0, 1.0)),
+    'alpha': Param(0.3, 'Learning rate; the start of the alpha schedule.', bounds=(0.0, 1.0)),
+    'epsilon': Param(
+        0.1, 'Exploration rate of epsilon-greedy; the start of its schedule.', bounds=(0.0, 1.0)
+    ),
+    'initialvalue': Param(0.0, 'Initial Q value of every new state-action.', read_only=True),
+    'n': Param(
+        10, 'Dyna-Q: planning updates from the learned model per real step.', bounds=(0, 1_000_000)
+    ),
+    'epsilon_schedule': Param('constant', 'constant, linear or exponential (over episodes).'),
+    'epsilon_final': Param(0.01, 'Epsilon the schedule decays to.', bounds=(0.0, 1.0)),
+    'epsilon_decay_episodes': Param(
+        1000.0,
+        'Linear: episodes to reach epsilon_final; exponential: time constant (episodes); > 0.',
+        bounds=(0.0, 1e12),
+    ),
+    'alpha_schedule': Param('constant', 'constant, linear or exponential (over episodes).'),
+    'alpha_final': Param(0.05, 'Alpha the schedule decays to.', bounds=(0.0, 1.0)),
+    'alpha_decay_episodes': Param(
+        1000.0,
+        'Linear: episodes to reach alpha_final; exponential: time constant (episodes); > 0.',
+        bounds=(0.0, 1e12),
+    ),
+    'nstates': Param(
+        0,
+        'rl_agent --nstates: bins per state feature over the description ranges; '
+        '0 = one table row per distinct state vector.',
+        bounds=(0, 1_000_000_000),
+        read_only=True,
+    ),
+    'state_resolution': Param(
+        0.0,
+        'Bin width of every state feature (state units, e.g. the map cell in m); '
+        'overrides nstates; 0 = off.',
+        bounds=(0.0, 1e12),
+        read_only=True,
+    ),
+    'policy_file': Param(
+        '', 'Policy file (.npz) to save to and load from; empty = none.', read_only=True
+    ),
+    'save_every': Param(
+        100,
+        'Save the policy every this many episodes (0 = only at shutdown).',
+        bounds=(0, 2**31 - 1),
+    ),
+    'load_policy': Param(False, 'Resume learning from policy_file if it exists.', read_only=True),
+    'evaluate': Param(
+        False,
+        'Greedy, no learning: run the policy in policy_file (rl_agent savedpolicy).',
+        read_only=True,
+    ),
+    'log_every': Param(
+        10, 'Log progress every this many episodes (0 = never).', bounds=(0, 2**31 - 1)
+    ),
+    'eval_every': Param(
+        0,
+        'Every this many episodes one greedy evaluation episode (epsilon 0, no learning, the '
+        'schedules stand still): episodes eval_every-1, 2*eval_every-1, ...; 0 = never.',
+        bounds=(0, 2**31 - 1),
+    ),
+    'episode_summary_topic': Param(
+        'rl_env/episode_summary',
+        'stealth_interfaces/EpisodeSummary topic: how each episode ended (a TIMEOUT is '
+        'learned as a truncation, an ABORTED episode not at all) and named outcomes in the '
+        'progress log; optional, an rl_msgs environment without it gets terminal states '
+        'only; empty = off.',
+        read_only=True,
+    ),
+    'timeout_is_terminal': Param(
+        False,
+        "Learn a TIMEOUT episode's last state as terminal, as rl_agent does (biased: timing "
+        'out looks cheap); false = bootstrap through the time limit.',
+    ),
+    'summary_wait': Param(
+        5.0,
+        'Seconds a terminal state waits for its EpisodeSummary (when a summary publisher '
+        'exists) before it is learned as terminal.',
+        bounds=(0.01, 3600.0),
+        read_only=True,
+    ),
+}
 
 
 class AgentNode(Node):
@@ -224,15 +226,7 @@ class AgentNode(Node):
 
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
-        for param in PARAMETERS:
-            descriptor = ParameterDescriptor(
-                description=param.description, read_only=param.read_only
-            )
-            if param.floats:
-                descriptor.floating_point_range = param.floats
-            if param.ints:
-                descriptor.integer_range = param.ints
-            self.declare_parameter(param.name, param.default, descriptor)
+        declare_parameters(self, PARAMETERS)
         self._declared = True
         self._check_startup_parameters()
 
@@ -243,36 +237,39 @@ class AgentNode(Node):
             RLAction,
             'rl_agent/rl_action',
             RL_QOS,
-            event_callbacks=PublisherEventCallbacks(
-                incompatible_qos=self._on_incompatible_qos, use_default_callbacks=False
-            ),
+            event_callbacks=warn_publisher(self.get_logger, INCOMPATIBLE_QOS),
         )
         self._info_pub = self.create_publisher(
-            RLExperimentInfo, 'rl_agent/rl_experiment_info', RL_QOS, event_callbacks=QUIET_PUB
+            RLExperimentInfo,
+            'rl_agent/rl_experiment_info',
+            RL_QOS,
+            event_callbacks=QUIET_PUBLISHER,
         )
         self._episode_info_pub = self.create_publisher(
-            AgentEpisodeInfo, 'rl_agent/episode_info', RL_QOS, event_callbacks=QUIET_PUB
+            AgentEpisodeInfo, 'rl_agent/episode_info', RL_QOS, event_callbacks=QUIET_PUBLISHER
         )
         self.create_subscription(
             RLEnvDescription,
             'rl_env/rl_env_description',
             self._on_description,
             DESCRIPTION_QOS,
-            event_callbacks=QUIET_SUB,
+            event_callbacks=QUIET_SUBSCRIPTION,
         )
         self.create_subscription(
             RLStateReward,
             'rl_env/rl_state_reward',
             self._on_state,
             RL_QOS,
-            event_callbacks=SubscriptionEventCallbacks(
-                incompatible_qos=self._on_incompatible_qos, use_default_callbacks=False
-            ),
+            event_callbacks=warn_subscription(self.get_logger, INCOMPATIBLE_QOS),
         )
         summary_topic = self._param('episode_summary_topic')
         if summary_topic:
             self._summary_sub = self.create_subscription(
-                EpisodeSummary, summary_topic, self._on_summary, RL_QOS, event_callbacks=QUIET_SUB
+                EpisodeSummary,
+                summary_topic,
+                self._on_summary,
+                RL_QOS,
+                event_callbacks=QUIET_SUBSCRIPTION,
             )
         self._summary_timer = self.create_timer(self._param('summary_wait'), self._summary_late)
         self._summary_timer.cancel()
@@ -283,24 +280,17 @@ class AgentNode(Node):
 
     # --- parameters --------------------------------------------------------------------------
 
-    def _on_incompatible_qos(self, event) -> None:
-        policy = qos_policy_name_from_kind(event.last_policy_kind)
-        self.get_logger().warning(
-            f'an environment endpoint of the RL loop has QoS incompatible with the agent '
-            f'({policy}): states or actions do not get through; the RL topics are reliable '
-            'and volatile'
-        )
-
     def _param(self, name: str):
         return self.get_parameter(name).value
 
     def _validate_parameters(self, parameters) -> SetParametersResult:
         """Reject values that would not make a usable agent (at startup and at runtime)."""
         values = {}
+        reason = non_finite(parameters)
+        if reason is not None:
+            return SetParametersResult(successful=False, reason=reason)
         for p in parameters:
             value = p.value
-            if isinstance(value, float) and not math.isfinite(value):
-                return SetParametersResult(successful=False, reason=f'{p.name} must be finite')
             if p.name == 'agent':
                 try:
                     canonical_learner_name(value)
@@ -359,11 +349,11 @@ class AgentNode(Node):
         if (self._param('evaluate') or self._param('load_policy')) and not self._param(
             'policy_file'
         ):
-            raise ConfigError('evaluate and load_policy need policy_file')
+            raise StartupError('evaluate and load_policy need policy_file')
         try:
             self._learner_config()
         except ValueError as error:
-            raise ConfigError(str(error)) from None
+            raise StartupError(str(error)) from None
 
     @property
     def _learning_run(self) -> bool:
@@ -655,26 +645,8 @@ def _ending_of(result) -> Ending:
     return Ending.TRUNCATED if result.truncated else Ending.TERMINATED
 
 
-def main(args=None):
-    rclpy.init(args=args)
-    try:
-        node = AgentNode()
-    except (ParameterException, ValueError) as error:  # ConfigError is a ValueError
-        rclpy.logging.get_logger('agent').fatal(f'bad configuration, not starting: {error}')
-        rclpy.try_shutdown()
-        return 2
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except _rclpy.RCLError:
-        if rclpy.ok():  # a real failure, not rclpy's race of SIGINT with building a wait set
-            raise
-    finally:
-        node.save('shutdown')
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+def main(args=None) -> int:
+    return run_node(AgentNode, 'agent', args=args, on_exit=lambda node: node.save('shutdown'))
 
 
 if __name__ == '__main__':

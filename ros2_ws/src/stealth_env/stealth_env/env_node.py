@@ -42,7 +42,6 @@ from __future__ import annotations
 from collections import Counter
 import functools
 import math
-import re
 import time
 from typing import Any, NamedTuple
 
@@ -50,25 +49,11 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, Pose2D
 from nav_msgs.msg import OccupancyGrid
 import numpy as np
-from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
-    SetParametersResult,
-)
+from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
-from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.executors import ExternalShutdownException
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
-from rclpy.qos import (
-    DurabilityPolicy,
-    HistoryPolicy,
-    QoSProfile,
-    ReliabilityPolicy,
-    qos_policy_name_from_kind,
-)
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from std_msgs.msg import ColorRGBA
 from stealth_interfaces.msg import (
@@ -82,6 +67,15 @@ from stealth_interfaces.msg import (
     StepInfo,
 )
 from stealth_interfaces.srv import ExecuteMove, ResetRobot
+from stealth_node_kit.conversions import quaternion_yaw, seconds, time_msg
+from stealth_node_kit.endpoints import (
+    QUIET_PUBLISHER,
+    QUIET_SUBSCRIPTION,
+    warn_publisher,
+    warn_subscription,
+)
+from stealth_node_kit.parameters import Param, StartupError, declare_parameters, non_finite
+from stealth_node_kit.running import run_node
 from visualization_msgs.msg import Marker, MarkerArray
 
 from stealth_env.episode_flow import (
@@ -94,6 +88,7 @@ from stealth_env.episode_flow import (
     is_finite_pose,
 )
 from stealth_env.markers import WallMap, any_moving, scene_markers, searchlight_fields
+from stealth_env.move_lattice import ACTIONS
 from stealth_env.reward import Outcome
 from stealth_env.scenario import ScenarioError, load_scenario
 from stealth_env.task import StealthTask
@@ -118,11 +113,6 @@ LATCHED_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
-# Every QoS event handler is one more entity in each of the executor's waits, and every step
-# goes through two of them: endpoints on the step's path keep only the incompatible-QoS warning
-# that explains a silent agent (measured: ~10 % more steps/s than rclpy's default handlers).
-QUIET_PUBLISHER = PublisherEventCallbacks(use_default_callbacks=False)
-QUIET_SUBSCRIPTION = SubscriptionEventCallbacks(use_default_callbacks=False)
 TOPICS = {
     'description': 'rl_env/rl_env_description',
     'state': 'rl_env/rl_state_reward',
@@ -134,6 +124,9 @@ TOPICS = {
     'markers': 'searchlight_markers',
 }
 MOVE_SERVICE, RESET_SERVICE = 'sim/execute_move', 'sim/reset'
+# The action numbers (the lattice's ACTIONS, as RLAction documents them) as the simulator's
+# move kinds, matched by name rather than by the two numberings happening to agree.
+MOVE_KIND_OF_ACTION = tuple(getattr(ExecuteMove.Request, name.upper()) for name, _ in ACTIONS)
 MARKER_KINDS = {
     'triangle_list': Marker.TRIANGLE_LIST,
     'line_strip': Marker.LINE_STRIP,
@@ -141,15 +134,6 @@ MARKER_KINDS = {
     'cylinder': Marker.CYLINDER,
     'text': Marker.TEXT_VIEW_FACING,
 }
-
-
-class Param(NamedTuple):
-    """One ROS parameter of the node: default, description, range, fixed after startup."""
-
-    default: Any
-    description: str
-    bounds: tuple | None = None
-    read_only: bool = False
 
 
 PARAMETERS = {
@@ -187,38 +171,12 @@ PARAMETERS = {
 }  # fmt: skip
 
 
-class StartupError(RuntimeError):
-    """Parameters or a scenario that make it impossible to start; the message says which."""
-
-
-def descriptor(param: Param) -> ParameterDescriptor:
-    result = ParameterDescriptor(description=param.description, read_only=param.read_only)
-    if param.bounds is not None and isinstance(param.bounds[0], int):
-        low, high = param.bounds
-        result.integer_range = [IntegerRange(from_value=low, to_value=high, step=1)]
-    elif param.bounds is not None:
-        low, high = param.bounds
-        result.floating_point_range = [FloatingPointRange(from_value=low, to_value=high, step=0.0)]
-    return result
-
-
 # --- message conversions ------------------------------------------------------------------------
-
-
-def time_msg(seconds: float) -> Time:
-    nanoseconds = round(seconds * 1e9)
-    return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
-
-
-def seconds(stamp: Time) -> float:
-    return stamp.sec + stamp.nanosec * 1e-9
 
 
 def planar_pose(pose) -> PlanarPose:
     """(x, y, yaw) of a geometry_msgs/Pose."""
-    q = pose.orientation
-    yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
-    return PlanarPose(pose.position.x, pose.position.y, yaw)
+    return PlanarPose(pose.position.x, pose.position.y, quaternion_yaw(pose.orientation))
 
 
 def pose2d_msg(pose: PlanarPose) -> Pose2D:
@@ -385,7 +343,7 @@ class EnvironmentNode(Node):
         self._configured = False
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
-        values = self._declare_parameters()
+        values = declare_parameters(self, PARAMETERS)
         self.scenario = self._load_scenario(values['scenario'])
         try:
             self.task = StealthTask(
@@ -417,8 +375,10 @@ class EnvironmentNode(Node):
             RLStateReward,
             TOPICS['state'],
             RL_QOS,
-            event_callbacks=PublisherEventCallbacks(
-                incompatible_qos=self._on_incompatible_reader, use_default_callbacks=False
+            event_callbacks=warn_publisher(
+                self.get_logger,
+                f'a subscription to {TOPICS["state"]} requests QoS this environment cannot '
+                'offer ({policy}): it gets no states; the RL topics are reliable and volatile',
             ),
         )
         self._step_pub = self._quiet_publisher(StepInfo, TOPICS['step_info'], RL_QOS)
@@ -432,8 +392,10 @@ class EnvironmentNode(Node):
             TOPICS['action'],
             self._on_action,
             RL_QOS,
-            event_callbacks=SubscriptionEventCallbacks(
-                incompatible_qos=self._on_incompatible_writer, use_default_callbacks=False
+            event_callbacks=warn_subscription(
+                self.get_logger,
+                f'a publisher of {TOPICS["action"]} offers QoS this environment cannot accept '
+                '({policy}): its actions never arrive; the RL topics are reliable and volatile',
             ),
         )
         self.create_subscription(
@@ -470,31 +432,7 @@ class EnvironmentNode(Node):
     def _quiet_publisher(self, message_type, topic: str, qos: QoSProfile):
         return self.create_publisher(message_type, topic, qos, event_callbacks=QUIET_PUBLISHER)
 
-    def _on_incompatible_reader(self, event) -> None:
-        self.get_logger().warning(
-            f'a subscription to {self._state_pub.topic_name} requests QoS this environment '
-            f'cannot offer ({qos_policy_name_from_kind(event.last_policy_kind)}): it gets no '
-            'states; the RL topics are reliable and volatile'
-        )
-
-    def _on_incompatible_writer(self, event) -> None:
-        self.get_logger().warning(
-            f'a publisher of {self._action_sub.topic_name} offers QoS this environment cannot '
-            f'accept ({qos_policy_name_from_kind(event.last_policy_kind)}): its actions never '
-            'arrive; the RL topics are reliable and volatile'
-        )
-
     # --- parameters -----------------------------------------------------------------------------
-
-    def _declare_parameters(self) -> dict:
-        values = {}
-        for name, param in PARAMETERS.items():
-            try:
-                parameter = self.declare_parameter(name, param.default, descriptor(param))
-            except Exception as error:  # rclpy's type, range and validation errors
-                raise StartupError(f'parameter {name}: {error}') from None
-            values[name] = parameter.value
-        return values
 
     def _load_scenario(self, name: str):
         if not name:
@@ -515,11 +453,8 @@ class EnvironmentNode(Node):
                     successful=False,
                     reason=f'judge_on must be one of {", ".join(JUDGE_ON)}, got {change.value!r}',
                 )
-            if isinstance(change.value, float) and not math.isfinite(change.value):
-                return SetParametersResult(
-                    successful=False, reason=f'{change.name} must be finite, got {change.value}'
-                )
-        return SetParametersResult(successful=True)
+        reason = non_finite(changes)
+        return SetParametersResult(successful=reason is None, reason=reason or '')
 
     def _apply_parameters(self, changes) -> None:
         if not self._configured:
@@ -737,7 +672,8 @@ class EnvironmentNode(Node):
             self._abort(self.flow.token, f'{MOVE_SERVICE} is not available')
             return
         request = ExecuteMove.Request(
-            kind=self.flow.action, distance=float(self.scenario.step_distance)
+            kind=MOVE_KIND_OF_ACTION[self.flow.action],
+            distance=float(self.scenario.step_distance),
         )
         self._send(self._move_client, request, self.flow.token, MOVE_SERVICE, self._on_move_answer)
 
@@ -846,30 +782,7 @@ def _progress(window) -> str:
 
 
 def main(args=None) -> int:
-    try:
-        rclpy.init(args=args)
-    except Exception as error:  # e.g. an unreadable --params-file
-        reason = re.sub(r', at [^,]*:\d+', '', str(error))  # rcl's source locations
-        rclpy.logging.get_logger(NODE_NAME).fatal(f'not starting: bad arguments: {reason}')
-        return 2
-    try:
-        node = EnvironmentNode()
-    except Exception as error:  # StartupError, or rcl's own (e.g. a bad remapping)
-        rclpy.logging.get_logger(NODE_NAME).fatal(f'not starting: {error}')
-        rclpy.try_shutdown()
-        return 2
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except _rclpy.RCLError:
-        if rclpy.ok():  # a real failure, not rclpy's race of SIGINT with building a wait set
-            raise
-    finally:
-        node.log_totals()
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(EnvironmentNode, NODE_NAME, args=args, on_exit=EnvironmentNode.log_totals)
 
 
 if __name__ == '__main__':

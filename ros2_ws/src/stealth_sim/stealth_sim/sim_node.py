@@ -33,41 +33,29 @@ import ctypes
 import ctypes.util
 import math
 import time
-from typing import Any, NamedTuple
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Pose as PoseMsg
 from geometry_msgs.msg import (
     PoseWithCovariance,
     PoseWithCovarianceStamped,
-    Quaternion,
     TransformStamped,
     Twist,
 )
 from nav_msgs.msg import OccupancyGrid, Odometry
 import numpy as np
-from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
-    SetParametersResult,
-)
-import rclpy
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
-from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.executors import ExternalShutdownException
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import (
-    DurabilityPolicy,
-    QoSProfile,
-    ReliabilityPolicy,
-    qos_policy_name_from_kind,
-)
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import LaserScan
 from stealth_interfaces.srv import ExecuteMove, ResetRobot
+from stealth_node_kit.conversions import quaternion_yaw, time_msg, yaw_quaternion
+from stealth_node_kit.endpoints import QUIET_PUBLISHER, warn_publisher, warn_subscription
+from stealth_node_kit.parameters import Param, StartupError, declare_parameters
+from stealth_node_kit.running import run_node
 from tf2_msgs.msg import TFMessage
 
 from stealth_sim.frames import (
@@ -96,51 +84,42 @@ _LIMITS = _DEFAULTS.limits
 _FILTER = _DEFAULTS.filter
 
 
-class Spec(NamedTuple):
-    """A parameter: default, description, (low, high) range, read-only (needs a restart)."""
-
-    default: Any
-    description: str
-    bounds: tuple | None = None
-    read_only: bool = False
-
-
 UNIT = (0.0, 1.0)
 START_UP = ('map', 'initial_pose')  # used once to build the simulator
 PARAMETERS = {
-    'map': Spec('', 'Path to a nav2 map YAML (required).', read_only=True),
-    'initial_pose': Spec(
+    'map': Param('', 'Path to a nav2 map YAML (required).', read_only=True),
+    'initial_pose': Param(
         Parameter.Type.DOUBLE_ARRAY,
         'Start pose [x (m), y (m), yaw (rad)], map frame; unset: the most open point.',
         read_only=True,
     ),
-    'physics_dt': Spec(_DEFAULTS.physics_dt, 'Physics step (s).', (0.001, 0.1), True),
-    'max_linear_speed': Spec(_LIMITS.max_linear_speed, 'Speed limit (m/s).', (0.01, 5.0)),
-    'max_angular_speed': Spec(_LIMITS.max_angular_speed, 'Turn rate limit (rad/s).', (0.01, 10.0)),
-    'max_linear_accel': Spec(_LIMITS.max_linear_accel, 'Accel. limit (m/s^2).', (0.01, 20.0)),
-    'max_angular_accel': Spec(_LIMITS.max_angular_accel, 'Accel. limit (rad/s^2).', (0.01, 50.0)),
-    'robot_radius': Spec(_DEFAULTS.robot_radius, 'Robot disc radius (m).', (0.0, 1.0), True),
-    'odom_alpha1': Spec(_NOISE.alpha1, 'Odometry rotation noise from rotation.', UNIT),
-    'odom_alpha2': Spec(_NOISE.alpha2, 'Odometry rotation noise from translation.', UNIT),
-    'odom_alpha3': Spec(_NOISE.alpha3, 'Odometry translation noise from translation.', UNIT),
-    'odom_alpha4': Spec(_NOISE.alpha4, 'Odometry translation noise from rotation.', UNIT),
-    'laser_beams': Spec(_DEFAULTS.laser.beams, 'Beams of the 360-degree scan.', (3, 3600), True),
-    'laser_range': Spec(_DEFAULTS.laser.range_max, 'Laser range (m).', (0.5, 100.0), True),
-    'laser_noise': Spec(_DEFAULTS.laser.noise_std, 'Laser range noise, std. dev. (m).', UNIT),
-    'particles': Spec(_DEFAULTS.filter.particles, 'Filter particles.', (10, 100_000), True),
-    'update_min_d': Spec(_FILTER.update_min_d, 'AMCL update distance (m).', (0.0, 5.0), True),
-    'update_min_a': Spec(_FILTER.update_min_a, 'AMCL update turn (rad).', (0.0, math.pi), True),
-    'seed': Spec(_DEFAULTS.seed, 'Seed of every random stream.', (0, 2**31 - 1), True),
-    'real_time_factor': Spec(
+    'physics_dt': Param(_DEFAULTS.physics_dt, 'Physics step (s).', (0.001, 0.1), True),
+    'max_linear_speed': Param(_LIMITS.max_linear_speed, 'Speed limit (m/s).', (0.01, 5.0)),
+    'max_angular_speed': Param(
+        _LIMITS.max_angular_speed, 'Turn rate limit (rad/s).', (0.01, 10.0)
+    ),
+    'max_linear_accel': Param(_LIMITS.max_linear_accel, 'Accel. limit (m/s^2).', (0.01, 20.0)),
+    'max_angular_accel': Param(_LIMITS.max_angular_accel, 'Accel. limit (rad/s^2).', (0.01, 50.0)),
+    'robot_radius': Param(_DEFAULTS.robot_radius, 'Robot disc radius (m).', (0.0, 1.0), True),
+    'odom_alpha1': Param(_NOISE.alpha1, 'Odometry rotation noise from rotation.', UNIT),
+    'odom_alpha2': Param(_NOISE.alpha2, 'Odometry rotation noise from translation.', UNIT),
+    'odom_alpha3': Param(_NOISE.alpha3, 'Odometry translation noise from translation.', UNIT),
+    'odom_alpha4': Param(_NOISE.alpha4, 'Odometry translation noise from rotation.', UNIT),
+    'laser_beams': Param(_DEFAULTS.laser.beams, 'Beams of the 360-degree scan.', (3, 3600), True),
+    'laser_range': Param(_DEFAULTS.laser.range_max, 'Laser range (m).', (0.5, 100.0), True),
+    'laser_noise': Param(_DEFAULTS.laser.noise_std, 'Laser range noise, std. dev. (m).', UNIT),
+    'particles': Param(_DEFAULTS.filter.particles, 'Filter particles.', (10, 100_000), True),
+    'update_min_d': Param(_FILTER.update_min_d, 'AMCL update distance (m).', (0.0, 5.0), True),
+    'update_min_a': Param(_FILTER.update_min_a, 'AMCL update turn (rad).', (0.0, math.pi), True),
+    'seed': Param(_DEFAULTS.seed, 'Seed of every random stream.', (0, 2**31 - 1), True),
+    'real_time_factor': Param(
         0.0, 'Simulated s per wall s; 0: moves run as fast as possible.', (0.0, 1000.0)
     ),
-    'cmd_vel_timeout': Spec(0.5, 'Drop a cmd_vel older than this (s, simulated).', (0.01, 60.0)),
-    'publish_rate': Spec(10.0, 'Rate of odom, ground_truth, scan, clock, tf (Hz).', (0.1, 1000.0)),
+    'cmd_vel_timeout': Param(0.5, 'Drop a cmd_vel older than this (s, simulated).', (0.01, 60.0)),
+    'publish_rate': Param(
+        10.0, 'Rate of odom, ground_truth, scan, clock, tf (Hz).', (0.1, 1000.0)
+    ),
 }
-
-
-class StartupError(RuntimeError):
-    """A parameter or the map makes it impossible to start; the message says which and why."""
 
 
 def sim_config(values: dict) -> SimConfig:
@@ -169,32 +148,7 @@ def sim_config(values: dict) -> SimConfig:
     )
 
 
-def descriptor(spec: Spec) -> ParameterDescriptor:
-    result = ParameterDescriptor(description=spec.description, read_only=spec.read_only)
-    bounds = spec.bounds
-    if bounds is not None and isinstance(bounds[0], int):
-        result.integer_range = [IntegerRange(from_value=bounds[0], to_value=bounds[1], step=1)]
-    elif bounds is not None:
-        result.floating_point_range = [
-            FloatingPointRange(from_value=bounds[0], to_value=bounds[1], step=0.0)
-        ]
-    return result
-
-
 # --- message conversions ------------------------------------------------------------------------
-
-
-def time_msg(seconds: float) -> Time:
-    nanoseconds = round(seconds * 1e9)
-    return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
-
-
-def yaw_quaternion(yaw: float) -> Quaternion:
-    return Quaternion(z=math.sin(yaw / 2), w=math.cos(yaw / 2))
-
-
-def quaternion_yaw(q: Quaternion) -> float:
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
 
 
 def pose_msg(pose: Pose) -> PoseMsg:
@@ -268,7 +222,7 @@ class SimulatorNode(Node):
             raise
 
     def _set_up(self) -> None:
-        values = self._declare_parameters()
+        values = declare_parameters(self, PARAMETERS)
         self.map = self._load_map(values['map'])
         try:
             config = sim_config(values)
@@ -309,7 +263,7 @@ class SimulatorNode(Node):
             latched,
             event_callbacks=self._warned_publisher('amcl_pose'),
         )
-        quiet = PublisherEventCallbacks(use_default_callbacks=False)
+        quiet = QUIET_PUBLISHER
         self.odom_pub = self.create_publisher(Odometry, 'odom', 10, event_callbacks=quiet)
         self.truth_pub = self.create_publisher(Odometry, 'ground_truth', 10, event_callbacks=quiet)
         self.scan_pub = self.create_publisher(LaserScan, 'scan', 5, event_callbacks=quiet)
@@ -361,36 +315,13 @@ class SimulatorNode(Node):
 
     # --- parameters --------------------------------------------------------------------------
 
-    def _warned_publisher(self, topic: str) -> PublisherEventCallbacks:
-        return PublisherEventCallbacks(
-            incompatible_qos=self._qos_warning(f'a subscription to {topic}', 'gets nothing'),
-            use_default_callbacks=False,
-        )
+    def _warned_publisher(self, topic: str):
+        text = f'a subscription to {topic} has QoS incompatible with the simulator ({{policy}}): '
+        return warn_publisher(self.get_logger, text + 'it gets nothing')
 
-    def _warned_subscription(self, topic: str) -> SubscriptionEventCallbacks:
-        return SubscriptionEventCallbacks(
-            incompatible_qos=self._qos_warning(f'a publisher of {topic}', 'is not heard'),
-            use_default_callbacks=False,
-        )
-
-    def _qos_warning(self, who: str, consequence: str):
-        def warn(event) -> None:
-            policy = qos_policy_name_from_kind(event.last_policy_kind)
-            self.get_logger().warning(
-                f'{who} has QoS incompatible with the simulator ({policy}): it {consequence}'
-            )
-
-        return warn
-
-    def _declare_parameters(self) -> dict:
-        values = {}
-        for name, spec in PARAMETERS.items():
-            try:
-                parameter = self.declare_parameter(name, spec.default, descriptor(spec))
-            except Exception as exc:  # rclpy's type and range errors: say which, and stop
-                raise StartupError(f'parameter {name}: {exc}') from None
-            values[name] = parameter.value
-        return values
+    def _warned_subscription(self, topic: str):
+        text = f'a publisher of {topic} has QoS incompatible with the simulator ({{policy}}): '
+        return warn_subscription(self.get_logger, text + 'it is not heard')
 
     def _load_map(self, path: str) -> OccupancyMap:
         if not path:
@@ -601,25 +532,8 @@ def keep_freed_memory_for_reuse() -> None:
 
 
 def main(args=None) -> int:
-    rclpy.init(args=args)
     keep_freed_memory_for_reuse()
-    try:
-        node = SimulatorNode()
-    except StartupError as exc:
-        rclpy.logging.get_logger('simulator').fatal(str(exc))
-        rclpy.try_shutdown()
-        return 2
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except _rclpy.RCLError:
-        if rclpy.ok():  # a real failure, not rclpy's race of SIGINT with building a wait set
-            raise
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(SimulatorNode, 'simulator', args=args)
 
 
 if __name__ == '__main__':

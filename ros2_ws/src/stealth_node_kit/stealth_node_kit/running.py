@@ -1,0 +1,62 @@
+"""The Jazzy ``main()`` of every node, with one error policy.
+
+Init, build the node, spin until Ctrl-C or an external shutdown, then tidy up and shut down, as
+ros2/demos does. A node that cannot start (bad ``--ros-args``, a parameter out of range, a
+missing scenario) logs one fatal line saying why and the process exits with 2, never with a
+traceback; the orchestrator reports that line.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+import re
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
+EXIT_CANNOT_START = 2
+
+
+def _without_source_locations(error: Exception) -> str:
+    """rcl's messages end in ', at /path/file.c:123': useless to a user."""
+    return re.sub(r', at [^,]*:\d+', '', str(error))
+
+
+def run_node(
+    make_node: Callable[[], rclpy.node.Node],
+    name: str,
+    *,
+    args=None,
+    on_exit: Callable[[rclpy.node.Node], None] | None = None,
+) -> int:
+    """Run one node in this process; the exit code (0, or 2 when it could not start).
+
+    `name` names the logger of the fatal line; `on_exit` runs after spinning, before the node
+    is destroyed (save a policy, log totals); after Ctrl-C its logging goes to the console only.
+    """
+    logger = rclpy.logging.get_logger(name)
+    try:
+        rclpy.init(args=args)
+    except Exception as error:  # e.g. an unreadable --params-file
+        logger.fatal(f'not starting: bad arguments: {_without_source_locations(error)}')
+        return EXIT_CANNOT_START
+    try:
+        node = make_node()
+    except Exception as error:  # StartupError, or rcl's own (e.g. a bad remapping)
+        logger.fatal(f'not starting: {_without_source_locations(error)}')
+        rclpy.try_shutdown()
+        return EXIT_CANNOT_START
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except _rclpy.RCLError:
+        if rclpy.ok():  # a real failure, not rclpy's race of SIGINT with building a wait set
+            raise
+    finally:
+        if on_exit is not None:
+            on_exit(node)
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

@@ -1,0 +1,59 @@
+"""The node kit: descriptors from the parameter table, time conversions, the main() policy."""
+
+import math
+
+from builtin_interfaces.msg import Time
+import pytest
+from rclpy.parameter import Parameter
+from stealth_node_kit.conversions import quaternion_yaw, seconds, time_msg, yaw_quaternion
+from stealth_node_kit.parameters import Param, descriptor, non_finite
+from stealth_node_kit.running import EXIT_CANNOT_START, run_node
+
+
+def test_integer_and_float_bounds_become_the_matching_ranges():
+    ints = descriptor(Param(3, 'count', (0, 10), read_only=True))
+    assert ints.read_only and ints.description == 'count'
+    assert (ints.integer_range[0].from_value, ints.integer_range[0].to_value) == (0, 10)
+    assert not ints.floating_point_range
+    floats = descriptor(Param(0.5, 'rate', (0.0, math.pi)))
+    assert floats.floating_point_range[0].to_value == math.pi and not floats.integer_range
+    assert not floats.read_only
+    free = descriptor(Param('x', 'free'))
+    assert not free.integer_range and not free.floating_point_range
+
+
+def test_non_finite_names_the_parameter():
+    changes = [Parameter('alpha', value=0.5), Parameter('gamma', value=math.nan)]
+    assert non_finite(changes) == 'gamma must be finite, got nan'
+    assert non_finite([Parameter('n', value=3), Parameter('e', value=0.1)]) is None
+
+
+@pytest.mark.parametrize('value', [0.0, 1.5, 1e-9, 12345.000000001, 1.999999999])
+def test_time_conversions_round_trip_to_the_nanosecond(value):
+    stamp = time_msg(value)
+    assert 0 <= stamp.nanosec < 1_000_000_000
+    assert seconds(stamp) == pytest.approx(value, abs=1e-9)
+    assert seconds(Time(sec=2, nanosec=500_000_000)) == 2.5
+
+
+@pytest.mark.parametrize('yaw', [0.0, 0.3, -2.0, math.pi - 1e-9])
+def test_yaw_quaternion_round_trip(yaw):
+    assert quaternion_yaw(yaw_quaternion(yaw)) == pytest.approx(yaw)
+
+
+def test_a_node_that_cannot_start_gives_exit_code_2_and_one_line(capfd):
+    def broken():
+        raise RuntimeError('parameter scenario: required, at /src/rcl/arguments.c:42')
+
+    assert run_node(broken, 'kit_test', args=[]) == EXIT_CANNOT_START
+    err = capfd.readouterr().err
+    assert 'not starting: parameter scenario: required' in err
+    assert 'arguments.c' not in err and 'Traceback' not in err
+
+
+def test_bad_arguments_give_exit_code_2_without_building_the_node(capfd):
+    built = []
+    args = ['prog', '--ros-args', '--params-file', '/nonexistent/params.yaml']
+    assert run_node(lambda: built.append(1), 'kit_test', args=args) == EXIT_CANNOT_START
+    assert not built
+    assert 'not starting: bad arguments' in capfd.readouterr().err
