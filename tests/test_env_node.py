@@ -28,7 +28,6 @@ from stealth_interfaces.msg import (
     SearchlightArray,
     StepInfo,
 )
-from stealth_interfaces.srv import ExecuteMove
 from visualization_msgs.msg import Marker, MarkerArray
 import yaml
 
@@ -528,16 +527,3 @@ def test_ten_thousand_steps_lose_no_action_and_no_state(agent, node_processes):
     assert len(agent.steps) == LOSSLESS_STEPS
     assert [s.step for s in agent.steps[:3]] == [1, 2, 3]
     assert math.isfinite(sum(s.reward for s in agent.steps))
-
-
-def test_every_action_is_the_simulator_move_of_its_lattice_direction():
-    """The action -> move kind mapping is by name; each kind's heading is its lattice step."""
-    from stealth_env.env_node import MOVE_KIND_OF_ACTION
-    from stealth_sim.move_executor import GRID_HEADINGS
-
-    assert len(MOVE_KIND_OF_ACTION) == len(ACTIONS)
-    for action, (name, (di, dj)) in enumerate(ACTIONS):
-        kind = MOVE_KIND_OF_ACTION[action]
-        assert kind == getattr(ExecuteMove.Request, name.upper())
-        heading = GRID_HEADINGS[kind]
-        assert (round(math.cos(heading)), round(math.sin(heading))) == (di, dj), name

@@ -88,7 +88,6 @@ from stealth_env.episode_flow import (
     is_finite_pose,
 )
 from stealth_env.markers import WallMap, any_moving, scene_markers, searchlight_fields
-from stealth_env.move_lattice import ACTIONS
 from stealth_env.reward import Outcome
 from stealth_env.scenario import ScenarioError, load_scenario
 from stealth_env.task import StealthTask
@@ -124,9 +123,6 @@ TOPICS = {
     'markers': 'searchlight_markers',
 }
 MOVE_SERVICE, RESET_SERVICE = 'sim/execute_move', 'sim/reset'
-# The action numbers (the lattice's ACTIONS, as RLAction documents them) as the simulator's
-# move kinds, matched by name rather than by the two numberings happening to agree.
-MOVE_KIND_OF_ACTION = tuple(getattr(ExecuteMove.Request, name.upper()) for name, _ in ACTIONS)
 MARKER_KINDS = {
     'triangle_list': Marker.TRIANGLE_LIST,
     'line_strip': Marker.LINE_STRIP,
@@ -671,10 +667,10 @@ class EnvironmentNode(Node):
         if not self._move_client.service_is_ready():
             self._abort(self.flow.token, f'{MOVE_SERVICE} is not available')
             return
-        request = ExecuteMove.Request(
-            kind=MOVE_KIND_OF_ACTION[self.flow.action],
-            distance=float(self.scenario.step_distance),
-        )
+        # Every action is a drive to a lattice node (StealthTask.move_target): the robot stays
+        # on the lattice the agent's states and the planners assume.
+        x, y = self.task.move_target(*self.flow.state, self.flow.action)
+        request = ExecuteMove.Request(kind=ExecuteMove.Request.GO_TO, x=x, y=y)
         self._send(self._move_client, request, self.flow.token, MOVE_SERVICE, self._on_move_answer)
 
     def _on_experiment_info(self, message: RLExperimentInfo) -> None:

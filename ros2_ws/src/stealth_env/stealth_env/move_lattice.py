@@ -208,6 +208,16 @@ class MoveLattice:
                     found.append((i, j))
         return found
 
+    def nearest_valid_node(self, x: float, y: float) -> Node | None:
+        """The valid node nearest to (x, y), however far (None on a lattice without one)."""
+        a, b = np.nonzero(self.node_mask)
+        if a.size == 0:
+            return None
+        px = self.anchor[0] + (a + self.i_min) * self.step
+        py = self.anchor[1] + (b + self.j_min) * self.step
+        k = int(np.argmin((px - x) ** 2 + (py - y) ** 2))
+        return (int(a[k]) + self.i_min, int(b[k]) + self.j_min)
+
     def bfs(
         self,
         start_node: Node,

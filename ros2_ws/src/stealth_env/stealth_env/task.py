@@ -162,6 +162,21 @@ class StealthTask:
     def _centre(self, value: float, anchor: float) -> float:
         return anchor + math.floor((float(value) - anchor) / self.cell + 0.5) * self.cell
 
+    def move_target(self, x: float, y: float, action: int) -> tuple[float, float]:
+        """Where action `action` (0 up, 1 down, 2 left, 3 right) takes a robot at (x, y): the
+        lattice node it leads to from the nearest valid node, or that node itself when the map
+        blocks the move, as in the lattice model (the robot knows the map and does not drive
+        into a wall). Aiming every move at a node keeps a real robot on the lattice: errors of
+        one move (tolerance, localisation, a bump) are corrected by the next. A pose whose nearest
+        node is not valid (beside a wall, or an estimate gone astray) moves from the nearest
+        valid node."""
+        lattice = self.lattice
+        node = lattice.point_to_node(x, y)
+        if not lattice.is_valid(node):  # beside a wall, or localisation far off: the nearest
+            node = lattice.nearest_valid_node(x, y)
+        successor = lattice.successor(node, action)
+        return lattice.node_to_point(node if successor is None else successor)
+
     def state_bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
         """(min, max) state over every point of the map: RLEnvDescription's state ranges."""
         x_min, y_min, x_max, y_max = self.scenario.map.bounds

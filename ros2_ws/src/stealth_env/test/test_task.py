@@ -92,6 +92,46 @@ def test_each_lattice_node_has_its_own_state_when_the_step_is_the_cell(task):
         assert task.state_of(x, y) == (x, y)  # each node is its cell's centre
 
 
+def test_a_move_targets_the_lattice_successor_or_stays_on_its_node(task):
+    """Every action is a drive to a lattice node: the one the lattice model moves to, found
+    from a pose up to half a step off its node, or the node itself when the map blocks it."""
+    from stealth_env.move_lattice import ACTIONS
+
+    lattice = task.lattice
+    rng = np.random.default_rng(4)
+    nodes = list(lattice.valid_nodes())
+    blocked = free = 0
+    for index in rng.choice(len(nodes), 200, replace=False):
+        node = nodes[index]
+        x, y = lattice.node_to_point(node)
+        dx, dy = rng.uniform(-0.49, 0.49, 2) * lattice.step
+        for action, (_, delta) in enumerate(ACTIONS):
+            target = task.move_target(x + dx, y + dy, action)
+            successor = lattice.successor(node, action)
+            assert target == lattice.node_to_point(node if successor is None else successor)
+            assert lattice.can_move(node, delta) == (successor is not None)
+            blocked += successor is None
+            free += successor is not None
+    assert blocked and free  # both cases were met
+
+
+def test_a_pose_near_no_valid_node_still_gets_the_nearest_one(task):
+    lattice = task.lattice
+    node = next(n for n in lattice.valid_nodes() if not lattice.is_valid((n[0] - 1, n[1])))
+    x, y = lattice.node_to_point((node[0] - 1, node[1]))  # an invalid node beside a valid one
+    target = task.move_target(x, y, 1)
+    assert lattice.is_valid(lattice.point_to_node(*target))
+    assert math.dist(target, (x, y)) <= 1.5 * lattice.step + 1e-9
+    # An estimate far off every valid node (lost localisation) still gets a target, no error.
+    x_min, y_min, _, _ = task.scenario.map.bounds
+    far = task.move_target(x_min, y_min, 0)
+    nearest = lattice.nearest_valid_node(x_min, y_min)
+    assert lattice.is_valid(lattice.point_to_node(*far))
+    assert math.dist(lattice.node_to_point(nearest), (x_min, y_min)) == min(
+        math.dist(lattice.node_to_point(n), (x_min, y_min)) for n in lattice.valid_nodes()
+    )
+
+
 def test_state_bounds_cover_every_point_of_the_map(lgfloor):
     task = StealthTask(lgfloor)
     low, high = task.state_bounds()

@@ -10,7 +10,10 @@ proportional tail). Simulated time runs as fast as the CPU allows; ``on_step`` l
 publish or pace it.
 
 The four grid moves are the original's actions: up (+y), down (-y), left (-x), right (+x) of the
-map frame, each a drive of the given step.
+map frame, each a drive of the given step from wherever the robot is. GO_TO drives to a point of
+the map instead (turn to face it, then drive): a caller that moves on a lattice of points uses
+it to go to the next lattice point, so the small errors of every move (the controller's
+tolerance, a bump, localisation noise) do not add up over an episode.
 """
 
 from collections.abc import Callable
@@ -31,6 +34,7 @@ class MoveKind(enum.IntEnum):
     RIGHT = 3
     TURN_TO_HEADING = 4
     DRIVE_DISTANCE = 5
+    GO_TO = 6
 
 
 class Outcome(enum.IntEnum):
@@ -52,11 +56,14 @@ GRID_HEADINGS = {
 
 @dataclasses.dataclass(frozen=True)
 class Move:
-    """A move request: ``distance`` (m) for the drives, ``heading`` (rad, map) for the turn."""
+    """A move request: ``distance`` (m) for the drives, ``heading`` (rad, map) for the turn,
+    ``x``, ``y`` (m, map) for GO_TO."""
 
     kind: int
     distance: float = 0.0
     heading: float = 0.0
+    x: float = 0.0
+    y: float = 0.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -83,8 +90,8 @@ class ControllerConfig:
     time_limit_margin: float = 5.0
 
 
-def move_problem(move: Move, max_distance: float) -> str | None:
-    """Why a move request cannot be executed, or None when it can."""
+def move_problem(move: Move, max_distance: float, start: Pose | None = None) -> str | None:
+    """Why a move request cannot be executed, or None when it can (GO_TO: from `start`)."""
     try:
         kind = MoveKind(move.kind)
     except ValueError:
@@ -93,6 +100,16 @@ def move_problem(move: Move, max_distance: float) -> str | None:
     if kind == MoveKind.TURN_TO_HEADING:
         if not math.isfinite(move.heading):
             return f'heading: expected a finite angle (rad), got {move.heading!r}'
+        return None
+    if kind == MoveKind.GO_TO:
+        if not (math.isfinite(move.x) and math.isfinite(move.y)):
+            return f'x, y: expected a finite point (m), got ({move.x!r}, {move.y!r})'
+        distance = math.hypot(move.x - start.x, move.y - start.y)
+        if distance > max_distance:
+            return (
+                f'x, y: ({move.x:g}, {move.y:g}) is {distance:.2f} m away, more than the map '
+                f'diagonal ({max_distance:.2f} m); no single move can be that long'
+            )
         return None
     distance = move.distance
     if not math.isfinite(distance) or distance <= 0:
@@ -112,22 +129,33 @@ def execute_move(
     controller: ControllerConfig = ControllerConfig(),
 ) -> MoveResult:
     """Run ``move`` to its end; a rejected move leaves the simulator untouched."""
-    problem = move_problem(move, sim.max_move_distance)
+    start = sim.estimate
+    problem = move_problem(move, sim.max_move_distance, start)
     if problem:
         return MoveResult(Outcome.REJECTED, problem)
     kind = MoveKind(move.kind)
-    if kind == MoveKind.DRIVE_DISTANCE:
-        heading = sim.estimate.yaw
+    target = None
+    if kind == MoveKind.GO_TO:
+        distance = math.hypot(move.x - start.x, move.y - start.y)
+        heading = math.atan2(move.y - start.y, move.x - start.x) if distance else start.yaw
+        if distance <= controller.position_tolerance:
+            distance, heading = 0.0, start.yaw  # there already: no turn, no drive
+        target = (move.x, move.y)
+    elif kind == MoveKind.DRIVE_DISTANCE:
+        heading, distance = start.yaw, move.distance
     elif kind == MoveKind.TURN_TO_HEADING:
-        heading = wrap_angle(move.heading)
+        heading, distance = wrap_angle(move.heading), 0.0
     else:
-        heading = GRID_HEADINGS[kind]
-    distance = 0.0 if kind == MoveKind.TURN_TO_HEADING else move.distance
+        heading, distance = GRID_HEADINGS[kind], move.distance
     run = _MoveRun(sim, controller, on_step, _nominal_duration(sim, heading, distance))
     outcome = run.turn_to(heading)
     if outcome is None and distance > 0:
-        start = sim.estimate
-        target = (start.x + distance * math.cos(heading), start.y + distance * math.sin(heading))
+        if target is None:
+            start = sim.estimate
+            target = (
+                start.x + distance * math.cos(heading),
+                start.y + distance * math.sin(heading),
+            )
         outcome = run.drive_to(target, heading)
     if outcome in (None, Outcome.TIMED_OUT):
         # Always end at rest; only a bump can interrupt the braking.

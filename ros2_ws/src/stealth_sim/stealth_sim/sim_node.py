@@ -427,7 +427,7 @@ class SimulatorNode(Node):
     # --- services ----------------------------------------------------------------------------
 
     def _on_execute_move(self, request, response):
-        move = Move(request.kind, request.distance, request.heading)
+        move = Move(request.kind, request.distance, request.heading, request.x, request.y)
         self._command = None  # a move takes over the robot
         self._pacer.anchor(self.sim.time)
         result = execute_move(self.sim, move, on_step=self._move_step)

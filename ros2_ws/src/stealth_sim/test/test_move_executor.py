@@ -88,6 +88,38 @@ def test_driving_into_a_wall_bumps_and_stops_at_the_wall():
     assert (sim.state.linear, sim.state.angular) == (0.0, 0.0)
 
 
+def test_go_to_reaches_the_point_from_wherever_the_robot_is():
+    """GO_TO aims at a fixed point: an offset start (here 0.2 m beside and behind the line a
+    grid move would take) is corrected, not carried along as a grid move carries it."""
+    sim = make_sim()
+    execute_move(sim, Move(MoveKind.GO_TO, x=3.2, y=1.8))
+    target = (3.2, 2.3)
+    result = execute_move(sim, Move(MoveKind.GO_TO, x=target[0], y=target[1]))
+    assert result.outcome == Outcome.DONE
+    estimate, truth = sim.estimate, sim.ground_truth
+    position_tolerance = ControllerConfig().position_tolerance
+    assert math.dist((estimate.x, estimate.y), target) <= position_tolerance + 0.01
+    assert math.dist((truth.x, truth.y), target) < 0.1  # the estimate's error on top
+    assert angle_error(truth.yaw, math.pi / 2) < 0.15  # it drove roughly along +y
+    assert (sim.state.linear, sim.state.angular) == (0.0, 0.0)
+
+
+def test_go_to_where_the_robot_already_is_does_nothing():
+    sim = make_sim()
+    estimate = sim.estimate
+    result = execute_move(sim, Move(MoveKind.GO_TO, x=estimate.x + 0.005, y=estimate.y))
+    assert result.outcome == Outcome.DONE
+    assert sim.ground_truth == START and result.duration == pytest.approx(sim.time)
+    assert result.steps <= 1
+
+
+def test_go_to_a_point_behind_a_wall_bumps_at_the_wall():
+    sim = make_sim()
+    result = execute_move(sim, Move(MoveKind.GO_TO, x=-2.0, y=2.0))  # beyond the west wall
+    assert result.outcome == Outcome.BUMPED
+    assert sim.ground_truth.x == pytest.approx(0.05 + sim.config.robot_radius, abs=0.01)
+
+
 def test_a_move_that_runs_out_of_time_reports_it_and_still_ends_at_rest():
     sim = make_sim()
     controller = ControllerConfig(time_limit_factor=0.0, time_limit_margin=0.5)
@@ -105,6 +137,9 @@ def test_a_move_that_runs_out_of_time_reports_it_and_still_ends_at_rest():
         (Move(MoveKind.RIGHT, 0.0), 'distance'),
         (Move(MoveKind.LEFT, 1e6), 'diagonal'),
         (Move(MoveKind.TURN_TO_HEADING, heading=math.nan), 'heading'),
+        (Move(MoveKind.GO_TO, x=math.nan, y=2.0), 'finite point'),
+        (Move(MoveKind.GO_TO, x=3.0, y=math.inf), 'finite point'),
+        (Move(MoveKind.GO_TO, x=3.0, y=1e6), 'diagonal'),
         (Move(17, 0.5), 'kind'),
     ],
 )
