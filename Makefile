@@ -40,12 +40,16 @@ setup: $(BUILD_STAMP) ## Create .venv from pinned wheels and colcon-build ros2_w
 
 venv: $(VENV_STAMP) ## Create or update .venv only
 
+# uv installs the pinned set (the same files as pip, about 5x faster from nothing); pip only
+# bootstraps uv itself, at the version the lock file pins.
 $(VENV_STAMP):
 	@scripts/check_prereqs.sh $(PY311)
 	@echo "setup: installing pinned Python and ROS 2 Jazzy wheels into .venv"
 	@[ -x $(PYTHON) ] || $(PY311) -m venv $(VENV)
-	@$(PYTHON) -m pip install --quiet --disable-pip-version-check \
-		-r requirements.in -c requirements.lock 2> >(grep -v "is ignored: it is neither" >&2)
+	@$(PYTHON) -m pip install --quiet --disable-pip-version-check "$$(grep '^uv==' requirements.lock)" \
+		2> >(grep -v "is ignored: it is neither" >&2)
+	@VIRTUAL_ENV=$(VENV) $(VENV)/bin/uv pip install --quiet --python $(PYTHON) \
+		-r requirements.in -c requirements.lock
 	@$(PYTHON) scripts/fix_ros_wheels.py
 	@mkdir -p $(STAMPS) && rm -f $(STAMPS)/venv-* && echo "$@" > $@
 
