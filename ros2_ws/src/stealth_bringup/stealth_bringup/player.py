@@ -17,8 +17,8 @@ from rclpy.duration import Duration
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from stealth_bringup.bag_format import BagError
-from stealth_bringup.bag_reading import open_indexed_reader, resolve_bag_file
+from stealth_bringup.bag_format import BagError, resolve_bag_file
+from stealth_bringup.bag_reading import open_indexed_reader
 from stealth_bringup.interfaces import InterfaceError, message_class
 from stealth_bringup.qos_text import parse_offered_qos_yaml, playback_profile
 from stealth_bringup.ros_session import absolute_topic, qos_profile
