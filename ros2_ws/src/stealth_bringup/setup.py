@@ -24,12 +24,10 @@ setup(
     zip_safe=True,
     maintainer='stealth-nav developers',
     maintainer_email='dev@stealth-nav.org',
-    description='MCAP recorder, replay, recovery and a ros2cli-shaped CLI.',
+    description='Orchestrated runs (stealth train, stealth eval) and the node parameter files.',
     license='Apache-2.0',
     entry_points={
-        'console_scripts': [
-            'recorder = stealth_bringup.recorder:main',
-            'stealth = stealth_bringup.cli:main',
-        ],
+        # `stealth train|eval|render`: stealth_tools' `stealth` reads this group.
+        'stealth.commands': ['stealth_bringup = stealth_bringup.commands:COMMANDS'],
     },
 )

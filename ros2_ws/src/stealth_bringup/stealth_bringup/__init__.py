@@ -1,6 +1,7 @@
-"""stealth-nav bringup: MCAP recording in rosbag2's format, replay, and a ros2cli-shaped CLI.
+"""stealth-nav bringup: a whole run (recorder, simulator, environment, agent) without launch.
 
-The modules without rclpy (interfaces, qos_text, bag_format, bag_reading, bag_recover,
-message_yaml, timing, executables) are the functional core; recorder, player and graph_tools
-are the thin ROS shell around it, and cli ties everything to `stealth <verb>`.
+`stealth train` and `stealth eval` (orchestrate), which it adds to stealth_tools' `stealth`
+command, and the experiment harness; the node parameter files live in config/. The modules
+without rclpy (run_plan, run_config, experiment, run_outputs, supervisor, ros_domain) are the
+functional core.
 """

@@ -240,7 +240,7 @@ def _check_goal(scenario, goal: str | None, default: str | None = None) -> str:
 
 def _executables(no_record: bool, replacements: list[str]) -> dict[str, list[str]]:
     """{node: command prefix}; RunConfigError for an executable that is not there."""
-    from stealth_bringup.executables import ExecutableNotFoundError, find_executable
+    from stealth_tools.executables import ExecutableNotFoundError, find_executable
 
     given = {}
     for item in replacements:

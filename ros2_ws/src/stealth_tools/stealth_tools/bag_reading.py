@@ -16,7 +16,7 @@ from mcap.exceptions import McapError
 from mcap.reader import SeekingReader, make_reader
 import yaml
 
-from stealth_bringup.bag_format import (
+from stealth_tools.bag_format import (
     ROSBAG2_METADATA_NAME,
     STORAGE_ID,
     BagError,
@@ -129,7 +129,7 @@ def _scanned_bag_info(mcap_path: Path, size: int) -> BagInfo:
     """Info of a truncated MCAP, counted record by record up to where it breaks off."""
     from mcap.records import Channel, Message, Metadata, Schema
 
-    from stealth_bringup.bag_recover import salvage_records
+    from stealth_tools.bag_recover import salvage_records
 
     channels, schemas, counts, metadata = {}, {}, {}, []
     start, end, total = None, 0, 0

@@ -24,14 +24,14 @@ import time
 from mcap.writer import CompressionType, IndexType, Writer
 import yaml
 
-from stealth_bringup.qos_text import QosDescription, offered_qos_yaml, qos_node
+from stealth_tools.qos_text import QosDescription, offered_qos_yaml, qos_node
 
 PROFILE = 'ros2'
 MESSAGE_ENCODING = 'cdr'
 ROSBAG2_METADATA_NAME = 'rosbag2'
 METADATA_VERSION = 9  # rosbag2_storage::BagMetadata version in Jazzy
 STORAGE_ID = 'mcap'
-LIBRARY = 'stealth_bringup recorder (mcap-python)'
+LIBRARY = 'stealth_tools recorder (mcap-python)'
 DEFAULT_CHUNK_SIZE = 256 * 1024
 DEFAULT_MAX_CHUNK_DURATION = 0.5  # s
 COMPRESSIONS = {

@@ -24,7 +24,7 @@ from mcap.records import Attachment, Channel, Header, Message, Metadata, Schema
 from mcap.writer import Writer
 import zstandard
 
-from stealth_bringup.bag_format import (
+from stealth_tools.bag_format import (
     COMPRESSIONS,
     DEFAULT_CHUNK_SIZE,
     MCAP_MAGIC,
@@ -211,7 +211,7 @@ class _Rewriter:
 
     def start(self, profile: str) -> None:
         if not self.started:
-            self.writer.start(profile=profile, library='stealth_bringup bag recover')
+            self.writer.start(profile=profile, library='stealth_tools bag recover')
             self.started = True
 
     def add(self, record) -> None:
