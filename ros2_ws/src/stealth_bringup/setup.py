@@ -24,9 +24,12 @@ setup(
     zip_safe=True,
     maintainer='stealth-nav developers',
     maintainer_email='dev@stealth-nav.org',
-    description='Orchestrated runs (stealth train, stealth eval) and the node parameter files.',
+    description='Orchestrated runs (stealth train/eval), the experiment harness, node parameters.',
     license='Apache-2.0',
     entry_points={
+        'console_scripts': [
+            'experiments = stealth_bringup.experiments:main',
+        ],
         # `stealth train|eval|render`: stealth_tools' `stealth` reads this group.
         'stealth.commands': ['stealth_bringup = stealth_bringup.commands:COMMANDS'],
     },

@@ -1,7 +1,9 @@
-"""stealth-nav bringup: a whole run (recorder, simulator, environment, agent) without launch.
+"""stealth-nav bringup: a whole run (recorder, simulator, environment, agent) without launch,
+and the experiment harness.
 
 `stealth train` and `stealth eval` (orchestrate), which it adds to stealth_tools' `stealth`
-command, and the experiment harness; the node parameter files live in config/. The modules
-without rclpy (run_plan, run_config, experiment, run_outputs, supervisor, ros_domain) are the
-functional core.
+command (commands), and `experiments`, the learners trained in-process against the planning
+baselines (harness, harness_report). The modules without rclpy (run_plan, run_config,
+episode_tracker, run_outputs, supervisor, ros_domain, harness, harness_report) are the
+functional core; the node parameter files live in config/.
 """

@@ -33,7 +33,7 @@ import signal
 import sys
 import time
 
-from stealth_bringup.experiment import (
+from stealth_bringup.episode_tracker import (
     EpisodeRecord,
     Tracker,
     agent_fields,

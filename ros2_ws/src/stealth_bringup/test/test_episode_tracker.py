@@ -2,7 +2,7 @@
 
 import math
 
-from stealth_bringup.experiment import OUTCOMES, Tracker
+from stealth_bringup.episode_tracker import OUTCOMES, Tracker
 
 
 def summary(episode, outcome='SUCCESS', steps=10, reward=1.0):

@@ -16,12 +16,18 @@ from collections.abc import Iterable
 import dataclasses
 import math
 
-OUTCOMES = ('SUCCESS', 'DETECTED', 'TIMEOUT', 'ABORTED')  # EpisodeSummary's constants 0-3
+from stealth_env.reward import Outcome
+
+# The names of the core's outcome enum, whose values are EpisodeSummary's constants.
+OUTCOMES = tuple(outcome.name for outcome in Outcome)
 PROGRESS_WINDOW = 20  # episodes over which the progress bar's rates and means are taken
 
 
 def outcome_name(value: int) -> str:
-    return OUTCOMES[value] if 0 <= value < len(OUTCOMES) else f'OUTCOME_{value}'
+    try:
+        return Outcome(value).name
+    except ValueError:
+        return f'OUTCOME_{value}'
 
 
 @dataclasses.dataclass(frozen=True)
@@ -29,7 +35,7 @@ class EpisodeRecord:
     """One finished episode: the environment's summary and the agent's report, joined."""
 
     episode: int
-    outcome: str  # SUCCESS, DETECTED, TIMEOUT or ABORTED
+    outcome: str  # an Outcome's name: SUCCESS, DETECTED, TIMEOUT or ABORTED
     steps: int
     total_reward: float
     peak_visibility: float
@@ -46,7 +52,7 @@ class EpisodeRecord:
 
     @property
     def success(self) -> bool:
-        return self.outcome == 'SUCCESS'
+        return self.outcome == Outcome.SUCCESS.name
 
     def as_row(self) -> dict:
         return dataclasses.asdict(self)
@@ -112,7 +118,7 @@ class Tracker:
         if episode in self._done:
             return []
         self._summaries[episode] = fields
-        if fields['outcome'] == 'ABORTED' and episode not in self._agent:
+        if fields['outcome'] == Outcome.ABORTED.name and episode not in self._agent:
             return self._complete(episode, UNREPORTED, wall_time)
         return self._try(episode, wall_time)
 
