@@ -57,6 +57,19 @@ class EpisodeRecord:
     def as_row(self) -> dict:
         return dataclasses.asdict(self)
 
+    def brief(self) -> dict:
+        """What summary.json tells of an episode."""
+        return {
+            'episode': self.episode,
+            'outcome': self.outcome,
+            'return': self.total_reward,
+            'steps': self.steps,
+            'path_length': self.path_length,
+            'peak_visibility': self.peak_visibility,
+            'accumulated_visibility': self.accumulated_visibility,
+            'final_distance_to_goal': self.final_distance_to_goal,
+        }
+
 
 CSV_FIELDS = tuple(f.name for f in dataclasses.fields(EpisodeRecord))
 
@@ -195,6 +208,25 @@ class Tracker:
         if self.budget is not None and self.episodes >= self.budget:
             return 'budget'
         return None
+
+    def end_message(self, reason: str, evaluating: bool = False) -> str:
+        """Why the run ended, for a stop_reason() answer; an evaluation runs its whole budget."""
+        if reason == 'streak':
+            episodes = [r.episode for r in self.records if r.greedy][-self.streak_goal :]
+            return (
+                f'the greedy policy reached the goal undetected in {self.streak_goal} evaluations '
+                f'in a row (episodes {", ".join(map(str, episodes))})'
+            )
+        if evaluating:
+            reached = self.outcome_counts()[Outcome.SUCCESS.name]
+            return f'{self.budget} greedy episodes: {reached} reached the goal'
+        message = f'episode budget of {self.budget} spent'
+        if self.streak_goal:
+            message += (
+                f' before {self.streak_goal} greedy successes in a row (best streak at the end: '
+                f'{self.streak})'
+            )
+        return message
 
     def postfix(self) -> str:
         """The progress bar's figures."""
