@@ -100,30 +100,17 @@ def plot_learning_curve(
     )
     training = [r for r in records if not r.greedy]
     greedy = [r for r in records if r.greedy]
+    # Training episodes as dots, greedy evaluations as outlined diamonds over them.
+    styles = (
+        (training, {'s': 14, 'alpha': 0.7, 'linewidths': 0, 'zorder': 2}),
+        (greedy, {'s': 60, 'marker': 'D', 'edgecolors': 'black', 'linewidths': 0.9, 'zorder': 4}),
+    )
     for outcome in OUTCOMES:
-        chosen = [r for r in training if r.outcome == outcome]
-        if chosen:
-            top.scatter(
-                [r.episode for r in chosen],
-                [r.total_reward for r in chosen],
-                s=14,
-                color=OUTCOME_COLOURS[outcome],
-                alpha=0.7,
-                linewidths=0,
-                zorder=2,
-            )
-        chosen = [r for r in greedy if r.outcome == outcome]
-        if chosen:
-            top.scatter(
-                [r.episode for r in chosen],
-                [r.total_reward for r in chosen],
-                s=60,
-                marker='D',
-                color=OUTCOME_COLOURS[outcome],
-                edgecolors='black',
-                linewidths=0.9,
-                zorder=4,
-            )
+        for kind, style in styles:
+            chosen = [r for r in kind if r.outcome == outcome]
+            if chosen:
+                episodes, returns = [r.episode for r in chosen], [r.total_reward for r in chosen]
+                top.scatter(episodes, returns, color=OUTCOME_COLOURS[outcome], **style)
     if training:
         top.plot(
             [r.episode for r in training],
