@@ -104,7 +104,7 @@ run: setup ## The main job: train the agent on the default scenario (runs/<name>
 	@$(ROS_ENV) && stealth train $(RUN_ARGS)
 
 eval: setup ## Learners vs A*, Dark Path and value iteration on every scenario (runs/eval/)
-	@$(ROS_ENV) && python -m stealth_env.experiments --out runs/eval
+	@$(ROS_ENV) && python -m stealth_bringup.experiments --out runs/eval
 
 bench: setup ## Benchmarks, each a ratio measured in the same run; writes bench/results.json
 	@$(ROS_ENV) && python bench/run_all.py

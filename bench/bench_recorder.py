@@ -33,7 +33,7 @@ from ros_support import (  # noqa: E402
 
 COUNT = 20000
 KILL_TRIALS = 3
-BIN = REPO_ROOT / 'ros2_ws' / 'install' / 'stealth_bringup' / 'lib' / 'stealth_bringup'
+BIN = REPO_ROOT / 'ros2_ws' / 'install' / 'stealth_tools' / 'lib' / 'stealth_tools'
 
 # argv: count (0: endless at 100 Hz)
 PUBLISHER = """

@@ -27,7 +27,8 @@ import traceback
 
 BENCH_DIR = Path(__file__).resolve().parent
 REPOSITORY = BENCH_DIR.parent
-PACKAGES = ('stealth_sim', 'stealth_env', 'stealth_agent')  # pure-Python cores the benches use
+# The pure-Python cores the benches use (stealth_bringup: the experiment harness).
+PACKAGES = ('stealth_sim', 'stealth_env', 'stealth_agent', 'stealth_bringup')
 DEFAULT_OUT = BENCH_DIR / 'results.json'
 RATIO_WORDS = ('ratio', 'speedup', 'per_optimum', 'relative')
 

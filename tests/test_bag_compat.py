@@ -33,8 +33,8 @@ from ros_support import REPO_ROOT
 from rosbags.interfaces import MessageDefinitionFormat, QosDurability, QosReliability
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-from stealth_bringup.bag_recover import recover
-from stealth_bringup.interfaces import definition_text
+from stealth_tools.bag_recover import recover
+from stealth_tools.interfaces import definition_text
 from test_recorder import COUNT, RATE, RECORDER, TRAFFIC, wait_for_output
 import yaml
 

@@ -11,7 +11,7 @@ from mcap.reader import make_reader
 import pytest
 from ros_support import REPO_ROOT
 
-BIN = REPO_ROOT / 'ros2_ws' / 'install' / 'stealth_bringup' / 'lib' / 'stealth_bringup'
+BIN = REPO_ROOT / 'ros2_ws' / 'install' / 'stealth_tools' / 'lib' / 'stealth_tools'
 STEALTH = str(BIN / 'stealth')
 
 # A chatter at 20 Hz (reliable) and a latched description (transient local).
@@ -129,7 +129,7 @@ def test_bag_record_writes_a_rosbag2_directory_that_bag_info_reads(node_processe
 def test_run_passes_sigterm_on_and_leaves_nothing_running(node_processes, tmp_path):
     output = tmp_path / 'quiet.mcap'
     run = node_processes.start(
-        [STEALTH, 'run', 'stealth_bringup', 'recorder', '--ros-args', '-p', f'output:={output}'],
+        [STEALTH, 'run', 'stealth_tools', 'recorder', '--ros-args', '-p', f'output:={output}'],
         'run',
     )
     wait_for_output(run, 'Recording to')
@@ -153,22 +153,22 @@ def _read(path: pathlib.Path) -> str:
 
 def test_run_errors_are_one_line(node_processes, tmp_path):
     line = one_error_line(stealth(node_processes, 'run', 'no_such_pkg', 'node'), 'stealth run: ')
-    assert "package 'no_such_pkg' not found" in line and 'stealth_bringup' in line
+    assert "package 'no_such_pkg' not found" in line and 'stealth_tools' in line
     line = one_error_line(
-        stealth(node_processes, 'run', 'stealth_bringup', 'no_such_node'), 'stealth run: '
+        stealth(node_processes, 'run', 'stealth_tools', 'no_such_node'), 'stealth run: '
     )
     assert line.endswith("has no executable 'no_such_node' (it has: recorder, stealth)")
     # A node that fails on start: its reason, then which executable and how it ended.
     crash = stealth(
         node_processes,
         'run',
-        'stealth_bringup',
+        'stealth_tools',
         'recorder',
         '--ros-args',
         '-p',
         f'output:={tmp_path}/missing_dir/x.mcap',
     )
-    line = one_error_line(crash, 'stealth run: stealth_bringup recorder exited with code 1 after')
+    line = one_error_line(crash, 'stealth run: stealth_tools recorder exited with code 1 after')
     assert line.endswith('No such file or directory')
 
 

@@ -19,13 +19,13 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from ros_support import REPO_ROOT, remove_orphaned_shm, shm_segments
-from stealth_bringup.bag_format import BagError, BagWriter
-from stealth_bringup.bag_reading import open_indexed_reader
-from stealth_bringup.interfaces import definition_text
-from stealth_bringup.qos_text import QosDescription, parse_offered_qos_yaml
+from stealth_tools.bag_format import BagError, BagWriter
+from stealth_tools.bag_reading import open_indexed_reader
+from stealth_tools.interfaces import definition_text
+from stealth_tools.qos_text import QosDescription, parse_offered_qos_yaml
 import yaml
 
-BIN = REPO_ROOT / 'ros2_ws' / 'install' / 'stealth_bringup' / 'lib' / 'stealth_bringup'
+BIN = REPO_ROOT / 'ros2_ws' / 'install' / 'stealth_tools' / 'lib' / 'stealth_tools'
 RECORDER = str(BIN / 'recorder')
 STEALTH = str(BIN / 'stealth')
 COUNT = 40

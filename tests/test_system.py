@@ -20,7 +20,7 @@ import pytest
 from ros_support import REPO_ROOT, leaked_shm_segments, ros_environment, shm_segments
 import yaml
 
-BIN = REPO_ROOT / 'ros2_ws' / 'install' / 'stealth_bringup' / 'lib' / 'stealth_bringup'
+BIN = REPO_ROOT / 'ros2_ws' / 'install' / 'stealth_tools' / 'lib' / 'stealth_tools'
 STEALTH = str(BIN / 'stealth')
 NODES = ('recorder', 'simulator', 'environment', 'agent')
 # Every topic of a run, and the type recorded for it (/parameter_events carries nothing here).

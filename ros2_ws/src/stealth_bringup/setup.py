@@ -24,12 +24,13 @@ setup(
     zip_safe=True,
     maintainer='stealth-nav developers',
     maintainer_email='dev@stealth-nav.org',
-    description='MCAP recorder, replay, recovery and a ros2cli-shaped CLI.',
+    description='Orchestrated runs (stealth train/eval), the experiment harness, node parameters.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'recorder = stealth_bringup.recorder:main',
-            'stealth = stealth_bringup.cli:main',
+            'experiments = stealth_bringup.experiments:main',
         ],
+        # `stealth train|eval|render`: stealth_tools' `stealth` reads this group.
+        'stealth.commands': ['stealth_bringup = stealth_bringup.commands:COMMANDS'],
     },
 )

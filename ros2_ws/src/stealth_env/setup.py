@@ -21,7 +21,6 @@ setup(
         'console_scripts': [
             'render = stealth_env.render:main',
             'env_node = stealth_env.env_node:main',
-            'experiments = stealth_env.experiments:main',
         ],
     },
 )

@@ -1,6 +1,9 @@
-"""stealth-nav bringup: MCAP recording in rosbag2's format, replay, and a ros2cli-shaped CLI.
+"""stealth-nav bringup: a whole run (recorder, simulator, environment, agent) without launch,
+and the experiment harness.
 
-The modules without rclpy (interfaces, qos_text, bag_format, bag_reading, bag_recover,
-message_yaml, timing, executables) are the functional core; recorder, player and graph_tools
-are the thin ROS shell around it, and cli ties everything to `stealth <verb>`.
+`stealth train` and `stealth eval` (orchestrate), which it adds to stealth_tools' `stealth`
+command (commands), and `experiments`, the learners trained in-process against the planning
+baselines (harness, harness_report). The modules without rclpy (run_plan, run_config,
+episode_tracker, run_outputs, supervisor, ros_domain, harness, harness_report) are the
+functional core; the node parameter files live in config/.
 """

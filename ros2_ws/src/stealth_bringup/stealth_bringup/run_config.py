@@ -45,9 +45,7 @@ class NodeSpec:
 
 
 NODES = {
-    'recorder': NodeSpec(
-        'recorder', 'stealth_bringup', 'recorder', 'MCAP recorder of every topic'
-    ),
+    'recorder': NodeSpec('recorder', 'stealth_tools', 'recorder', 'MCAP recorder of every topic'),
     'simulator': NodeSpec(
         'simulator', 'stealth_sim', 'sim_node', 'robot, odometry, laser, localisation'
     ),

@@ -1,15 +1,19 @@
-"""What a run leaves in runs/<name>/ besides the recording, policy, parameters and logs:
-episodes.csv, summary.json, learning_curve.png and path.png. No rclpy.
+"""The one report writer of `stealth train`/`stealth eval` runs (runs/<name>/) and of the
+experiment harness (runs/eval/): what they leave besides recordings, policies, parameters and
+logs. No rclpy.
 
+    episodes.csv        write_csv: one row per episode (the harness: results.csv, one per run)
+    summary.json        write_json: strict JSON, NaN as null
     learning_curve.png  return of every episode (colour: outcome; diamonds: greedy evaluations),
                         the moving average of the training returns, steps per episode and epsilon
-    path.png            the scenario (walls, visibility, cones) with the robot's true path in the
-                        last greedy episode and the value-iteration optimum on the move lattice
+    path.png            plot_paths: the scenario (walls, visibility, cones) with labelled paths:
+                        the robot's true path in the last greedy episode and the value-iteration
+                        optimum on the move lattice (the harness: every method's path)
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 import csv
 import json
 import math
@@ -19,25 +23,25 @@ from pathlib import Path
 from matplotlib.figure import Figure  # no pyplot: no global state, no display (Agg)
 from matplotlib.lines import Line2D
 import numpy as np
+from stealth_env.reward import Outcome
 
-from stealth_bringup.experiment import CSV_FIELDS, OUTCOMES, EpisodeRecord
+from stealth_bringup.episode_tracker import CSV_FIELDS, OUTCOMES, EpisodeRecord
 
 OUTCOME_COLOURS = {
-    'SUCCESS': '#1a9641',
-    'DETECTED': '#d7191c',
-    'TIMEOUT': '#fdae61',
-    'ABORTED': '#7f7f7f',
+    Outcome.SUCCESS.name: '#1a9641',
+    Outcome.DETECTED.name: '#d7191c',
+    Outcome.TIMEOUT.name: '#fdae61',
+    Outcome.ABORTED.name: '#7f7f7f',
 }
 AVERAGE_WINDOW = 20
 
 
-def write_episodes_csv(records: Sequence[EpisodeRecord], path: Path) -> Path:
-    """One row per episode, the columns of EpisodeRecord."""
+def write_csv(rows: Iterable[dict], fields: Sequence[str], path: Path) -> Path:
+    """A CSV with a header of `fields`; floats to 6 significant digits, NaN and None empty."""
     with open(path, 'w', newline='', encoding='utf-8') as stream:
-        writer = csv.DictWriter(stream, fieldnames=CSV_FIELDS)
+        writer = csv.DictWriter(stream, fieldnames=fields)
         writer.writeheader()
-        for record in records:
-            row = record.as_row()
+        for row in rows:
             writer.writerow({k: _csv_value(v) for k, v in row.items()})
     return path
 
@@ -45,7 +49,12 @@ def write_episodes_csv(records: Sequence[EpisodeRecord], path: Path) -> Path:
 def _csv_value(value):
     if isinstance(value, float):
         return '' if math.isnan(value) else f'{value:.6g}'
-    return value
+    return '' if value is None else value
+
+
+def write_episodes_csv(records: Sequence[EpisodeRecord], path: Path) -> Path:
+    """One row per episode, the columns of EpisodeRecord."""
+    return write_csv((record.as_row() for record in records), CSV_FIELDS, path)
 
 
 def write_json(data: dict, path: Path) -> Path:
@@ -91,30 +100,17 @@ def plot_learning_curve(
     )
     training = [r for r in records if not r.greedy]
     greedy = [r for r in records if r.greedy]
+    # Training episodes as dots, greedy evaluations as outlined diamonds over them.
+    styles = (
+        (training, {'s': 14, 'alpha': 0.7, 'linewidths': 0, 'zorder': 2}),
+        (greedy, {'s': 60, 'marker': 'D', 'edgecolors': 'black', 'linewidths': 0.9, 'zorder': 4}),
+    )
     for outcome in OUTCOMES:
-        chosen = [r for r in training if r.outcome == outcome]
-        if chosen:
-            top.scatter(
-                [r.episode for r in chosen],
-                [r.total_reward for r in chosen],
-                s=14,
-                color=OUTCOME_COLOURS[outcome],
-                alpha=0.7,
-                linewidths=0,
-                zorder=2,
-            )
-        chosen = [r for r in greedy if r.outcome == outcome]
-        if chosen:
-            top.scatter(
-                [r.episode for r in chosen],
-                [r.total_reward for r in chosen],
-                s=60,
-                marker='D',
-                color=OUTCOME_COLOURS[outcome],
-                edgecolors='black',
-                linewidths=0.9,
-                zorder=4,
-            )
+        for kind, style in styles:
+            chosen = [r for r in kind if r.outcome == outcome]
+            if chosen:
+                episodes, returns = [r.episode for r in chosen], [r.total_reward for r in chosen]
+                top.scatter(episodes, returns, color=OUTCOME_COLOURS[outcome], **style)
     if training:
         top.plot(
             [r.episode for r in training],
@@ -207,6 +203,34 @@ def optimal_path(scenario, goal: str):
     return result.points, result
 
 
+def plot_paths(
+    scenario,
+    goal: str,
+    path: Path,
+    labelled: Sequence[tuple[Sequence[Sequence[float]], str]],
+    title: str,
+    spread: float = 0.0,
+    cache_dir: str | os.PathLike | None = None,
+) -> Path:
+    """The scenario with (points, label) paths, later ones drawn over earlier ones. Paths often
+    share stretches: `spread` (m) shifts neighbouring ones apart so that all of them show."""
+    from stealth_env.render import render_scenario
+
+    middle = (len(labelled) - 1) / 2
+    paths = [
+        np.asarray(p, dtype=float) + (k - middle) * spread for k, (p, _) in enumerate(labelled)
+    ]
+    return render_scenario(
+        scenario,
+        path,
+        paths=paths,
+        goal=goal,
+        path_labels=[label for _, label in labelled],
+        title=title,
+        cache_dir=cache_dir,
+    )
+
+
 def plot_path(
     scenario,
     goal: str,
@@ -218,25 +242,13 @@ def plot_path(
     title: str,
     cache_dir: str | os.PathLike | None = None,
 ) -> Path | None:
-    """The scenario with the learned true path and the value-iteration optimum."""
-    from stealth_env.render import render_scenario
-
-    paths, labels = [], []
-    # The optimum first, so the learned path is drawn over it where they coincide.
-    if optimum is not None and len(optimum) >= 2:
-        paths.append(np.asarray(optimum, dtype=float))
-        labels.append(optimum_label)
-    if learned is not None and len(learned) >= 2:
-        paths.append(np.asarray(learned, dtype=float))
-        labels.append(learned_label)
-    if not paths:
+    """A run's picture: the learned true path over the value-iteration optimum (drawn first, so
+    the learned path shows where they coincide); None when neither has two points."""
+    labelled = [
+        (points, label)
+        for points, label in ((optimum, optimum_label), (learned, learned_label))
+        if points is not None and len(points) >= 2
+    ]
+    if not labelled:
         return None
-    return render_scenario(
-        scenario,
-        path,
-        paths=paths,
-        goal=goal,
-        path_labels=labels,
-        title=title,
-        cache_dir=cache_dir,
-    )
+    return plot_paths(scenario, goal, path, labelled, title, cache_dir=cache_dir)

@@ -25,9 +25,11 @@ from stealth_bringup.run_config import (
     effective_parameters,
     params_sources,
     parse_set,
+    relative_to_cwd,
     run_directory,
     scenario_parameters,
     utc_stamp,
+    write_params_file,
 )
 
 DEFAULT_SCENARIO = 'simple-maze'
@@ -240,7 +242,7 @@ def _check_goal(scenario, goal: str | None, default: str | None = None) -> str:
 
 def _executables(no_record: bool, replacements: list[str]) -> dict[str, list[str]]:
     """{node: command prefix}; RunConfigError for an executable that is not there."""
-    from stealth_bringup.executables import ExecutableNotFoundError, find_executable
+    from stealth_tools.executables import ExecutableNotFoundError, find_executable
 
     given = {}
     for item in replacements:
@@ -295,8 +297,34 @@ class RunPlan:
     def title(self) -> str:
         return f'{self.scenario.name} ({self.goal})'
 
+    def describe(self) -> str:
+        """One line: what is run on what, and until when."""
+        if self.mode != 'train':
+            return f'{self.title}, policy {self.policy_path}, {self.episodes} greedy episodes'
+        ending = f'up to {self.episodes} episodes'
+        if self.eval_every:
+            ending += f', a greedy evaluation every {self.eval_every}'
+        if self.streak:
+            ending += f', stopping after {self.streak} greedy successes in a row'
+        learner = self.parameters['agent'].values.get('agent', 'qlearning')
+        return f'{self.title}, learner {learner}; {ending}'
+
     def file(self, name: str) -> Path:
         return self.directory / name
+
+    def params_file(self, node: str) -> Path:
+        return self.directory / 'params' / f'{node}.yaml'
+
+    def write_params_files(self) -> None:
+        """Every node's effective parameters, with where they came from, for it to run with."""
+        for node, parameters in self.parameters.items():
+            header = (
+                f'Parameters node {node!r} ran with in {relative_to_cwd(self.directory)}: '
+                f'{parameters.source} + scenario/run values'
+                + (f' + --set {", ".join(parameters.overrides)}' if parameters.overrides else '')
+                + f'.\nCommand: {self.command_line}'
+            )
+            write_params_file(parameters, self.params_file(node), header)
 
 
 def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from stealth_bringup.experiment import CSV_FIELDS, EpisodeRecord
+from stealth_bringup.episode_tracker import CSV_FIELDS, EpisodeRecord
 from stealth_bringup.run_outputs import (
     moving_average,
     optimal_path,

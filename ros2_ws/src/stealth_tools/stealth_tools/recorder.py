@@ -26,15 +26,15 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from stealth_bringup.bag_format import (
+from stealth_tools.bag_format import (
     DEFAULT_CHUNK_SIZE,
     DEFAULT_MAX_CHUNK_DURATION,
     BagError,
     BagWriter,
 )
-from stealth_bringup.interfaces import InterfaceError, definition_text, message_class
-from stealth_bringup.qos_text import subscription_policies
-from stealth_bringup.ros_session import (
+from stealth_tools.interfaces import InterfaceError, definition_text, message_class
+from stealth_tools.qos_text import subscription_policies
+from stealth_tools.ros_session import (
     absolute_topic,
     describe_qos,
     ros_session,

@@ -1,4 +1,4 @@
-"""Reading recordings: which file a bag path means, its summary, and `ros2 bag info`'s text.
+"""Reading recordings: a bag's summary and `ros2 bag info`'s text.
 
 A bag path is a .mcap file or a rosbag2 directory holding one. The summary comes from the MCAP
 summary section; a recording that was never closed (SIGKILL, power loss) has none, and its
@@ -16,9 +16,13 @@ from mcap.exceptions import McapError
 from mcap.reader import SeekingReader, make_reader
 import yaml
 
-from stealth_bringup.bag_format import ROSBAG2_METADATA_NAME, STORAGE_ID, BagError
+from stealth_tools.bag_format import (
+    ROSBAG2_METADATA_NAME,
+    STORAGE_ID,
+    BagError,
+    resolve_bag_file,
+)
 
-MCAP_MAGIC = b'\x89MCAP0\r\n'
 INFO_INDENT = 19  # rosbag2: the longest field name ('Topic information: ') plus one
 
 
@@ -47,25 +51,6 @@ class BagInfo:
     @property
     def duration_ns(self) -> int:
         return self.end_ns - self.start_ns
-
-
-def resolve_bag_file(path: str | os.PathLike) -> Path:
-    """The .mcap a bag path names: the file itself, or the one .mcap in a bag directory."""
-    path = Path(path)
-    if path.is_dir():
-        files = sorted(path.glob('*.mcap'))
-        if not files:
-            raise BagError(f'{path} is a directory without an .mcap file')
-        if len(files) > 1:
-            names = ', '.join(f.name for f in files)
-            raise BagError(f'{path} holds several .mcap files ({names}); name one of them')
-        return files[0]
-    if not path.exists():
-        raise BagError(f'{path}: no such file or directory')
-    with open(path, 'rb') as stream:
-        if stream.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
-            raise BagError(f'{path} is not an MCAP file (bad magic bytes)')
-    return path
 
 
 def open_indexed_reader(stream) -> SeekingReader:
@@ -144,7 +129,7 @@ def _scanned_bag_info(mcap_path: Path, size: int) -> BagInfo:
     """Info of a truncated MCAP, counted record by record up to where it breaks off."""
     from mcap.records import Channel, Message, Metadata, Schema
 
-    from stealth_bringup.bag_recover import salvage_records
+    from stealth_tools.bag_recover import salvage_records
 
     channels, schemas, counts, metadata = {}, {}, {}, []
     start, end, total = None, 0, 0

@@ -2,7 +2,7 @@
 
 from mcap_ros2._dynamic import generate_dynamic
 import pytest
-from stealth_bringup.interfaces import (
+from stealth_tools.interfaces import (
     DELIMITER_LINE,
     InterfaceError,
     definition_text,

@@ -2,7 +2,7 @@
 
 import math
 
-from stealth_bringup.experiment import OUTCOMES, Tracker
+from stealth_bringup.episode_tracker import OUTCOMES, Tracker
 
 
 def summary(episode, outcome='SUCCESS', steps=10, reward=1.0):
@@ -77,6 +77,22 @@ def test_the_budget_counts_every_episode():
     assert tracker.stop_reason() is None
     feed(tracker, 2, 'SUCCESS', False)
     assert tracker.stop_reason() == 'budget'
+
+
+def test_the_end_message_says_why_the_run_ended():
+    tracker = Tracker(budget=100, streak_goal=2)
+    for episode in range(3):
+        feed(tracker, episode, 'SUCCESS', True)
+    assert tracker.end_message('streak') == (
+        'the greedy policy reached the goal undetected in 2 evaluations in a row (episodes 1, 2)'
+    )
+    assert tracker.end_message('budget') == (
+        'episode budget of 100 spent before 2 greedy successes in a row (best streak at the end: '
+        '3)'
+    )
+    assert Tracker(budget=5).end_message('budget') == 'episode budget of 5 spent'
+    evaluation = tracker.end_message('budget', evaluating=True)
+    assert evaluation == '100 greedy episodes: 3 reached the goal'
 
 
 def test_progress_figures():

@@ -24,7 +24,7 @@ from rclpy.qos import (
 )
 from rclpy.signals import SignalHandlerOptions
 
-from stealth_bringup.qos_text import INFINITE_NS, QosDescription
+from stealth_tools.qos_text import INFINITE_NS, QosDescription
 
 SPIN_PERIOD = 0.1  # s: how long a signal can go unnoticed
 

@@ -8,9 +8,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from mcap_ros2._dynamic import serialize_dynamic
-from stealth_bringup.bag_format import BagWriter
-from stealth_bringup.interfaces import definition_text
-from stealth_bringup.qos_text import QosDescription
+from stealth_tools.bag_format import BagWriter
+from stealth_tools.interfaces import definition_text
+from stealth_tools.qos_text import QosDescription
 
 START_NS = 1_700_000_000_000_000_000
 RELIABLE = QosDescription(history='unknown', depth=0)

@@ -15,11 +15,11 @@ from sample_bags import (
     odometry_sample,
     write_bag,
 )
-from stealth_bringup.bag_format import BagError
-from stealth_bringup.bag_reading import format_bag_info, open_indexed_reader, read_bag_info
-from stealth_bringup.bag_recover import recover
-from stealth_bringup.interfaces import definition_text
-from stealth_bringup.qos_text import parse_offered_qos_yaml
+from stealth_tools.bag_format import BagError
+from stealth_tools.bag_reading import format_bag_info, open_indexed_reader, read_bag_info
+from stealth_tools.bag_recover import recover
+from stealth_tools.interfaces import definition_text
+from stealth_tools.qos_text import parse_offered_qos_yaml
 import yaml
 
 

@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 from stealth_agent.policy_store import check_compatible, load_policy
 from stealth_agent.protocol import ProtocolAgent
-from stealth_env import experiments
-from stealth_env.experiments import RunSpec, policy_path, run, settled_within
+from stealth_bringup import experiments
+from stealth_bringup.harness import RunSpec, policy_path, run, settled_within, tuned_config
 from stealth_env.gym_env import lattice_model
+from stealth_env.planners import value_iteration
 from stealth_env.reward import Outcome
 from stealth_env.task import StealthTask
 
@@ -33,16 +34,16 @@ def test_settled_means_staying_within_five_percent():
 
 
 def test_every_learner_gets_the_same_settings():
-    configs = {name: experiments.tuned_config(name) for name in ('qlearning', 'sarsa', 'dyna')}
+    configs = {name: tuned_config(name) for name in ('qlearning', 'sarsa', 'dyna')}
     assert len(set(configs.values())) == 1
-    assert configs['dyna'].alpha(0) == 1.0 and experiments.tuned_config('q', True).alpha(0) == 0.3
+    assert configs['dyna'].alpha(0) == 1.0 and tuned_config('q', True).alpha(0) == 0.3
     with pytest.raises(ValueError):
-        experiments.tuned_config('ppo')
+        tuned_config('ppo')
 
 
 def test_a_run_learns_the_optimal_path(trained):
     optimum = lattice_model(SCENARIO)
-    assert trained.optimum == pytest.approx(experiments.value_iteration(optimum).optimal_return)
+    assert trained.optimum == pytest.approx(value_iteration(optimum).optimal_return)
     assert len(trained.train_returns) == len(trained.train_outcomes) == 150
     assert trained.eval_at.tolist() == list(range(10, 151, 10))
     assert trained.episodes_to_within is not None and trained.episodes_to_within <= 150

@@ -22,12 +22,12 @@ from rclpy.qos import (
     qos_profile_sensor_data,
 )
 
-from stealth_bringup.errors import CommandError
-from stealth_bringup.interfaces import InterfaceError, message_class
-from stealth_bringup.message_yaml import message_to_yaml
-from stealth_bringup.qos_text import subscription_policies
-from stealth_bringup.ros_session import absolute_topic, describe_qos, spin_until, topic_types
-from stealth_bringup.timing import RateWindow
+from stealth_tools.errors import CommandError
+from stealth_tools.interfaces import InterfaceError, message_class
+from stealth_tools.message_yaml import message_to_yaml
+from stealth_tools.qos_text import subscription_policies
+from stealth_tools.ros_session import absolute_topic, describe_qos, spin_until, topic_types
+from stealth_tools.timing import RateWindow
 
 GRAPH_SETTLE = 0.5  # s without a new topic before `topic list` trusts what it has seen
 UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'  # endpoint info before the node's discovery info arrived

@@ -1,11 +1,16 @@
 """`stealth`: ros2cli's verbs and argument shapes for what this platform lacks, plus the
-project's own commands, so habits from a full ROS 2 install carry over.
+commands other packages add, so habits from a full ROS 2 install carry over.
 
     stealth run <package> <executable> [args...]      # ros2 run
     stealth topic list|echo|hz|info ...               # ros2 topic
     stealth interface show <pkg/msg/Type>             # ros2 interface show
     stealth bag record|play|info|recover ...          # ros2 bag (+ recover, as mcap recover)
-    stealth train|eval|render ...                     # the project's own
+    stealth train|eval|render ...                     # added by stealth_bringup (see below)
+
+Other packages add commands as ros2cli's extension points add verbs: an entry point in the
+group `stealth.commands` names a mapping {command: (module, function, summary)}; the function
+takes the command's argv and is imported only when the command runs. So this package knows
+nothing above it, and `stealth train` works wherever stealth_bringup is installed.
 
 Every failure is one line on stderr and exit status 1; parsing needs no ROS, so --help is fast.
 """
@@ -18,27 +23,12 @@ import importlib
 import shlex
 import sys
 
-from stealth_bringup.errors import CommandError
+from stealth_tools.errors import CommandError
 
 PROG = 'stealth'
-# The project's own commands: (module, function, what it does). The function takes argv.
-DELEGATES = {
-    'train': (
-        'stealth_bringup.orchestrate',
-        'train_main',
-        'Train the agent on a scenario: start the system, record it, save the policy.',
-    ),
-    'eval': (
-        'stealth_bringup.orchestrate',
-        'eval_main',
-        'Evaluate a saved policy on a scenario without learning.',
-    ),
-    'render': (
-        'stealth_env.render',
-        'main',
-        'Render a scenario (walls, visibility heatmap, cones, goals, paths) to PNG.',
-    ),
-}
+# Entry points of this group add commands: see the module docstring.
+COMMAND_GROUP = 'stealth.commands'
+OWN_COMMANDS = ('run', 'topic', 'interface', 'bag')
 QOS_PROFILES = (
     'unknown',
     'default',
@@ -91,7 +81,7 @@ def _in_ros(verb: Callable) -> Callable:
     """Run a graph verb inside an rclpy session that owns SIGINT/SIGTERM."""
 
     def handler(args) -> int:
-        from stealth_bringup.ros_session import ros_session
+        from stealth_tools.ros_session import ros_session
 
         with ros_session() as stop:
             return verb(args, stop)
@@ -103,7 +93,7 @@ def _lazy(module: str, function: str, ros: bool = False) -> Callable:
     """A handler that imports its implementation only when run (keeps --help free of ROS)."""
 
     def handler(args) -> int:
-        verb = getattr(importlib.import_module(f'stealth_bringup.{module}'), function)
+        verb = getattr(importlib.import_module(f'stealth_tools.{module}'), function)
         return (_in_ros(verb) if ros else verb)(args)
 
     return handler
@@ -113,7 +103,7 @@ def _lazy(module: str, function: str, ros: bool = False) -> Callable:
 
 
 def run_command(args) -> int:
-    from stealth_bringup.executables import (
+    from stealth_tools.executables import (
         ExecutableNotFoundError,
         find_executable,
         run_supervised,
@@ -260,7 +250,7 @@ def _add_topic(commands) -> None:
 
 
 def interface_show(args) -> int:
-    from stealth_bringup.interfaces import InterfaceError, show_interface_lines
+    from stealth_tools.interfaces import InterfaceError, show_interface_lines
 
     type_name = sys.stdin.readline().strip() if args.type == '-' else args.type
     try:
@@ -304,7 +294,7 @@ def _add_interface(commands) -> None:
 def bag_record(args) -> int:
     from rclpy.parameter import Parameter
 
-    from stealth_bringup.recorder import RecorderSettings, record
+    from stealth_tools.recorder import RecorderSettings, record
 
     topics = [*args.topics_positional, *args.topics]
     if not topics and not args.all:
@@ -325,7 +315,7 @@ def bag_record(args) -> int:
 
 
 def bag_play(args, stop) -> int:
-    from stealth_bringup.player import PlayOptions, play_bag
+    from stealth_tools.player import PlayOptions, play_bag
 
     options = PlayOptions(
         bag=args.bag_path,
@@ -340,7 +330,7 @@ def bag_play(args, stop) -> int:
 
 
 def bag_info(args) -> int:
-    from stealth_bringup.bag_reading import format_bag_info, read_bag_info
+    from stealth_tools.bag_reading import format_bag_info, read_bag_info
 
     info = read_bag_info(args.bag_path)
     if not info.indexed:
@@ -357,7 +347,7 @@ def bag_info(args) -> int:
 
 
 def bag_recover(args) -> int:
-    from stealth_bringup.bag_recover import recover
+    from stealth_tools.bag_recover import recover
 
     output, report = recover(args.bag_path, args.output, compression=args.compression)
     print(f'{output}: {report.summary()}')
@@ -470,12 +460,23 @@ def _add_bag(commands) -> None:
     parser.set_defaults(handler=bag_recover)
 
 
-# --- train / eval / render ---------------------------------------------------------------------
+# --- commands other packages add ---------------------------------------------------------------
 
 
-def _delegate(name: str) -> Callable:
-    module_name, function_name, _ = DELEGATES[name]
+def added_commands() -> dict[str, tuple[str, str, str]]:
+    """{command: (module, function, summary)} from every installed package that adds commands
+    (entry-point group COMMAND_GROUP), packages in name order, each in its own order."""
+    from importlib.metadata import entry_points
 
+    added = {}
+    for entry in sorted(entry_points(group=COMMAND_GROUP), key=lambda e: e.name):
+        for name, spec in entry.load().items():
+            if name not in OWN_COMMANDS:
+                added.setdefault(name, spec)
+    return added
+
+
+def _delegate(module_name: str, function_name: str) -> Callable:
     def handler(args) -> int:
         try:
             module = importlib.import_module(module_name)
@@ -496,8 +497,8 @@ def _delegate(name: str) -> Callable:
     return handler
 
 
-def _add_delegates(commands) -> None:
-    for name, (module_name, function_name, summary) in DELEGATES.items():
+def _add_delegates(commands, added: dict[str, tuple[str, str, str]]) -> None:
+    for name, (module_name, function_name, summary) in added.items():
         parser = commands.add_parser(
             name,
             help=summary,
@@ -505,24 +506,33 @@ def _add_delegates(commands) -> None:
             add_help=False,
         )
         parser.add_argument('argv', nargs=argparse.REMAINDER, help='options of the command')
-        parser.set_defaults(handler=_delegate(name), parser=parser)
+        parser.set_defaults(handler=_delegate(module_name, function_name), parser=parser)
+
+
+def _and_list(names) -> str:
+    """'a', 'a and b', 'a, b and c'."""
+    names = list(names)
+    return ' and '.join(filter(None, [', '.join(names[:-1]), *names[-1:]]))
 
 
 # --- main --------------------------------------------------------------------------------------
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(added: dict[str, tuple[str, str, str]] | None = None) -> argparse.ArgumentParser:
+    """The whole command line; `added` defaults to the installed packages' commands."""
+    added = added_commands() if added is None else added
+    also = f' plus {_and_list(added)}' if added else ''
     parser = argparse.ArgumentParser(
         prog=PROG,
-        description='stealth-nav command line: ros2cli verbs (run, topic, interface, bag) for '
-        'a platform without ros2cli, launch and rosbag2, plus train, eval and render.',
+        description=f'stealth-nav command line: ros2cli verbs ({", ".join(OWN_COMMANDS)}) for '
+        f'a platform without ros2cli, launch and rosbag2,{also}.',
     )
     commands = parser.add_subparsers(dest='command', metavar='command', required=True)
     _add_run(commands)
     _add_topic(commands)
     _add_interface(commands)
     _add_bag(commands)
-    _add_delegates(commands)
+    _add_delegates(commands, added)
     return parser
 
 
@@ -531,9 +541,10 @@ def _command_name(args) -> str:
 
 
 def parse(argv: Sequence[str]) -> argparse.Namespace:
-    """The parsed command line; a delegated command gets every later argument verbatim."""
-    parser = build_parser()
-    if argv and argv[0] in DELEGATES:
+    """The parsed command line; an added command gets every later argument verbatim."""
+    added = added_commands()
+    parser = build_parser(added)
+    if argv and argv[0] in added:
         args = parser.parse_args(argv[:1])
         args.argv = list(argv[1:])
         return args
@@ -542,7 +553,7 @@ def parse(argv: Sequence[str]) -> argparse.Namespace:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse(sys.argv[1:] if argv is None else list(argv))
-    from stealth_bringup.bag_format import BagError
+    from stealth_tools.bag_format import BagError
 
     try:
         return args.handler(args)

@@ -9,6 +9,9 @@ The mcap writer keeps its open chunk in memory, so a SIGKILL loses that chunk. B
 the chunk (Writer.flush, which also flushes the file to the OS) once it is `max_chunk_duration`
 old or `chunk_size` bytes big, whichever comes first: `write` checks the age on every message
 and `flush_if_due` is for a timer, so a quiet topic is bounded too.
+
+Which .mcap a bag path names (`resolve_bag_file`) is here too, below both bag_reading and
+bag_recover, because reading falls back on recovery's salvage scan.
 """
 
 from __future__ import annotations
@@ -21,14 +24,14 @@ import time
 from mcap.writer import CompressionType, IndexType, Writer
 import yaml
 
-from stealth_bringup.qos_text import QosDescription, offered_qos_yaml, qos_node
+from stealth_tools.qos_text import QosDescription, offered_qos_yaml, qos_node
 
 PROFILE = 'ros2'
 MESSAGE_ENCODING = 'cdr'
 ROSBAG2_METADATA_NAME = 'rosbag2'
 METADATA_VERSION = 9  # rosbag2_storage::BagMetadata version in Jazzy
 STORAGE_ID = 'mcap'
-LIBRARY = 'stealth_bringup recorder (mcap-python)'
+LIBRARY = 'stealth_tools recorder (mcap-python)'
 DEFAULT_CHUNK_SIZE = 256 * 1024
 DEFAULT_MAX_CHUNK_DURATION = 0.5  # s
 COMPRESSIONS = {
@@ -36,11 +39,31 @@ COMPRESSIONS = {
     'lz4': CompressionType.LZ4,
     'none': CompressionType.NONE,
 }
+MCAP_MAGIC = b'\x89MCAP0\r\n'
 _NEVER = 2**63 - 1  # rosbag2's starting_time before the first message
 
 
 class BagError(Exception):
     """A bag that cannot be written or read; the message says which file and why."""
+
+
+def resolve_bag_file(path: str | os.PathLike) -> Path:
+    """The .mcap a bag path names: the file itself, or the one .mcap in a bag directory."""
+    path = Path(path)
+    if path.is_dir():
+        files = sorted(path.glob('*.mcap'))
+        if not files:
+            raise BagError(f'{path} is a directory without an .mcap file')
+        if len(files) > 1:
+            names = ', '.join(f.name for f in files)
+            raise BagError(f'{path} holds several .mcap files ({names}); name one of them')
+        return files[0]
+    if not path.exists():
+        raise BagError(f'{path}: no such file or directory')
+    with open(path, 'rb') as stream:
+        if stream.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
+            raise BagError(f'{path} is not an MCAP file (bad magic bytes)')
+    return path
 
 
 @dataclass(frozen=True)

@@ -2,8 +2,8 @@
 
 from nav_msgs.msg import OccupancyGrid
 from std_msgs.msg import Header, String
-from stealth_bringup.message_yaml import message_to_ordereddict, message_to_yaml
 from stealth_interfaces.msg import RLStateReward, Searchlight, SearchlightArray
+from stealth_tools.message_yaml import message_to_ordereddict, message_to_yaml
 
 
 def test_fields_in_msg_order_nested_as_mappings():

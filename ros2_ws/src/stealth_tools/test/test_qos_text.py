@@ -1,7 +1,7 @@
 """offered_qos_profiles as rosbag2 writes and reads it; the profiles derived from offers."""
 
 import pytest
-from stealth_bringup.qos_text import (
+from stealth_tools.qos_text import (
     INFINITE_NS,
     VOLATILE_PLAYBACK_DEPTH,
     QosDescription,

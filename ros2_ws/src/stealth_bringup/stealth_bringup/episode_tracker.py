@@ -16,12 +16,18 @@ from collections.abc import Iterable
 import dataclasses
 import math
 
-OUTCOMES = ('SUCCESS', 'DETECTED', 'TIMEOUT', 'ABORTED')  # EpisodeSummary's constants 0-3
+from stealth_env.reward import Outcome
+
+# The names of the core's outcome enum, whose values are EpisodeSummary's constants.
+OUTCOMES = tuple(outcome.name for outcome in Outcome)
 PROGRESS_WINDOW = 20  # episodes over which the progress bar's rates and means are taken
 
 
 def outcome_name(value: int) -> str:
-    return OUTCOMES[value] if 0 <= value < len(OUTCOMES) else f'OUTCOME_{value}'
+    try:
+        return Outcome(value).name
+    except ValueError:
+        return f'OUTCOME_{value}'
 
 
 @dataclasses.dataclass(frozen=True)
@@ -29,7 +35,7 @@ class EpisodeRecord:
     """One finished episode: the environment's summary and the agent's report, joined."""
 
     episode: int
-    outcome: str  # SUCCESS, DETECTED, TIMEOUT or ABORTED
+    outcome: str  # an Outcome's name: SUCCESS, DETECTED, TIMEOUT or ABORTED
     steps: int
     total_reward: float
     peak_visibility: float
@@ -46,10 +52,23 @@ class EpisodeRecord:
 
     @property
     def success(self) -> bool:
-        return self.outcome == 'SUCCESS'
+        return self.outcome == Outcome.SUCCESS.name
 
     def as_row(self) -> dict:
         return dataclasses.asdict(self)
+
+    def brief(self) -> dict:
+        """What summary.json tells of an episode."""
+        return {
+            'episode': self.episode,
+            'outcome': self.outcome,
+            'return': self.total_reward,
+            'steps': self.steps,
+            'path_length': self.path_length,
+            'peak_visibility': self.peak_visibility,
+            'accumulated_visibility': self.accumulated_visibility,
+            'final_distance_to_goal': self.final_distance_to_goal,
+        }
 
 
 CSV_FIELDS = tuple(f.name for f in dataclasses.fields(EpisodeRecord))
@@ -112,7 +131,7 @@ class Tracker:
         if episode in self._done:
             return []
         self._summaries[episode] = fields
-        if fields['outcome'] == 'ABORTED' and episode not in self._agent:
+        if fields['outcome'] == Outcome.ABORTED.name and episode not in self._agent:
             return self._complete(episode, UNREPORTED, wall_time)
         return self._try(episode, wall_time)
 
@@ -189,6 +208,25 @@ class Tracker:
         if self.budget is not None and self.episodes >= self.budget:
             return 'budget'
         return None
+
+    def end_message(self, reason: str, evaluating: bool = False) -> str:
+        """Why the run ended, for a stop_reason() answer; an evaluation runs its whole budget."""
+        if reason == 'streak':
+            episodes = [r.episode for r in self.records if r.greedy][-self.streak_goal :]
+            return (
+                f'the greedy policy reached the goal undetected in {self.streak_goal} evaluations '
+                f'in a row (episodes {", ".join(map(str, episodes))})'
+            )
+        if evaluating:
+            reached = self.outcome_counts()[Outcome.SUCCESS.name]
+            return f'{self.budget} greedy episodes: {reached} reached the goal'
+        message = f'episode budget of {self.budget} spent'
+        if self.streak_goal:
+            message += (
+                f' before {self.streak_goal} greedy successes in a row (best streak at the end: '
+                f'{self.streak})'
+            )
+        return message
 
     def postfix(self) -> str:
         """The progress bar's figures."""

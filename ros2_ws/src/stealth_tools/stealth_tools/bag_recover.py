@@ -24,8 +24,14 @@ from mcap.records import Attachment, Channel, Header, Message, Metadata, Schema
 from mcap.writer import Writer
 import zstandard
 
-from stealth_bringup.bag_format import COMPRESSIONS, DEFAULT_CHUNK_SIZE, PROFILE, BagError
-from stealth_bringup.bag_reading import MCAP_MAGIC, resolve_bag_file
+from stealth_tools.bag_format import (
+    COMPRESSIONS,
+    DEFAULT_CHUNK_SIZE,
+    MCAP_MAGIC,
+    PROFILE,
+    BagError,
+    resolve_bag_file,
+)
 
 RECORD_LENGTH_LIMIT = 1 << 30  # a longer top-level record means garbage, not data
 _RECORD_HEAD = struct.Struct('<BQ')
@@ -205,7 +211,7 @@ class _Rewriter:
 
     def start(self, profile: str) -> None:
         if not self.started:
-            self.writer.start(profile=profile, library='stealth_bringup bag recover')
+            self.writer.start(profile=profile, library='stealth_tools bag recover')
             self.started = True
 
     def add(self, record) -> None:

@@ -1,0 +1,183 @@
+"""The experiment harness: scenarios x learners x seeds, trained in-process on the Gymnasium
+environment, measured against value iteration's optimum and the planning baselines.
+
+    python -m stealth_bringup.experiments --scenarios map1 lgfloor --learners qlearning dyna \
+        --seeds 0 1 2 --out runs/eval          # or `make eval`; installed as its `experiments`
+
+Each run (``harness``) trains one learner (``stealth_agent``, driven through ``ProtocolAgent``
+exactly as the ROS agent node drives it) for a fixed budget of episodes, and every
+``--eval-every`` episodes rolls out the greedy policy. Written to ``--out`` (``harness_report``,
+through the report writer ``run_outputs`` that `stealth train` runs use too):
+
+- ``results.md``: per scenario, one row per method (A*, Dark Path, value iteration, each
+  learner over its seeds): outcome rates, returns, path length, accumulated visibility,
+  episodes until the greedy policy stays within 5 % of the optimal return, wall time;
+- ``results.csv``: the same per run (one row per seed);
+- ``learning_curves.png`` and ``curves_<scenario>.png``: greedy return against episodes, the
+  mean over seeds with a min-max band, the training return faintly, the optimum and the 5 % line;
+- ``paths_<scenario>.png``: every method's path over the scenario's visibility picture;
+- ``policies/<scenario>-<learner>-seed<k>.npz``: each final policy, a ``stealth_agent`` policy
+  file the ROS agent node loads (``policy_file``, ``load_policy``/``evaluate``) unchanged.
+
+What a return, a rate and "episodes to 5 %" are: ``harness``'s docstring.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+import os
+from pathlib import Path
+import sys
+
+from stealth_agent.learners import LEARNER_NAMES, LearnerConfig
+from stealth_agent.schedules import Schedule
+from stealth_env.gym_env import lattice_model
+
+from stealth_bringup.harness import (
+    DEFAULT_EPISODES,
+    DEFAULT_EVAL_EVERY,
+    baselines,
+    default_budget,
+    run_grid,
+    tuned_config,
+)
+from stealth_bringup.harness_report import write_results
+
+DEFAULT_SCENARIOS = ('simple-maze', 'map1', 'lgfloor', 'floorplan')
+DEFAULT_SEEDS = (0, 1, 2)
+DEFAULT_OUT = Path('runs/eval')
+
+
+def evaluate(
+    scenarios: Sequence[str] = DEFAULT_SCENARIOS,
+    learners: Sequence[str] = LEARNER_NAMES,
+    seeds: Sequence[int] = DEFAULT_SEEDS,
+    *,
+    episodes: int | None = None,
+    eval_every: int = DEFAULT_EVAL_EVERY,
+    slip: float = 0.0,
+    goal: str | None = None,
+    out: Path = DEFAULT_OUT,
+    jobs: int = 1,
+    plots: bool = True,
+    progress: bool = True,
+) -> list[dict]:
+    """Run the grid and write every report into ``out``; returns the CSV rows."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    models = {scenario: lattice_model(scenario, goal) for scenario in scenarios}
+    planned = {scenario: baselines(model, slip) for scenario, model in models.items()}
+    results = run_grid(
+        scenarios,
+        learners,
+        seeds,
+        episodes=episodes,
+        eval_every=eval_every,
+        slip=slip,
+        goal=goal,
+        jobs=jobs,
+        policy_dir=str(out / 'policies'),
+        progress=progress,
+    )
+    budgets = ', '.join(f'{name} {episodes or default_budget(name)}' for name in learners)
+    settings = (
+        f'Seeds {", ".join(map(str, seeds))}; training episodes per run: {budgets}; greedy '
+        f'evaluation every {eval_every} episodes; slip {slip:g}. Learner settings (all '
+        f'learners): {_describe(tuned_config(learners[0], slip > 0))}.'
+    )
+    return write_results(out, models, planned, results, settings, plots)
+
+
+def _describe(config: LearnerConfig) -> str:
+    def schedule(s: Schedule) -> str:
+        if s.kind == 'constant':
+            return f'{s.start:g}'
+        return f'{s.kind} {s.start:g} to {s.final:g} over {s.decay:g} episodes'
+
+    return (
+        f'alpha {schedule(config.alpha)}, epsilon {schedule(config.epsilon)}, gamma '
+        f'{config.gamma:g}, initial Q {config.initial_value:g}, Dyna-Q planning updates per step '
+        f'{config.n_planning}'
+    )
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog='experiments',
+        description='Train learners in-process on stealth-nav scenarios and compare them with '
+        'A*, Dark Path and value iteration: results.md, results.csv, plots, policies.',
+    )
+    parser.add_argument(
+        '--scenarios',
+        nargs='+',
+        default=list(DEFAULT_SCENARIOS),
+        help='scenario names or YAML paths (default: %(default)s)',
+    )
+    parser.add_argument(
+        '--learners',
+        nargs='+',
+        default=list(LEARNER_NAMES),
+        choices=LEARNER_NAMES,
+        help='default: %(default)s',
+    )
+    parser.add_argument(
+        '--seeds', nargs='+', type=int, default=list(DEFAULT_SEEDS), help='default: %(default)s'
+    )
+    parser.add_argument(
+        '--episodes',
+        type=int,
+        help='training episodes per run (default per learner: '
+        + ', '.join(f'{name} {budget}' for name, budget in DEFAULT_EPISODES.items())
+        + ')',
+    )
+    parser.add_argument(
+        '--eval-every',
+        type=int,
+        default=DEFAULT_EVAL_EVERY,
+        help='episodes between greedy evaluations (default: %(default)s)',
+    )
+    parser.add_argument(
+        '--slip',
+        type=float,
+        default=0.0,
+        help='probability of moving sideways (default: %(default)s)',
+    )
+    parser.add_argument('--goal', help="goal name (default: each scenario's default goal)")
+    parser.add_argument(
+        '--jobs',
+        type=int,
+        default=os.cpu_count() or 1,
+        help='worker processes (default: the CPU count, %(default)s)',
+    )
+    parser.add_argument(
+        '--out', type=Path, default=DEFAULT_OUT, help='output directory (default: %(default)s)'
+    )
+    parser.add_argument('--no-plots', action='store_true', help='skip the pictures')
+    args = parser.parse_args(argv)
+    if (args.episodes is not None and args.episodes < 1) or args.eval_every < 1:
+        parser.error('--episodes and --eval-every must be >= 1')
+    if not 0.0 <= args.slip <= 1.0:
+        parser.error('--slip must be a probability in [0, 1]')
+    try:
+        evaluate(
+            args.scenarios,
+            args.learners,
+            args.seeds,
+            episodes=args.episodes,
+            eval_every=args.eval_every,
+            slip=args.slip,
+            goal=args.goal,
+            out=args.out,
+            jobs=args.jobs,
+            plots=not args.no_plots,
+        )
+    except (OSError, ValueError) as error:
+        print(f'experiments: {error}', file=sys.stderr)
+        return 1
+    print(args.out / 'results.md')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

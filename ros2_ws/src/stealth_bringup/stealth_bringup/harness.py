@@ -1,0 +1,286 @@
+"""The experiment harness's runs: one learner trained in-process on one scenario with one seed,
+and the planning baselines it is measured against. No rclpy.
+
+Each run trains a learner (``stealth_agent``, driven through ``ProtocolAgent`` exactly as the
+ROS agent node drives it) on the Gymnasium environment for a fixed budget of episodes, and every
+``eval_every`` episodes rolls out the greedy policy.
+
+Definitions. A return sums the rewards after the first state, undiscounted; the optimum is
+``planners.value_iteration``'s (undiscounted, exact, with the step limit). Rates count the
+training episodes' outcomes. "Episodes to 5 %" is the first evaluation point from which every
+later greedy return of the run is at least ``optimum - 0.05 * |optimum|`` (it stays there, not
+just touches it); a run that never settles is reported as not within 5 % in its budget.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+import dataclasses
+from pathlib import Path
+import time
+
+import numpy as np
+from stealth_agent.learners import LearnerConfig, canonical_learner_name, make_learner
+from stealth_agent.policy_store import save_policy
+from stealth_agent.protocol import ProtocolAgent, parse_description
+from stealth_agent.schedules import Schedule
+from stealth_agent.state_index import StateIndex
+from stealth_env.gym_env import StealthNavEnv
+from stealth_env.planners import LatticeModel, astar, dark_path, follow, value_iteration, walk
+from stealth_env.reward import Outcome
+from tqdm import tqdm
+
+# Training episodes per run, per learner: each well past where every seed settled within 5 %
+# (README); Dyna-Q's 20 planning updates make its episodes ~5x dearer and it needs ~1/6 as many.
+DEFAULT_EPISODES = {'qlearning': 1500, 'sarsa': 1500, 'dyna': 500}
+DEFAULT_EVAL_EVERY = 10
+WITHIN = 0.05  # of the optimal return
+BASELINES = ('A*', 'Dark Path', 'value iteration')
+
+
+def tuned_config(learner: str, stochastic: bool = False) -> LearnerConfig:
+    """The settings the harness trains with: the same for all three learners, so that only the
+    algorithm differs, chosen by measurement (the README's evaluation section).
+
+    alpha 1 on the deterministic lattice (one sample of a transition is its expectation, so the
+    first good update is final; 0.5 and 0.3 took 1.5-2x the episodes); 0.3 with slip, to average
+    the noise. Q starts at 0, which with step costs below 0 is already optimistic: unvisited
+    actions look best, and exploration is systematic (an optimistic start at the goal reward
+    made every run wander to the step limit for hundreds of episodes). epsilon decays from 0.1
+    to 0 with a time constant of 100 episodes: SARSA learns the value of its own epsilon-greedy
+    policy, and with a detection penalty of 1000 a 10 % chance of a random step next to a lit
+    cell makes hovering in the dark look better than the door to the goal (with epsilon fixed at
+    0.1 its greedy policy timed out instead of reaching the goal). Dyna-Q plans 20 updates per
+    step.
+    """
+    canonical_learner_name(learner)
+    return LearnerConfig(
+        alpha=Schedule.fixed(0.3 if stochastic else 1.0),
+        epsilon=Schedule('exponential', 0.1, 0.0, 100.0),
+        n_planning=20,
+    )
+
+
+# --- one run ------------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class RunSpec:
+    scenario: str
+    learner: str
+    seed: int
+    episodes: int = 1000
+    eval_every: int = DEFAULT_EVAL_EVERY
+    slip: float = 0.0
+    goal: str | None = None
+    policy_dir: str | None = None  # where to save the final policy, if anywhere
+
+
+@dataclasses.dataclass
+class RunResult:
+    spec: RunSpec
+    optimum: float
+    train_returns: np.ndarray  # (episodes,)
+    train_outcomes: np.ndarray  # (episodes,) Outcome values
+    eval_at: np.ndarray  # episodes trained before each greedy evaluation
+    eval_returns: np.ndarray  # mean greedy return at each
+    episodes_to_within: int | None
+    final: dict  # the last greedy evaluation: EpisodeSummary's figures and the path
+    seconds: float
+    env_steps: int
+
+
+def default_budget(learner: str) -> int:
+    return DEFAULT_EPISODES[canonical_learner_name(learner)]
+
+
+def play_episode(env: StealthNavEnv, agent: ProtocolAgent, seed: int | None = None):
+    """One episode of the rl_msgs protocol on the Gym env: (EpisodeResult, last info)."""
+    observation, info = env.reset(seed=seed)
+    action = agent.first_action(observation)
+    while True:
+        observation, reward, terminated, truncated, info = env.step(action)
+        if terminated:
+            return agent.last_action(reward), info
+        if truncated:
+            return agent.truncate(reward, observation), info
+        action = agent.next_action(reward, observation)
+
+
+def settled_within(eval_at, eval_returns, optimum: float, within: float = WITHIN) -> int | None:
+    """The first evaluation point from which every greedy return is within ``within`` of the
+    optimum, or None."""
+    good = np.asarray(eval_returns) >= optimum - within * abs(optimum)
+    if good.size == 0 or not good[-1]:
+        return None
+    bad = np.flatnonzero(~good)
+    return int(eval_at[0] if bad.size == 0 else eval_at[bad[-1] + 1])
+
+
+def run(spec: RunSpec) -> RunResult:
+    """Train one learner on one scenario with one seed, evaluating greedily as it goes."""
+    started = time.perf_counter()
+    env = StealthNavEnv(spec.scenario, spec.goal, spec.slip)
+    evaluator = StealthNavEnv(spec.scenario, spec.goal, spec.slip)
+    optimum = value_iteration(env.model, slip=spec.slip).optimal_return
+    learner = make_learner(
+        spec.learner, env.action_space.n, tuned_config(spec.learner, spec.slip > 0)
+    )
+    index = StateIndex()
+    rng = np.random.default_rng(spec.seed)
+    agent = ProtocolAgent(learner, index, rng)
+    greedy = ProtocolAgent(learner, index, np.random.default_rng([spec.seed, 1]), learning=False)
+    rollouts = 1 if spec.slip == 0 else 10
+    returns, outcomes, eval_at, eval_returns = [], [], [], []
+    steps = 0
+    final: dict = {}
+    for episode in range(spec.episodes):
+        result, info = play_episode(env, agent, seed=spec.seed if episode == 0 else None)
+        returns.append(result.reward)
+        outcomes.append(Outcome[info['outcome']])
+        steps += result.actions
+        if (episode + 1) % spec.eval_every == 0 or episode + 1 == spec.episodes:
+            tries = [_greedy_rollout(evaluator, greedy, spec.seed + k) for k in range(rollouts)]
+            eval_at.append(episode + 1)
+            eval_returns.append(float(np.mean([t['total_reward'] for t in tries])))
+            final = tries[0]
+    if spec.policy_dir:
+        save_policy(
+            policy_path(spec),
+            learner,
+            index,
+            scenario=parse_description(**env.task.description(spec.slip > 0)).identity(),
+            rng=rng,
+            extra={'harness': dataclasses.asdict(spec)},
+        )
+    return RunResult(
+        spec,
+        optimum,
+        np.array(returns),
+        np.array(outcomes, dtype=np.int8),
+        np.array(eval_at),
+        np.array(eval_returns),
+        settled_within(eval_at, eval_returns, optimum),
+        final,
+        time.perf_counter() - started,
+        steps,
+    )
+
+
+def _greedy_rollout(env: StealthNavEnv, greedy: ProtocolAgent, seed: int) -> dict:
+    _, info = play_episode(env, greedy, seed=seed)
+    summary = env.stats.summary(Outcome[info['outcome']])
+    return {**summary._asdict(), 'points': env.trajectory}
+
+
+def policy_path(spec: RunSpec) -> Path:
+    goal = f'-{spec.goal}' if spec.goal else ''
+    name = f'{scenario_label(spec.scenario)}{goal}-{spec.learner}-seed{spec.seed}.npz'
+    return Path(spec.policy_dir) / name
+
+
+def scenario_label(scenario: str) -> str:
+    """A scenario's name for tables and file names: 'map1' for 'map1' or 'x/map1.yaml'."""
+    return Path(scenario).stem
+
+
+# --- baselines ----------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass
+class Baseline:
+    name: str
+    summary: dict  # as RunResult.final
+    seconds: float
+
+
+def baselines(model: LatticeModel, slip: float = 0.0) -> tuple[float, list[Baseline]]:
+    """(optimal return, [A*, Dark Path, value iteration]) on one scenario's model.
+
+    Each path is judged as walked without slip; value iteration's return is its optimal
+    expected return (equal to its path's return without slip).
+    """
+    timed = {}
+    for name, plan in (
+        ('A*', lambda: astar(model)),
+        ('Dark Path', lambda: dark_path(model)),
+        ('value iteration', lambda: value_iteration(model, slip=slip)),
+    ):
+        started = time.perf_counter()
+        timed[name] = (plan(), time.perf_counter() - started)
+    optimum = timed['value iteration'][0]
+    paths = {
+        'A*': timed['A*'][0],
+        'Dark Path': timed['Dark Path'][0],
+        'value iteration': follow(model, lambda i: int(optimum.policy[i])),
+    }
+    found = []
+    for name in BASELINES:
+        path, seconds = paths[name], timed[name][1]
+        if path is None:
+            found.append(Baseline(name, {'outcome': None}, seconds))
+            continue
+        walked = walk(model, path)
+        summary = {
+            'outcome': walked.outcome,
+            'steps': walked.steps,
+            'total_reward': walked.total_reward,
+            'peak_visibility': walked.peak_visibility,
+            'accumulated_visibility': walked.accumulated_visibility,
+            'path_length': walked.path_length,
+            'points': walked.points,
+        }
+        if name == 'value iteration':
+            summary['total_reward'] = optimum.optimal_return
+        found.append(Baseline(name, summary, seconds))
+    return optimum.optimal_return, found
+
+
+# --- the grid -----------------------------------------------------------------------------------
+
+
+def run_grid(
+    scenarios: Sequence[str],
+    learners: Sequence[str],
+    seeds: Sequence[int],
+    *,
+    episodes: int | None = None,
+    eval_every: int = DEFAULT_EVAL_EVERY,
+    slip: float = 0.0,
+    goal: str | None = None,
+    jobs: int = 1,
+    policy_dir: str | None = None,
+    progress: bool = True,
+) -> list[RunResult]:
+    """Every scenario x learner x seed, in ``jobs`` processes; results in grid order.
+    episodes: per run, None for each learner's DEFAULT_EPISODES."""
+    specs = [
+        RunSpec(
+            scenario,
+            learner,
+            seed,
+            episodes or default_budget(learner),
+            eval_every,
+            slip,
+            goal,
+            policy_dir,
+        )
+        for scenario in scenarios
+        for learner in learners
+        for seed in seeds
+    ]
+    bar = tqdm(total=len(specs), desc='runs', unit='run', disable=not progress)
+    results: list[RunResult | None] = [None] * len(specs)
+    if jobs <= 1:
+        for i, spec in enumerate(specs):
+            results[i] = run(spec)
+            bar.update()
+    else:
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            futures = {pool.submit(run, spec): i for i, spec in enumerate(specs)}
+            for future in as_completed(futures):
+                results[futures[future]] = future.result()
+                bar.update()
+    bar.close()
+    return results

@@ -1,0 +1,296 @@
+"""The experiment harness's report: results.csv and the table of results.md (one row per
+method, learners averaged over their seeds), the learning curves with seed bands, and every
+method's path. Written through run_outputs, the report writer `stealth train` runs use too.
+No rclpy.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+import math
+from pathlib import Path
+
+from matplotlib.figure import Figure
+import numpy as np
+from stealth_env.planners import LatticeModel
+from stealth_env.reward import Outcome
+
+from stealth_bringup.harness import BASELINES, WITHIN, Baseline, RunResult, scenario_label
+from stealth_bringup.run_outputs import plot_paths, write_csv
+
+RESULTS_FIELDS = (
+    'scenario',
+    'goal',
+    'method',
+    'seed',
+    'episodes',
+    'optimal_return',
+    'success_rate',
+    'detection_rate',
+    'timeout_rate',
+    'train_mean_return',
+    'greedy_outcome',
+    'greedy_return',
+    'greedy_over_optimum',
+    'steps',
+    'path_length_m',
+    'peak_visibility',
+    'accumulated_visibility',
+    'episodes_to_within_5pct',
+    'wall_seconds',
+    'env_steps',
+)
+
+
+def _outcome_name(value) -> str:
+    return '' if value is None else Outcome(value).name
+
+
+def run_row(result: RunResult, goal: str) -> dict:
+    final, spec = result.final, result.spec
+
+    def rate(outcome: Outcome) -> float:
+        return float(np.mean(result.train_outcomes == outcome))
+
+    return {
+        'scenario': scenario_label(spec.scenario),
+        'goal': goal,
+        'method': spec.learner,
+        'seed': spec.seed,
+        'episodes': spec.episodes,
+        'optimal_return': result.optimum,
+        'success_rate': rate(Outcome.SUCCESS),
+        'detection_rate': rate(Outcome.DETECTED),
+        'timeout_rate': rate(Outcome.TIMEOUT),
+        'train_mean_return': float(result.train_returns.mean()),
+        'greedy_outcome': _outcome_name(final['outcome']),
+        'greedy_return': float(result.eval_returns[-1]),
+        'greedy_over_optimum': float(result.eval_returns[-1]) / result.optimum,
+        'steps': final['steps'],
+        'path_length_m': final['path_length'],
+        'peak_visibility': final['peak_visibility'],
+        'accumulated_visibility': final['accumulated_visibility'],
+        'episodes_to_within_5pct': result.episodes_to_within,
+        'wall_seconds': result.seconds,
+        'env_steps': result.env_steps,
+    }
+
+
+def baseline_row(scenario: str, goal: str, optimum: float, baseline: Baseline) -> dict:
+    summary = baseline.summary
+    outcome = summary['outcome']
+    found = outcome is not None
+    return {
+        'scenario': scenario,
+        'goal': goal,
+        'method': baseline.name,
+        'seed': '',
+        'episodes': '',
+        'optimal_return': optimum,
+        'success_rate': float(outcome == Outcome.SUCCESS),
+        'detection_rate': float(outcome == Outcome.DETECTED),
+        'timeout_rate': float(outcome == Outcome.TIMEOUT),
+        'train_mean_return': '',
+        'greedy_outcome': _outcome_name(outcome) if found else 'no path',
+        'greedy_return': summary.get('total_reward', ''),
+        'greedy_over_optimum': summary['total_reward'] / optimum if found else '',
+        'steps': summary.get('steps', ''),
+        'path_length_m': summary.get('path_length', ''),
+        'peak_visibility': summary.get('peak_visibility', ''),
+        'accumulated_visibility': summary.get('accumulated_visibility', ''),
+        'episodes_to_within_5pct': '',
+        'wall_seconds': baseline.seconds,
+        'env_steps': '',
+    }
+
+
+def _mean(rows, key) -> float:
+    return float(np.mean([row[key] for row in rows]))
+
+
+def _episodes_text(rows) -> str:
+    reached = sorted(
+        row['episodes_to_within_5pct']
+        for row in rows
+        if row['episodes_to_within_5pct'] is not None
+    )
+    budget = rows[0]['episodes']
+    if not reached:
+        return f'**not within 5 % in {budget}**'
+    median = int(np.median(reached))
+    if len(reached) == len(rows):
+        return f'{median} ({reached[0]}-{reached[-1]})'
+    listed = ', '.join(map(str, reached))
+    return f'**{len(reached)}/{len(rows)} seeds** ({listed}); the rest not in {budget}'
+
+
+def markdown_table(rows: Sequence[dict]) -> str:
+    """One table for all scenarios: baselines first, then learners averaged over seeds."""
+    header = (
+        '| scenario | method | success | detected | timeout | train return | greedy return '
+        '| of optimum | path (m) | steps | acc. visibility | episodes to 5 % | wall (s) |\n'
+        '| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n'
+    )
+    lines = []
+    groups: dict[tuple[str, str], list[dict]] = {}
+    for row in rows:
+        groups.setdefault((row['scenario'], row['method']), []).append(row)
+    for (scenario, method), group in groups.items():
+        first = group[0]
+        if method in BASELINES:
+            found = first['greedy_outcome'] != 'no path'
+            lines.append(
+                f'| {scenario} | {method} | {first["greedy_outcome"].lower()} | | | '
+                f'| {first["greedy_return"]:.1f} | {first["greedy_over_optimum"]:.3f} '
+                f'| {first["path_length_m"]:.1f} | {first["steps"]} '
+                f'| {first["accumulated_visibility"]:.3f} | | {first["wall_seconds"]:.3f} |'
+                if found
+                else f'| {scenario} | {method} | no path | | | | | | | | | | |'
+            )
+            continue
+        greedy = [row['greedy_return'] for row in group]
+        outcomes = sorted({row['greedy_outcome'].lower() for row in group})
+        lines.append(
+            f'| {scenario} | {method} ({len(group)} seeds) | {_mean(group, "success_rate"):.2f} '
+            f'| {_mean(group, "detection_rate"):.2f} | {_mean(group, "timeout_rate"):.2f} '
+            f'| {_mean(group, "train_mean_return"):.1f} '
+            f'| {np.mean(greedy):.1f} ± {np.std(greedy):.1f} ({"/".join(outcomes)}) '
+            f'| {_mean(group, "greedy_over_optimum"):.3f} | {_mean(group, "path_length_m"):.1f} '
+            f'| {_mean(group, "steps"):.0f} | {_mean(group, "accumulated_visibility"):.3f} '
+            f'| {_episodes_text(group)} | {_mean(group, "wall_seconds"):.1f} |'
+        )
+    return header + '\n'.join(lines) + '\n'
+
+
+# --- pictures -----------------------------------------------------------------------------------
+
+COLUMNS = (
+    'Returns are undiscounted sums of the rewards after the first state. success / detected / '
+    'timeout: outcome rates over all training episodes (planners: their one path). train '
+    'return: mean over training episodes. greedy return: the final greedy policy, mean ± sd '
+    "over seeds, and its outcomes. of optimum: greedy return / value iteration's optimal "
+    'return. path, steps, acc. visibility: of the final greedy episode (visibility summed over '
+    'the poses after each step). episodes to 5 %: from when on every greedy evaluation stayed '
+    'within 5 % of the optimum, median (min-max) over seeds. wall: seconds per run.'
+)
+PATH_SHIFT = 0.08  # of a step, between the lines of two methods
+COLOURS = {'qlearning': '#0571b0', 'sarsa': '#d01c8b', 'dyna': '#018571'}
+
+
+def plot_curves(ax, results: Sequence[RunResult], optimum: float, title: str) -> None:
+    """Greedy return (mean over seeds, min-max band) and training return (faint) per learner."""
+    by_learner: dict[str, list[RunResult]] = {}
+    for result in results:
+        by_learner.setdefault(result.spec.learner, []).append(result)
+    for learner, runs in by_learner.items():
+        colour = COLOURS.get(learner)
+        x = runs[0].eval_at
+        greedy = np.array([r.eval_returns for r in runs])
+        ax.plot(x, greedy.mean(axis=0), color=colour, linewidth=1.6, label=f'{learner} (greedy)')
+        ax.fill_between(x, greedy.min(axis=0), greedy.max(axis=0), color=colour, alpha=0.2)
+        window = max(len(runs[0].train_returns) // 40, 1)
+        kernel = np.ones(window) / window
+        train = np.array([np.convolve(r.train_returns, kernel, mode='valid') for r in runs])
+        episodes = np.arange(window, window + train.shape[1])
+        ax.plot(
+            episodes,
+            train.mean(axis=0),
+            color=colour,
+            linewidth=0.8,
+            alpha=0.45,
+            linestyle=':',
+            label=f'{learner} (training, mean of {window})',
+        )
+    ax.axhline(optimum, color='black', linewidth=1.0, label=f'optimum {optimum:.1f}')
+    ax.axhline(
+        optimum - WITHIN * abs(optimum),
+        color='black',
+        linewidth=0.8,
+        linestyle='--',
+        label='5 % below the optimum',
+    )
+    ax.set_title(title)
+    ax.set_xlabel('training episodes')
+    ax.set_ylabel('return (undiscounted)')
+    ax.grid(alpha=0.3)
+
+
+def write_curves(out: Path, results: Sequence[RunResult], optima: dict[str, float]) -> list[Path]:
+    scenarios = list(dict.fromkeys(r.spec.scenario for r in results))
+    written = []
+    columns = min(2, len(scenarios))
+    rows = math.ceil(len(scenarios) / columns)
+    combined = Figure(figsize=(7 * columns, 4.5 * rows), dpi=100)
+    for k, scenario in enumerate(scenarios):
+        mine = [r for r in results if r.spec.scenario == scenario]
+        single = Figure(figsize=(8, 5), dpi=100)
+        for ax in (single.add_subplot(), combined.add_subplot(rows, columns, k + 1)):
+            plot_curves(ax, mine, optima[scenario], scenario_label(scenario))
+        single.axes[0].legend(fontsize=7, loc='lower right')
+        single.tight_layout()
+        written.append(out / f'curves_{scenario_label(scenario)}.png')
+        single.savefig(written[-1])
+    combined.axes[0].legend(fontsize=7, loc='lower right')
+    combined.tight_layout()
+    written.append(out / 'learning_curves.png')
+    combined.savefig(written[-1])
+    return written
+
+
+def write_paths(out: Path, model: LatticeModel, found: list[Baseline], results) -> Path:
+    """The scenario picture with every method's path (learners: their first seed's)."""
+    labelled = []
+    for baseline in found:
+        if baseline.summary.get('points') is not None:
+            outcome = _outcome_name(baseline.summary['outcome']).lower()
+            labelled.append((baseline.summary['points'], f'{baseline.name} ({outcome})'))
+    seen = set()
+    for result in results:
+        if result.spec.learner in seen:
+            continue
+        seen.add(result.spec.learner)
+        outcome = _outcome_name(result.final['outcome']).lower()
+        label = f'{result.spec.learner} seed {result.spec.seed} ({outcome})'
+        labelled.append((result.final['points'], label))
+    task = model.task
+    return plot_paths(
+        task.scenario,
+        task.goal.name,
+        out / f'paths_{task.scenario.name}.png',
+        labelled,
+        f'{task.title}: paths (drawn slightly apart where they coincide)',
+        spread=PATH_SHIFT * task.scenario.step_distance,
+    )
+
+
+# --- the whole report ---------------------------------------------------------------------------
+
+
+def write_results(
+    out: Path,
+    models: dict[str, LatticeModel],
+    planned: dict[str, tuple[float, list[Baseline]]],
+    results: Sequence[RunResult],
+    settings: str,
+    plots: bool = True,
+) -> list[dict]:
+    """results.csv, results.md and (with `plots`) the pictures it shows, for the baselines
+    `planned` and the learners' `results` on each scenario's model; returns the CSV rows."""
+    rows = []
+    for scenario, model in models.items():
+        optimum, found = planned[scenario]
+        goal_name = model.task.goal.name
+        label = scenario_label(scenario)
+        rows += [baseline_row(label, goal_name, optimum, baseline) for baseline in found]
+        rows += [run_row(r, goal_name) for r in results if r.spec.scenario == scenario]
+    write_csv(rows, RESULTS_FIELDS, out / 'results.csv')
+    text = f'# stealth-nav evaluation\n\n{settings}\n\n{COLUMNS}\n\n{markdown_table(rows)}'
+    if plots:
+        optima = {scenario: planned[scenario][0] for scenario in models}
+        images = write_curves(out, results, optima)
+        for scenario, model in models.items():
+            mine = [r for r in results if r.spec.scenario == scenario]
+            images.append(write_paths(out, model, planned[scenario][1], mine))
+        text += '\n' + '\n'.join(f'![{p.stem}]({p.name})' for p in images) + '\n'
+    (out / 'results.md').write_text(text, encoding='utf-8')
+    return rows

@@ -1,0 +1,300 @@
+"""A run's processes from start to stop: the private domain, the nodes started in order and
+waited for, their parameters checked, the episodes followed until an end criterion, a signal, a
+dead node or a stall, then the nodes stopped in order. What it finds out goes into RunFacts,
+from which run_report writes the outputs; run_monitor watches (see orchestrate for the whole).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import signal
+import sys
+import time
+
+from stealth_bringup.episode_tracker import Tracker
+from stealth_bringup.run_config import NODE_ORDER, STOP_ORDER, relative_to_cwd
+from stealth_bringup.run_monitor import (
+    EXIT_SIGNAL,
+    Monitor,
+    Progress,
+    Signals,
+    private_ros_context,
+)
+from stealth_bringup.run_plan import RunPlan
+from stealth_bringup.run_report import RunFacts, RunReport
+
+STOP_TIMEOUTS = {'agent': 15.0, 'environment': 10.0, 'simulator': 10.0, 'recorder': 30.0}
+# The recorder works off what the others publish; at a lower priority it never delays the
+# lockstep agent -> environment -> simulator chain, and catches up while that chain waits.
+NICENESS = {'recorder': 10}
+PARAMETER_TIMEOUT = 10.0  # s for a node's parameter services to answer
+# The environment's start_delay until the recorder subscribes to every topic (then the file's).
+HOLD_START_DELAY = 3600.0
+DRAIN_TIME = 0.1  # s of taking in late reports before each node is stopped
+ROS_OWN_PARAMETERS = {'use_sim_time', 'start_type_description_service'}  # every node has them
+
+
+class RunError(RuntimeError):
+    """The run failed after it started; the message is the one line to print."""
+
+
+class Run:
+    """One orchestrated run: the nodes' processes from start to stop. What it finds out goes
+    into `facts`, from which run_report writes the outputs; run_monitor watches."""
+
+    def __init__(self, plan: RunPlan, started: float | None = None, out=None, err=None):
+        self.plan = plan
+        self.out = out or sys.stdout
+        self.prog = f'stealth {plan.mode}'
+        self.tracker = Tracker(plan.episodes, plan.streak or None)
+        self.facts = RunFacts(time.monotonic() if started is None else started)  # command start
+        self.progress = Progress(self.tracker, err or sys.stderr)
+        self.say = self.progress.say
+        self.supervisor = None
+        self.monitor: Monitor | None = None
+        self.crashed: set[str] = set()  # nodes that died on their own (reported already)
+
+    def _fail(self, message: str) -> None:
+        self.facts.status, self.facts.message, self.facts.exit_code = 'failed', message, 1
+
+    def execute(self) -> int:
+        """The whole run; its exit status."""
+        from stealth_bringup.ros_domain import shm_segments
+
+        self.plan.write_params_files()
+        shm_before = shm_segments()
+        facts = self.facts
+        with Signals() as signals:
+            self._run(signals, shm_before)
+            if facts.status == 'failed':
+                self.say(f'{self.prog}: {facts.message}')
+            if self.monitor is not None:
+                facts.paths, facts.late = self.monitor.paths, self.monitor.late
+            facts.nodes = dict(self.supervisor.nodes) if self.supervisor else {}
+            # A signal now changes nothing: the files get written.
+            report = RunReport(self.plan, self.tracker, facts, self.say)
+            report.print_closing(report.write(), self.out)
+        return facts.exit_code
+
+    def _run(self, signals: Signals, shm_before: set[str]) -> None:
+        """Start, follow and stop the nodes in the private domain."""
+        from stealth_bringup.ros_domain import (
+            DomainError,
+            private_environment,
+            remove_orphaned_shm,
+            reserved_domain_id,
+        )
+        from stealth_bringup.supervisor import Supervisor
+
+        plan = self.plan
+        with contextlib.ExitStack() as stack:
+            try:
+                domain_id = stack.enter_context(reserved_domain_id())
+            except DomainError as error:
+                self._fail(str(error))
+                return
+            self.facts.domain_id = domain_id
+            env = private_environment(domain_id)
+            self.supervisor = Supervisor(env, plan.directory / 'logs')
+            self._announce()
+            context = None
+            try:
+                context = private_ros_context(domain_id)
+                self.monitor = Monitor(
+                    context, self.tracker, self.facts.started, self.progress.on_record
+                )
+                self._start_nodes(signals)
+                self._follow(signals)
+            except RunError as error:
+                self._fail(str(error))
+            finally:
+                self.progress.close()
+                self.facts.stopped_at = time.monotonic()
+                self._stop_nodes(signals)
+                if self.monitor is not None:
+                    self.monitor.close()
+                if context is not None:
+                    context.try_shutdown()
+            if self.supervisor.any_killed:
+                removed = remove_orphaned_shm(shm_before)
+                if removed:
+                    self.say(f'{self.prog}: removed {len(removed)} shared-memory segments of '
+                             'killed nodes from /dev/shm')  # fmt: skip
+
+    def _announce(self) -> None:
+        self.say(f'{self.prog}: {self.plan.describe()}')
+        directory = relative_to_cwd(self.plan.directory)
+        self.say(f'run directory: {directory} (ROS_DOMAIN_ID {self.facts.domain_id})')
+
+    def _start(self, name: str) -> None:
+        plan = self.plan
+        params_file = plan.params_file(name).resolve()
+        command = plan.commands[name] + plan.parameters[name].ros_args(params_file)
+        if name == 'environment' and plan.record:  # on hold until the recorder listens
+            command += ['-p', f'start_delay:={HOLD_START_DELAY}']
+        try:
+            self.supervisor.start(name, command, niceness=NICENESS.get(name, 0))
+        except OSError as error:
+            raise RunError(f'{name}: cannot start {command[0]}: {error.strerror}') from None
+
+    def _check_processes(self, during: str) -> None:
+        dead = self.supervisor.dead()
+        if dead:
+            node = dead[0]
+            self.crashed.update(n.name for n in dead)
+            log = relative_to_cwd(node.log_path)
+            raise RunError(f'{node.why(during)} (log: {log})')
+
+    def _wait(self, signals: Signals, what: str, ready, deadline: float, during: str) -> None:
+        """Spin until ready() or the deadline; a signal or a dead node ends it at once."""
+        while True:
+            self._check_processes(during)
+            if signals.first is not None:
+                return
+            missing = ready()
+            if not missing:
+                return
+            if time.monotonic() >= deadline:
+                raise RunError(
+                    f'{what} not up within {self.plan.startup_timeout:g} s: still waiting for '
+                    f'{missing} (logs: {relative_to_cwd(self.plan.directory / "logs")})'
+                )
+            self.monitor.spin()
+
+    def _start_nodes(self, signals: Signals) -> None:
+        """Start every node, wait until all are on the graph with the simulator's services, check
+        their parameter names, and (when recording) release the first episode only once the
+        recorder listens to every topic, so the recording misses nothing."""
+        plan, monitor = self.plan, self.monitor
+        deadline = time.monotonic() + plan.startup_timeout
+        names = [n for n in NODE_ORDER if n in plan.commands]
+        self.say(f'starting {", ".join(names)} ...')
+        for name in names:
+            self._start(name)
+
+        up = functools.partial(monitor.not_up, names)
+        self._wait(signals, 'the system', up, deadline, 'during startup')
+        if signals.first is not None:
+            return
+        self._check_parameter_names(signals)
+        if plan.record and signals.first is None:
+            recorded = functools.partial(
+                monitor.not_recorded, ('simulator', 'environment', 'agent')
+            )
+            self._wait(signals, 'the recording', recorded, deadline, 'during startup')
+            if signals.first is None:
+                self._release_first_episode()
+        self.facts.startup_seconds = time.monotonic() - self.facts.started
+        self.say(f'all nodes up after {self.facts.startup_seconds:.1f} s')
+
+    def _release_first_episode(self) -> None:
+        """Give the environment its configured start_delay back (it started on hold)."""
+        value = float(self.plan.parameters['environment'].values.get('start_delay', 0.0))
+        if not self.monitor.set_parameter('environment', 'start_delay', value, PARAMETER_TIMEOUT):
+            self.say(f'{self.prog}: could not set environment start_delay to {value:g}')
+
+    def _check_parameter_names(self, signals: Signals) -> None:
+        """A parameter a node does not declare would be ignored without a word (a typo in
+        --set, a file for another version): every one given must exist."""
+        plan = self.plan
+        for name in NODE_ORDER:
+            if name not in plan.commands or signals.first is not None:
+                continue
+            node = self.supervisor.nodes[name]
+            declared = self.monitor.parameter_names(
+                name, lambda node=node: node.alive and signals.first is None, PARAMETER_TIMEOUT
+            )
+            self._check_processes('during startup')
+            if declared is None:
+                if signals.first is None:
+                    self.say(f'{self.prog}: {name} does not list its parameters; not checked')
+                continue
+            unknown = sorted(set(plan.parameters[name].values) - declared)
+            if unknown:
+                source = relative_to_cwd(plan.params_file(name))
+                raise RunError(
+                    f'{name} has no parameter {", ".join(map(repr, unknown))} (in {source}); '
+                    f'its parameters: {", ".join(sorted(declared - ROS_OWN_PARAMETERS))}'
+                )
+
+    def _follow(self, signals: Signals) -> None:
+        """Spin until an end criterion, a signal, a dead node or a stall."""
+        plan, monitor = self.plan, self.monitor
+        if signals.first is not None:
+            self._interrupted(signals.first)
+            return
+        self.facts.training_started = time.monotonic()
+        monitor.last_activity = self.facts.training_started
+        self.progress.start(plan.episodes)
+        while True:
+            if signals.first is not None:
+                self._interrupted(signals.first)
+                return
+            self._check_processes(f'during the run (episode {self.tracker.episodes})')
+            reason = self.tracker.stop_reason()
+            if reason is not None:
+                message = self.tracker.end_message(reason, evaluating=plan.mode == 'eval')
+                self._end('success' if reason == 'streak' else 'budget', message, 0, 'stopping')
+                return
+            idle = time.monotonic() - monitor.last_activity
+            if idle > plan.stall_timeout:
+                raise RunError(
+                    f'no step for {idle:.0f} s (episode {self.tracker.episodes}): the system is '
+                    f'stuck; see the logs in {relative_to_cwd(plan.directory / "logs")}'
+                )
+            monitor.spin()
+
+    def _end(self, status: str, message: str, exit_code: int, then: str) -> None:
+        """The run is over (the nodes still run): the bar goes, the reason is said."""
+        self.progress.close()
+        self.facts.status, self.facts.message, self.facts.exit_code = status, message, exit_code
+        self.say(f'{self.prog}: {message}; {then}')
+
+    def _interrupted(self, signum: int) -> None:
+        name = signal.Signals(signum).name
+        message = f'interrupted by {name} after {self.tracker.episodes} episodes'
+        then = 'stopping every node (again to kill them)'
+        self._end('interrupted', message, EXIT_SIGNAL.get(signum, 1), then)
+
+    def _stop_nodes(self, signals: Signals) -> None:
+        supervisor = self.supervisor
+        if self.monitor is not None:
+            self.monitor.frozen = True
+        if supervisor is None or not supervisor.nodes:
+            return
+        for name, node in supervisor.nodes.items():
+            self.facts.node_cpu[name] = node.cpu_seconds()
+        running = [n for n in STOP_ORDER if n in supervisor.nodes and supervisor.nodes[n].alive]
+        if running:
+            self.say(f'stopping {", ".join(running)} ...')
+
+        def spin_while_waiting(name: str) -> None:
+            # Once the agent is gone (it goes first, at once, so the policy it saves is the one
+            # last evaluated), reports still on their way are taken in for summary.json.
+            if self.monitor is not None and name != STOP_ORDER[0]:
+                with contextlib.suppress(Exception):
+                    until = time.monotonic() + DRAIN_TIME
+                    while time.monotonic() < until:
+                        self.monitor.spin(0.01)
+
+        supervisor.stop(
+            STOP_ORDER,
+            timeout=lambda name: STOP_TIMEOUTS.get(name, 10.0),
+            hurry=signals.hurry,
+            on_stop=spin_while_waiting,
+        )
+        for name, node in supervisor.nodes.items():
+            self.facts.node_exits[name] = node.exit_text()
+        problems = [n for n in supervisor.unclean() if n.name not in self.crashed]
+        if problems:
+            for node in problems:
+                detail = 'had to be killed' if node.killed else 'did not stop cleanly'
+                self.say(f'{self.prog}: {node.name} {detail}: {node.why()}')
+            if self.facts.status in ('success', 'budget'):
+                self._fail(f'{problems[0].name} did not stop cleanly (see its log)')
+        if 'recorder' in supervisor.nodes and supervisor.nodes['recorder'].killed:
+            self.say(
+                f'{self.prog}: the recording was not closed; `stealth bag recover '
+                f'{relative_to_cwd(self.plan.file("recording.mcap"))}` writes an indexed copy'
+            )

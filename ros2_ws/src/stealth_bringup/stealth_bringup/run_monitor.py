@@ -1,0 +1,282 @@
+"""Watching a run from inside: the signals that stop it, the orchestrator's own rclpy node
+(graph queries, the episode reports, parameter services) and the progress bar.
+
+The orchestrator's participant talks UDP only, in the run's private domain, with rclpy's own
+signal handling off: SIGINT, SIGTERM and SIGHUP are only noted (Signals), so that the run can
+stop its nodes in order and still write its outputs.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import time
+
+from stealth_bringup.episode_tracker import EpisodeRecord, Tracker, agent_fields, summary_fields
+
+SPIN_PERIOD = 0.1  # s: how long a signal or a dead node can go unnoticed
+EXIT_SIGNAL = {signal.SIGINT: 130, signal.SIGTERM: 143, signal.SIGHUP: 129}
+GRAPH_TOPICS_IGNORED = {'/rosout', '/parameter_events'}
+SIMULATOR_SERVICES = ('/sim/execute_move', '/sim/reset')  # the system is up once they are there
+
+
+class Signals:
+    """SIGINT, SIGTERM and SIGHUP (the terminal went away) only noted: the run stops its nodes
+    in order and still writes its outputs. Restored on exit."""
+
+    def __init__(self):
+        self.received: list[int] = []
+        self._previous = {}
+
+    def __enter__(self):
+        for signum in EXIT_SIGNAL:
+            self._previous[signum] = signal.signal(signum, self._note)
+        return self
+
+    def __exit__(self, *exc):
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
+
+    def _note(self, signum, _frame) -> None:
+        self.received.append(signum)
+
+    @property
+    def first(self) -> int | None:
+        return self.received[0] if self.received else None
+
+    def hurry(self) -> bool:
+        """A second signal: stop waiting for nodes to finish."""
+        return len(self.received) >= 2
+
+
+def private_ros_context(domain_id: int):
+    """An initialised rclpy context of this process in the run's domain, without rclpy's
+    signal handlers (Signals has them)."""
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    os.environ['ROS_DOMAIN_ID'] = str(domain_id)
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    os.environ.pop('ROS_LOCALHOST_ONLY', None)
+    # The orchestrator's own participant talks UDP only (the nodes' environment was taken
+    # before this): it then holds no Fast DDS shared memory, so even a SIGKILL of this
+    # process leaves /dev/shm clean (the nodes get SIGTERM and close theirs normally).
+    os.environ['FASTDDS_BUILTIN_TRANSPORTS'] = 'UDPv4'
+    context = rclpy.Context()
+    rclpy.init(
+        context=context,
+        domain_id=domain_id,
+        signal_handler_options=SignalHandlerOptions.NO,
+    )
+    return context
+
+
+# --- the monitor node ----------------------------------------------------------------------------
+
+
+class Monitor:
+    """The orchestrator's rclpy side: graph queries and the episode reports."""
+
+    def __init__(self, context, tracker: Tracker, started: float, on_record):
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+        from stealth_interfaces.msg import AgentEpisodeInfo, EpisodeSummary, StepInfo
+
+        self.node = rclpy.create_node(
+            'orchestrator', context=context, start_parameter_services=False
+        )
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+        self.tracker = tracker
+        self.started = started
+        self.on_record = on_record
+        self.last_activity = time.monotonic()  # of the latest report (the stall watchdog)
+        self.paths: dict[int, list[tuple[float, float]]] = {}  # true (x, y) by episode
+        self.frozen = False  # set when the run ends: later reports are not counted
+        self.late: list[dict] = []  # summaries that arrived after that
+        qos = QoSProfile(
+            history=HistoryPolicy.KEEP_ALL,
+            reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.VOLATILE,
+        )
+        self.node.create_subscription(
+            EpisodeSummary, 'rl_env/episode_summary', self._on_summary, qos
+        )
+        self.node.create_subscription(
+            AgentEpisodeInfo, 'rl_agent/episode_info', self._on_agent_info, qos
+        )
+        self.node.create_subscription(StepInfo, 'rl_env/step_info', self._on_step, qos)
+
+    def close(self) -> None:
+        self.executor.remove_node(self.node)
+        self.executor.shutdown()
+        self.node.destroy_node()
+
+    def spin(self, timeout: float = SPIN_PERIOD) -> None:
+        self.executor.spin_once(timeout_sec=timeout)
+
+    def _elapsed(self) -> float:
+        return time.monotonic() - self.started
+
+    def _on_summary(self, msg) -> None:
+        self.last_activity = time.monotonic()
+        if self.frozen:  # the run has ended: an episode after the end or cut short by it
+            self.late.append(summary_fields(msg))
+            return
+        for record in self.tracker.add_summary(summary_fields(msg), self._elapsed()):
+            self.on_record(record)
+
+    def _on_agent_info(self, msg) -> None:
+        self.last_activity = time.monotonic()
+        if self.frozen:
+            return
+        fields = agent_fields(msg)
+        for record in self.tracker.add_agent_info(int(msg.episode), fields, self._elapsed()):
+            self.on_record(record)
+
+    def _on_step(self, msg) -> None:
+        self.last_activity = time.monotonic()
+        self.paths.setdefault(msg.episode, []).append((msg.true_pose.x, msg.true_pose.y))
+
+    # --- the graph --------------------------------------------------------------------------
+
+    def node_names(self) -> set[str]:
+        return {name for name, namespace in self.node.get_node_names_and_namespaces()
+                if namespace == '/'}  # fmt: skip
+
+    def services_of(self, node_name: str) -> set[str]:
+        with contextlib.suppress(Exception):  # the node may not be there yet
+            return {
+                name for name, _ in self.node.get_service_names_and_types_by_node(node_name, '/')
+            }
+        return set()
+
+    def _parameter_service(self, node_name: str, call, timeout: float, alive=lambda: True):
+        """The response to call(client) of a node's parameter services, None if it does not
+        come within `timeout` s; alive() false stops waiting."""
+        from rclpy.parameter_client import AsyncParameterClient
+
+        client = AsyncParameterClient(self.node, node_name)
+        deadline = time.monotonic() + timeout
+        while not client.services_are_ready():
+            if time.monotonic() >= deadline or not alive():
+                return None
+            self.spin()
+        future = call(client)
+        while not future.done():
+            if time.monotonic() >= deadline or not alive():
+                return None
+            self.spin()
+        return future.result()
+
+    def parameter_names(self, node_name: str, alive, timeout: float) -> set[str] | None:
+        """The parameters `node_name` declares (its list_parameters service), None if the
+        service does not answer within `timeout` s; alive() false stops waiting."""
+        response = self._parameter_service(
+            node_name, lambda client: client.list_parameters(), timeout, alive
+        )
+        return None if response is None else set(response.result.names)
+
+    def set_parameter(self, node_name: str, name: str, value, timeout: float) -> bool:
+        """Set one parameter of a node; True when it took it."""
+        from rclpy.parameter import Parameter
+
+        parameters = [Parameter(name, value=value)]
+        response = self._parameter_service(
+            node_name, lambda client: client.set_parameters(parameters), timeout
+        )
+        return bool(response is not None and all(r.successful for r in response.results))
+
+    def unrecorded_topics(self, node_name: str) -> list[str]:
+        """Topics `node_name` publishes that the recorder does not subscribe to yet."""
+        try:
+            topics = self.node.get_publisher_names_and_types_by_node(node_name, '/')
+        except Exception:  # noqa: BLE001 - not on the graph yet
+            return ['(node not discovered)']
+        topics = [(t, types) for t, types in topics if t not in GRAPH_TOPICS_IGNORED]
+        if not topics:  # the node is known before its endpoints are
+            return ['(its publishers, not discovered yet)']
+        missing = []
+        for topic, _ in topics:
+            readers = self.node.get_subscriptions_info_by_topic(topic)
+            if not any(info.node_name == 'recorder' for info in readers):
+                missing.append(topic)
+        return missing
+
+    def not_up(self, names) -> str:
+        """What of the system is not on the graph yet ('' once every node in `names` is, with
+        the simulator's services)."""
+        seen = self.node_names()
+        missing = [n for n in names if n not in seen]
+        if missing:
+            return 'node ' + ', '.join(missing)
+        wanted = set(SIMULATOR_SERVICES) - self.services_of('simulator')
+        if wanted:
+            return 'simulator services ' + ', '.join(sorted(wanted))
+        return ''
+
+    def not_recorded(self, names) -> str:
+        """What the recorder does not subscribe to yet ('' once it listens to every topic)."""
+        for name in names:
+            unrecorded = self.unrecorded_topics(name)
+            if unrecorded:
+                return f'the recorder to subscribe to {", ".join(unrecorded)} ({name})'
+        return ''
+
+
+# --- the progress bar ----------------------------------------------------------------------------
+
+
+class Progress:
+    """The episode bar on stderr, with the run's messages above it; without a terminal, plain
+    lines instead (every greedy evaluation and every tenth episode)."""
+
+    def __init__(self, tracker: Tracker, err):
+        self.tracker = tracker
+        self.err = err
+        self.bar = None
+
+    def say(self, text: str) -> None:
+        """A line on stderr (above the progress bar); a terminal that went away is no error."""
+        with contextlib.suppress(OSError, ValueError):
+            if self.bar is not None and not self.bar.disable:
+                self.bar.write(text, file=self.err)
+            else:
+                print(text, file=self.err, flush=True)
+
+    def start(self, total: int) -> None:
+        from tqdm import tqdm
+
+        self.bar = tqdm(
+            total=total,
+            unit='ep',
+            desc='episodes',
+            dynamic_ncols=True,
+            file=self.err,
+            disable=None,  # no bar when stderr is not a terminal: plain lines instead
+            smoothing=0.1,
+            # No time left: the budget is an upper bound, most runs end on the streak.
+            bar_format='{l_bar}{bar}| {n_fmt}/{total_fmt} [{elapsed}, {rate_fmt}{postfix}]',
+        )
+
+    def on_record(self, record: EpisodeRecord) -> None:
+        tracker = self.tracker
+        if self.bar is not None:
+            self.bar.update(1)
+            self.bar.set_postfix_str(tracker.postfix(), refresh=False)
+            if self.bar.disable and (record.greedy or tracker.episodes % 10 == 0):
+                what = 'greedy evaluation' if record.greedy else 'training'
+                print(
+                    f'episode {record.episode} ({what}): {record.outcome.lower()} in '
+                    f'{record.steps} steps, return {record.total_reward:.1f}; '
+                    f'{tracker.postfix()}',
+                    file=self.err,
+                    flush=True,
+                )
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None

@@ -1,0 +1,300 @@
+"""What a run leaves and says when it ends: the files (episodes.csv, the pictures and
+summary.json, written through run_outputs) and the closing lines, from the facts the process
+lifecycle gathered (RunFacts). No rclpy.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import math
+from pathlib import Path
+import time
+
+from stealth_bringup.episode_tracker import Tracker
+from stealth_bringup.run_config import relative_to_cwd
+from stealth_bringup.run_plan import RunPlan
+
+
+@dataclasses.dataclass
+class RunFacts:
+    """What orchestrating a run found out, for its report."""
+
+    started: float  # monotonic s at the command's start
+    status: str = 'failed'  # success, budget, interrupted or failed
+    message: str = ''
+    exit_code: int = 1
+    startup_seconds: float = math.nan
+    training_started: float | None = None
+    stopped_at: float | None = None
+    domain_id: int | None = None
+    nodes: dict = dataclasses.field(default_factory=dict)  # supervised nodes by name
+    node_exits: dict[str, str] = dataclasses.field(default_factory=dict)
+    node_cpu: dict[str, float | None] = dataclasses.field(default_factory=dict)  # CPU s used
+    paths: dict[int, list] = dataclasses.field(default_factory=dict)  # true (x, y) by episode
+    late: list[dict] = dataclasses.field(default_factory=list)  # summaries after the end
+
+
+class RunReport:
+    """The outputs of one run; `say` prints a line above the progress bar."""
+
+    def __init__(self, plan: RunPlan, tracker: Tracker, facts: RunFacts, say):
+        self.plan, self.tracker, self.facts, self.say = plan, tracker, facts, say
+        self.prog = f'stealth {plan.mode}'
+
+    def _policy_check(self) -> dict:
+        """Where the policy is and, after training, whether it is the one last evaluated."""
+        plan = self.plan
+        info = {'path': relative_to_cwd(plan.policy_path)}
+        if plan.mode != 'train':
+            return info
+        from stealth_agent.policy_store import PolicyFileError, load_policy
+
+        if not plan.policy_path.is_file():
+            info['saved'] = False
+            return info
+        try:
+            saved = load_policy(plan.policy_path)
+        except PolicyFileError as error:
+            info.update(saved=False, error=str(error))
+            return info
+        info.update(
+            saved=True,
+            learner=saved.learner.name,
+            episodes=saved.learner.episodes,
+            updates=saved.learner.updates,
+            states=len(saved.index),
+        )
+        last = self.tracker.last_greedy()
+        if last is not None and last.learner_updates >= 0:
+            info['as_last_evaluated'] = saved.learner.updates == last.learner_updates
+            info['updates_since_last_evaluation'] = saved.learner.updates - last.learner_updates
+        return info
+
+    def write(self) -> dict[str, Path]:
+        """Every output file of the run, written; {key: path} of what exists afterwards."""
+        from stealth_bringup.run_outputs import (
+            optimal_path,
+            plot_learning_curve,
+            plot_path,
+            write_episodes_csv,
+            write_json,
+        )
+
+        plan, tracker, facts = self.plan, self.tracker, self.facts
+        files = {}
+        records = sorted(tracker.records, key=lambda r: r.episode)
+        try:
+            optimum_points, optimum = optimal_path(plan.scenario, plan.goal)
+        except Exception as error:  # noqa: BLE001 - a baseline must not cost the run its outputs
+            self.say(f'{self.prog}: no value-iteration baseline: {error}')
+            optimum_points, optimum = None, None
+        if records:
+            files['episodes'] = write_episodes_csv(records, plan.file('episodes.csv'))
+        if records and plan.mode == 'train':
+            agent = plan.parameters['agent'].values
+            title = f'{plan.title}: {agent.get("agent", "qlearning")}, {len(records)} episodes'
+            curve = plot_learning_curve(
+                records,
+                plan.file('learning_curve.png'),
+                title,
+                streak_start=tracker.streak_start if facts.status == 'success' else None,
+                optimal_return=None if optimum is None else optimum.total_reward,
+            )
+            if curve is not None:
+                files['learning_curve'] = curve
+        shown = tracker.last_greedy() or (records[-1] if records else None)
+        learned = None
+        if shown is not None and shown.episode in facts.paths:
+            start = plan.scenario.start[:2]
+            learned = [tuple(start), *facts.paths[shown.episode]]
+        if shown is not None:
+            kind = 'greedy' if shown.greedy else 'last'
+            label = (
+                f'learned: {kind} episode {shown.episode}, true pose '
+                f'({shown.outcome.lower()}, {shown.steps} steps, return {shown.total_reward:.1f})'
+            )
+            optimum_label = (
+                'value-iteration optimum on the lattice'
+                if optimum is None
+                else f'optimum on the lattice ({optimum.steps} steps, return '
+                f'{optimum.total_reward:.1f})'
+            )
+            try:
+                picture = plot_path(
+                    plan.scenario,
+                    plan.goal,
+                    plan.file('path.png'),
+                    learned,
+                    label,
+                    optimum_points,
+                    optimum_label,
+                    f'{plan.title}: the learned path (true pose) and the optimum',
+                )
+            except Exception as error:  # noqa: BLE001
+                self.say(f'{self.prog}: could not draw path.png: {error}')
+                picture = None
+            if picture is not None:
+                files['path'] = picture
+        for key, name in (('recording', 'recording.mcap'), ('policy', 'policy.npz')):
+            if plan.file(name).exists():
+                files[key] = plan.file(name)
+        files['params'] = plan.file('params')
+        files['logs'] = plan.file('logs')
+        summary = self._summary(records, optimum, files)
+        write_json(summary, plan.file('summary.json'))
+        written = {k: Path(v) for k, v in files.items()}
+        written['summary'] = plan.file('summary.json')
+        return written
+
+    def _summary(self, records, optimum, files) -> dict:
+        plan, tracker, facts = self.plan, self.tracker, self.facts
+        agent = plan.parameters['agent'].values
+        training = [r for r in records if not r.greedy]
+        greedy = [r for r in records if r.greedy]
+        steps = sum(r.steps for r in records)
+        end = facts.stopped_at or time.monotonic()
+        run_seconds = end - facts.training_started if facts.training_started else 0.0
+        last = tracker.last_greedy()
+        seeds = {
+            node: plan.parameters[node].values.get('seed')
+            for node in ('simulator', 'environment', 'agent')
+        }
+        learner_keys = (
+            'agent', 'gamma', 'alpha', 'epsilon', 'n', 'initialvalue', 'epsilon_schedule',
+            'epsilon_final', 'epsilon_decay_episodes', 'alpha_schedule', 'alpha_final',
+            'alpha_decay_episodes',
+        )  # fmt: skip
+        summary = {
+            'status': facts.status,
+            'message': facts.message,
+            'mode': plan.mode,
+            'command': plan.command_line,
+            'scenario': {
+                'name': plan.scenario.name,
+                'path': str(Path(plan.scenario.path).resolve()),
+                'map': str(Path(plan.scenario.map_path).resolve()),
+            },
+            'goal': plan.goal,
+            'seeds': seeds,
+            'learner': {k: agent[k] for k in learner_keys if k in agent},
+            'simulator': {
+                k: plan.parameters['simulator'].values.get(k)
+                for k in ('real_time_factor', 'particles', 'physics_dt')
+            },
+            'episode_budget': plan.episodes,
+            'eval_every': plan.eval_every,
+            'success_streak': plan.streak,
+            'episodes': len(records),
+            'training_episodes': len(training),
+            'greedy_episodes': len(greedy),
+            'steps': steps,
+            'outcomes': tracker.outcome_counts(records),
+            'success_rate': _rate(records),
+            'training_success_rate': _rate(training),
+            'greedy_success_rate': _rate(greedy),
+            'streak': {
+                'length': tracker.streak,
+                'began_at_episode': tracker.streak_start,
+                'first_success_episode': next((r.episode for r in records if r.success), None),
+            },
+            'final_greedy': None if last is None else last.brief(),
+            # Episodes that ended after the end criterion, before the nodes were stopped (or
+            # that the stop cut short: ABORTED): in the recording, not counted here.
+            'not_counted': [
+                {'episode': f['episode'], 'outcome': f['outcome'], 'steps': f['steps']}
+                for f in facts.late
+            ],
+            'optimum_on_lattice': None
+            if optimum is None
+            else {
+                'outcome': optimum.outcome.name if optimum.outcome is not None else None,
+                'return': optimum.total_reward,
+                'steps': optimum.steps,
+                'path_length': optimum.path_length,
+                'peak_visibility': optimum.peak_visibility,
+            },
+            # From the command's start to now (nodes stopped, pictures drawn).
+            'wall_time_s': round(time.monotonic() - facts.started, 2),
+            'startup_s': round(facts.startup_seconds, 2)
+            if math.isfinite(facts.startup_seconds)
+            else None,
+            'run_s': round(run_seconds, 2),
+            'steps_per_s': round(steps / run_seconds, 2) if run_seconds > 0 else None,
+            'ros_domain_id': facts.domain_id,
+            'policy': self._policy_check(),
+            'nodes': {
+                name: {
+                    'command': node.command,
+                    'exit': facts.node_exits.get(name, ''),
+                    'cpu_s': facts.node_cpu.get(name),
+                    'log': relative_to_cwd(node.log_path),
+                }
+                for name, node in facts.nodes.items()
+            },
+            'files': {key: relative_to_cwd(value) for key, value in files.items()},
+        }
+        summary['files']['summary'] = relative_to_cwd(plan.file('summary.json'))
+        return summary
+
+    def print_closing(self, files: dict[str, Path], out) -> None:
+        """The closing lines on `out`: how it ended, the episodes, the files, what to do next."""
+        plan, tracker, facts = self.plan, self.tracker, self.facts
+        records = tracker.records
+        lines = []
+        elapsed = time.monotonic() - facts.started
+        verdict = {'success': 'done', 'budget': 'done', 'interrupted': 'stopped'}.get(facts.status)
+        if facts.status != 'failed':  # a failure's one line is on stderr already
+            lines.append(f'{self.prog}: {verdict} after {_duration(elapsed)}: {facts.message}')
+        if records:
+            counts = tracker.outcome_counts()
+            mix = ', '.join(f'{k.lower()} {v}' for k, v in counts.items() if v)
+            steps = sum(r.steps for r in records)
+            rate = ''
+            if facts.training_started and facts.stopped_at:
+                rate = f' at {steps / max(1e-9, facts.stopped_at - facts.training_started):.0f}/s'
+            greedy = sum(r.greedy for r in records)
+            lines.append(
+                f'  {len(records)} episodes ({len(records) - greedy} training, {greedy} greedy): '
+                f'{mix}; {steps} steps{rate}'
+            )
+            last = tracker.last_greedy()
+            if last is not None:
+                lines.append(
+                    f'  last greedy episode {last.episode}: {last.outcome.lower()} in '
+                    f'{last.steps} steps, return {last.total_reward:.1f}, path '
+                    f'{last.path_length:.1f} m, peak visibility {last.peak_visibility:.3f}'
+                )
+        directory = relative_to_cwd(plan.directory)
+        lines.append(f'Files in {directory}/:')
+        described = (
+            ('recording', 'recording.mcap', 'every topic of the run (MCAP, rosbag2 layout)'),
+            ('policy', 'policy.npz', 'the learned Q-table with its settings (resumable)'),
+            ('summary', 'summary.json', 'settings, outcomes, timings, file list'),
+            ('episodes', 'episodes.csv', 'one row per episode'),
+            ('learning_curve', 'learning_curve.png', 'return per episode, outcomes, epsilon'),
+            ('path', 'path.png', 'the learned path over the scenario, with the optimum'),
+            ('params', 'params/', 'the parameter file each node ran with'),
+            ('logs', 'logs/', "each node's log"),
+        )
+        for key, name, what in described:
+            if key in files and files[key].exists():
+                lines.append(f'  {name:<20}{what}')
+        if 'recording' in files and files['recording'].exists():
+            bag = relative_to_cwd(files['recording'])
+            lines.append(f'Replay:    stealth bag play {bag}   (details: stealth bag info {bag})')
+        if plan.mode == 'train' and 'policy' in files and records and facts.status != 'failed':
+            lines.append(f'Evaluate:  stealth eval --run {directory}')
+        with contextlib.suppress(OSError, ValueError):
+            print('\n'.join(lines), file=out, flush=True)
+
+
+def _rate(records) -> float | None:
+    return sum(r.success for r in records) / len(records) if records else None
+
+
+def _duration(seconds: float) -> str:
+    if seconds < 60:
+        return f'{seconds:.1f} s'
+    minutes, rest = divmod(int(round(seconds)), 60)
+    return f'{minutes} min {rest:02d} s'

@@ -1,0 +1,24 @@
+"""The commands stealth_bringup adds to `stealth`, found the way `stealth` finds them: through
+the entry-point group its setup.py registers."""
+
+import pytest
+from stealth_bringup.commands import COMMANDS
+from stealth_tools import cli
+
+
+def test_stealth_finds_train_eval_and_render_in_this_order():
+    added = cli.added_commands()
+    assert list(added)[:3] == ['train', 'eval', 'render']
+    assert {name: added[name] for name in COMMANDS} == COMMANDS
+    assert cli.build_parser().description.endswith(', plus train, eval and render.')
+
+
+@pytest.mark.parametrize('command', list(COMMANDS))
+def test_every_added_command_has_help(capsys, command):
+    try:
+        status = cli.main([command, '--help'])
+    except SystemExit as exit_:
+        status = exit_.code
+    out, _ = capsys.readouterr()
+    assert status == 0
+    assert 'usage:' in out or command == 'render'
