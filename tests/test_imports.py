@@ -16,6 +16,7 @@ SRC = Path(__file__).resolve().parents[1] / 'ros2_ws' / 'src'  # no ROS needed t
 # any environment that speaks rl_msgs; the tools record and replay any graph).
 LAYERS = (
     'stealth_interfaces',
+    'stealth_node_kit',
     'stealth_sim',
     'stealth_env',
     'stealth_agent',
@@ -24,10 +25,11 @@ LAYERS = (
 )
 MAY_IMPORT = {
     'stealth_interfaces': set(),
-    'stealth_sim': {'stealth_interfaces'},
-    'stealth_env': {'stealth_interfaces', 'stealth_sim'},
-    'stealth_agent': {'stealth_interfaces'},
-    'stealth_tools': {'stealth_interfaces'},
+    'stealth_node_kit': set(),  # what every node shares: rclpy only
+    'stealth_sim': {'stealth_interfaces', 'stealth_node_kit'},
+    'stealth_env': {'stealth_interfaces', 'stealth_node_kit', 'stealth_sim'},
+    'stealth_agent': {'stealth_interfaces', 'stealth_node_kit'},
+    'stealth_tools': {'stealth_interfaces', 'stealth_node_kit'},
     'stealth_bringup': set(LAYERS) - {'stealth_bringup'},
 }
 # Tests that reach up on purpose, each with why; any other test import is held to the rules.
