@@ -43,6 +43,9 @@ def run_node(
         return EXIT_CANNOT_START
     try:
         node = make_node()
+    except KeyboardInterrupt:  # stopped (Ctrl-C, the orchestrator) while it was starting
+        rclpy.try_shutdown()
+        return 0
     except Exception as error:  # StartupError, or rcl's own (e.g. a bad remapping)
         logger.fatal(f'not starting: {_without_source_locations(error)}')
         rclpy.try_shutdown()

@@ -57,3 +57,11 @@ def test_bad_arguments_give_exit_code_2_without_building_the_node(capfd):
     assert run_node(lambda: built.append(1), 'kit_test', args=args) == EXIT_CANNOT_START
     assert not built
     assert 'not starting: bad arguments' in capfd.readouterr().err
+
+
+def test_a_node_stopped_while_it_starts_exits_quietly(capfd):
+    def interrupted():
+        raise KeyboardInterrupt
+
+    assert run_node(interrupted, 'kit_test', args=[]) == 0
+    assert 'Traceback' not in capfd.readouterr().err
