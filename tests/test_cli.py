@@ -193,3 +193,17 @@ def test_bag_and_topic_errors_are_one_line(node_processes, tmp_path):
     one_error_line(
         stealth(node_processes, 'train', '--scenario', 'nope'), "stealth train: scenario 'nope'"
     )
+    for verb in ('echo', 'hz', 'info'):
+        one_error_line(
+            stealth(node_processes, 'topic', verb, 'bad topic!!'),
+            f"stealth topic {verb}: invalid topic name 'bad topic!!': topic name must not",
+        )
+    string = 'std_msgs/msg/String'
+    one_error_line(
+        stealth(node_processes, 'topic', 'echo', '/silent', string, '--timeout', '1'),
+        'stealth topic echo: no message on /silent within 1 s',
+    )
+    one_error_line(
+        stealth(node_processes, 'topic', 'hz', '/silent', '--spin-time', '0.3', '--timeout', '1'),
+        'stealth topic hz: nothing published /silent within 1 s',
+    )

@@ -45,22 +45,32 @@ WATCH_PUBLISH_RATE = 10.0  # Hz of odom, ground_truth, scan, clock under --watch
 # --- command line -------------------------------------------------------------------------------
 
 
+def _whole_number(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{text!r} is not a whole number') from None
+
+
 def _positive_int(text: str) -> int:
-    value = int(text)
+    value = _whole_number(text)
     if value <= 0:
         raise argparse.ArgumentTypeError(f'{text} is not a positive integer')
     return value
 
 
 def _non_negative_int(text: str) -> int:
-    value = int(text)
+    value = _whole_number(text)
     if value < 0:
         raise argparse.ArgumentTypeError(f'{text} is negative')
     return value
 
 
 def _positive_float(text: str) -> float:
-    value = float(text)
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{text!r} is not a number') from None
     if not value > 0 or not math.isfinite(value):
         raise argparse.ArgumentTypeError(f'{text} is not a positive number')
     return value
@@ -331,7 +341,11 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
     """Check every input and lay out the run; RunConfigError before anything exists."""
     if mode == 'train':
         scenario = _load_scenario(args.scenario)
-        default_goal = DEFAULT_GOAL if args.scenario == DEFAULT_SCENARIO else None
+        # The default scenario's quick goal, however it is named (by name or by its file).
+        is_default = (
+            Path(scenario.path).resolve() == Path(_load_scenario(DEFAULT_SCENARIO).path).resolve()
+        )
+        default_goal = DEFAULT_GOAL if is_default else None
         goal = _check_goal(scenario, args.goal, default_goal)
         source_policy = None
         params_dir = args.params_dir

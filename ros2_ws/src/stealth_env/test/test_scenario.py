@@ -238,6 +238,15 @@ def test_yaml_syntax_error(write):
     assert_scenario_error(write(text='name: x\nstart: {x: 1, y: 2\n'), 'YAML syntax error at line')
 
 
+def test_a_key_given_twice_is_an_error_not_the_last_value(write):
+    text = 'name: x\nstep_limit: 100\nstart: {x: 1, y: 2}\nstep_limit: 300\n'
+    assert_scenario_error(
+        write(text=text), "at line 4, column 1: duplicate key 'step_limit' (first at line 2)"
+    )
+    nested = 'name: x\nstart: {x: 1, y: 2, x: 3}\n'
+    assert_scenario_error(write(text=nested), "duplicate key 'x' (first at line 2)")
+
+
 def test_scenario_that_is_not_a_mapping(write):
     assert_scenario_error(write(text='[1, 2]\n'), 'expected a YAML mapping of scenario fields')
 

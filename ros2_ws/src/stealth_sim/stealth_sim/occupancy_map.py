@@ -178,6 +178,26 @@ def _show(value: Any) -> str:
     return text if len(text) <= 60 else text[:57] + '...'
 
 
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """yaml.safe_load, except that a key given twice in one mapping is an error: PyYAML keeps
+    the last value silently, and a scenario or map file must not mean something else than it
+    seems to say."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None,
+                    None,
+                    f'duplicate key {key!r} (first at line {seen[key] + 1})',
+                    key_node.start_mark,
+                )
+            seen[key] = key_node.start_mark.line
+        return super().construct_mapping(node, deep=deep)
+
+
 def read_yaml_mapping(path: str | os.PathLike, error: type[ValueError], what: str) -> dict:
     """Parse a YAML file whose top level must be a mapping; one clear error otherwise."""
     try:
@@ -186,7 +206,7 @@ def read_yaml_mapping(path: str | os.PathLike, error: type[ValueError], what: st
         reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
         raise error(f'{path}: cannot read {what}: {reason}') from None
     try:
-        values = yaml.safe_load(text)
+        values = yaml.load(text, Loader=_UniqueKeyLoader)  # a SafeLoader: no Python objects
     except yaml.YAMLError as exc:
         mark = getattr(exc, 'problem_mark', None)
         where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''

@@ -203,7 +203,10 @@ def _add_topic(commands) -> None:
     parser.add_argument('--flow-style', action='store_true', help='YAML flow style')
     parser.add_argument('--once', action='store_true', help='print the first message and exit')
     parser.add_argument(
-        '--timeout', metavar='N', type=_positive_float, help='give up after N seconds'
+        '--timeout',
+        metavar='N',
+        type=_positive_float,
+        help='stop after N seconds; exit status 1 when no message arrived',
     )
     _spin_time(parser, 5.0)
     parser.set_defaults(handler=_lazy('graph_tools', 'topic_echo', ros=True))
@@ -229,6 +232,12 @@ def _add_topic(commands) -> None:
         dest='use_wtime',
         action='store_true',
         help='use wall time (when /clock is not published in a simulation)',
+    )
+    parser.add_argument(
+        '--timeout',
+        metavar='N',
+        type=_positive_float,
+        help='give up, exit status 1, after N seconds without a message (default: wait)',
     )
     _spin_time(parser, 5.0)
     parser.set_defaults(handler=_lazy('graph_tools', 'topic_hz', ros=True))

@@ -13,6 +13,7 @@ import threading
 import time
 
 import rclpy
+from rclpy.exceptions import InvalidTopicNameException
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import (
     DurabilityPolicy,
@@ -21,6 +22,7 @@ from rclpy.qos import (
     ReliabilityPolicy,
     qos_profile_sensor_data,
 )
+from rclpy.validate_full_topic_name import validate_full_topic_name
 
 from stealth_tools.errors import CommandError
 from stealth_tools.interfaces import InterfaceError, message_class
@@ -66,6 +68,17 @@ def _types_once_published(node, executor, stop, topic: str, timeout: float | Non
     """The topic's types once a publisher of it is seen, or whatever is known at the timeout."""
     spin_until(executor, stop, lambda: node.count_publishers(topic) > 0, timeout)
     return topic_types(node).get(topic)
+
+
+def _topic_argument(name: str) -> str:
+    """The topic a command-line name stands for (CommandError when it cannot be a topic)."""
+    topic = absolute_topic(name)
+    try:
+        validate_full_topic_name(topic)
+    except InvalidTopicNameException as error:
+        reason = str(error).splitlines()[0].removeprefix('Invalid topic name: ').rstrip(':')
+        raise CommandError(f'invalid topic name {name!r}: {reason}') from None
+    return topic
 
 
 def _class_of(type_name: str):
@@ -131,7 +144,7 @@ def _field_of(message, path: list[str]):
 
 
 def topic_echo(args, stop: threading.Event) -> int:
-    topic = absolute_topic(args.topic_name)
+    topic = _topic_argument(args.topic_name)
     field = [part for part in (args.field or '').split('.') if part]
     truncate = None if args.full_length else args.truncate_length
     with cli_node() as (node, executor):
@@ -162,23 +175,31 @@ def topic_echo(args, stop: threading.Event) -> int:
 
         node.create_subscription(_class_of(type_name), topic, show, _echo_qos(node, topic, args))
         spin_until(executor, stop, lambda: args.once and bool(received), args.timeout)
+    if args.timeout is not None and not received and not stop.is_set():
+        raise CommandError(f'no message on {topic} within {args.timeout:g} s')
     return 0
 
 
 def topic_hz(args, stop: threading.Event) -> int:
-    topic = absolute_topic(args.topic_name)
+    topic = _topic_argument(args.topic_name)
     with cli_node() as (node, executor):
+        started = time.monotonic()
         types = _types_once_published(node, executor, stop, topic, args.spin_time)
         if not types:
             print(f'WARNING: topic [{topic}] does not appear to be published yet', flush=True)
-            types = _types_once_published(node, executor, stop, topic, None)
+            remaining = None if args.timeout is None else max(args.timeout - args.spin_time, 0)
+            types = _types_once_published(node, executor, stop, topic, remaining)
+        if not types and args.timeout is not None and not stop.is_set():
+            raise CommandError(f'nothing published {topic} within {args.timeout:g} s')
         if not types:
             return 0  # stopped while waiting
         window = RateWindow(args.window_size)
+        last_message = [started]
         clock = node.get_clock()
 
         def on_message(_) -> None:
             window.add(time.time_ns() if args.use_wtime else clock.now().nanoseconds)
+            last_message[0] = time.monotonic()
 
         node.create_subscription(
             _class_of(types[0]), topic, on_message, qos_profile_sensor_data, raw=True
@@ -188,11 +209,13 @@ def topic_hz(args, stop: threading.Event) -> int:
             stats = window.report()
             if stats:
                 print(stats.text(), flush=True)
+            if args.timeout is not None and time.monotonic() - last_message[0] > args.timeout:
+                raise CommandError(f'no message on {topic} for {args.timeout:g} s')
     return 0
 
 
 def topic_info(args, stop: threading.Event) -> int:
-    topic = absolute_topic(args.topic_name)
+    topic = _topic_argument(args.topic_name)
     with cli_node() as (node, executor):
         types = _types_once_published(node, executor, stop, topic, args.spin_time)
         if not types:
