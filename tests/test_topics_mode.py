@@ -74,7 +74,7 @@ def test_covert_path_over_topics_reaches_the_goal_then_teleports_back(agent, nod
     for _ in range(2):
         state, info = agent.act(LEFT)
         check_step(task, state, info)
-    assert list(state.state) == [1.0, 1.5]
+    assert not state.terminal and state.state[1] == 1.5  # short of the west wall
     wait_for_log(env, 'the robot met a wall or unknown space and stopped')
     counts = totals(stop(env))
     assert counts['received'] == counts['executed'] == number + 2

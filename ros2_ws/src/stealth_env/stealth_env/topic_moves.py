@@ -320,11 +320,11 @@ class TopicMove:
     def _drive(
         self, t: float, estimate: Pose, odom: Odom, clearance: float, period: float
     ) -> Command | Finished:
-        controller, limits = self.controller, self.config.limits
+        controller = self.controller
         heading = self.move.heading
         dx, dy = self._target[0] - estimate.x, self._target[1] - estimate.y
-        remaining = dx * math.cos(heading) + dy * math.sin(heading)
-        if remaining <= controller.position_tolerance:
+        remaining = self._remaining(estimate)
+        if abs(remaining) <= controller.position_tolerance:
             return self._brake(Outcome.DONE)
         free = clearance - self.config.bump_distance  # how far until too close to an obstacle
         if clearance < remaining - self.config.bump_distance:  # it stands before the target
@@ -333,15 +333,19 @@ class TopicMove:
             remaining = free
         if self._stalled(t, odom):
             return self._brake(Outcome.BUMPED)
-        aim = math.atan2(dy, dx) if math.hypot(dx, dy) > controller.aim_distance else heading
+        aim = math.atan2(dy, dx) if remaining > controller.aim_distance else heading
         error = wrap_angle(aim - estimate.yaw)
         limits = self.config.limits
-        coasting = coast(odom.linear, self._sent.linear, limits.max_linear_accel, period)
-        speed = approach_speed(
-            remaining - coasting,
-            limits.max_linear_speed,
-            limits.max_linear_accel * controller.braking_share,
-            period,
+        # Signed: past the target (a command that came late at speed), it backs up to it.
+        left = remaining - coast(odom.linear, self._sent.linear, limits.max_linear_accel, period)
+        speed = math.copysign(
+            approach_speed(
+                abs(left),
+                limits.max_linear_speed,
+                limits.max_linear_accel * controller.braking_share,
+                period,
+            ),
+            left,
         )
         # Slow down while badly misaligned rather than drive sideways off the line.
         speed *= max(0.0, math.cos(error))
@@ -353,6 +357,11 @@ class TopicMove:
         overdue = t - self.start_time > 2 * self.time_limit  # odometry that never shows rest
         if not (at_rest or overdue):
             return STOP
+        tolerance = self.controller.position_tolerance
+        if self._after_brake is Outcome.DONE and abs(self._remaining(estimate)) > tolerance:
+            self._after_brake = None  # it coasted past the target: back to it
+            self.phase = Phase.DRIVE
+            return self._drive(t, estimate, odom, math.inf, period)
         if self._after_brake is not None:
             outcome = self._after_brake
             message = MESSAGES[outcome].format(limit=self.time_limit)
@@ -367,6 +376,16 @@ class TopicMove:
             return self._braking(t, estimate, odom, period)
         self._start_drive(estimate)
         return self._drive(t, estimate, odom, math.inf, period)
+
+    def _remaining(self, estimate: Pose) -> float:
+        """How far the target lies ahead along the drive's line (negative: behind; 0 before
+        the drive)."""
+        if self._target is None:
+            return 0.0
+        heading = self.move.heading
+        return (self._target[0] - estimate.x) * math.cos(heading) + (
+            self._target[1] - estimate.y
+        ) * math.sin(heading)
 
     def _brake(self, then: Outcome | None) -> Command:
         self.phase = Phase.BRAKE

@@ -42,7 +42,7 @@ class TopicRobot:
     """A Simulator driven as over topics: odometry once per ``period`` (published ``phase``
     physics steps into it), each command taking effect at the start of the next period."""
 
-    def __init__(self, scenario, pose, period=0.2, phase=0, respond=True, seed=1):
+    def __init__(self, scenario, pose, period=0.2, phase=0, respond=True, seed=1, late=()):
         config = SimConfig(
             physics_dt=PHYSICS_DT, limits=LIMITS, robot_radius=scenario.robot_radius, seed=seed
         )
@@ -50,6 +50,9 @@ class TopicRobot:
         self.steps_per_period = round(period / PHYSICS_DT)
         self.phase = phase
         self.respond = respond
+        self.late = set(late)  # periods in which the new command arrives too late to act
+        self.periods = 0
+        self._acting = Command(0.0, 0.0)
         self.scenario = scenario
 
     def odom(self) -> Odom:
@@ -66,10 +69,13 @@ class TopicRobot:
         """Run one period under ``command`` (sent on the previous period's odometry); the
         odometry, estimate and clearance published ``phase`` steps into it."""
         sample = None
+        if self.periods not in self.late:
+            self._acting = command
+        self.periods += 1
         for step in range(self.steps_per_period):
             if step == self.phase:
                 sample = (self.odom(), self.sim.estimate, self.clearance())
-            self.sim.step(*(command if self.respond else (0.0, 0.0)))
+            self.sim.step(*(self._acting if self.respond else (0.0, 0.0)))
         return sample
 
 
@@ -115,6 +121,16 @@ def test_grid_moves_end_within_the_service_paths_tolerances(maze, period, phase)
         f'period {period} s, odometry at step {phase}: {np.mean(periods_used):.1f} periods '
         f'per move ({np.mean(periods_used) * period:.2f} s of robot time)'
     )
+
+
+def test_commands_that_come_late_at_speed_are_made_up_for(maze):
+    """A loaded machine: the commands of two periods near the end of the drive act a period
+    late, at full speed; the robot overshoots, then backs up into the tolerance."""
+    robot = TopicRobot(maze, maze.start, period=0.2, late=(9, 10))
+    move = action_move(0, 0.5)  # up: no turn, the drive starts at once
+    result, _, controller = run_move(robot, move)
+    assert result.outcome == Outcome.DONE
+    assert abs(controller._remaining(robot.sim.estimate)) <= TOLERANCE.position_tolerance
 
 
 def test_a_move_into_a_wall_is_bumped_short_of_it(maze):
