@@ -15,7 +15,8 @@ step may be dropped silently):
   (RLExperimentInfo);
 * StepInfo is built only while someone subscribes (a recorder, a viewer), as the simulator
   does with its periodic topics;
-* calls ``sim/execute_move`` and ``sim/reset`` (stealth_interfaces) of the simulator node,
+* calls ``sim/execute_move`` and ``sim/reset`` (stealth_interfaces) of the simulator node
+  (``robot_interface`` service; ``topics``: see below),
   asynchronously: no callback ever blocks the executor; reads the simulator's latched ``map``
   once to check it is the scenario's (an error line if not).
 
@@ -32,6 +33,26 @@ ABORTED (a terminal state with reward 0 keeps the agent in step). An agent that 
 its episode as ABORTED, and the next agent to come gets a fresh one. Totals of actions and
 states are logged at shutdown. The decisions are ``stealth_env.episode_flow``'s; the marker
 geometry ``stealth_env.markers``'.
+
+Robot interface (``robot_interface``, ``reset_mode``): ``service`` (the default) is the above.
+``topics`` plugs into any ROS robot (Stage, Gazebo, a TurtleBot with nav2's AMCL; or
+``stealth_sim`` over the same topics): a move is the same turn-then-drive with the same
+tolerances and outcomes, executed closed-loop by ``stealth_env.topic_moves`` on every ``odom``
+message: ``geometry_msgs/Twist`` on ``cmd_vel``, the pose from ``amcl_pose``
+(PoseWithCovarianceStamped, frame ``map``) carried forward by ``odom``, BUMPED from ``scan``
+(a wall within ``bump_distance`` ahead) or no progress for ``stall_time``, TIMED_OUT at the
+service path's time limit, in the robot's clock (message stamps). Judging uses
+``ground_truth`` (nav_msgs/Odometry, frame ``map``) when it is published, otherwise the
+estimate (a warning once; StepInfo.true_pose is then NaN). ``reset_mode`` ``teleport`` calls
+``reset_service`` (stealth_interfaces/ResetRobot, ``sim/reset``); ``drive`` drives back to the
+start along a collision-free path on the move lattice (lights ignored), then publishes
+``initialpose``. All topic names are relative and remappable. A robot that does not move on
+``cmd_vel`` makes moves TIME OUT; after ``unresponsive_moves`` of them in a row the episode is
+ABORTED and the node exits with code 3 and a line saying the robot is not responding. A robot
+that stops publishing ``odom`` for ``move_timeout`` aborts the episode, as a simulator that does
+not answer. An ``amcl_pose`` in another frame or any non-finite pose is dropped with a one-line
+error naming the topic (throttled), and the move goes on with the next good message. The ROS
+shell of this mode is ``stealth_env.topic_robot``.
 
 Bad startup input (no or an unusable scenario, an unknown goal, a bad parameter value) stops
 the node with one line saying which and why, and exit code 2.

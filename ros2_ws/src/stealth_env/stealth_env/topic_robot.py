@@ -34,7 +34,6 @@ from stealth_env.log_throttle import Throttle
 from stealth_env.topic_moves import (
     STOP,
     Command,
-    Finished,
     Move,
     Odom,
     Outcome,
@@ -122,10 +121,6 @@ class TopicRobot:
     def ready(self) -> bool:
         """Odometry and a localisation estimate have come."""
         return self.tracker.estimate is not None
-
-    @property
-    def has_truth(self) -> bool:
-        return self._truth is not None or self._truth_sub.get_publisher_count() > 0
 
     @property
     def busy(self) -> bool:
@@ -299,6 +294,3 @@ class TopicRobot:
 
 def _pose_of(pose) -> Pose:
     return Pose(pose.position.x, pose.position.y, quaternion_yaw(pose.orientation))
-
-
-__all__ = ['TOPICS', 'MoveEnd', 'TopicRobot', 'Finished']
