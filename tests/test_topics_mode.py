@@ -177,3 +177,22 @@ def test_steps_per_second_topics_against_service(agent, node_processes):
         f'\nsteps/s: service {rates["service"]:.1f}, topics {rates["topics"]:.1f} '
         f'({rates["service"] / rates["topics"]:.1f}x)'
     )
+
+
+def test_a_topics_run_lets_simulated_time_flow_for_the_control_loop(tmp_path):
+    """stealth train --set environment.robot_interface=topics: the simulator at 20x in 10 ms
+    ticks with one odom per tick; --set still wins, and --watch stays real time."""
+    from stealth_bringup.run_plan import TOPICS_SIMULATOR, make_plan, train_parser
+
+    def simulator(*options: str) -> dict:
+        argv = ['--runs-dir', str(tmp_path), '--no-record', *options]
+        plan = make_plan(train_parser().parse_args(argv), 'train', argv)
+        return plan.parameters['simulator'].values
+
+    topics = ('--set', 'environment.robot_interface=topics')
+    assert TOPICS_SIMULATOR.items() <= simulator(*topics).items()
+    assert simulator()['real_time_factor'] == 0.0
+    assert (
+        simulator(*topics, '--set', 'simulator.real_time_factor=10.0')['real_time_factor'] == 10.0
+    )
+    assert simulator(*topics, '--watch')['real_time_factor'] == 1.0
