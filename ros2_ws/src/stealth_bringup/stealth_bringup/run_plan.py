@@ -41,6 +41,10 @@ DEFAULT_EVAL_EPISODES = 5
 STARTUP_TIMEOUT = 60.0  # s for every node to appear on the graph
 STALL_TIMEOUT = 120.0  # s without a step before the run is declared stuck
 WATCH_PUBLISH_RATE = 10.0  # Hz of odom, ground_truth, scan, clock under --watch
+# environment.robot_interface topics (issue 13): the environment drives the simulator over
+# cmd_vel/odom, one control step per odom message, so simulated time must flow between moves:
+# 20x wall time in ticks of 10 ms (0.2 s simulated, the control period), one odom per tick.
+TOPICS_SIMULATOR = {'real_time_factor': 20.0, 'idle_period': 0.01, 'publish_rate': 5.0}
 
 # --- command line -------------------------------------------------------------------------------
 
@@ -365,6 +369,8 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
             run_values[node]['seed'] = args.seed
     if args.watch:  # real time, and the simulator's topics at a rate a viewer shows smoothly
         run_values['simulator'].update(real_time_factor=1.0, publish_rate=WATCH_PUBLISH_RATE)
+    elif _robot_interface(sources, run_values, overrides) == 'topics':
+        run_values['simulator'].update(TOPICS_SIMULATOR)
     # Read the files before creating anything, so a bad one stops us with nothing to undo.
     parameters = {
         node: effective_parameters(node, sources[node], run_values[node], overrides.get(node, {}))
@@ -411,6 +417,17 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
         policy_path=policy_path,
         record='recorder' in parameters,
     )
+
+
+def _robot_interface(sources, run_values, overrides) -> str:
+    """The environment's effective robot_interface (issue 13: topics mode)."""
+    environment = effective_parameters(
+        'environment',
+        sources['environment'],
+        run_values['environment'],
+        overrides.get('environment', {}),
+    )
+    return environment.values.get('robot_interface', 'service')
 
 
 _TITLE = re.compile(r'^stealth-nav: (?P<scenario>.+) \((?P<goal>[^()]+)\)$')

@@ -15,7 +15,8 @@ step may be dropped silently):
   (RLExperimentInfo);
 * StepInfo is built only while someone subscribes (a recorder, a viewer), as the simulator
   does with its periodic topics;
-* calls ``sim/execute_move`` and ``sim/reset`` (stealth_interfaces) of the simulator node,
+* calls ``sim/execute_move`` and ``sim/reset`` (stealth_interfaces) of the simulator node
+  (``robot_interface`` service; ``topics``: see below),
   asynchronously: no callback ever blocks the executor; reads the simulator's latched ``map``
   once to check it is the scenario's (an error line if not).
 
@@ -32,6 +33,26 @@ ABORTED (a terminal state with reward 0 keeps the agent in step). An agent that 
 its episode as ABORTED, and the next agent to come gets a fresh one. Totals of actions and
 states are logged at shutdown. The decisions are ``stealth_env.episode_flow``'s; the marker
 geometry ``stealth_env.markers``'.
+
+Robot interface (``robot_interface``, ``reset_mode``): ``service`` (the default) is the above.
+``topics`` plugs into any ROS robot (Stage, Gazebo, a TurtleBot with nav2's AMCL; or
+``stealth_sim`` over the same topics): a move is the same turn-then-drive with the same
+tolerances and outcomes, executed closed-loop by ``stealth_env.topic_moves`` on every ``odom``
+message: ``geometry_msgs/Twist`` on ``cmd_vel``, the pose from ``amcl_pose``
+(PoseWithCovarianceStamped, frame ``map``) carried forward by ``odom``, BUMPED from ``scan``
+(a wall within ``bump_distance`` ahead) or no progress for ``stall_time``, TIMED_OUT at the
+service path's time limit, in the robot's clock (message stamps). Judging uses
+``ground_truth`` (nav_msgs/Odometry, frame ``map``) when it is published, otherwise the
+estimate (a warning once; StepInfo.true_pose is then NaN). ``reset_mode`` ``teleport`` calls
+``reset_service`` (stealth_interfaces/ResetRobot, ``sim/reset``); ``drive`` drives back to the
+start along a collision-free path on the move lattice (lights ignored), then publishes
+``initialpose``. All topic names are relative and remappable. A robot that does not move on
+``cmd_vel`` makes moves TIME OUT; after ``unresponsive_moves`` of them in a row the episode is
+ABORTED and the node exits with code 3 and a line saying the robot is not responding. A robot
+that stops publishing ``odom`` for ``move_timeout`` aborts the episode, as a simulator that does
+not answer. An ``amcl_pose`` in another frame or any non-finite pose is dropped with a one-line
+error naming the topic (throttled), and the move goes on with the next good message. The ROS
+shell of this mode is ``stealth_env.topic_robot``.
 
 Bad startup input (no or an unusable scenario, an unknown goal, a bad parameter value) stops
 the node with one line saying which and why, and exit code 2.
@@ -87,10 +108,14 @@ from stealth_env.episode_flow import (
     agent_connected,
     is_finite_pose,
 )
+from stealth_env.log_throttle import Throttle
 from stealth_env.markers import WallMap, any_moving, scene_markers, searchlight_fields
 from stealth_env.reward import Outcome
 from stealth_env.scenario import ScenarioError, load_scenario
 from stealth_env.task import StealthTask
+from stealth_env.topic_moves import Limits, Pose, TopicConfig, go_to, route_home
+from stealth_env.topic_robot import TOPICS as ROBOT_TOPICS
+from stealth_env.topic_robot import MoveEnd, TopicRobot
 
 NODE_NAME = 'environment'
 MAP_FRAME = 'map'
@@ -99,6 +124,11 @@ RESET_RETRY = 1.0  # s of wall time before a failed reset is tried again
 WAITING_LOG_PERIOD = 10.0  # s of wall time between 'still waiting' lines
 MOVE_NOTE_LOG_PERIOD = 5.0  # s of wall time between lines about bumped moves
 RESET_FAILED_LOG_PERIOD = 10.0  # s of wall time between lines about failed resets
+STOP_DELAY = 1.0  # s of wall time between giving up on the robot and exiting (messages go out)
+EXIT_ROBOT_NOT_RESPONDING = 3
+ROBOT_INTERFACES = ('service', 'topics')
+RESET_MODES = ('teleport', 'drive')
+CHOICES = {'judge_on': JUDGE_ON, 'robot_interface': ROBOT_INTERFACES, 'reset_mode': RESET_MODES}
 
 # Lockstep protocol: at most one message in flight, and a reliable KEEP_ALL queue anyway.
 RL_QOS = QoSProfile(
@@ -122,7 +152,7 @@ TOPICS = {
     'searchlights': 'searchlights',
     'markers': 'searchlight_markers',
 }
-MOVE_SERVICE, RESET_SERVICE = 'sim/execute_move', 'sim/reset'
+MOVE_SERVICE = 'sim/execute_move'
 MARKER_KINDS = {
     'triangle_list': Marker.TRIANGLE_LIST,
     'line_strip': Marker.LINE_STRIP,
@@ -164,6 +194,49 @@ PARAMETERS = {
     ),
     'log_every': Param(100, 'Log a progress line every this many episodes (0 = never).',
                        (0, 2**31 - 1)),
+    'robot_interface': Param(
+        'service', "How moves reach the robot: 'service' (the simulator's sim/execute_move) or "
+        "'topics' (closed loop over cmd_vel, odom, amcl_pose and scan: any ROS robot).",
+        read_only=True,
+    ),
+    'reset_mode': Param(
+        'teleport', "How an episode puts the robot back at the start: 'teleport' (call "
+        "reset_service) or 'drive' (topics only: drive back along a collision-free path on the "
+        'move lattice, lights ignored, then publish initialpose).', read_only=True,
+    ),
+    'reset_service': Param(
+        'sim/reset', 'The teleport of reset_mode teleport: a stealth_interfaces/ResetRobot '
+        'service.', read_only=True,
+    ),
+    'unresponsive_moves': Param(
+        3, 'topics: after this many moves in a row timed out without the robot moving, the '
+        'robot is not responding to cmd_vel: the episode is ABORTED and the node exits (3).',
+        (1, 1000), read_only=True,
+    ),
+    'bump_distance': Param(
+        0.05, 'topics: m to an obstacle in the way (laser scan) that ends a move BUMPED.',
+        (0.0, 1.0), read_only=True,
+    ),
+    'stall_time': Param(
+        1.0, "topics: s (robot's clock) without progress while driving that end a move BUMPED.",
+        (0.05, 60.0), read_only=True,
+    ),
+    'max_linear_speed': Param(
+        Limits.max_linear_speed, "topics: the controller's speed limit (m/s; the robot's or "
+        'lower, as the following three).', (0.01, 5.0), read_only=True,
+    ),
+    'max_angular_speed': Param(
+        Limits.max_angular_speed, 'topics: turn rate limit (rad/s).', (0.01, 10.0),
+        read_only=True,
+    ),
+    'max_linear_accel': Param(
+        Limits.max_linear_accel, 'topics: acceleration limit (m/s^2).', (0.01, 20.0),
+        read_only=True,
+    ),
+    'max_angular_accel': Param(
+        Limits.max_angular_accel, 'topics: angular acceleration limit (rad/s^2).', (0.01, 50.0),
+        read_only=True,
+    ),
 }  # fmt: skip
 
 
@@ -193,7 +266,11 @@ def description_msg(fields: dict) -> RLEnvDescription:
     )
 
 
-def step_info_msg(report, state: list, reward: float, stamp: Time) -> StepInfo:
+def step_info_msg(
+    report, state: list, reward: float, stamp: Time, truth_known: bool = True
+) -> StepInfo:
+    """truth_known False: no ground truth is published, the step was judged on the estimate
+    and ``true_pose`` is NaN."""
     judgement = report.judgement
     info = StepInfo(
         episode=report.episode,
@@ -206,7 +283,7 @@ def step_info_msg(report, state: list, reward: float, stamp: Time) -> StepInfo:
         detected=judgement.detected,
         terminal=report.terminal,
         estimated_pose=pose2d_msg(report.estimate),
-        true_pose=pose2d_msg(report.truth),
+        true_pose=pose2d_msg(report.truth if truth_known else PlanarPose(*[math.nan] * 3)),
     )
     info.header.stamp, info.header.frame_id = stamp, MAP_FRAME
     return info
@@ -294,23 +371,6 @@ def _grid_text(width, height, resolution, x, y) -> str:
     return f'{width} x {height} cells of {resolution:g} m from ({x:g}, {y:g})'
 
 
-class Throttle:
-    """True at most once per ``period`` s of wall time: checked before calling the logger,
-    because rclpy's own ``throttle_duration_sec`` first finds the caller by reading source
-    (inspect), ~2 ms per call even when it then drops the line."""
-
-    def __init__(self, period: float):
-        self.period = period
-        self._next = -math.inf
-
-    def __call__(self) -> bool:
-        now = time.monotonic()
-        if now < self._next:
-            return False
-        self._next = now + self.period
-        return True
-
-
 class Pending(NamedTuple):
     """A request to the simulator on its way."""
 
@@ -351,6 +411,14 @@ class EnvironmentNode(Node):
         self.move_timeout = values['move_timeout']
         self.start_delay = values['start_delay']
         self.log_every = values['log_every']
+        self.robot_interface, self.reset_mode = values['robot_interface'], values['reset_mode']
+        if self.reset_mode == 'drive' and self.robot_interface != 'topics':
+            raise StartupError('parameter reset_mode: drive needs robot_interface topics')
+        self.reset_service = values['reset_service']
+        self.unresponsive_moves = values['unresponsive_moves']
+        self._unresponsive = 0  # moves in a row that timed out without the robot moving
+        self.exit_code = 0
+        self._judged_on_estimate = False  # said once: no ground truth, judged on the estimate
         self._walls = WallMap.of(self.scenario.map)
         self._moving_lights = any_moving(self.scenario)
         self._sim_time = 0.0  # the latest simulated time the simulator reported (s)
@@ -404,8 +472,13 @@ class EnvironmentNode(Node):
         self.create_subscription(
             OccupancyGrid, 'map', self._check_map, LATCHED_QOS, event_callbacks=QUIET_SUBSCRIPTION
         )
-        self._move_client = self.create_client(ExecuteMove, MOVE_SERVICE)
-        self._reset_client = self.create_client(ResetRobot, RESET_SERVICE)
+        self._move_client = self._reset_client = self._robot = None
+        if self.robot_interface == 'service':
+            self._move_client = self.create_client(ExecuteMove, MOVE_SERVICE)
+        else:
+            self._robot = TopicRobot(self, self._topic_config(values), MAP_FRAME)
+        if self.reset_mode == 'teleport':
+            self._reset_client = self.create_client(ResetRobot, self.reset_service)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(TICK_PERIOD, self._on_tick, clock=self._steady)
         self._scene_timer = None
@@ -421,9 +494,32 @@ class EnvironmentNode(Node):
             f'{int(description["num_states"])} states, goal {goal.name} at '
             f'({goal.x:g}, {goal.y:g}), step {self.scenario.step_distance:g} m, step limit '
             f'{self.task.step_limit}, {len(self.scenario.lights)} lights, judged on the '
-            f'{"true pose" if self.flow.judge_on == "true" else "estimate"}; waiting for '
-            f'{MOVE_SERVICE}, {RESET_SERVICE} and an agent'
+            f'{"true pose" if self.flow.judge_on == "true" else "estimate"}; robot over '
+            f'{self._robot_description()}; waiting for it and an agent'
         )
+
+    def _topic_config(self, values: dict) -> TopicConfig:
+        limits = Limits(
+            *(values[name] for name in ('max_linear_speed', 'max_angular_speed',
+                                        'max_linear_accel', 'max_angular_accel'))
+        )  # fmt: skip
+        return TopicConfig(
+            limits=limits,
+            robot_radius=self.scenario.robot_radius,
+            bump_distance=values['bump_distance'],
+            stall_time=values['stall_time'],
+        )
+
+    def _robot_description(self) -> str:
+        """What the robot is reached over: services, or topics (and the reset's way)."""
+        if self._robot is None:
+            moves = f'the simulator ({MOVE_SERVICE}'
+        else:
+            names = ', '.join(self.resolve_topic_name(t) for t in ROBOT_TOPICS.values())
+            moves = f'topics ({names}'
+        if self.reset_mode == 'teleport':
+            return f'{moves}, {self.resolve_service_name(self.reset_service)})'
+        return f'{moves}; reset by driving to the start)'
 
     def _quiet_publisher(self, message_type, topic: str, qos: QoSProfile):
         return self.create_publisher(message_type, topic, qos, event_callbacks=QUIET_PUBLISHER)
@@ -444,10 +540,12 @@ class EnvironmentNode(Node):
     def _validate_parameters(self, changes) -> SetParametersResult:
         """rclpy checks types, ranges and read-only; this checks what it cannot."""
         for change in changes:
-            if change.name == 'judge_on' and change.value not in JUDGE_ON:
+            choices = CHOICES.get(change.name)
+            if choices is not None and change.value not in choices:
                 return SetParametersResult(
                     successful=False,
-                    reason=f'judge_on must be one of {", ".join(JUDGE_ON)}, got {change.value!r}',
+                    reason=f'{change.name} must be one of {", ".join(choices)}, got '
+                    f'{change.value!r}',
                 )
         reason = non_finite(changes)
         return SetParametersResult(successful=reason is None, reason=reason or '')
@@ -471,8 +569,12 @@ class EnvironmentNode(Node):
 
     # --- startup, timeouts, agent presence ------------------------------------------------------
 
-    def _services_ready(self) -> bool:
-        return self._move_client.service_is_ready() and self._reset_client.service_is_ready()
+    def _robot_ready(self) -> bool:
+        if self._reset_client is not None and not self._reset_client.service_is_ready():
+            return False
+        if self._robot is None:
+            return self._move_client.service_is_ready()
+        return self._robot.ready
 
     def _agent_connected(self) -> bool:
         if self._action_sub.get_publisher_count() == 0:
@@ -500,14 +602,35 @@ class EnvironmentNode(Node):
                 pending, f'no answer from {pending.what} within move_timeout '
                 f'{self.move_timeout:g} s (is the simulator running?)'
             )  # fmt: skip
+        if self._robot is not None:
+            self._robot_watchdog()
         phase = self.flow.phase
         if phase is Phase.WAITING:
             self._maybe_start(now)
         elif self._action_sub.get_publisher_count() == 0:
             self._agent_gone()
 
+    def _robot_watchdog(self) -> None:
+        """A robot that stops publishing odometry mid-move fails the move, as a simulator that
+        does not answer does."""
+        robot = self._robot
+        robot.tick()
+        if not robot.busy or robot.silent_for() <= self.move_timeout:
+            return
+        robot.cancel()
+        reason = (
+            f'no {self.resolve_topic_name(ROBOT_TOPICS["odom"])} for move_timeout '
+            f'{self.move_timeout:g} s (is the robot running?)'
+        )
+        if self.flow.phase is Phase.RESETTING:
+            self._reset_failed(self.flow.token, reason)
+        else:
+            self._abort(self.flow.token, reason)
+
     def _agent_gone(self) -> None:
         withdrawn = self.flow.counts.episodes_withdrawn
+        if self._robot is not None:
+            self._robot.cancel()
         summary = self.flow.agent_lost()
         if self._pending is not None:  # its answer is stale now
             self._pending.client.remove_pending_request(self._pending.future)
@@ -527,15 +650,15 @@ class EnvironmentNode(Node):
             self.get_logger().info(gone)
 
     def _maybe_start(self, now: float) -> None:
-        services, agent = self._services_ready(), self._agent_connected()
-        if not (services and agent):
+        robot, agent = self._robot_ready(), self._agent_connected()
+        if not (robot and agent):
             self._ready_since = None
             if now - self._waiting_logged >= WAITING_LOG_PERIOD:
                 self._waiting_logged = now
                 missing = [
                     what
                     for what, there in (
-                        (f'the simulator ({MOVE_SERVICE}, {RESET_SERVICE})', services),
+                        (f'the robot: {self._robot_description()}', robot),
                         (
                             f'an agent (publishing {TOPICS["action"]}, subscribed to '
                             f'{TOPICS["state"]})',
@@ -554,8 +677,29 @@ class EnvironmentNode(Node):
     def _start_episode(self) -> None:
         """Reset the robot to the start; the episode's first state follows the answer."""
         token, (x, y, yaw) = self.flow.begin_reset()
+        if self.reset_mode == 'drive':
+            self._drive_home(token, Pose(x, y, yaw))
+            return
         request = ResetRobot.Request(x=x, y=y, yaw=yaw)  # zero covariance: the node's default
-        self._send(self._reset_client, request, token, RESET_SERVICE, self._on_reset_answer)
+        self._send(self._reset_client, request, token, self.reset_service, self._on_reset_answer)
+
+    def _drive_home(self, token: int, start: Pose) -> None:
+        """reset_mode drive: back to the start over the lattice, then tell the localisation."""
+        here = self._robot.tracker.estimate
+        moves = route_home(self.task.lattice, here, start) if here is not None else None
+        if moves is None:
+            self._reset_failed(token, f'no collision-free path from {here} to the start')
+            return
+
+        def arrived(end: MoveEnd) -> None:
+            if end.outcome != ExecuteMove.Response.DONE:
+                outcome = 'no move' if end.outcome is None else end.outcome.name
+                self._reset_failed(token, f'driving to the start: {outcome} {end.message}')
+                return
+            self._robot.set_initial_pose(start)
+            self._episode_ready(token)
+
+        self._robot.run(moves, arrived)
 
     def _send(self, client, request, token: int, what: str, on_answer) -> None:
         future = client.call_async(request)
@@ -563,7 +707,7 @@ class EnvironmentNode(Node):
         future.add_done_callback(functools.partial(on_answer, token))
 
     def _request_failed(self, pending: Pending, reason: str) -> None:
-        if pending.what == RESET_SERVICE:
+        if pending.what == self.reset_service:
             self._reset_failed(pending.token, reason)
         else:
             self._abort(pending.token, reason)
@@ -586,6 +730,14 @@ class EnvironmentNode(Node):
         if response is None or not response.success:
             self._reset_failed(token, problem or response.message)
             return
+        if self._robot is None:
+            self._episode_ready(token)
+        else:  # the first state once odometry from after the teleport has come
+            start = Pose(*self.task.scenario.start)
+            self._robot.restart(start, functools.partial(self._episode_ready, token))
+
+    def _episode_ready(self, token: int) -> None:
+        """The robot is at the start: the first state goes out."""
         state = self.flow.reset_done(token)
         if state is None:
             return  # stale: the agent went away meanwhile
@@ -597,8 +749,12 @@ class EnvironmentNode(Node):
             self._retry_at = time.monotonic() + RESET_RETRY
             if self._reset_failed_log():
                 self.get_logger().error(
-                    f'{RESET_SERVICE} failed: {reason}; trying again in {RESET_RETRY:g} s'
+                    f'{self._reset_what} failed: {reason}; trying again in {RESET_RETRY:g} s'
                 )
+
+    @property
+    def _reset_what(self) -> str:
+        return self.reset_service if self.reset_mode == 'teleport' else 'the drive to the start'
 
     def _on_move_answer(self, token: int, future: Future) -> None:
         response, problem = self._take_answer(token, future)
@@ -610,24 +766,63 @@ class EnvironmentNode(Node):
             return
         estimate = planar_pose(response.estimate.pose)
         truth = planar_pose(response.true_pose)
-        if not is_finite_pose(*estimate, *truth):
-            self._abort(token, f'the simulator answered a non-finite pose ({estimate}, {truth})')
+        self._finish_move(token, response.outcome, response.message, estimate, truth,
+                          response.stamp)  # fmt: skip
+
+    def _on_move_end(self, token: int, end: MoveEnd) -> None:
+        """topics: a move's end (or why there was none)."""
+        if end.outcome is None:
+            self._abort(token, end.message)
             return
-        t = seconds(response.stamp)
+        timed_out = end.outcome == ExecuteMove.Response.TIMED_OUT
+        self._unresponsive = self._unresponsive + 1 if timed_out and not end.moved else 0
+        if self._unresponsive >= self.unresponsive_moves:
+            cmd_vel = self.resolve_topic_name(ROBOT_TOPICS['cmd_vel'])
+            self._give_up(
+                token, f'the robot is not responding to {cmd_vel}: {self._unresponsive} moves '
+                'in a row timed out without it moving (is it running, and is cmd_vel remapped '
+                'to its topic?)'
+            )  # fmt: skip
+            return
+        estimate = PlanarPose(*end.estimate)
+        truth = PlanarPose(*end.truth) if end.truth is not None else estimate
+        if end.truth is None and not self._judged_on_estimate:
+            self._judged_on_estimate = True
+            self.get_logger().warning(
+                f'no {self.resolve_topic_name(ROBOT_TOPICS["truth"])} is published: steps are '
+                'judged on the localisation estimate (StepInfo.true_pose is NaN)'
+            )
+        self._finish_move(token, end.outcome, end.message, estimate, truth, time_msg(end.t),
+                          truth_known=end.truth is not None)  # fmt: skip
+
+    def _finish_move(self, token, outcome, message, estimate, truth, stamp, truth_known=True):
+        """A move ended (DONE, BUMPED or TIMED_OUT) with these poses at this time: judge it."""
+        if not is_finite_pose(*estimate, *truth):
+            self._abort(token, f'the robot reported a non-finite pose ({estimate}, {truth})')
+            return
+        t = seconds(stamp)
         self._sim_time = max(self._sim_time, t)
         try:
             report = self.flow.finish_move(token, estimate, truth, t)
         except ValueError as error:
-            self._abort(token, f"{error}: does the simulator run the scenario's map?")
+            self._abort(token, f"{error}: does the robot run on the scenario's map?")
             return
         if report is None:
             return  # stale: already aborted (timeout) or the agent went away
-        if response.outcome != ExecuteMove.Response.DONE and self._move_note_log():
+        if outcome != ExecuteMove.Response.DONE and self._move_note_log():
             self.get_logger().info(
-                f'move {report.action} of episode {report.episode}, step {report.step}: '
-                f'{response.message}'
+                f'move {report.action} of episode {report.episode}, step {report.step}: {message}'
             )
-        self._publish_step(report, response.stamp)
+        self._publish_step(report, stamp, truth_known)
+
+    def _give_up(self, token: int, reason: str) -> None:
+        """The robot cannot be used: end the episode (the agent gets its terminal state), then
+        exit with EXIT_ROBOT_NOT_RESPONDING once the messages are out."""
+        self._abort(token, reason)
+        self.get_logger().fatal(f'stopping: {reason}')
+        self.exit_code = EXIT_ROBOT_NOT_RESPONDING
+        self._robot.cancel()
+        self.create_timer(STOP_DELAY, self.context.try_shutdown, clock=self._steady)
 
     def _abort(self, token: int, reason: str) -> None:
         aborted = self.flow.abort(token, reason)
@@ -664,12 +859,16 @@ class EnvironmentNode(Node):
                 'dropped so far)'
             )
             return
+        # Every action is a drive to a lattice node (StealthTask.move_target), over either
+        # interface: the robot stays on the lattice the agent's states and the planners assume.
+        x, y = self.task.move_target(*self.flow.state, self.flow.action)
+        if self._robot is not None:
+            token = self.flow.token
+            self._robot.run([go_to(x, y)], functools.partial(self._on_move_end, token))
+            return
         if not self._move_client.service_is_ready():
             self._abort(self.flow.token, f'{MOVE_SERVICE} is not available')
             return
-        # Every action is a drive to a lattice node (StealthTask.move_target): the robot stays
-        # on the lattice the agent's states and the planners assume.
-        x, y = self.task.move_target(*self.flow.state, self.flow.action)
         request = ExecuteMove.Request(kind=ExecuteMove.Request.GO_TO, x=x, y=y)
         self._send(self._move_client, request, self.flow.token, MOVE_SERVICE, self._on_move_answer)
 
@@ -685,14 +884,14 @@ class EnvironmentNode(Node):
 
     # --- publishing -----------------------------------------------------------------------------
 
-    def _publish_step(self, report, stamp: Time) -> None:
+    def _publish_step(self, report, stamp: Time, truth_known: bool = True) -> None:
         state = list(report.state)
         reward = _float32(report.reward)
         self._state_pub.publish(
             RLStateReward(state=state, reward=reward, terminal=report.terminal)
         )
         if self._step_pub.get_subscription_count():  # as the simulator: built when wanted
-            self._step_pub.publish(step_info_msg(report, state, reward, stamp))
+            self._step_pub.publish(step_info_msg(report, state, reward, stamp, truth_known))
         if report.summary is not None:
             self._publish_summary(report.summary, stamp)
 
@@ -778,7 +977,14 @@ def _progress(window) -> str:
 
 
 def main(args=None) -> int:
-    return run_node(EnvironmentNode, NODE_NAME, args=args, on_exit=EnvironmentNode.log_totals)
+    nodes = []
+
+    def make_node() -> EnvironmentNode:
+        nodes.append(EnvironmentNode())
+        return nodes[-1]
+
+    code = run_node(make_node, NODE_NAME, args=args, on_exit=EnvironmentNode.log_totals)
+    return code or (nodes[0].exit_code if nodes else 0)
 
 
 if __name__ == '__main__':

@@ -119,6 +119,13 @@ PARAMETERS = {
     'publish_rate': Param(
         10.0, 'Rate of odom, ground_truth, scan, clock, tf (Hz).', (0.1, 1000.0)
     ),
+    'idle_period': Param(
+        IDLE_PERIOD,
+        'Wall s between ticks of time between moves (under cmd_vel, the control '
+        'period of a robot driven over topics is this times real_time_factor).',
+        (0.001, 1.0),
+        True,
+    ),
 }
 
 
@@ -239,6 +246,7 @@ class SimulatorNode(Node):
         self.real_time_factor = values['real_time_factor']
         self.cmd_vel_timeout = values['cmd_vel_timeout']
         self.publish_period = 1.0 / values['publish_rate']
+        self.idle_period = values['idle_period']
         self._command: tuple[float, float] | None = None
         self._command_time = 0.0
         self._next_publish = 0.0
@@ -299,7 +307,7 @@ class SimulatorNode(Node):
         self.create_service(ExecuteMove, 'sim/execute_move', self._on_execute_move)
         self.create_service(ResetRobot, 'sim/reset', self._on_reset)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(IDLE_PERIOD, self._on_idle_tick, clock=steady)
+        self.create_timer(self.idle_period, self._on_idle_tick, clock=steady)
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
 
@@ -385,7 +393,7 @@ class SimulatorNode(Node):
         due = self._pacer.due(rate)
         if due - self.sim.time > MAX_CATCH_UP:  # fell behind (a busy machine): do not race
             self._pacer.anchor(self.sim.time)
-            due = self.sim.time + IDLE_PERIOD * rate
+            due = self.sim.time + self.idle_period * rate
         while self.sim.time + self.sim.config.physics_dt <= due + 1e-9:
             linear, angular = self._fresh_command() or (0.0, 0.0)
             if self.sim.step(linear, angular):
