@@ -67,16 +67,23 @@ def test_covert_path_over_topics_reaches_the_goal_then_teleports_back(agent, nod
     assert agent.summaries[0].outcome == EpisodeSummary.SUCCESS
     assert agent.summaries[0].path_length == pytest.approx(0.5 * number, rel=0.1)
 
-    # A wall: BUMPED short of it, judged like any step; the episode goes on.
+    # Into a wall the map shows: the robot keeps its node (as on the lattice), judged like any
+    # step; the episode goes on.
     agent.info_pub.publish(RLExperimentInfo(episode_number=0, number_actions=number))
     again = agent.next_state(timeout=30.0)
     assert (list(again.state), again.terminal) == ([1.5, 1.5], False)
-    for _ in range(2):
+    node = (1.5, 1.5)
+    for _ in range(2):  # one step west, then the west wall blocks the move
+        expected = task.move_target(*node, LEFT)
         state, info = agent.act(LEFT)
         check_step(task, state, info)
-    assert not state.terminal and state.state[1] == 1.5  # short of the west wall
-    wait_for_log(env, 'the robot met a wall or unknown space and stopped')
-    counts = totals(stop(env))
+        assert (list(state.state), state.terminal) == ([*expected], False)
+        assert math.dist((info.true_pose.x, info.true_pose.y), expected) < 0.1
+        node = expected
+    assert node == (1.0, 1.5)  # the second move was blocked: the robot kept its node
+    log = stop(env)
+    assert 'the robot met a wall or unknown space and stopped' not in log
+    counts = totals(log)
     assert counts['received'] == counts['executed'] == number + 2
 
 
