@@ -21,6 +21,7 @@ import dataclasses
 import enum
 import math
 
+from stealth_sim.fast_move import FastMoveRun
 from stealth_sim.kinematics import Pose, wrap_angle
 from stealth_sim.simulator import Simulator
 
@@ -127,8 +128,15 @@ def execute_move(
     move: Move,
     on_step: Callable[[Simulator], None] | None = None,
     controller: ControllerConfig = ControllerConfig(),
+    on_step_due: Callable[[float, int], bool] | None = None,
 ) -> MoveResult:
-    """Run ``move`` to its end; a rejected move leaves the simulator untouched."""
+    """Run ``move`` to its end; a rejected move leaves the simulator untouched.
+
+    ``on_step`` sees the simulator after every physics step or, with ``on_step_due``, only
+    after the steps for which ``on_step_due(simulated time, filter updates so far)`` is true
+    (the fast path then writes its state back only for those). The fast path
+    (:mod:`stealth_sim.fast_move`) runs unless the simulator was made with ``reference=True``.
+    """
     start = sim.estimate
     problem = move_problem(move, sim.max_move_distance, start)
     if problem:
@@ -147,7 +155,11 @@ def execute_move(
         heading, distance = wrap_angle(move.heading), 0.0
     else:
         heading, distance = GRID_HEADINGS[kind], move.distance
-    run = _MoveRun(sim, controller, on_step, _nominal_duration(sim, heading, distance))
+    nominal = _nominal_duration(sim, heading, distance)
+    if sim.reference:
+        run = _MoveRun(sim, controller, on_step, nominal, on_step_due)
+    else:
+        run = FastMoveRun(sim, controller, on_step, nominal, on_step_due)
     outcome = run.turn_to(heading)
     if outcome is None and distance > 0:
         if target is None:
@@ -177,12 +189,13 @@ def _nominal_duration(sim: Simulator, heading: float, distance: float) -> float:
 
 
 class _MoveRun:
-    """The state of one move in progress: steps taken, time limit, the step hook."""
+    """The reference: one move in progress, a ``Simulator.step`` per physics step."""
 
-    def __init__(self, sim, controller, on_step, nominal_duration):
+    def __init__(self, sim, controller, on_step, nominal_duration, on_step_due=None):
         self.sim = sim
         self.controller = controller
         self.on_step = on_step
+        self.on_step_due = on_step_due
         self.start_time = sim.time
         self.steps = 0
         self.time_limit = (
@@ -192,7 +205,10 @@ class _MoveRun:
     def _step(self, linear: float, angular: float, timed: bool = True) -> Outcome | None:
         bumped = self.sim.step(linear, angular)
         self.steps += 1
-        if self.on_step is not None:
+        if self.on_step is not None and (
+            self.on_step_due is None
+            or self.on_step_due(self.sim.time, self.sim.localisation_updates)
+        ):
             self.on_step(self.sim)
         if bumped:
             return Outcome.BUMPED

@@ -74,7 +74,12 @@ def most_open_pose(occupancy_map: OccupancyMap) -> Pose:
 class Simulator:
     """One robot on one map, advanced in fixed physics steps of simulated time."""
 
-    def __init__(self, occupancy_map: OccupancyMap, config: SimConfig, pose: Pose):
+    def __init__(
+        self, occupancy_map: OccupancyMap, config: SimConfig, pose: Pose, reference: bool = False
+    ):
+        # reference: moves step by step through step() and the filter weighs on its reference
+        # path, as before the fast paths (the baseline they are proven and measured against).
+        self.reference = reference
         self.map = occupancy_map
         self.config = config
         self.footprint = DiscFootprint(occupancy_map, config.robot_radius)
@@ -89,8 +94,10 @@ class Simulator:
         )
         field = LikelihoodField(occupancy_map, config.filter.likelihood, config.laser.range_max)
         self.localiser = Localiser(
-            ParticleFilter(field, config.filter, config.odometry_noise, filter_rng)
+            ParticleFilter(field, config.filter, config.odometry_noise, filter_rng, reference)
         )
+        # Why a fast path cannot be used with this configuration (logged once by the node).
+        self.fallback_reasons = [] if reference else [r for r in (field.fallback_reason,) if r]
         # AMCL's beam subsampling: max_beams evenly spread over the scan, ends included.
         beams, max_beams = config.laser.beams, config.filter.likelihood.max_beams
         step = max(1, (beams - 1) // max(1, max_beams - 1))
