@@ -307,6 +307,8 @@ class SimulatorNode(Node):
         grid.header.stamp = grid.info.map_load_time = time_msg(self.sim.time)
         self.map_pub.publish(grid)
         self._publish_state(everything=True)
+        for reason in self.sim.fallback_reasons:
+            self.get_logger().warning(f'fast path not used: {reason}')
         self.get_logger().info(
             f'{values["map"]}: {self.map.width} x {self.map.height} cells of '
             f'{self.map.resolution:g} m; robot at ({start.x:.2f}, {start.y:.2f}, '
@@ -365,9 +367,19 @@ class SimulatorNode(Node):
             self._publish_estimate(only_if_subscribed=True)
 
     def _move_step(self, sim: Simulator) -> None:
-        """After each physics step of a move: publish what is due, keep the real-time factor."""
+        """After a physics step of a move: publish what is due, keep the real-time factor."""
         self._publish_due()
         self._pacer.wait(sim.time, self.real_time_factor)
+
+    def _move_step_due(self, sim_time: float, updates: int) -> bool:
+        """Whether a step of a move needs :meth:`_move_step`: a periodic publication or a new
+        estimate is due, or the real-time factor paces every step. Training (factor 0, topics
+        at ``publish_rate``) so skips nearly every step, and the fast path stays on its floats."""
+        return (
+            self.real_time_factor > 0.0
+            or sim_time >= self._next_publish - 1e-9
+            or updates != self._published_updates
+        )
 
     def _fresh_command(self) -> tuple[float, float] | None:
         if self._command is not None and self.sim.time - self._command_time > self.cmd_vel_timeout:
@@ -430,7 +442,9 @@ class SimulatorNode(Node):
         move = Move(request.kind, request.distance, request.heading, request.x, request.y)
         self._command = None  # a move takes over the robot
         self._pacer.anchor(self.sim.time)
-        result = execute_move(self.sim, move, on_step=self._move_step)
+        result = execute_move(
+            self.sim, move, on_step=self._move_step, on_step_due=self._move_step_due
+        )
         self._command = None
         self._pacer.anchor(self.sim.time)
         if result.outcome == Outcome.REJECTED:
