@@ -61,12 +61,6 @@ class FilterConfig:
             raise ValueError(f'particles: expected an integer >= 1, got {self.particles!r}')
 
 
-# The fast likelihood lookup pads its table by the laser range plus this many cells (particles may
-# stray this far off the map), up to this many cells in all (32 MB of float64).
-PARTICLE_MARGIN_CELLS = 40
-MAX_PADDED_CELLS = 4_000_000
-
-
 class LikelihoodField:
     """AMCL's per-beam score ``pz^3`` at every cell, precomputed for one laser range_max.
 
@@ -88,22 +82,6 @@ class LikelihoodField:
         self.inverse_resolution = 1.0 / occupancy_map.resolution
         self.origin_x, self.origin_y = occupancy_map.origin[:2]
         self._flat_score = self.score.ravel()
-        # The fast lookup's table: the score padded with the off-map value so far that no
-        # endpoint within range_max of a particle near the map needs clipping.
-        self._pad = math.ceil(range_max * self.inverse_resolution) + 1 + PARTICLE_MARGIN_CELLS
-        height, width = self.score.shape
-        padded_cells = (height + 2 * self._pad) * (width + 2 * self._pad)
-        self.fallback_reason = None
-        if padded_cells > MAX_PADDED_CELLS:
-            self.fallback_reason = (
-                f'likelihood field: laser_range {range_max:g} m on this map needs a padded '
-                f'table of {padded_cells / 1e6:.1f} M cells (limit {MAX_PADDED_CELLS / 1e6:g} M); '
-                'the filter weighs particles on the clipping reference path'
-            )
-            self._padded_score = None
-        else:
-            self._padded_score = np.pad(self.score, self._pad, mode='edge').ravel()
-        self._padded_width = width + 2 * self._pad
 
     def to_grid(self, x, y):
         """Continuous padded-grid coordinates (col, row) of points (m), +1 for the ring."""
@@ -131,58 +109,6 @@ class LikelihoodField:
     def grid_scores(self, cols: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """``pz^3`` of beam endpoints at padded-grid coordinates (see :meth:`to_grid`)."""
         return self._flat_score[self._flat_cells(cols, rows)]
-
-    def score_sums(self, poses: np.ndarray, ranges: np.ndarray, bearings: np.ndarray):
-        """Each pose's sum of ``pz^3`` over the beams (finite ranges, robot-frame bearings).
-
-        All endpoints come from one matrix product, (2N, 3) particle frames in grid units times
-        (3, B) beams, and are looked up in the padded table without clipping; when a particle
-        strays so far off the map that the padding does not cover it, or the table would be
-        too large, :func:`reference_score_sums` (same cells, clipped) answers instead.
-        """
-        cols, rows = self.to_grid(poses[:, 0], poses[:, 1])
-        margin = PARTICLE_MARGIN_CELLS
-        height, width = self.score.shape
-        if (
-            self._padded_score is None
-            or min(cols.min(), rows.min()) <= -margin
-            or cols.max() >= width + margin
-            or rows.max() >= height + margin
-        ):
-            return reference_score_sums(self, poses, ranges, bearings)
-        count = len(poses)
-        cos_yaw, sin_yaw = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-        frames = np.empty((2 * count, 3))
-        frames[:count, 0] = cos_yaw
-        np.negative(sin_yaw, out=frames[:count, 1])
-        np.add(cols, self._pad, out=frames[:count, 2])
-        frames[count:, 0] = sin_yaw
-        frames[count:, 1] = cos_yaw
-        np.add(rows, self._pad, out=frames[count:, 2])
-        beams = np.ones((3, len(ranges)))  # (x, y, 1) in cells, robot frame
-        scaled = ranges * self.inverse_resolution
-        np.multiply(scaled, np.cos(bearings), out=beams[0])
-        np.multiply(scaled, np.sin(bearings), out=beams[1])
-        # All coordinates are positive here, so truncation is the floor.
-        cells = (frames @ beams).astype(np.intp)
-        flat = cells[count:]
-        flat *= self._padded_width
-        flat += cells[:count]
-        return self._padded_score[flat].sum(axis=1)
-
-
-def reference_score_sums(field: LikelihoodField, poses, ranges, bearings) -> np.ndarray:
-    """:meth:`LikelihoodField.score_sums` as first written: complex endpoints, clipped lookups.
-
-    The fast lookup is proven equal to it (test_localisation) and falls back to it.
-    """
-    cols, rows = field.to_grid(poses[:, 0], poses[:, 1])
-    # Endpoints as complex grid coordinates col + i row: the beams in the robot frame (in
-    # cells) turned into every particle's frame by one outer product (no trig per pair).
-    beams = (ranges * field.inverse_resolution) * np.exp(1j * bearings)
-    ends = np.multiply.outer(np.exp(1j * poses[:, 2]), beams)
-    ends += (cols + 1j * rows)[:, None]
-    return field.grid_scores(ends.real, ends.imag).sum(axis=1)
 
 
 def covariance_from_spread(poses: np.ndarray, weights: np.ndarray) -> tuple[Pose, np.ndarray]:
@@ -217,10 +143,8 @@ class ParticleFilter:
         config: FilterConfig,
         motion_noise: MotionNoise,
         rng: np.random.Generator,
-        reference: bool = False,
     ):
         self.field = field
-        self.reference = reference  # weigh on the reference path (for comparisons)
         self.config = config
         self.motion_noise = motion_noise
         self.rng = rng
@@ -258,11 +182,15 @@ class ParticleFilter:
         ranges, bearings = ranges[usable], bearings[usable]
         if ranges.size == 0:
             return
-        if self.reference:
-            sums = reference_score_sums(self.field, self.particles, ranges, bearings)
-        else:
-            sums = self.field.score_sums(self.particles, ranges, bearings)
-        weights = self.weights * (1.0 + sums)
+        # Endpoints as complex grid coordinates col + i row: the beams in the robot frame (in
+        # cells) turned into every particle's frame by one outer product (no trig per pair).
+        poses, field = self.particles, self.field
+        cols, rows = field.to_grid(poses[:, 0], poses[:, 1])
+        beams = (ranges * field.inverse_resolution) * np.exp(1j * bearings)
+        ends = np.multiply.outer(np.exp(1j * poses[:, 2]), beams)
+        ends += (cols + 1j * rows)[:, None]
+        scores = field.grid_scores(ends.real, ends.imag)
+        weights = self.weights * (1.0 + scores.sum(axis=1))
         self.weights = weights / weights.sum()
 
     def resample(self) -> None:

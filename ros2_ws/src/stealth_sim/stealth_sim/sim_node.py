@@ -307,8 +307,6 @@ class SimulatorNode(Node):
         grid.header.stamp = grid.info.map_load_time = time_msg(self.sim.time)
         self.map_pub.publish(grid)
         self._publish_state(everything=True)
-        for reason in self.sim.fallback_reasons:
-            self.get_logger().warning(f'fast path not used: {reason}')
         self.get_logger().info(
             f'{values["map"]}: {self.map.width} x {self.map.height} cells of '
             f'{self.map.resolution:g} m; robot at ({start.x:.2f}, {start.y:.2f}, '

@@ -77,8 +77,8 @@ class Simulator:
     def __init__(
         self, occupancy_map: OccupancyMap, config: SimConfig, pose: Pose, reference: bool = False
     ):
-        # reference: moves step by step through step() and the filter weighs on its reference
-        # path, as before the fast paths (the baseline they are proven and measured against).
+        # reference: moves step by step through step(), as before the fast path (the baseline
+        # it is proven and measured against).
         self.reference = reference
         self.map = occupancy_map
         self.config = config
@@ -94,10 +94,8 @@ class Simulator:
         )
         field = LikelihoodField(occupancy_map, config.filter.likelihood, config.laser.range_max)
         self.localiser = Localiser(
-            ParticleFilter(field, config.filter, config.odometry_noise, filter_rng, reference)
+            ParticleFilter(field, config.filter, config.odometry_noise, filter_rng)
         )
-        # Why a fast path cannot be used with this configuration (logged once by the node).
-        self.fallback_reasons = [] if reference else [r for r in (field.fallback_reason,) if r]
         # AMCL's beam subsampling: max_beams evenly spread over the scan, ends included.
         beams, max_beams = config.laser.beams, config.filter.likelihood.max_beams
         step = max(1, (beams - 1) // max(1, max_beams - 1))
