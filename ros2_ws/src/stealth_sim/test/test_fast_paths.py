@@ -27,6 +27,11 @@ MOVES = [
     Move(MoveKind.DOWN, 0.5),  # pushing against it again
     Move(MoveKind.UP, 0.7),
     Move(MoveKind.UP, float('nan')),  # rejected
+    Move(MoveKind.GO_TO, x=3.5, y=1.0),  # turn to face it, drive there
+    Move(MoveKind.GO_TO, x=3.5, y=1.005),  # there already: DONE at once
+    Move(MoveKind.GO_TO, x=3.5, y=-2.0),  # through the bottom wall: BUMPED
+    Move(MoveKind.GO_TO, x=float('inf'), y=1.0),  # rejected
+    Move(MoveKind.GO_TO, x=2.0, y=1.5),
 ]
 
 
