@@ -3,9 +3,11 @@ through the simulator node's sim/execute_move service.
 
 The same seeded random walk (grid moves of 0.5 m on a project map, chosen from the returned
 estimate) runs at the settings training uses (stealth_bringup's simulator.yaml: 200 particles,
-0.04 s physics steps, 180 laser beams): in-process on a ``Simulator`` with its fast paths and
-with ``reference=True`` (the per-step implementation they are proven equal to), alternately in
-the same process so that other load on the machine hits both alike; then through the service of
+0.04 s physics steps, 180 laser beams of which the filter weighs 60): in-process on a
+``Simulator`` with its compiled fast path and with ``reference=True`` (the Python
+implementation it is proven equal to), alternately in the same process so that other load on
+the machine hits both alike, after one untimed move that pays numba's first call (a compile,
+or a load from its cache; reported); then through the service of
 a ``sim_node`` process at real_time_factor 0, called from this process. All runs see identical
 moves and poses. Needs the workspace built (``make setup``).
 Run: ``source scripts/ros_env.sh && python bench/bench_sim.py``.
@@ -30,7 +32,7 @@ sys.path.insert(0, str(REPO_ROOT / 'ros2_ws' / 'src' / 'stealth_sim'))
 from ros_support import NodeProcesses, reserved_domain_id  # noqa: E402
 from stealth_sim.kinematics import DiscFootprint, Pose  # noqa: E402
 from stealth_sim.localisation import FilterConfig  # noqa: E402
-from stealth_sim.move_executor import GRID_HEADINGS, Move, execute_move  # noqa: E402
+from stealth_sim.move_executor import GRID_HEADINGS, Move, MoveKind, execute_move  # noqa: E402
 from stealth_sim.occupancy_map import load_map  # noqa: E402
 from stealth_sim.simulator import SimConfig, Simulator  # noqa: E402
 
@@ -76,6 +78,15 @@ def training_config(settings: dict) -> SimConfig:
         filter=FilterConfig(particles=settings['particles']),
         seed=SEED,
     )
+
+
+def first_call(occupancy_map, config: SimConfig) -> float:
+    """Seconds for the first compiled move of this process: numba compiles the kernels (or
+    loads them from its cache) here, so the timed runs do not pay for it."""
+    sim = Simulator(occupancy_map, config, START)
+    started = time.perf_counter()
+    execute_move(sim, Move(MoveKind.UP, STEP))
+    return time.perf_counter() - started
 
 
 def in_process(occupancy_map, config: SimConfig, reference: bool) -> tuple[float, float, list]:
@@ -167,6 +178,7 @@ def run(report=print) -> dict:
     occupancy_map = load_map(MAP)
     settings = training_settings()
     config = training_config(settings)
+    first_call_seconds = first_call(occupancy_map, config)
     rates = {False: 0.0, True: 0.0}
     trajectories = {}
     for _ in range(ROUNDS):
@@ -191,6 +203,10 @@ def run(report=print) -> dict:
     )
     report(f'  in-process Simulator, reference path: {reference_rate:.1f} moves/s')
     report(
+        f'  first compiled move of the process (numba compile or cache load, untimed): '
+        f'{first_call_seconds:.2f} s'
+    )
+    report(
         f'  fast / reference: {fast_rate / reference_rate:.1f}x (best of {ROUNDS} alternating '
         f'runs each); same trajectory and estimate within 1e-9: {fast_equal}'
     )
@@ -203,6 +219,7 @@ def run(report=print) -> dict:
         'sim_moves_per_second_in_process_reference': round(reference_rate, 1),
         'sim_fast_to_reference_ratio': round(fast_rate / reference_rate, 2),
         'sim_fast_equals_reference': bool(fast_equal),
+        'sim_first_compiled_move_seconds': round(first_call_seconds, 2),
         'sim_service_to_in_process_ratio': round(service_rate / fast_rate, 3),
         'sim_simulated_seconds_per_move': round(sim_seconds, 3),
         'sim_trajectories_identical': bool(same),

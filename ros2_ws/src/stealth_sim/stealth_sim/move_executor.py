@@ -19,9 +19,10 @@ tolerance, a bump, localisation noise) do not add up over an episode.
 from collections.abc import Callable
 import dataclasses
 import enum
+import logging
 import math
 
-from stealth_sim.fast_move import FastMoveRun
+from stealth_sim import compiled_move
 from stealth_sim.kinematics import Pose, wrap_angle
 from stealth_sim.simulator import Simulator
 
@@ -135,7 +136,8 @@ def execute_move(
     ``on_step`` sees the simulator after every physics step or, with ``on_step_due``, only
     after the steps for which ``on_step_due(simulated time, filter updates so far)`` is true
     (the fast path then writes its state back only for those). The fast path
-    (:mod:`stealth_sim.fast_move`) runs unless the simulator was made with ``reference=True``.
+    (:mod:`stealth_sim.compiled_move`) runs unless the simulator was made with
+    ``reference=True`` or numba is missing (said once in the log).
     """
     start = sim.estimate
     problem = move_problem(move, sim.max_move_distance, start)
@@ -156,29 +158,29 @@ def execute_move(
     else:
         heading, distance = GRID_HEADINGS[kind], move.distance
     nominal = _nominal_duration(sim, heading, distance)
-    if sim.reference:
+    if sim.reference or not _compiled_path_usable():
         run = _MoveRun(sim, controller, on_step, nominal, on_step_due)
     else:
-        run = FastMoveRun(sim, controller, on_step, nominal, on_step_due)
-    outcome = run.turn_to(heading)
-    if outcome is None and distance > 0:
-        if target is None:
-            start = sim.estimate
-            target = (
-                start.x + distance * math.cos(heading),
-                start.y + distance * math.sin(heading),
-            )
-        outcome = run.drive_to(target, heading)
-    if outcome in (None, Outcome.TIMED_OUT):
-        # Always end at rest; only a bump can interrupt the braking.
-        outcome = run.brake(timed=False) or outcome or Outcome.DONE
-    sim.localise_now()
+        run = compiled_move.CompiledMoveRun(sim, controller, on_step, nominal, on_step_due)
+    outcome = run.move(heading, distance, target)
     messages = {
         Outcome.DONE: '',
         Outcome.BUMPED: 'the robot touched a wall or unknown space and stopped',
         Outcome.TIMED_OUT: f'the move did not finish within {run.time_limit:.1f} s',
     }
     return MoveResult(outcome, messages[outcome], sim.time - run.start_time, run.steps)
+
+
+_fallback_logged = []
+
+
+def _compiled_path_usable() -> bool:
+    """Whether the compiled path can run; the first time it cannot, the log says why."""
+    reason = compiled_move.unavailable_reason()
+    if reason is not None and not _fallback_logged:
+        _fallback_logged.append(reason)
+        logging.getLogger(__name__).warning('moves run on the slow reference path: %s', reason)
+    return reason is None
 
 
 def _nominal_duration(sim: Simulator, heading: float, distance: float) -> float:
@@ -215,6 +217,24 @@ class _MoveRun:
         if timed and self.sim.time - self.start_time > self.time_limit:
             return Outcome.TIMED_OUT
         return None
+
+    def move(self, heading: float, distance: float, target) -> Outcome:
+        """Turn to ``heading``, drive ``distance`` to ``target`` (None: that far along the
+        heading from the estimate after the turn), end at rest, update the filter."""
+        outcome = self.turn_to(heading)
+        if outcome is None and distance > 0:
+            if target is None:
+                start = self.sim.estimate
+                target = (
+                    start.x + distance * math.cos(heading),
+                    start.y + distance * math.sin(heading),
+                )
+            outcome = self.drive_to(target, heading)
+        if outcome in (None, Outcome.TIMED_OUT):
+            # Always end at rest; only a bump can interrupt the braking.
+            outcome = self.brake(timed=False) or outcome or Outcome.DONE
+        self.sim.localise_now()
+        return outcome
 
     def _approach_speed(self, distance: float, max_speed: float, max_accel: float) -> float:
         """The fastest speed (<= max_speed) from which, after one physics step at it, the robot
