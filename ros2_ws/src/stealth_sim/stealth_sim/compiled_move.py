@@ -45,10 +45,10 @@ else:
 def _njit(function):
     """``numba.njit(cache=True)``, or without the cache when numba has nowhere to write it."""
     try:
-        return numba.njit(cache=True)(function)
+        return numba.njit(cache=True, error_model='numpy')(function)
     except RuntimeError as exc:  # numba: "cannot cache function ...: no locator available"
         LOG.warning('numba cannot cache %s (%s); it compiles in every process', function, exc)
-        return numba.njit(function)
+        return numba.njit(error_model='numpy')(function)
 
 
 def _identity(function):
