@@ -23,6 +23,8 @@ and :func:`unavailable_reason` says why.
 
 import logging
 import math
+import os
+import time
 
 import numpy as np
 
@@ -43,7 +45,13 @@ else:
 
 
 def _njit(function):
-    """``numba.njit(cache=True)``, or without the cache when numba has nowhere to write it."""
+    """``numba.njit(cache=True)``, or without the cache when numba has nowhere to write it.
+
+    The cache sits beside the source file the code object names: the real file, so that the
+    colcon install (symlinks) and the source tree share one cache.
+    """
+    code = function.__code__
+    function.__code__ = code.replace(co_filename=os.path.realpath(code.co_filename))
     try:
         return numba.njit(cache=True, error_model='numpy')(function)
     except RuntimeError as exc:  # numba: "cannot cache function ...: no locator available"
@@ -96,6 +104,8 @@ FINISHED, BUMPED, TIMED_OUT, PAUSED = 0, 1, 3, -1
 def _remainder(x, y):
     """CPython's ``math.remainder`` (exact, for finite x and y > 0): numba has none."""
     absx = abs(x)
+    if absx < 0.5 * y:  # already in range (exact: fl(y - absx) >= y / 2 > absx)
+        return x
     m = np.fmod(absx, y)
     c = y - m
     if m < c:
@@ -121,12 +131,19 @@ def _pairwise_block(values, start, count):
         for i in range(start, start + count):
             total += values[i]
         return total
-    r = values[start : start + 8].copy()
+    r0, r1, r2, r3 = values[start], values[start + 1], values[start + 2], values[start + 3]
+    r4, r5, r6, r7 = values[start + 4], values[start + 5], values[start + 6], values[start + 7]
     whole = count - count % 8
-    for i in range(8, whole, 8):
-        for j in range(8):
-            r[j] += values[start + i + j]
-    total = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    for i in range(start + 8, start + whole, 8):
+        r0 += values[i]
+        r1 += values[i + 1]
+        r2 += values[i + 2]
+        r3 += values[i + 3]
+        r4 += values[i + 4]
+        r5 += values[i + 5]
+        r6 += values[i + 6]
+        r7 += values[i + 7]
+    total = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
     for i in range(start + whole, start + count):
         total += values[i]
     return total
@@ -410,8 +427,9 @@ def _predict(s, p, particles, filter_rng):
 
 
 @jit
-def _correct(p, score, particles, weights, ranges, bearings):
-    """``ParticleFilter.correct``: AMCL's likelihood field for every beam and particle."""
+def _correct(p, score, particles, weights, ranges, bearings, cos_yaw, sin_yaw):
+    """``ParticleFilter.correct``: AMCL's likelihood field for every beam and particle (the
+    particles' headings as ``cos_yaw``, ``sin_yaw``)."""
     range_max, inverse = p[RANGE_MAX], p[FIELD_INVERSE_RES]
     beam_x = np.empty(ranges.size)
     beam_y = np.empty(ranges.size)
@@ -430,10 +448,10 @@ def _correct(p, score, particles, weights, ranges, bearings):
     for i in range(particles.shape[0]):
         col = (particles[i, 0] - p[FIELD_X]) * inverse + 1.0
         row = (particles[i, 1] - p[FIELD_Y]) * inverse + 1.0
-        cos_yaw, sin_yaw = np.cos(particles[i, 2]), np.sin(particles[i, 2])
+        cos_i, sin_i = cos_yaw[i], sin_yaw[i]
         for k in range(beams):
-            end_col = (cos_yaw * beam_x[k] - sin_yaw * beam_y[k]) + col
-            end_row = (cos_yaw * beam_y[k] + sin_yaw * beam_x[k]) + row
+            end_col = (cos_i * beam_x[k] - sin_i * beam_y[k]) + col
+            end_row = (cos_i * beam_y[k] + sin_i * beam_x[k]) + row
             cell_col = int(min(max(end_col, 0.0), width - 1))
             cell_row = int(min(max(end_row, 0.0), height - 1))
             beam_scores[k] = flat[cell_row * width + cell_col]
@@ -444,14 +462,14 @@ def _correct(p, score, particles, weights, ranges, bearings):
 
 
 @jit
-def _filter_estimate(s, covariance, particles, weights):
+def _filter_estimate(s, covariance, particles, weights, cos_yaw, sin_yaw):
     """``covariance_from_spread``: the weighted mean (circular for yaw) and spread."""
     x_mean = y_mean = heading_x = heading_y = 0.0
     for i in range(weights.size):
         x_mean += weights[i] * particles[i, 0]
         y_mean += weights[i] * particles[i, 1]
-        heading_x += weights[i] * np.cos(particles[i, 2])
-        heading_y += weights[i] * np.sin(particles[i, 2])
+        heading_x += weights[i] * cos_yaw[i]
+        heading_y += weights[i] * sin_yaw[i]
     yaw_mean = math.atan2(heading_y, heading_x)
     covariance[:, :] = 0.0
     deviation = np.empty(3)
@@ -497,8 +515,9 @@ def _update_localisation(s, p, arrays, covariance, particles, weights, rngs):
         value = max(noisy[k], p[RANGE_MIN])
         ranges[k] = value if np.isfinite(ranges[k]) and value < p[RANGE_MAX] else np.inf
     _predict(s, p, particles, filter_rng)
-    _correct(p, score, particles, weights, ranges, bearings)
-    _filter_estimate(s, covariance, particles, weights)
+    cos_yaw, sin_yaw = np.cos(particles[:, 2]), np.sin(particles[:, 2])
+    _correct(p, score, particles, weights, ranges, bearings, cos_yaw, sin_yaw)
+    _filter_estimate(s, covariance, particles, weights, cos_yaw, sin_yaw)
     s[UPDATES] += 1.0
     if int(s[UPDATES]) % int(p[RESAMPLE_INTERVAL]) == 0:
         _resample(particles, weights, filter_rng)
@@ -612,6 +631,24 @@ def run_move(max_steps, s, p, footprint, arrays, covariance, particles, weights,
 def unavailable_reason() -> str | None:
     """Why the compiled path cannot run here, or None when it can."""
     return _IMPORT_PROBLEM
+
+
+def warm_up() -> float | None:
+    """Compile the kernels (or load them from the cache) with one move of a throwaway
+    simulator, so that no real move pays for it: the seconds it took, None without numba."""
+    if unavailable_reason() is not None:
+        return None
+    from stealth_sim.kinematics import Pose
+    from stealth_sim.move_executor import Move, MoveKind, execute_move
+    from stealth_sim.occupancy_map import FREE, OCCUPIED, OccupancyMap
+    from stealth_sim.simulator import SimConfig, Simulator
+
+    cells = np.full((40, 40), OCCUPIED, np.int8)
+    cells[1:-1, 1:-1] = FREE
+    sim = Simulator(OccupancyMap(cells, 0.05, (0.0, 0.0, 0.0)), SimConfig(), Pose(1.0, 1.0, 0.0))
+    started = time.perf_counter()
+    execute_move(sim, Move(MoveKind.UP, 0.3))
+    return time.perf_counter() - started
 
 
 # --- the simulator's objects in arrays, and back ---------------------------------------------

@@ -58,6 +58,7 @@ from stealth_node_kit.parameters import Param, StartupError, declare_parameters
 from stealth_node_kit.running import run_node
 from tf2_msgs.msg import TFMessage
 
+from stealth_sim import compiled_move
 from stealth_sim.frames import (
     BASE_FRAME,
     MAP_FRAME,
@@ -296,6 +297,10 @@ class SimulatorNode(Node):
             10,
             event_callbacks=self._warned_subscription('initialpose'),
         )
+        # Before the services: the first move must not wait for numba's compile (or cache load).
+        seconds = compiled_move.warm_up()
+        if seconds is not None:
+            self.get_logger().info(f'compiled move kernels ready in {seconds:.1f} s')
         self.create_service(ExecuteMove, 'sim/execute_move', self._on_execute_move)
         self.create_service(ResetRobot, 'sim/reset', self._on_reset)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
