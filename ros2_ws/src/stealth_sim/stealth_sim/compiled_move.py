@@ -18,7 +18,7 @@ whose numpy calls cost more than their arithmetic.
 
 The kernels compile on first use (``cache=True``: once per machine, into numba's cache; an
 unwritable cache only costs the compile in every process). Without numba the reference runs,
-and :func:`unavailable_reason` says why.
+and :func:`problem` says why.
 """
 
 import logging
@@ -429,7 +429,10 @@ def _predict(s, p, particles, filter_rng):
 @jit
 def _correct(p, score, particles, weights, ranges, bearings, cos_yaw, sin_yaw):
     """``ParticleFilter.correct``: AMCL's likelihood field for every beam and particle (the
-    particles' headings as ``cos_yaw``, ``sin_yaw``)."""
+    particles' headings as ``cos_yaw``, ``sin_yaw``). ``score`` is the field as (a uint16
+    index per cell, the distinct scores): a quarter of the float64 table, so it stays in
+    cache, and exactly the same numbers."""
+    cell_score, scores = score
     range_max, inverse = p[RANGE_MAX], p[FIELD_INVERSE_RES]
     beam_x = np.empty(ranges.size)
     beam_y = np.empty(ranges.size)
@@ -442,8 +445,8 @@ def _correct(p, score, particles, weights, ranges, bearings, cos_yaw, sin_yaw):
             beams += 1
     if beams == 0:
         return
-    height, width = score.shape
-    flat = score.ravel()
+    height, width = cell_score.shape
+    flat = cell_score.ravel()
     beam_scores = np.empty(beams)
     for i in range(particles.shape[0]):
         col = (particles[i, 0] - p[FIELD_X]) * inverse + 1.0
@@ -454,7 +457,7 @@ def _correct(p, score, particles, weights, ranges, bearings, cos_yaw, sin_yaw):
             end_row = (cos_i * beam_y[k] + sin_i * beam_x[k]) + row
             cell_col = int(min(max(end_col, 0.0), width - 1))
             cell_row = int(min(max(end_row, 0.0), height - 1))
-            beam_scores[k] = flat[cell_row * width + cell_col]
+            beam_scores[k] = scores[flat[cell_row * width + cell_col]]
         weights[i] = weights[i] * (1.0 + _pairwise_sum(beam_scores, beams))
     total = _pairwise_sum(weights, weights.size)
     for i in range(weights.size):
@@ -628,15 +631,10 @@ def run_move(max_steps, s, p, footprint, arrays, covariance, particles, weights,
             return PAUSED
 
 
-def unavailable_reason() -> str | None:
-    """Why the compiled path cannot run here, or None when it can."""
-    return _IMPORT_PROBLEM
-
-
 def warm_up() -> float | None:
     """Compile the kernels (or load them from the cache) with one move of a throwaway
     simulator, so that no real move pays for it: the seconds it took, None without numba."""
-    if unavailable_reason() is not None:
+    if _IMPORT_PROBLEM is not None:
         return None
     from stealth_sim.kinematics import Pose
     from stealth_sim.move_executor import Move, MoveKind, execute_move
@@ -669,11 +667,31 @@ def _static_arrays(sim):
                 caster.blocked.shape[1] * 4,
                 np.asarray(caster._steps, dtype=np.float64),
                 np.ascontiguousarray(sim.filter_beam_bearings, dtype=np.float64),
-                np.ascontiguousarray(sim.localiser.filter.field.score, dtype=np.float64),
+                _score_table(sim.localiser.filter.field.score),
             ),
         )
         sim._compiled_arrays = cached
     return cached
+
+
+def _score_table(score: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The likelihood field as a uint16 index per cell into its distinct scores (a few
+    hundred: one per distance to the nearest obstacle)."""
+    scores, index = np.unique(score, return_inverse=True)
+    return index.reshape(score.shape).astype(np.uint16), scores
+
+
+def problem(sim) -> str | None:
+    """Why the kernels cannot run this simulator, or None when they can (found once)."""
+    if _IMPORT_PROBLEM is not None:
+        return _IMPORT_PROBLEM
+    found = getattr(sim, '_compiled_problem', False)
+    if found is False:
+        found = None
+        if np.unique(sim.localiser.filter.field.score).size > 1 << 16:
+            found = 'the likelihood field has more than 65536 distinct scores (a uint16 index)'
+        sim._compiled_problem = found
+    return found
 
 
 def _parameters(sim, controller, start_time: float, time_limit: float) -> np.ndarray:

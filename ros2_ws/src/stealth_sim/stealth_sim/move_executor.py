@@ -137,7 +137,7 @@ def execute_move(
     after the steps for which ``on_step_due(simulated time, filter updates so far)`` is true
     (the fast path then writes its state back only for those). The fast path
     (:mod:`stealth_sim.compiled_move`) runs unless the simulator was made with
-    ``reference=True`` or numba is missing (said once in the log).
+    ``reference=True`` or the kernels cannot run it (said once in the log).
     """
     start = sim.estimate
     problem = move_problem(move, sim.max_move_distance, start)
@@ -158,7 +158,7 @@ def execute_move(
     else:
         heading, distance = GRID_HEADINGS[kind], move.distance
     nominal = _nominal_duration(sim, heading, distance)
-    if sim.reference or not _compiled_path_usable():
+    if sim.reference or not _compiled_path_usable(sim):
         run = _MoveRun(sim, controller, on_step, nominal, on_step_due)
     else:
         run = compiled_move.CompiledMoveRun(sim, controller, on_step, nominal, on_step_due)
@@ -171,14 +171,14 @@ def execute_move(
     return MoveResult(outcome, messages[outcome], sim.time - run.start_time, run.steps)
 
 
-_fallback_logged = []
+_fallback_logged = set()
 
 
-def _compiled_path_usable() -> bool:
-    """Whether the compiled path can run; the first time it cannot, the log says why."""
-    reason = compiled_move.unavailable_reason()
-    if reason is not None and not _fallback_logged:
-        _fallback_logged.append(reason)
+def _compiled_path_usable(sim: Simulator) -> bool:
+    """Whether the compiled path can run ``sim``; the log says why not, once per reason."""
+    reason = compiled_move.problem(sim)
+    if reason is not None and reason not in _fallback_logged:
+        _fallback_logged.add(reason)
         logging.getLogger(__name__).warning('moves run on the slow reference path: %s', reason)
     return reason is None
 

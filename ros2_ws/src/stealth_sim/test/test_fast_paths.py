@@ -135,9 +135,10 @@ def test_a_due_step_hook_is_called_only_when_due_with_the_same_state():
     assert 0 < len(fast_seen) <= fast_result[3] // 12 + 1
 
 
-def test_without_numba_moves_take_the_reference_path_and_say_so_once(monkeypatch, caplog):
-    monkeypatch.setattr(compiled_move, 'unavailable_reason', lambda: 'numba is not importable')
-    monkeypatch.setattr(move_executor, '_fallback_logged', [])
+def test_without_the_kernels_moves_take_the_reference_path_and_say_so_once(monkeypatch, caplog):
+    """As without numba, or for a map the kernels do not support."""
+    monkeypatch.setattr(compiled_move, 'problem', lambda sim: 'numba is not importable')
+    monkeypatch.setattr(move_executor, '_fallback_logged', set())
     with caplog.at_level(logging.WARNING):
         fallback = walk(TRAINING, False, MOVES[:2])
     assert fallback == walk(TRAINING, True, MOVES[:2])  # the reference, exactly
