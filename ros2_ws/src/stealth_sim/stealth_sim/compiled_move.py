@@ -70,7 +70,9 @@ X, Y, YAW, LINEAR, ANGULAR, SIM_STEPS, BUMPS = range(7)
 # Poses, three floats each:
 ODOM, SEGMENT_TRUE, SEGMENT_ODOM, NORMALS, ODOM_AT_UPDATE, ESTIMATE_AT_UPDATE = range(7, 25, 3)
 UPDATES, RUN_STEPS, PHASE, OUTCOME, HEADING, DISTANCE = range(25, 31)
-TARGET_X, TARGET_Y, HAS_TARGET, STATE_SIZE = range(31, 35)
+TARGET_X, TARGET_Y, HAS_TARGET = range(31, 34)
+# Where run_move pauses for a step hook (move_executor.StepStops: time, updates).
+STOP_TIME, STOP_UPDATES, STATE_SIZE = range(34, 37)
 
 # Parameters, one float64 array (indices).
 (
@@ -564,8 +566,10 @@ def _turn_rate(p, error):
 
 @jit
 def run_move(max_steps, s, p, footprint, arrays, covariance, particles, weights, rngs):
-    """``_MoveRun.move`` from the phase in ``s[PHASE]`` on, for at most ``max_steps`` physics
-    steps: the outcome when the move has ended, else PAUSED (right after the last step)."""
+    """``_MoveRun.move`` from the phase in ``s[PHASE]`` on: the outcome when the move has
+    ended, else PAUSED right after the step a hook needs: the ``max_steps``-th, or one whose
+    simulated time is >= ``s[STOP_TIME]``, or after which the filter's update count differs
+    from ``s[STOP_UPDATES]`` (unless that is -1)."""
     heading = s[HEADING]
     while True:
         phase = int(s[PHASE])
@@ -627,7 +631,11 @@ def run_move(max_steps, s, p, footprint, arrays, covariance, particles, weights,
         elif outcome == TIMED_OUT:
             s[OUTCOME], s[PHASE] = TIMED_OUT, END_BRAKE
         max_steps -= 1
-        if max_steps == 0:
+        if (
+            max_steps == 0
+            or s[SIM_STEPS] * p[DT] >= s[STOP_TIME]
+            or (s[STOP_UPDATES] >= 0.0 and s[UPDATES] != s[STOP_UPDATES])
+        ):
             return PAUSED
 
 
@@ -748,14 +756,15 @@ def _parameters(sim, controller, start_time: float, time_limit: float) -> np.nda
 class CompiledMoveRun:
     """One move in progress on the kernels; the interface of ``move_executor._MoveRun``.
 
-    The simulator's objects are written back at the end of each phase and before a step hook
-    that is due; hooks only look (as sim_node's publish).
+    The simulator's objects are written back at the end of the move and before each step
+    hook; hooks only look (as sim_node's publish). The kernel runs on until the step the
+    hook's ``StepStops`` name, so a move is one kernel call per hook call, plus one.
     """
 
-    def __init__(self, sim, controller, on_step, nominal_duration, on_step_due=None):
+    def __init__(self, sim, controller, on_step, nominal_duration, step_stops=None):
         self.sim = sim
         self.on_step = on_step
-        self.on_step_due = on_step_due
+        self.step_stops = step_stops
         self.start_time = sim.time
         self.time_limit = (
             controller.time_limit_factor * nominal_duration + controller.time_limit_margin
@@ -784,6 +793,7 @@ class CompiledMoveRun:
         ):
             state[at : at + 3] = value
         state[UPDATES], state[RUN_STEPS] = localiser.updates, 0.0
+        state[STOP_TIME], state[STOP_UPDATES] = math.inf, -1.0
         self.state = state
         self.covariance = np.array(localiser.covariance, dtype=np.float64)
         self.particles = np.array(localiser.filter.particles, dtype=np.float64, order='C')
@@ -809,7 +819,7 @@ class CompiledMoveRun:
         localiser.filter.weights = self.weights.copy()
 
     def move(self, heading: float, distance: float, target):
-        """``_MoveRun.move``: the whole move in one kernel call (a step hook: one per step)."""
+        """``_MoveRun.move``: the whole move in one kernel call, plus one per step hook call."""
         from stealth_sim.move_executor import Outcome  # it imports this module
 
         state = self.state
@@ -830,12 +840,16 @@ class CompiledMoveRun:
         if self.on_step is None:
             outcome = run_move(1 << 62, *arguments)
         else:
-            while (outcome := run_move(1, *arguments)) == PAUSED:
-                due = self.on_step_due
-                if due is None or due(
-                    int(state[SIM_STEPS]) * self.sim.config.physics_dt, int(state[UPDATES])
-                ):
-                    self._store()
-                    self.on_step(self.sim)
+            while True:
+                every_step = True
+                if self.step_stops is not None:
+                    stops = self.step_stops()
+                    state[STOP_TIME], state[STOP_UPDATES] = stops.time, stops.updates
+                    every_step = stops.every_step
+                outcome = run_move(1 if every_step else 1 << 62, *arguments)
+                if outcome != PAUSED:
+                    break
+                self._store()
+                self.on_step(self.sim)
         self._store()
         return Outcome(outcome)

@@ -21,6 +21,7 @@ import dataclasses
 import enum
 import logging
 import math
+from typing import NamedTuple
 
 from stealth_sim import compiled_move
 from stealth_sim.kinematics import Pose, wrap_angle
@@ -66,6 +67,28 @@ class Move:
     heading: float = 0.0
     x: float = 0.0
     y: float = 0.0
+
+
+class StepStops(NamedTuple):
+    """After which physics steps a move's step hook is due, as plain numbers.
+
+    Why numbers rather than a predicate: the compiled path then runs its kernel on until the
+    step the hook needs (a kernel call costs ~45 us of argument conversion, a step ~10 us), so
+    a move with a hook is a handful of kernel calls instead of one per step. The hook is due
+    after a step whose simulated time is ``>= time``, or after which the filter's update count
+    differs from ``updates`` (-1: never), or after every step with ``every_step``.
+    """
+
+    time: float = math.inf
+    updates: int = -1
+    every_step: bool = False
+
+    def due(self, sim_time: float, updates: int) -> bool:
+        return (
+            self.every_step
+            or sim_time >= self.time
+            or (self.updates >= 0 and updates != self.updates)
+        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -129,13 +152,13 @@ def execute_move(
     move: Move,
     on_step: Callable[[Simulator], None] | None = None,
     controller: ControllerConfig = ControllerConfig(),
-    on_step_due: Callable[[float, int], bool] | None = None,
+    step_stops: Callable[[], StepStops] | None = None,
 ) -> MoveResult:
     """Run ``move`` to its end; a rejected move leaves the simulator untouched.
 
-    ``on_step`` sees the simulator after every physics step or, with ``on_step_due``, only
-    after the steps for which ``on_step_due(simulated time, filter updates so far)`` is true
-    (the fast path then writes its state back only for those). The fast path
+    ``on_step`` sees the simulator after every physics step or, with ``step_stops``, only
+    after the steps its :class:`StepStops` names; ``step_stops()`` is asked before the first
+    step and again after each ``on_step`` (the hook is what changes them). The fast path
     (:mod:`stealth_sim.compiled_move`) runs unless the simulator was made with
     ``reference=True`` or the kernels cannot run it (said once in the log).
     """
@@ -159,9 +182,9 @@ def execute_move(
         heading, distance = GRID_HEADINGS[kind], move.distance
     nominal = _nominal_duration(sim, heading, distance)
     if sim.reference or not _compiled_path_usable(sim):
-        run = _MoveRun(sim, controller, on_step, nominal, on_step_due)
+        run = _MoveRun(sim, controller, on_step, nominal, step_stops)
     else:
-        run = compiled_move.CompiledMoveRun(sim, controller, on_step, nominal, on_step_due)
+        run = compiled_move.CompiledMoveRun(sim, controller, on_step, nominal, step_stops)
     outcome = run.move(heading, distance, target)
     messages = {
         Outcome.DONE: '',
@@ -193,11 +216,12 @@ def _nominal_duration(sim: Simulator, heading: float, distance: float) -> float:
 class _MoveRun:
     """The reference: one move in progress, a ``Simulator.step`` per physics step."""
 
-    def __init__(self, sim, controller, on_step, nominal_duration, on_step_due=None):
+    def __init__(self, sim, controller, on_step, nominal_duration, step_stops=None):
         self.sim = sim
         self.controller = controller
         self.on_step = on_step
-        self.on_step_due = on_step_due
+        self.step_stops = step_stops
+        self.stops = step_stops() if on_step is not None and step_stops is not None else None
         self.start_time = sim.time
         self.steps = 0
         self.time_limit = (
@@ -208,10 +232,11 @@ class _MoveRun:
         bumped = self.sim.step(linear, angular)
         self.steps += 1
         if self.on_step is not None and (
-            self.on_step_due is None
-            or self.on_step_due(self.sim.time, self.sim.localisation_updates)
+            self.stops is None or self.stops.due(self.sim.time, self.sim.localisation_updates)
         ):
             self.on_step(self.sim)
+            if self.stops is not None:
+                self.stops = self.step_stops()
         if bumped:
             return Outcome.BUMPED
         if timed and self.sim.time - self.start_time > self.time_limit:

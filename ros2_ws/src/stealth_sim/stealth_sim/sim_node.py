@@ -69,7 +69,7 @@ from stealth_sim.frames import (
 from stealth_sim.kinematics import Limits, Pose
 from stealth_sim.laser import LaserConfig
 from stealth_sim.localisation import FilterConfig
-from stealth_sim.move_executor import Move, Outcome, execute_move
+from stealth_sim.move_executor import Move, Outcome, StepStops, execute_move
 from stealth_sim.occupancy_map import MapError, OccupancyMap, load_map, to_occupancy_grid_data
 from stealth_sim.odometry_noise import MotionNoise
 from stealth_sim.simulator import SimConfig, Simulator, most_open_pose
@@ -374,14 +374,16 @@ class SimulatorNode(Node):
         self._publish_due()
         self._pacer.wait(sim.time, self.real_time_factor)
 
-    def _move_step_due(self, sim_time: float, updates: int) -> bool:
-        """Whether a step of a move needs :meth:`_move_step`: a periodic publication or a new
-        estimate is due, or the real-time factor paces every step. Training (factor 0, topics
-        at ``publish_rate``) so skips nearly every step, and the fast path stays on its floats."""
-        return (
-            self.real_time_factor > 0.0
-            or sim_time >= self._next_publish - 1e-9
-            or updates != self._published_updates
+    def _move_stops(self) -> StepStops:
+        """The steps of a move that need :meth:`_move_step`: a periodic publication or a new
+        amcl_pose is due for a subscriber, or the real-time factor paces every step. Training
+        (factor 0, nobody listening) so needs none, and a move is one kernel call; a
+        subscriber that appears mid-move is served from the move's next hook call or its end."""
+        periodic = any(p.get_subscription_count() for p in self._periodic)
+        return StepStops(
+            self._next_publish - 1e-9 if periodic else math.inf,
+            self._published_updates if self.pose_pub.get_subscription_count() else -1,
+            self.real_time_factor > 0.0,
         )
 
     def _fresh_command(self) -> tuple[float, float] | None:
@@ -445,9 +447,7 @@ class SimulatorNode(Node):
         move = Move(request.kind, request.distance, request.heading, request.x, request.y)
         self._command = None  # a move takes over the robot
         self._pacer.anchor(self.sim.time)
-        result = execute_move(
-            self.sim, move, on_step=self._move_step, on_step_due=self._move_step_due
-        )
+        result = execute_move(self.sim, move, on_step=self._move_step, step_stops=self._move_stops)
         self._command = None
         self._pacer.anchor(self.sim.time)
         if result.outcome == Outcome.REJECTED:

@@ -19,7 +19,14 @@ from sim_test_maps import maze_map
 from stealth_sim import compiled_move, move_executor
 from stealth_sim.kinematics import Limits, Pose
 from stealth_sim.localisation import FilterConfig
-from stealth_sim.move_executor import ControllerConfig, Move, MoveKind, Outcome, execute_move
+from stealth_sim.move_executor import (
+    ControllerConfig,
+    Move,
+    MoveKind,
+    Outcome,
+    StepStops,
+    execute_move,
+)
 from stealth_sim.odometry_noise import MotionNoise
 from stealth_sim.simulator import SimConfig, Simulator
 
@@ -117,22 +124,103 @@ def test_the_step_hook_sees_the_same_states_on_both_paths():
     assert_equal_within_tolerance(fast_seen, reference_seen)
 
 
-def test_a_due_step_hook_is_called_only_when_due_with_the_same_state():
+class Publisher:
+    """A step hook as sim_node's: publish every ``period`` s of simulated time and after each
+    filter update, recording what it saw; its :class:`StepStops` say when that is due."""
+
+    def __init__(self, sim, period, on_time=True, on_update=True):
+        self.sim, self.period, self.on_time, self.on_update = sim, period, on_time, on_update
+        self.next_publish, self.published_updates = sim.time + period, sim.localisation_updates
+        self.seen = []
+
+    def stops(self):
+        return StepStops(
+            self.next_publish - 1e-9 if self.on_time else math.inf,
+            self.published_updates if self.on_update else -1,
+        )
+
+    def on_step(self, sim):
+        self.seen.append(observed(sim))
+        if sim.time >= self.next_publish - 1e-9:
+            self.next_publish = sim.time + self.period
+        self.published_updates = sim.localisation_updates
+
+
+def hooked_walk(reference, per_step=False, moves=MOVES, **publisher):
+    """A walk whose step hook is due by StepStops; ``per_step``: the kernel returns after every
+    step and Python asks ``StepStops.due``, as the compiled path did before it paused itself."""
+    sim = Simulator(maze_map(), TRAINING, START, reference=reference)
+    hook = Publisher(sim, **publisher)
+    record = []
+    for move in moves:
+        if per_step:
+            current = [hook.stops()]
+
+            def on_step(s, current=current):
+                if current[0].due(s.time, s.localisation_updates):
+                    hook.on_step(s)
+                    current[0] = hook.stops()
+
+            result = execute_move(
+                sim, move, on_step, step_stops=lambda: StepStops(every_step=True)
+            )
+        else:
+            result = execute_move(sim, move, hook.on_step, step_stops=hook.stops)
+        record.append((dataclasses.astuple(result), *observed(sim)))
+    return record, hook.seen
+
+
+@pytest.mark.parametrize(
+    'publisher',
+    [
+        {'period': 0.1},  # sim_node's default rate: not a multiple of the 0.04 s step
+        {'period': 0.5, 'on_update': False},
+        {'period': 0.3, 'on_time': False},
+        {'period': 0.1, 'on_time': False, 'on_update': False},  # nobody listens: no hook
+    ],
+    ids=['time-and-updates', 'time', 'updates', 'never'],
+)
+def test_the_kernel_pauses_exactly_at_the_steps_the_hook_is_due(publisher, monkeypatch):
+    """Same hook steps and states as the per-step path (bit for bit) and as the reference (within
+    1e-9), and one kernel call per hook call plus one per move."""
+    calls = []
+    run_move = compiled_move.run_move
+
+    def counted(*arguments):
+        calls.append(arguments[0])
+        return run_move(*arguments)
+
+    monkeypatch.setattr(compiled_move, 'run_move', counted)
+    fast = hooked_walk(False, **publisher)
+    fast_calls = len(calls)
+    assert fast == hooked_walk(False, per_step=True, **publisher)
+    assert_equal_within_tolerance(fast, hooked_walk(True, **publisher))
+    record, seen = fast
+    executed = sum(entry[0][0] != Outcome.REJECTED for entry in record)
+    assert fast_calls == len(seen) + executed
+    if publisher.get('on_time', True):
+        assert len(seen) > 50
+    if not publisher.get('on_update', True) and not publisher.get('on_time', True):
+        assert seen == []
+    steps = sum(entry[0][3] for entry in record)
+    assert fast_calls < steps / 2
+
+
+def test_a_hook_with_stops_due_every_step_sees_every_step():
     def run(reference):
         sim = Simulator(maze_map(), TRAINING, START, reference=reference)
         seen = []
-        every_half_second = lambda time, updates: round(time / 0.04) % 12 == 0  # noqa: E731
         result = execute_move(
             sim,
             Move(MoveKind.UP, 0.5),
             on_step=lambda s: seen.append(observed(s)),
-            on_step_due=every_half_second,
+            step_stops=lambda: StepStops(math.inf, -1, every_step=True),
         )
         return dataclasses.astuple(result), seen
 
-    (fast_result, fast_seen), (reference_result, reference_seen) = run(False), run(True)
-    assert_equal_within_tolerance((fast_result, fast_seen), (reference_result, reference_seen))
-    assert 0 < len(fast_seen) <= fast_result[3] // 12 + 1
+    (fast_result, fast_seen), reference = run(False), run(True)
+    assert_equal_within_tolerance((fast_result, fast_seen), reference)
+    assert len(fast_seen) == fast_result[3]
 
 
 def test_without_the_kernels_moves_take_the_reference_path_and_say_so_once(monkeypatch, caplog):
