@@ -19,8 +19,11 @@ tolerance, a bump, localisation noise) do not add up over an episode.
 from collections.abc import Callable
 import dataclasses
 import enum
+import logging
 import math
+from typing import NamedTuple
 
+from stealth_sim import compiled_move
 from stealth_sim.kinematics import Pose, wrap_angle
 from stealth_sim.simulator import Simulator
 
@@ -64,6 +67,28 @@ class Move:
     heading: float = 0.0
     x: float = 0.0
     y: float = 0.0
+
+
+class StepStops(NamedTuple):
+    """After which physics steps a move's step hook is due, as plain numbers.
+
+    Why numbers rather than a predicate: the compiled path then runs its kernel on until the
+    step the hook needs (a kernel call costs ~45 us of argument conversion, a step ~10 us), so
+    a move with a hook is a handful of kernel calls instead of one per step. The hook is due
+    after a step whose simulated time is ``>= time``, or after which the filter's update count
+    differs from ``updates`` (-1: never), or after every step with ``every_step``.
+    """
+
+    time: float = math.inf
+    updates: int = -1
+    every_step: bool = False
+
+    def due(self, sim_time: float, updates: int) -> bool:
+        return (
+            self.every_step
+            or sim_time >= self.time
+            or (self.updates >= 0 and updates != self.updates)
+        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -127,8 +152,16 @@ def execute_move(
     move: Move,
     on_step: Callable[[Simulator], None] | None = None,
     controller: ControllerConfig = ControllerConfig(),
+    step_stops: Callable[[], StepStops] | None = None,
 ) -> MoveResult:
-    """Run ``move`` to its end; a rejected move leaves the simulator untouched."""
+    """Run ``move`` to its end; a rejected move leaves the simulator untouched.
+
+    ``on_step`` sees the simulator after every physics step or, with ``step_stops``, only
+    after the steps its :class:`StepStops` names; ``step_stops()`` is asked before the first
+    step and again after each ``on_step`` (the hook is what changes them). The fast path
+    (:mod:`stealth_sim.compiled_move`) runs unless the simulator was made with
+    ``reference=True`` or the kernels cannot run it (said once in the log).
+    """
     start = sim.estimate
     problem = move_problem(move, sim.max_move_distance, start)
     if problem:
@@ -147,26 +180,30 @@ def execute_move(
         heading, distance = wrap_angle(move.heading), 0.0
     else:
         heading, distance = GRID_HEADINGS[kind], move.distance
-    run = _MoveRun(sim, controller, on_step, _nominal_duration(sim, heading, distance))
-    outcome = run.turn_to(heading)
-    if outcome is None and distance > 0:
-        if target is None:
-            start = sim.estimate
-            target = (
-                start.x + distance * math.cos(heading),
-                start.y + distance * math.sin(heading),
-            )
-        outcome = run.drive_to(target, heading)
-    if outcome in (None, Outcome.TIMED_OUT):
-        # Always end at rest; only a bump can interrupt the braking.
-        outcome = run.brake(timed=False) or outcome or Outcome.DONE
-    sim.localise_now()
+    nominal = _nominal_duration(sim, heading, distance)
+    if sim.reference or not _compiled_path_usable(sim):
+        run = _MoveRun(sim, controller, on_step, nominal, step_stops)
+    else:
+        run = compiled_move.CompiledMoveRun(sim, controller, on_step, nominal, step_stops)
+    outcome = run.move(heading, distance, target)
     messages = {
         Outcome.DONE: '',
         Outcome.BUMPED: 'the robot touched a wall or unknown space and stopped',
         Outcome.TIMED_OUT: f'the move did not finish within {run.time_limit:.1f} s',
     }
     return MoveResult(outcome, messages[outcome], sim.time - run.start_time, run.steps)
+
+
+_fallback_logged = set()
+
+
+def _compiled_path_usable(sim: Simulator) -> bool:
+    """Whether the compiled path can run ``sim``; the log says why not, once per reason."""
+    reason = compiled_move.problem(sim)
+    if reason is not None and reason not in _fallback_logged:
+        _fallback_logged.add(reason)
+        logging.getLogger(__name__).warning('moves run on the slow reference path: %s', reason)
+    return reason is None
 
 
 def _nominal_duration(sim: Simulator, heading: float, distance: float) -> float:
@@ -177,12 +214,14 @@ def _nominal_duration(sim: Simulator, heading: float, distance: float) -> float:
 
 
 class _MoveRun:
-    """The state of one move in progress: steps taken, time limit, the step hook."""
+    """The reference: one move in progress, a ``Simulator.step`` per physics step."""
 
-    def __init__(self, sim, controller, on_step, nominal_duration):
+    def __init__(self, sim, controller, on_step, nominal_duration, step_stops=None):
         self.sim = sim
         self.controller = controller
         self.on_step = on_step
+        self.step_stops = step_stops
+        self.stops = step_stops() if on_step is not None and step_stops is not None else None
         self.start_time = sim.time
         self.steps = 0
         self.time_limit = (
@@ -192,13 +231,35 @@ class _MoveRun:
     def _step(self, linear: float, angular: float, timed: bool = True) -> Outcome | None:
         bumped = self.sim.step(linear, angular)
         self.steps += 1
-        if self.on_step is not None:
+        if self.on_step is not None and (
+            self.stops is None or self.stops.due(self.sim.time, self.sim.localisation_updates)
+        ):
             self.on_step(self.sim)
+            if self.stops is not None:
+                self.stops = self.step_stops()
         if bumped:
             return Outcome.BUMPED
         if timed and self.sim.time - self.start_time > self.time_limit:
             return Outcome.TIMED_OUT
         return None
+
+    def move(self, heading: float, distance: float, target) -> Outcome:
+        """Turn to ``heading``, drive ``distance`` to ``target`` (None: that far along the
+        heading from the estimate after the turn), end at rest, update the filter."""
+        outcome = self.turn_to(heading)
+        if outcome is None and distance > 0:
+            if target is None:
+                start = self.sim.estimate
+                target = (
+                    start.x + distance * math.cos(heading),
+                    start.y + distance * math.sin(heading),
+                )
+            outcome = self.drive_to(target, heading)
+        if outcome in (None, Outcome.TIMED_OUT):
+            # Always end at rest; only a bump can interrupt the braking.
+            outcome = self.brake(timed=False) or outcome or Outcome.DONE
+        self.sim.localise_now()
+        return outcome
 
     def _approach_speed(self, distance: float, max_speed: float, max_accel: float) -> float:
         """The fastest speed (<= max_speed) from which, after one physics step at it, the robot

@@ -58,6 +58,7 @@ from stealth_node_kit.parameters import Param, StartupError, declare_parameters
 from stealth_node_kit.running import run_node
 from tf2_msgs.msg import TFMessage
 
+from stealth_sim import compiled_move
 from stealth_sim.frames import (
     BASE_FRAME,
     MAP_FRAME,
@@ -68,7 +69,7 @@ from stealth_sim.frames import (
 from stealth_sim.kinematics import Limits, Pose
 from stealth_sim.laser import LaserConfig
 from stealth_sim.localisation import FilterConfig
-from stealth_sim.move_executor import Move, Outcome, execute_move
+from stealth_sim.move_executor import Move, Outcome, StepStops, execute_move
 from stealth_sim.occupancy_map import MapError, OccupancyMap, load_map, to_occupancy_grid_data
 from stealth_sim.odometry_noise import MotionNoise
 from stealth_sim.simulator import SimConfig, Simulator, most_open_pose
@@ -304,6 +305,10 @@ class SimulatorNode(Node):
             10,
             event_callbacks=self._warned_subscription('initialpose'),
         )
+        # Before the services: the first move must not wait for numba's compile (or cache load).
+        seconds = compiled_move.warm_up()
+        if seconds is not None:
+            self.get_logger().info(f'compiled move kernels ready in {seconds:.1f} s')
         self.create_service(ExecuteMove, 'sim/execute_move', self._on_execute_move)
         self.create_service(ResetRobot, 'sim/reset', self._on_reset)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -373,9 +378,21 @@ class SimulatorNode(Node):
             self._publish_estimate(only_if_subscribed=True)
 
     def _move_step(self, sim: Simulator) -> None:
-        """After each physics step of a move: publish what is due, keep the real-time factor."""
+        """After a physics step of a move: publish what is due, keep the real-time factor."""
         self._publish_due()
         self._pacer.wait(sim.time, self.real_time_factor)
+
+    def _move_stops(self) -> StepStops:
+        """The steps of a move that need :meth:`_move_step`: a periodic publication or a new
+        amcl_pose is due for a subscriber, or the real-time factor paces every step. Training
+        (factor 0, nobody listening) so needs none, and a move is one kernel call; a
+        subscriber that appears mid-move is served from the move's next hook call or its end."""
+        periodic = any(p.get_subscription_count() for p in self._periodic)
+        return StepStops(
+            self._next_publish - 1e-9 if periodic else math.inf,
+            self._published_updates if self.pose_pub.get_subscription_count() else -1,
+            self.real_time_factor > 0.0,
+        )
 
     def _fresh_command(self) -> tuple[float, float] | None:
         if self._command is not None and self.sim.time - self._command_time > self.cmd_vel_timeout:
@@ -438,7 +455,7 @@ class SimulatorNode(Node):
         move = Move(request.kind, request.distance, request.heading, request.x, request.y)
         self._command = None  # a move takes over the robot
         self._pacer.anchor(self.sim.time)
-        result = execute_move(self.sim, move, on_step=self._move_step)
+        result = execute_move(self.sim, move, on_step=self._move_step, step_stops=self._move_stops)
         self._command = None
         self._pacer.anchor(self.sim.time)
         if result.outcome == Outcome.REJECTED:

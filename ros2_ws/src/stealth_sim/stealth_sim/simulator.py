@@ -74,7 +74,12 @@ def most_open_pose(occupancy_map: OccupancyMap) -> Pose:
 class Simulator:
     """One robot on one map, advanced in fixed physics steps of simulated time."""
 
-    def __init__(self, occupancy_map: OccupancyMap, config: SimConfig, pose: Pose):
+    def __init__(
+        self, occupancy_map: OccupancyMap, config: SimConfig, pose: Pose, reference: bool = False
+    ):
+        # reference: moves step by step through step(), as before the fast path (the baseline
+        # it is proven and measured against).
+        self.reference = reference
         self.map = occupancy_map
         self.config = config
         self.footprint = DiscFootprint(occupancy_map, config.robot_radius)
