@@ -60,6 +60,10 @@ $(BUILD_STAMP): $(VENV_STAMP)
 	@$(if $(UNDERLAY_TF2_MSGS),echo "setup: using $(UNDERLAY_TF2_MSGS) (vendored tf2_msgs skipped)" && rm -rf $(WS)/build/tf2_msgs $(WS)/install/tf2_msgs,true)
 	@cd $(WS) && $(ROS_ENV) && colcon build --symlink-install $(SKIP_PACKAGES) \
 		--event-handlers status- --cmake-args -DBUILD_TESTING=OFF -Wno-dev
+	@# The simulator's compiled move: numba compiles it once per machine into its cache, here
+	@# rather than in the first simulator a run or a test starts (tens of seconds).
+	@$(ROS_ENV) && python -c 'from stealth_sim.compiled_move import warm_up; \
+		s = warm_up(); print("setup: simulator kernels " + ("ready in %.0f s" % s if s is not None else "not compiled (no numba): the Python path runs"))'
 	@rm -f $(STAMPS)/build-* && echo "$@" > $@
 
 test: setup ## Build if needed, run every package's tests (colcon test) and the system tests
