@@ -3,7 +3,8 @@
 A run takes a ROS_DOMAIN_ID nobody else on the machine holds: one flock'd file per id in
 /tmp/stealth_nav_domains (the same lock files the system tests take, so runs and tests never hear
 each other), held for the whole run. Its nodes talk over localhost only
-(ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST; ROS_LOCALHOST_ONLY, which overrides it, is unset).
+(ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST; ROS_LOCALHOST_ONLY, which overrides it, is unset), or
+over the subnet when nodes on other hosts join it (`--discovery subnet`).
 
 A node that exits normally removes its Fast DDS segments from /dev/shm; a SIGKILLed one cannot.
 `remove_orphaned_shm` removes, after `fastdds shm clean`, the segments that appeared since a
@@ -26,6 +27,8 @@ DOMAIN_LOCK_DIR = Path('/tmp/stealth_nav_domains')
 # Linux keeps ids 0-101 clear of the ephemeral port range; 0 is everyone's default, so skip it.
 DOMAIN_IDS = range(1, 102)
 SHM_DIR = Path('/dev/shm')
+# --discovery: ROS_AUTOMATIC_DISCOVERY_RANGE of the run's participants.
+DISCOVERY_RANGES = {'localhost': 'LOCALHOST', 'subnet': 'SUBNET'}
 
 
 class DomainError(RuntimeError):
@@ -54,12 +57,15 @@ def reserved_domain_id(lock_dir: Path = DOMAIN_LOCK_DIR) -> Iterator[int]:
     raise DomainError(f'every ROS domain id {DOMAIN_IDS.start}-{DOMAIN_IDS.stop - 1} is in use')
 
 
-def private_environment(domain_id: int, base: dict[str, str] | None = None) -> dict[str, str]:
-    """The environment of a node process in the private domain (localhost discovery only)."""
+def private_environment(
+    domain_id: int, base: dict[str, str] | None = None, discovery: str = 'localhost'
+) -> dict[str, str]:
+    """The environment of a node process in the private domain (localhost discovery unless
+    `discovery` is 'subnet')."""
     env = dict(os.environ if base is None else base)
     env.pop('ROS_LOCALHOST_ONLY', None)  # it would override the discovery range
     env['ROS_DOMAIN_ID'] = str(domain_id)
-    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = DISCOVERY_RANGES[discovery]
     env['PYTHONUNBUFFERED'] = '1'  # log lines reach the log file as they are written
     env['RCUTILS_LOGGING_BUFFERED_STREAM'] = '0'
     env['RCUTILS_COLORIZED_OUTPUT'] = '0'

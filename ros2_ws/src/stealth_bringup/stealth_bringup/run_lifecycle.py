@@ -1,7 +1,10 @@
 """A run's processes from start to stop: the private domain, the nodes started in order and
 waited for, their parameters checked, the episodes followed until an end criterion, a signal, a
-dead node or a stall, then the nodes stopped in order. What it finds out goes into RunFacts,
-from which run_report writes the outputs; run_monitor watches (see orchestrate for the whole).
+dead node or a stall, then the nodes stopped in order. A --remote node has no process here:
+its command for the other host is printed, the run waits for it to join, and its leaving the
+ROS graph ends the run as a local node's exit would (remote_nodes). What it finds out goes into
+RunFacts, from which run_report writes the outputs; run_monitor watches (see orchestrate for the
+whole).
 """
 
 from __future__ import annotations
@@ -13,8 +16,10 @@ import sys
 import time
 
 from stealth_bringup.episode_tracker import Tracker
-from stealth_bringup.run_config import NODE_ORDER, STOP_ORDER, relative_to_cwd
+from stealth_bringup.remote_nodes import STATIC_PEERS_HINT, RemoteNode, join_command
+from stealth_bringup.run_config import STOP_ORDER, relative_to_cwd, ros_arg_value
 from stealth_bringup.run_monitor import (
+    ACTION_TOPIC,
     EXIT_SIGNAL,
     Monitor,
     Progress,
@@ -32,6 +37,7 @@ PARAMETER_TIMEOUT = 10.0  # s for a node's parameter services to answer
 # The environment's start_delay until the recorder subscribes to every topic (then the file's).
 HOLD_START_DELAY = 3600.0
 DRAIN_TIME = 0.1  # s of taking in late reports before each node is stopped
+NAMING_TIME = 2.0  # s for the graph to name the node of a second action publisher
 ROS_OWN_PARAMETERS = {'use_sim_time', 'start_type_description_service'}  # every node has them
 
 
@@ -54,6 +60,8 @@ class Run:
         self.supervisor = None
         self.monitor: Monitor | None = None
         self.crashed: set[str] = set()  # nodes that died on their own (reported already)
+        self.remote: dict[str, RemoteNode] = {}  # --remote nodes, once their command is out
+        self.crowded_since: float | None = None  # when a second action publisher showed up
 
     def _fail(self, message: str) -> None:
         self.facts.status, self.facts.message, self.facts.exit_code = 'failed', message, 1
@@ -71,6 +79,7 @@ class Run:
                 self.say(f'{self.prog}: {facts.message}')
             if self.monitor is not None:
                 facts.paths, facts.late = self.monitor.paths, self.monitor.late
+            facts.remote = {name: node.summary() for name, node in self.remote.items()}
             facts.nodes = dict(self.supervisor.nodes) if self.supervisor else {}
             # A signal now changes nothing: the files get written.
             report = RunReport(self.plan, self.tracker, facts, self.say)
@@ -95,12 +104,12 @@ class Run:
                 self._fail(str(error))
                 return
             self.facts.domain_id = domain_id
-            env = private_environment(domain_id)
+            env = private_environment(domain_id, discovery=plan.discovery)
             self.supervisor = Supervisor(env, plan.directory / 'logs')
             self._announce()
             context = None
             try:
-                context = private_ros_context(domain_id)
+                context = private_ros_context(domain_id, plan.discovery)
                 self.monitor = Monitor(
                     context, self.tracker, self.facts.started, self.progress.on_record
                 )
@@ -112,6 +121,7 @@ class Run:
                 self.progress.close()
                 self.facts.stopped_at = time.monotonic()
                 self._stop_nodes(signals)
+                self._remind_remote()
                 if self.monitor is not None:
                     self.monitor.close()
                 if context is not None:
@@ -125,29 +135,80 @@ class Run:
     def _announce(self) -> None:
         self.say(f'{self.prog}: {self.plan.describe()}')
         directory = relative_to_cwd(self.plan.directory)
-        self.say(f'run directory: {directory} (ROS_DOMAIN_ID {self.facts.domain_id})')
+        discovery = '' if self.plan.discovery == 'localhost' else ', discovery subnet'
+        self.say(f'run directory: {directory} (ROS_DOMAIN_ID {self.facts.domain_id}{discovery})')
+
+    def _held_values(self, name: str) -> dict:
+        """Parameters a node starts with on top of its file, for the run to change later."""
+        if name == 'environment' and self.plan.record:  # on hold until the recorder listens
+            return {'start_delay': HOLD_START_DELAY}
+        return {}
 
     def _start(self, name: str) -> None:
         plan = self.plan
         params_file = plan.params_file(name).resolve()
         command = plan.commands[name] + plan.parameters[name].ros_args(params_file)
-        if name == 'environment' and plan.record:  # on hold until the recorder listens
-            command += ['-p', f'start_delay:={HOLD_START_DELAY}']
+        for key, value in self._held_values(name).items():
+            command += ['-p', f'{key}:={ros_arg_value(value)}']
         try:
             self.supervisor.start(name, command, niceness=NICENESS.get(name, 0))
         except OSError as error:
             raise RunError(f'{name}: cannot start {command[0]}: {error.strerror}') from None
 
     def _check_processes(self, during: str) -> None:
+        """A local node that exited, a remote one that left the graph, a second agent: the run
+        cannot go on (RunError)."""
         dead = self.supervisor.dead()
         if dead:
             node = dead[0]
             self.crashed.update(n.name for n in dead)
             log = relative_to_cwd(node.log_path)
             raise RunError(f'{node.why(during)} (log: {log})')
+        if self.remote:
+            self._check_remote(during)
+        self._check_one_agent()
 
-    def _wait(self, signals: Signals, what: str, ready, deadline: float, during: str) -> None:
-        """Spin until ready() or the deadline; a signal or a dead node ends it at once."""
+    def _check_one_agent(self) -> None:
+        """Two publishers of the actions: two agents answer every state (RunError), once the
+        graph names both (or after NAMING_TIME)."""
+        agents = self.monitor.publishers_of(ACTION_TOPIC)
+        if len(agents) <= 1:
+            self.crowded_since = None
+            return
+        now = time.monotonic()
+        self.crowded_since = self.crowded_since or now
+        if None in agents and now - self.crowded_since < NAMING_TIME:
+            return
+        names = ', '.join(name or '(a node not named on the graph)' for name in agents)
+        raise RunError(
+            f'a second agent joined the run: {ACTION_TOPIC} has {len(agents)} publishers '
+            f'(nodes {names}); a run takes one agent, stop the one that does not belong and '
+            'start the run again'
+        )
+
+    def _check_remote(self, during: str) -> None:
+        """Remote nodes are supervised through the graph: there once, gone means ended."""
+        on_graph = self.monitor.node_names()
+        for name, node in self.remote.items():
+            change = node.seen(name in on_graph)
+            if change == 'joined':
+                self.say(f'{name} (remote) joined the run after {node.joined - node.since:.1f} s')
+            elif change == 'left':
+                raise RunError(
+                    f'{name} (remote) left the ROS graph {during} after '
+                    f'{node.left - node.joined:.1f} s on it: it stopped, crashed or lost the '
+                    'network; see its output on its host'
+                )
+
+    def _not_joined(self) -> str:
+        """The remote nodes not on the graph yet ('' once all joined)."""
+        return ', '.join(name for name, node in self.remote.items() if node.joined is None)
+
+    def _wait(
+        self, signals: Signals, what: str, ready, deadline: float, during: str, too_late=None
+    ) -> None:
+        """Spin until ready() or the deadline; a signal or a dead node ends it at once.
+        too_late(missing) is the message at the deadline (default: `what` not up in time)."""
         while True:
             self._check_processes(during)
             if signals.first is not None:
@@ -157,10 +218,48 @@ class Run:
                 return
             if time.monotonic() >= deadline:
                 raise RunError(
-                    f'{what} not up within {self.plan.startup_timeout:g} s: still waiting for '
-                    f'{missing} (logs: {relative_to_cwd(self.plan.directory / "logs")})'
+                    too_late(missing)
+                    if too_late is not None
+                    else f'{what} not up within {self.plan.startup_timeout:g} s: still waiting '
+                    f'for {missing} (logs: {relative_to_cwd(self.plan.directory / "logs")})'
                 )
             self.monitor.spin()
+
+    def _announce_remote(self, name: str) -> None:
+        """Print the exact command for the other host; from now on the node may join."""
+        plan = self.plan
+        values = {**plan.parameters[name].values, **self._held_values(name)}
+        node = RemoteNode(name, join_command(name, values, self.facts.domain_id, plan.discovery))
+        self.remote[name] = node
+        where = 'another host' if plan.discovery == 'subnet' else 'another terminal of this host'
+        self.say(
+            f'waiting up to {plan.join_timeout:g} s for {name} to join ROS domain '
+            f'{self.facts.domain_id} from {where}; run there (workspace sourced: '
+            'source scripts/ros_env.sh):'
+        )
+        self.say(f'  {node.shell_command}')
+        if plan.discovery == 'subnet':
+            self.say(f'  ({STATIC_PEERS_HINT})')
+        else:
+            self.say('  (--discovery localhost: only this host can join; --discovery subnet for '
+                     'another host)')  # fmt: skip
+
+    def _join_timeout(self, missing: str) -> str:
+        node = self.remote[missing.split(', ')[0]]
+        return (
+            f'{node.name} did not join ROS domain {self.facts.domain_id} within '
+            f'{self.plan.join_timeout:g} s; start it on its host with: {node.shell_command}'
+        )
+
+    def _remind_remote(self) -> None:
+        """The orchestrator cannot stop a remote node: say so, and where its policy goes."""
+        for name, node in self.remote.items():
+            if node.state != 'on the graph':
+                continue
+            saving = ''
+            if name == 'agent' and self.plan.mode == 'train':
+                saving = f'; it saves the policy to {self.plan.policy_path} (on its host) on exit'
+            self.say(f'{self.prog}: {name} runs on another host: stop it there (Ctrl-C){saving}')
 
     def _start_nodes(self, signals: Signals) -> None:
         """Start every node, wait until all are on the graph with the simulator's services, check
@@ -168,13 +267,24 @@ class Run:
         recorder listens to every topic, so the recording misses nothing."""
         plan, monitor = self.plan, self.monitor
         deadline = time.monotonic() + plan.startup_timeout
-        names = [n for n in NODE_ORDER if n in plan.commands]
+        names = [n for n in plan.nodes if n in plan.commands]
         self.say(f'starting {", ".join(names)} ...')
         for name in names:
             self._start(name)
+        for name in plan.remote:
+            self._announce_remote(name)
 
         up = functools.partial(monitor.not_up, names)
         self._wait(signals, 'the system', up, deadline, 'during startup')
+        if self.remote and signals.first is None:
+            join_deadline = max(node.since for node in self.remote.values()) + plan.join_timeout
+            self._wait(
+                signals, 'the remote nodes', self._not_joined, join_deadline,
+                f'while waiting for {", ".join(self.remote)} to join', self._join_timeout,
+            )  # fmt: skip
+            deadline = time.monotonic() + plan.startup_timeout  # for what the joined ones bring
+            up = functools.partial(monitor.not_up, plan.nodes)
+            self._wait(signals, 'the system', up, deadline, 'during startup')
         if signals.first is not None:
             return
         self._check_parameter_names(signals)
@@ -198,13 +308,19 @@ class Run:
         """A parameter a node does not declare would be ignored without a word (a typo in
         --set, a file for another version): every one given must exist."""
         plan = self.plan
-        for name in NODE_ORDER:
-            if name not in plan.commands or signals.first is not None:
+        for name in plan.nodes:
+            if signals.first is not None:
                 continue
-            node = self.supervisor.nodes[name]
-            declared = self.monitor.parameter_names(
-                name, lambda node=node: node.alive and signals.first is None, PARAMETER_TIMEOUT
-            )
+            if name in self.remote:
+
+                def alive(name=name) -> bool:
+                    return name in self.monitor.node_names() and signals.first is None
+            else:
+
+                def alive(node=self.supervisor.nodes[name]) -> bool:
+                    return node.alive and signals.first is None
+
+            declared = self.monitor.parameter_names(name, alive, PARAMETER_TIMEOUT)
             self._check_processes('during startup')
             if declared is None:
                 if signals.first is None:

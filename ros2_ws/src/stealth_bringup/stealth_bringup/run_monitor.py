@@ -19,6 +19,8 @@ SPIN_PERIOD = 0.1  # s: how long a signal or a dead node can go unnoticed
 EXIT_SIGNAL = {signal.SIGINT: 130, signal.SIGTERM: 143, signal.SIGHUP: 129}
 GRAPH_TOPICS_IGNORED = {'/rosout', '/parameter_events'}
 SIMULATOR_SERVICES = ('/sim/execute_move', '/sim/reset')  # the system is up once they are there
+ACTION_TOPIC = '/rl_agent/rl_action'  # one publisher: the run's agent
+UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'  # rmw's name of a node whose endpoints came first
 
 
 class Signals:
@@ -50,14 +52,16 @@ class Signals:
         return len(self.received) >= 2
 
 
-def private_ros_context(domain_id: int):
-    """An initialised rclpy context of this process in the run's domain, without rclpy's
-    signal handlers (Signals has them)."""
+def private_ros_context(domain_id: int, discovery: str = 'localhost'):
+    """An initialised rclpy context of this process in the run's domain and discovery range,
+    without rclpy's signal handlers (Signals has them)."""
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
+    from stealth_bringup.ros_domain import DISCOVERY_RANGES
+
     os.environ['ROS_DOMAIN_ID'] = str(domain_id)
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = DISCOVERY_RANGES[discovery]
     os.environ.pop('ROS_LOCALHOST_ONLY', None)
     # The orchestrator's own participant talks UDP only (the nodes' environment was taken
     # before this): it then holds no Fast DDS shared memory, so even a SIGKILL of this
@@ -146,6 +150,18 @@ class Monitor:
         return {name for name, namespace in self.node.get_node_names_and_namespaces()
                 if namespace == '/'}  # fmt: skip
 
+    def publishers_of(self, topic: str) -> list[str | None]:
+        """The nodes publishing `topic`, one entry per publisher (two agents both named 'agent'
+        are two entries); None for one whose node is not known yet (its endpoint is discovered
+        before its node's name)."""
+        names = [
+            None
+            if info.node_name == UNKNOWN_NODE
+            else f'{info.node_namespace.rstrip("/")}/{info.node_name}'
+            for info in self.node.get_publishers_info_by_topic(topic)
+        ]
+        return sorted(names, key=lambda name: name or '~')
+
     def services_of(self, node_name: str) -> set[str]:
         with contextlib.suppress(Exception):  # the node may not be there yet
             return {
@@ -207,11 +223,13 @@ class Monitor:
 
     def not_up(self, names) -> str:
         """What of the system is not on the graph yet ('' once every node in `names` is, with
-        the simulator's services)."""
+        the simulator's services when it is one of them)."""
         seen = self.node_names()
         missing = [n for n in names if n not in seen]
         if missing:
             return 'node ' + ', '.join(missing)
+        if 'simulator' not in names:
+            return ''
         wanted = set(SIMULATOR_SERVICES) - self.services_of('simulator')
         if wanted:
             return 'simulator services ' + ', '.join(sorted(wanted))

@@ -17,6 +17,7 @@ from pathlib import Path
 import re
 import shlex
 
+from stealth_bringup.ros_domain import DISCOVERY_RANGES
 from stealth_bringup.run_config import (
     NODE_ORDER,
     NODES,
@@ -45,6 +46,9 @@ WATCH_PUBLISH_RATE = 10.0  # Hz of odom, ground_truth, scan, clock under --watch
 # cmd_vel/odom, one control step per odom message, so simulated time must flow between moves:
 # 20x wall time in ticks of 10 ms (0.2 s simulated, the control period), one odom per tick.
 TOPICS_SIMULATOR = {'real_time_factor': 20.0, 'idle_period': 0.01, 'publish_rate': 5.0}
+JOIN_TIMEOUT = 300.0  # s for a --remote node to join: someone has to start it on another host
+# The recorder writes into the run directory, so it runs here.
+REMOTE_NODES = ('simulator', 'environment', 'agent')
 
 # --- command line -------------------------------------------------------------------------------
 
@@ -144,6 +148,30 @@ def _common_options(parser: argparse.ArgumentParser, evaluating: bool = False) -
         default=[],
         metavar='NODE=PATH',
         help='run PATH instead of the installed node (e.g. your own rl_msgs agent)',
+    )
+    parser.add_argument(
+        '--discovery',
+        choices=tuple(DISCOVERY_RANGES),
+        default='localhost',
+        help='where the nodes of the run find each other (ROS_AUTOMATIC_DISCOVERY_RANGE): '
+        'localhost, or subnet for nodes on other hosts (--remote) (default: %(default)s)',
+    )
+    parser.add_argument(
+        '--remote',
+        action='append',
+        default=[],
+        choices=REMOTE_NODES,
+        metavar='NODE',
+        help=f'do not start NODE ({", ".join(REMOTE_NODES)}) here: print the command that '
+        'starts it on another host, wait for it to join the run, then supervise it through the '
+        'ROS graph (repeatable; with --discovery subnet for another host)',
+    )
+    parser.add_argument(
+        '--join-timeout',
+        type=_positive_float,
+        default=JOIN_TIMEOUT,
+        metavar='S',
+        help='seconds a --remote node has to join the run (default: %(default)s)',
     )
 
 
@@ -254,8 +282,11 @@ def _check_goal(scenario, goal: str | None, default: str | None = None) -> str:
     return goal
 
 
-def _executables(no_record: bool, replacements: list[str]) -> dict[str, list[str]]:
-    """{node: command prefix}; RunConfigError for an executable that is not there."""
+def _executables(
+    no_record: bool, replacements: list[str], remote: tuple[str, ...]
+) -> dict[str, list[str]]:
+    """{node: command prefix} of the nodes started here; RunConfigError for an executable that
+    is not there."""
     from stealth_tools.executables import ExecutableNotFoundError, find_executable
 
     given = {}
@@ -265,10 +296,15 @@ def _executables(no_record: bool, replacements: list[str]) -> dict[str, list[str
             raise RunConfigError(
                 f'--executable {item!r}: expected NODE=PATH with NODE one of {", ".join(NODES)}'
             )
+        if node in remote:
+            raise RunConfigError(
+                f'--executable {item!r}: {node} is --remote, started on the other host with '
+                'the command printed there; drop one of the two'
+            )
         given[node] = path
     commands = {}
     for name in NODE_ORDER:
-        if name == 'recorder' and no_record:
+        if (name == 'recorder' and no_record) or name in remote:
             continue
         spec = NODES[name]
         if name in given:
@@ -306,6 +342,14 @@ class RunPlan:
     stall_timeout: float
     policy_path: Path
     record: bool
+    discovery: str = 'localhost'  # a key of DISCOVERY_RANGES
+    remote: tuple[str, ...] = ()  # nodes that join from another host (not in `commands`)
+    join_timeout: float = JOIN_TIMEOUT
+
+    @property
+    def nodes(self) -> list[str]:
+        """Every node of the run, started here or remote, in start order."""
+        return [n for n in NODE_ORDER if n in self.parameters]
 
     @property
     def title(self) -> str:
@@ -358,7 +402,8 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
     nodes = [n for n in NODE_ORDER if not (n == 'recorder' and args.no_record)]
     sources = params_sources(_defaults_dir(), params_dir and Path(params_dir), nodes)
     overrides = parse_set(args.overrides, nodes)
-    commands = _executables(args.no_record, args.executable)
+    remote = tuple(n for n in REMOTE_NODES if n in args.remote)
+    commands = _executables(args.no_record, args.executable, remote)
 
     # The run's own values, on top of the parameter files.
     run_values = {n: {} for n in nodes}
@@ -416,6 +461,9 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
         stall_timeout=args.stall_timeout,
         policy_path=policy_path,
         record='recorder' in parameters,
+        discovery=args.discovery,
+        remote=remote,
+        join_timeout=args.join_timeout,
     )
 
 

@@ -33,6 +33,7 @@ class RunFacts:
     node_cpu: dict[str, float | None] = dataclasses.field(default_factory=dict)  # CPU s used
     paths: dict[int, list] = dataclasses.field(default_factory=dict)  # true (x, y) by episode
     late: list[dict] = dataclasses.field(default_factory=list)  # summaries after the end
+    remote: dict[str, dict] = dataclasses.field(default_factory=dict)  # --remote nodes' summary
 
 
 class RunReport:
@@ -222,6 +223,7 @@ class RunReport:
             'run_s': round(run_seconds, 2),
             'steps_per_s': round(steps / run_seconds, 2) if run_seconds > 0 else None,
             'ros_domain_id': facts.domain_id,
+            'discovery': plan.discovery,
             'policy': self._policy_check(),
             'nodes': {
                 name: {
@@ -232,6 +234,8 @@ class RunReport:
                 }
                 for name, node in facts.nodes.items()
             },
+            # Nodes on other hosts: the command printed for them and what the graph showed.
+            'remote_nodes': facts.remote,
             'files': {key: relative_to_cwd(value) for key, value in files.items()},
         }
         summary['files']['summary'] = relative_to_cwd(plan.file('summary.json'))
