@@ -62,7 +62,7 @@ $(BUILD_STAMP): $(VENV_STAMP)
 		--event-handlers status- --cmake-args -DBUILD_TESTING=OFF -Wno-dev
 	@# The simulator's compiled move: numba compiles it once per machine into its cache, here
 	@# rather than in the first simulator a run or a test starts (tens of seconds).
-	@$(ROS_ENV) && python -c 'from stealth_sim.compiled_move import warm_up; \
+	@$(ROS_ENV) && python -c 'from stealth_sim.move_executor import warm_up; \
 		s = warm_up(); print("setup: simulator kernels " + ("ready in %.0f s" % s if s is not None else "not compiled (no numba): the Python path runs"))'
 	@rm -f $(STAMPS)/build-* && echo "$@" > $@
 

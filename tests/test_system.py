@@ -352,4 +352,7 @@ def test_a_node_that_crashes_on_start_stops_the_run(system, setting, node, reaso
     assert summary['status'] == 'failed' and summary['message'] in line
     assert summary['episodes'] == 0
     others = {name: state['exit'] for name, state in summary['nodes'].items() if name != node}
-    assert others and all(exit == 'exited with code 0' for exit in others.values()), others
+    # The others are stopped with SIGINT, some while still importing (before rclpy handles the
+    # signal, Python itself dies of it): both are the clean stops of supervisor.CLEAN_EXITS.
+    clean = ('exited with code 0', 'was killed by SIGINT')
+    assert others and all(exit in clean for exit in others.values()), others

@@ -24,7 +24,6 @@ and :func:`problem` says why.
 import logging
 import math
 import os
-import time
 
 import numpy as np
 
@@ -639,24 +638,6 @@ def run_move(max_steps, s, p, footprint, arrays, covariance, particles, weights,
             return PAUSED
 
 
-def warm_up() -> float | None:
-    """Compile the kernels (or load them from the cache) with one move of a throwaway
-    simulator, so that no real move pays for it: the seconds it took, None without numba."""
-    if _IMPORT_PROBLEM is not None:
-        return None
-    from stealth_sim.kinematics import Pose
-    from stealth_sim.move_executor import Move, MoveKind, execute_move
-    from stealth_sim.occupancy_map import FREE, OCCUPIED, OccupancyMap
-    from stealth_sim.simulator import SimConfig, Simulator
-
-    cells = np.full((40, 40), OCCUPIED, np.int8)
-    cells[1:-1, 1:-1] = FREE
-    sim = Simulator(OccupancyMap(cells, 0.05, (0.0, 0.0, 0.0)), SimConfig(), Pose(1.0, 1.0, 0.0))
-    started = time.perf_counter()
-    execute_move(sim, Move(MoveKind.UP, 0.3))
-    return time.perf_counter() - started
-
-
 # --- the simulator's objects in arrays, and back ---------------------------------------------
 
 
@@ -687,6 +668,11 @@ def _score_table(score: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     hundred: one per distance to the nearest obstacle)."""
     scores, index = np.unique(score, return_inverse=True)
     return index.reshape(score.shape).astype(np.uint16), scores
+
+
+def import_problem() -> str | None:
+    """Why the kernels cannot run at all (numba missing), or None."""
+    return _IMPORT_PROBLEM
 
 
 def problem(sim) -> str | None:
@@ -820,8 +806,6 @@ class CompiledMoveRun:
 
     def move(self, heading: float, distance: float, target):
         """``_MoveRun.move``: the whole move in one kernel call, plus one per step hook call."""
-        from stealth_sim.move_executor import Outcome  # it imports this module
-
         state = self.state
         state[PHASE], state[OUTCOME], state[HEADING], state[DISTANCE] = TURN, 0, heading, distance
         state[HAS_TARGET] = target is not None
@@ -852,4 +836,4 @@ class CompiledMoveRun:
                 self._store()
                 self.on_step(self.sim)
         self._store()
-        return Outcome(outcome)
+        return int(outcome)  # an ExecuteMove outcome number (move_executor.Outcome)

@@ -21,11 +21,15 @@ import dataclasses
 import enum
 import logging
 import math
+import time
 from typing import NamedTuple
+
+import numpy as np
 
 from stealth_sim import compiled_move
 from stealth_sim.kinematics import Pose, wrap_angle
-from stealth_sim.simulator import Simulator
+from stealth_sim.occupancy_map import FREE, OCCUPIED, OccupancyMap
+from stealth_sim.simulator import SimConfig, Simulator
 
 
 class MoveKind(enum.IntEnum):
@@ -185,7 +189,7 @@ def execute_move(
         run = _MoveRun(sim, controller, on_step, nominal, step_stops)
     else:
         run = compiled_move.CompiledMoveRun(sim, controller, on_step, nominal, step_stops)
-    outcome = run.move(heading, distance, target)
+    outcome = Outcome(run.move(heading, distance, target))
     messages = {
         Outcome.DONE: '',
         Outcome.BUMPED: 'the robot touched a wall or unknown space and stopped',
@@ -319,3 +323,16 @@ class _MoveRun:
             if outcome is not None:
                 return outcome
         return None
+
+
+def warm_up() -> float | None:
+    """Compile the kernels (or load them from the cache) with one move of a throwaway
+    simulator, so that no real move pays for it: the seconds it took, None without numba."""
+    if compiled_move.import_problem() is not None:
+        return None
+    cells = np.full((40, 40), OCCUPIED, np.int8)
+    cells[1:-1, 1:-1] = FREE
+    sim = Simulator(OccupancyMap(cells, 0.05, (0.0, 0.0, 0.0)), SimConfig(), Pose(1.0, 1.0, 0.0))
+    started = time.perf_counter()
+    execute_move(sim, Move(MoveKind.UP, 0.3))
+    return time.perf_counter() - started

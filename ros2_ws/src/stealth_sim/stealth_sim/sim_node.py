@@ -58,7 +58,6 @@ from stealth_node_kit.parameters import Param, StartupError, declare_parameters
 from stealth_node_kit.running import run_node
 from tf2_msgs.msg import TFMessage
 
-from stealth_sim import compiled_move
 from stealth_sim.frames import (
     BASE_FRAME,
     MAP_FRAME,
@@ -69,7 +68,7 @@ from stealth_sim.frames import (
 from stealth_sim.kinematics import Limits, Pose
 from stealth_sim.laser import LaserConfig
 from stealth_sim.localisation import FilterConfig
-from stealth_sim.move_executor import Move, Outcome, StepStops, execute_move
+from stealth_sim.move_executor import Move, Outcome, StepStops, execute_move, warm_up
 from stealth_sim.occupancy_map import MapError, OccupancyMap, load_map, to_occupancy_grid_data
 from stealth_sim.odometry_noise import MotionNoise
 from stealth_sim.simulator import SimConfig, Simulator, most_open_pose
@@ -306,7 +305,7 @@ class SimulatorNode(Node):
             event_callbacks=self._warned_subscription('initialpose'),
         )
         # Before the services: the first move must not wait for numba's compile (or cache load).
-        seconds = compiled_move.warm_up()
+        seconds = warm_up()
         if seconds is not None:
             self.get_logger().info(f'compiled move kernels ready in {seconds:.1f} s')
         self.create_service(ExecuteMove, 'sim/execute_move', self._on_execute_move)
