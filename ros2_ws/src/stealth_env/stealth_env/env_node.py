@@ -73,7 +73,6 @@ import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
-from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from std_msgs.msg import ColorRGBA
@@ -96,7 +95,7 @@ from stealth_node_kit.endpoints import (
     warn_subscription,
 )
 from stealth_node_kit.parameters import Param, StartupError, declare_parameters, non_finite
-from stealth_node_kit.running import run_node
+from stealth_node_kit.running import StartupNode, run_node
 from visualization_msgs.msg import Marker, MarkerArray
 
 from stealth_env.episode_flow import (
@@ -384,18 +383,13 @@ class Pending(NamedTuple):
 # --- the node -----------------------------------------------------------------------------------
 
 
-class EnvironmentNode(Node):
+class EnvironmentNode(StartupNode):
     """stealth-nav's rl_env: scenario, judging and episodes over the simulator's moves."""
 
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        try:
-            self._set_up()
-        except StartupError:
-            self.destroy_node()  # leave no DDS participant (and shared memory) behind
-            raise
 
-    def _set_up(self) -> None:
+    def set_up(self) -> None:
         self._configured = False
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)

@@ -14,8 +14,26 @@ import re
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+import rclpy.node
 
 EXIT_CANNOT_START = 2
+
+
+class StartupNode(rclpy.node.Node):
+    """A node whose ``set_up()`` may refuse to start (StartupError) or be interrupted: it then
+    destroys itself before the error leaves, so no DDS participant (nor its shared memory)
+    outlives a node that never ran."""
+
+    def __init__(self, node_name: str, **kwargs):
+        super().__init__(node_name, **kwargs)
+        try:
+            self.set_up()
+        except BaseException:
+            self.destroy_node()
+            raise
+
+    def set_up(self) -> None:
+        raise NotImplementedError
 
 
 def _without_source_locations(error: Exception) -> str:

@@ -6,7 +6,7 @@ from builtin_interfaces.msg import Time
 import pytest
 from rclpy.parameter import Parameter
 from stealth_node_kit.conversions import quaternion_yaw, seconds, time_msg, yaw_quaternion
-from stealth_node_kit.parameters import Param, descriptor, non_finite
+from stealth_node_kit.parameters import Param, StartupError, descriptor, non_finite
 from stealth_node_kit.running import EXIT_CANNOT_START, run_node
 
 
@@ -65,3 +65,31 @@ def test_a_node_stopped_while_it_starts_exits_quietly(capfd):
 
     assert run_node(interrupted, 'kit_test', args=[]) == 0
     assert 'Traceback' not in capfd.readouterr().err
+
+
+@pytest.mark.parametrize('error', [StartupError('parameter map: required'), KeyboardInterrupt()])
+def test_a_node_whose_set_up_fails_destroys_itself(error, monkeypatch):
+    import rclpy
+
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')  # this machine only
+    monkeypatch.delenv('ROS_LOCALHOST_ONLY', raising=False)
+    from stealth_node_kit.running import StartupNode
+
+    destroyed = []
+
+    class Refusing(StartupNode):
+        def set_up(self):
+            raise error
+
+        def destroy_node(self):
+            destroyed.append(self.get_name())
+            return super().destroy_node()
+
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=231)
+    try:
+        with pytest.raises(type(error)):
+            Refusing('refusing', context=context)
+        assert destroyed == ['refusing']
+    finally:
+        context.try_shutdown()

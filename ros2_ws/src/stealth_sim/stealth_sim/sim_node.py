@@ -46,7 +46,6 @@ from nav_msgs.msg import OccupancyGrid, Odometry
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
@@ -55,7 +54,7 @@ from stealth_interfaces.srv import ExecuteMove, ResetRobot
 from stealth_node_kit.conversions import quaternion_yaw, time_msg, yaw_quaternion
 from stealth_node_kit.endpoints import QUIET_PUBLISHER, warn_publisher, warn_subscription
 from stealth_node_kit.parameters import Param, StartupError, declare_parameters
-from stealth_node_kit.running import run_node
+from stealth_node_kit.running import StartupNode, run_node
 from tf2_msgs.msg import TFMessage
 
 from stealth_sim.frames import (
@@ -217,18 +216,13 @@ class RealTimePacer:
                 time.sleep(ahead)
 
 
-class SimulatorNode(Node):
+class SimulatorNode(StartupNode):
     """Parameters, topics, services and simulated time around one :class:`Simulator`."""
 
     def __init__(self, **kwargs):
         super().__init__('simulator', **kwargs)
-        try:
-            self._set_up()
-        except StartupError:
-            self.destroy_node()  # leave no DDS participant (and shared memory) behind
-            raise
 
-    def _set_up(self) -> None:
+    def set_up(self) -> None:
         values = declare_parameters(self, PARAMETERS)
         self.map = self._load_map(values['map'])
         try:
