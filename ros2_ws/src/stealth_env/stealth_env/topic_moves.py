@@ -36,19 +36,14 @@ from typing import NamedTuple
 
 import numpy as np
 from stealth_sim.kinematics import Limits, Pose, compose, relative, wrap_angle
-from stealth_sim.move_executor import GRID_HEADINGS, ControllerConfig, MoveKind, Outcome
+from stealth_sim.move_executor import ControllerConfig, Outcome
 
-from stealth_env.move_lattice import ACTIONS, MoveLattice, Node
+from stealth_env.move_lattice import MoveLattice, Node
 
 __all__ = ['ControllerConfig', 'Limits', 'Outcome', 'Pose']
 
 ODOM_HISTORY = 64  # odometry poses kept to place an amcl_pose stamped in the past
 _PERIOD_SMOOTHING = 0.2  # weight of the newest odom interval in the period's running mean
-
-
-def action_move(action: int, distance: float) -> Move:
-    """The move of an RL action (0 up, 1 down, 2 left, 3 right): the simulator's grid move."""
-    return Move(GRID_HEADINGS[MoveKind[ACTIONS[action][0].upper()]], distance)
 
 
 def pose_problem(x: float, y: float, yaw: float, frame: str = '', expected: str = '') -> str:

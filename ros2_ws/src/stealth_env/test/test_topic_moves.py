@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from stealth_env.move_lattice import MoveLattice
+from stealth_env.move_lattice import ACTIONS, MoveLattice
 from stealth_env.scenario import load_scenario
 from stealth_env.topic_moves import (
     Command,
@@ -20,16 +20,24 @@ from stealth_env.topic_moves import (
     PoseTracker,
     TopicConfig,
     TopicMove,
-    action_move,
     forward_clearance,
     go_to,
     pose_problem,
     route_home,
 )
 from stealth_sim.kinematics import Limits, relative, wrap_angle
+from stealth_sim.move_executor import GRID_HEADINGS, MoveKind
 from stealth_sim.simulator import SimConfig, Simulator
 
 TOLERANCE = ControllerConfig()
+
+
+def action_move(action: int, distance: float) -> Move:
+    """A relative grid move (0 up, 1 down, 2 left, 3 right) of `distance` from where the robot
+    is: the controller's primitive, as the simulator's UP..RIGHT."""
+    return Move(GRID_HEADINGS[MoveKind[ACTIONS[action][0].upper()]], distance)
+
+
 LIMITS = Limits(0.5, 1.5, 1.0, 3.0)  # config/simulator.yaml's
 PHYSICS_DT = 0.04  # config/simulator.yaml's
 

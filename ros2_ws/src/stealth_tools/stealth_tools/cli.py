@@ -77,6 +77,10 @@ def _spin_time(parser: argparse.ArgumentParser, default: float) -> None:
     )
 
 
+def _timeout(parser: argparse.ArgumentParser, help_text: str) -> None:
+    parser.add_argument('--timeout', metavar='N', type=_positive_float, help=help_text)
+
+
 def _in_ros(verb: Callable) -> Callable:
     """Run a graph verb inside an rclpy session that owns SIGINT/SIGTERM."""
 
@@ -202,12 +206,7 @@ def _add_topic(commands) -> None:
     parser.add_argument('--no-str', action='store_true', help='do not print string fields')
     parser.add_argument('--flow-style', action='store_true', help='YAML flow style')
     parser.add_argument('--once', action='store_true', help='print the first message and exit')
-    parser.add_argument(
-        '--timeout',
-        metavar='N',
-        type=_positive_float,
-        help='stop after N seconds; exit status 1 when no message arrived',
-    )
+    _timeout(parser, 'stop after N seconds; exit status 1 when no message arrived')
     _spin_time(parser, 5.0)
     parser.set_defaults(handler=_lazy('graph_tools', 'topic_echo', ros=True))
 
@@ -233,12 +232,7 @@ def _add_topic(commands) -> None:
         action='store_true',
         help='use wall time (when /clock is not published in a simulation)',
     )
-    parser.add_argument(
-        '--timeout',
-        metavar='N',
-        type=_positive_float,
-        help='give up, exit status 1, after N seconds without a message (default: wait)',
-    )
+    _timeout(parser, 'give up, exit status 1, after N seconds without a message (default: wait)')
     _spin_time(parser, 5.0)
     parser.set_defaults(handler=_lazy('graph_tools', 'topic_hz', ros=True))
 
