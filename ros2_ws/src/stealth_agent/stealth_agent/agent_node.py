@@ -172,6 +172,13 @@ PARAMETERS = {
         bounds=(0, 2**31 - 1),
     ),
     'load_policy': Param(False, 'Resume learning from policy_file if it exists.', read_only=True),
+    'first_episode': Param(
+        0,
+        "Number of the first episode this agent runs (a respawned or resumed run's next one); "
+        "later numbers follow the environment's EpisodeSummary.",
+        bounds=(0, 2**31 - 1),
+        read_only=True,
+    ),
     'evaluate': Param(
         False,
         'Greedy, no learning: run the policy in policy_file (rl_agent savedpolicy).',
@@ -464,6 +471,7 @@ class AgentNode(Node):
             learner = make_learner(learner_name, description.num_actions, self._learner_config())
             index = StateIndex(mapping)
         self._core = ProtocolAgent(learner, index, rng, learning=not evaluate)
+        self._core.episode = self._param('first_episode')
         self._setup_error = ''
         config = learner.config
         if evaluate:
@@ -554,6 +562,10 @@ class AgentNode(Node):
         ending = resolved.ending
         if ending is Ending.TRUNCATED and self._param('timeout_is_terminal'):
             ending = Ending.TERMINATED
+        if resolved.episode is not None:
+            # The environment numbers the episodes: after a restart of either side (an episode
+            # dropped by one of them) both still name each episode alike.
+            self._core.episode = resolved.episode
         self._process(resolved.state, resolved.reward, True, ending)
 
     def _episode_done(self, result) -> None:
@@ -606,7 +618,7 @@ class AgentNode(Node):
         if self._core is None or not self._core.in_episode:
             return
         ending = OUTCOME_ENDINGS.get(msg.outcome, Ending.TERMINATED)
-        resolved = self._endings.report(msg.steps, ending)
+        resolved = self._endings.report(msg.steps, ending, int(msg.episode))
         if resolved is not None:
             self._end_episode(resolved)
 
