@@ -28,6 +28,7 @@ from stealth_interfaces.msg import (
     SearchlightArray,
     StepInfo,
 )
+from stealth_interfaces.srv import RestartEpisode
 from visualization_msgs.msg import Marker, MarkerArray
 import yaml
 
@@ -455,6 +456,61 @@ def test_simulator_failure_and_agent_loss_abort_and_recover(agent, node_processe
     assert len(agent.summaries) == 2
     counts = totals(stop(env))
     assert (counts['states'], counts['episodes']) == (len(agent.states), 3)
+
+
+def test_a_restarted_simulator_or_agent_ends_the_episode_it_left(agent, node_processes):
+    scenario = load_scenario(SCENARIO)
+    start_sim(node_processes, scenario)
+    env = start_env(node_processes, scenario=SCENARIO, first_episode=7)
+    client = agent.node.create_client(RestartEpisode, 'rl_env/restart_episode')
+
+    def restart(which: int) -> RestartEpisode.Response:
+        assert agent.spin_until(client.service_is_ready, 10.0)
+        future = client.call_async(RestartEpisode.Request(restarted=which, reason='a test'))
+        assert agent.spin_until(future.done, 10.0)
+        return future.result()
+
+    agent.next_state()
+    state, info = agent.act(UP)
+    assert (info.episode, info.step) == (7, 1)  # a continued run's numbering
+    # The simulator restarted while the environment waited for an action: ABORTED all the same.
+    count = len(agent.states)
+    response = restart(RestartEpisode.Request.SIMULATOR)
+    assert (response.aborted, response.episode) == (True, 7), response.message
+    assert agent.spin_until(lambda: len(agent.states) > count, 10.0)
+    aborted = agent.states[count]
+    assert aborted.terminal and aborted.reward == 0.0 and list(aborted.state) == list(state.state)
+    assert agent.spin_until(lambda: agent.summaries, 5.0)
+    summary = agent.summaries[0]
+    assert (summary.episode, summary.outcome, summary.steps) == (7, EpisodeSummary.ABORTED, 1)
+    wait_for_log(env, 'episode 7 ABORTED after 1 steps: the simulator was restarted (a test)')
+
+    # The agent closes it as usual; the next episode takes the next number.
+    agent.info_pub.publish(RLExperimentInfo(episode_number=7, number_actions=2))
+    first = agent.next_state()
+    assert (list(first.state), first.terminal) == ([1.5, 1.5], False)
+    _, info = agent.act(RIGHT)
+    assert (info.episode, info.step) == (8, 1)
+    # The agent restarted: its episode ends ABORTED with nothing sent to it, and the next one
+    # starts for whoever is connected now.
+    count = len(agent.states)
+    response = restart(RestartEpisode.Request.AGENT)
+    assert (response.aborted, response.episode) == (True, 8), response.message
+    assert agent.spin_until(lambda: len(agent.summaries) == 2, 5.0)
+    assert (agent.summaries[1].episode, agent.summaries[1].outcome) == (8, EpisodeSummary.ABORTED)
+    assert agent.spin_until(lambda: len(agent.states) > count, 20.0)
+    fresh = agent.states[count]
+    assert not fresh.terminal and list(fresh.state) == [1.5, 1.5]  # no terminal state was sent
+    _, info = agent.act(UP)
+    assert (info.episode, info.step) == (9, 1)
+    # Nothing running (the reset in flight goes back to waiting): nothing aborted.
+    count = len(agent.states)
+    assert restart(RestartEpisode.Request.SIMULATOR).episode == 9
+    assert agent.spin_until(lambda: len(agent.states) > count, 10.0)  # its terminal state
+    agent.info_pub.publish(RLExperimentInfo(episode_number=9, number_actions=2))
+    assert agent.spin_until(lambda: len(agent.states) > count + 1, 20.0)
+    counts = totals(stop(env))
+    assert counts['episodes'] == 4
 
 
 @pytest.mark.parametrize(

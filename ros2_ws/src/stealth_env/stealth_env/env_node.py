@@ -688,6 +688,7 @@ class EnvironmentNode(StartupNode):
             )
         else:
             self.get_logger().info(gone)
+        return summary
 
     def _maybe_start(self, now: float) -> None:
         robot, agent = self._robot_ready(), self._agent_connected()
