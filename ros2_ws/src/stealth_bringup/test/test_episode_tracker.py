@@ -2,7 +2,7 @@
 
 import math
 
-from stealth_bringup.episode_tracker import OUTCOMES, Tracker
+from stealth_bringup.episode_tracker import OUTCOMES, Tracker, unfinished_fields
 
 
 def summary(episode, outcome='SUCCESS', steps=10, reward=1.0):
@@ -105,3 +105,23 @@ def test_progress_figures():
     assert tracker.postfix() == 'success 50%, return 1.0, eps 0.100, greedy streak 0/2'
     assert tracker.outcome_counts() == {'SUCCESS': 1, 'DETECTED': 1, 'TIMEOUT': 0, 'ABORTED': 0}
     assert set(tracker.outcome_counts()) == set(OUTCOMES)
+
+
+def test_an_episode_whose_environment_died_is_rebuilt_from_its_steps():
+    steps = [(-1.0, 0.1, 4.0, 1.5, 2.0), (-1.0, 0.3, 3.5, 2.0, 2.0), (-2.0, 0.2, 3.0, 2.0, 2.5)]
+    fields = unfinished_fields(12, steps, (1.5, 1.5))
+    assert fields == {
+        'episode': 12,
+        'outcome': 'ABORTED',
+        'steps': 3,
+        'total_reward': -4.0,
+        'peak_visibility': 0.3,
+        'accumulated_visibility': fields['accumulated_visibility'],
+        'path_length': 1.5,
+        'final_distance_to_goal': 3.0,
+    }
+    assert math.isclose(fields['accumulated_visibility'], 0.6)
+    tracker = Tracker(budget=20)
+    (record,) = tracker.add_summary(fields, 5.0)  # complete without the agent's report
+    assert record.outcome == 'ABORTED' and math.isnan(record.epsilon)
+    assert unfinished_fields(3, [], (0.0, 0.0))['path_length'] == 0.0
