@@ -9,10 +9,10 @@ from stealth_env.gym_env import StealthNavEnv, lattice_model
 from stealth_env.planners import (
     PERPENDICULAR,
     action_distribution,
-    step_terms,
     astar,
     dark_path,
     follow,
+    step_terms,
     value_iteration,
     walk,
 )
