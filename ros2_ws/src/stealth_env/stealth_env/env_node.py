@@ -115,8 +115,8 @@ from stealth_env.log_throttle import Throttle
 from stealth_env.markers import WallMap, any_moving, scene_markers, searchlight_fields
 from stealth_env.reward import Outcome
 from stealth_env.scenario import ScenarioError, load_scenario
-from stealth_env.task import StealthTask
-from stealth_env.topic_moves import Limits, Pose, TopicConfig, go_to, route_home
+from stealth_env.task import WAIT, StealthTask
+from stealth_env.topic_moves import Limits, Move, Pose, TopicConfig, go_to, route_home
 from stealth_env.topic_robot import TOPICS as ROBOT_TOPICS
 from stealth_env.topic_robot import MoveEnd, TopicRobot
 
@@ -779,7 +779,7 @@ class EnvironmentNode(StartupNode):
 
     def _episode_ready(self, token: int) -> None:
         """The robot is at the start: the first state goes out."""
-        state = self.flow.reset_done(token)
+        state = self.flow.reset_done(token, self._sim_time)
         if state is None:
             return  # stale: the agent went away meanwhile
         self._state_pub.publish(RLStateReward(state=list(state), reward=0.0, terminal=False))
@@ -905,15 +905,23 @@ class EnvironmentNode(StartupNode):
             return
         # Every action is a drive to a lattice node (StealthTask.move_target), over either
         # interface: the robot stays on the lattice the agent's states and the planners assume.
-        x, y = self.task.move_target(*self.flow.state, self.flow.action)
+        # A wait (where lights move) turns the robot about in place: time passes, it stays.
+        if self.flow.action == WAIT:
+            heading = self.flow.estimate.yaw + math.pi
+            move = Move(heading, 0.0)
+            kind = ExecuteMove.Request.TURN_TO_HEADING
+            request = ExecuteMove.Request(kind=kind, heading=heading)
+        else:
+            x, y = self.task.move_target(*self.flow.state[:2], self.flow.action)
+            move = go_to(x, y)
+            request = ExecuteMove.Request(kind=ExecuteMove.Request.GO_TO, x=x, y=y)
         if self._robot is not None:
             token = self.flow.token
-            self._robot.run([go_to(x, y)], functools.partial(self._on_move_end, token))
+            self._robot.run([move], functools.partial(self._on_move_end, token))
             return
         if not self._move_client.service_is_ready():
             self._abort(self.flow.token, f'{MOVE_SERVICE} is not available')
             return
-        request = ExecuteMove.Request(kind=ExecuteMove.Request.GO_TO, x=x, y=y)
         self._send(self._move_client, request, self.flow.token, MOVE_SERVICE, self._on_move_answer)
 
     def _on_experiment_info(self, message: RLExperimentInfo) -> None:
