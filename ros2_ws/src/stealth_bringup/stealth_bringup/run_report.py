@@ -138,6 +138,10 @@ class RunReport:
                 picture = None
             if picture is not None:
                 files['path'] = picture
+            if getattr(plan.scenario, 'has_moving_lights', False):
+                animation = self._animate(plan, learned, label, optimum_points, optimum_label)
+                if animation is not None:
+                    files['path_animation'] = animation
         for key, name in (('recording', 'recording.mcap'), ('policy', 'policy.npz')):
             if plan.file(name).exists():
                 files[key] = plan.file(name)
@@ -148,6 +152,24 @@ class RunReport:
         written = {k: Path(v) for k, v in files.items()}
         written['summary'] = plan.file('summary.json')
         return written
+
+    def _animate(self, plan, learned, label, optimum_points, optimum_label) -> Path | None:
+        """path.gif: the lights moving with the learned path and the optimum, step by step."""
+        from stealth_env.render import animate_scenario
+
+        shown = ((learned, label), (optimum_points, optimum_label))
+        paths = [(points, name) for points, name in shown if points is not None]
+        try:
+            return animate_scenario(
+                plan.scenario,
+                plan.file('path.gif'),
+                [p for p, _ in paths],
+                [name for _, name in paths],
+                goal=plan.goal,
+            )
+        except Exception as error:  # noqa: BLE001
+            self.say(f'{self.prog}: could not draw path.gif: {error}')
+            return None
 
     def _summary(self, records, optimum, files) -> dict:
         plan, tracker, facts = self.plan, self.tracker, self.facts
@@ -288,6 +310,7 @@ class RunReport:
             ('episodes', 'episodes.csv', 'one row per episode'),
             ('learning_curve', 'learning_curve.png', 'return per episode, outcomes, epsilon'),
             ('path', 'path.png', 'the learned path over the scenario, with the optimum'),
+            ('path_animation', 'path.gif', 'the same as the lights move, step by step'),
             ('params', 'params/', 'the parameter file each node ran with'),
             ('logs', 'logs/', "each node's log"),
         )
