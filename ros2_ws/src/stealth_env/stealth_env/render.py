@@ -181,23 +181,10 @@ def _label(ax, x, y, text, colour):
     )
 
 
-def render_scenario(
-    scenario,
-    out_png: str | os.PathLike,
-    paths: Iterable[Sequence[Sequence[float]]] = (),
-    field: np.ndarray | None = None,
-    t: float = 0.0,
-    goal: str | None = None,
-    path_labels: Sequence[str] | None = None,
-    title: str | None = None,
-    cache_dir: str | os.PathLike | None = None,
-) -> Path:
-    """Draw the scenario at time t (s) and write it to out_png; returns the path written.
-
-    field: total visibility (height, width) to show instead of computing (cached) the
-    scenario's; paths: sequences of (x, y) in metres; goal: the goal pursued, highlighted.
-    """
-    fig = scenario_figure(scenario, paths, field, t, goal, path_labels, title, cache_dir)
+def render_scenario(scenario, out_png: str | os.PathLike, **drawing) -> Path:
+    """Draw the scenario (``scenario_figure``'s keyword arguments: paths, field, t, goal,
+    path_labels, title, cache_dir) and write it to out_png; returns the path written."""
+    fig = scenario_figure(scenario, **drawing)
     out_png = Path(out_png)
     out_png.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out_png, bbox_inches='tight', pad_inches=0.15)
@@ -215,7 +202,12 @@ def scenario_figure(
     cache_dir: str | os.PathLike | None = None,
     dpi: int = 110,
 ) -> Figure:
-    """The Figure ``render_scenario`` saves (same arguments)."""
+    """The scenario at time t (s) as a Figure: walls, the visibility heatmap, cones, start,
+    goals and paths.
+
+    field: total visibility (height, width) to show instead of computing (cached) the
+    scenario's; paths: sequences of (x, y) in metres; goal: the goal pursued, highlighted.
+    """
     occupancy = scenario.map
     if field is None:
         field, _ = scenario_visibility(scenario, t=t, cache_dir=cache_dir)

@@ -461,19 +461,20 @@ def test_patrol_waypoint_outside_the_map(write):
     )
 
 
-def test_sweep_with_zero_speed(write):
-    motion = {'type': 'sweep', 'min_direction': 60, 'max_direction': 120, 'angular_speed': 0}
+@pytest.mark.parametrize(
+    ('light', 'motion', 'field'),
+    [
+        (0, {'type': 'sweep', 'min_direction': 60, 'max_direction': 120, 'angular_speed': 0},
+         'angular_speed'),
+        (1, {'type': 'patrol', 'waypoints': [[1, 1]], 'speed': 0}, 'speed'),
+    ],
+)  # fmt: skip
+def test_motion_with_zero_speed(write, light, motion, field):
     assert_scenario_error(
-        write(setter('lights.0.motion', motion)),
-        "field 'lights[0].motion.angular_speed'",
-        'a number > 0 (degrees/s), got 0',
-    )
-
-
-def test_patrol_with_zero_speed(write):
-    motion = {'type': 'patrol', 'waypoints': [[1, 1]], 'speed': 0}
-    assert_scenario_error(
-        write(setter('lights.1.motion', motion)), "'lights[1].motion.speed'", 'a number > 0'
+        write(setter(f'lights.{light}.motion', motion)),
+        f"field 'lights[{light}].motion.{field}'",
+        'a number > 0',
+        'got 0',
     )
 
 
