@@ -1,6 +1,8 @@
 """Time in the state: the phase feature, the wait action, steps judged along the way, and the
 Gymnasium environment on the time-expanded lattice."""
 
+import warnings
+
 import gymnasium as gym
 from gymnasium.utils.env_checker import check_env
 import numpy as np
@@ -97,6 +99,11 @@ def test_the_gym_env_has_the_phase_and_the_wait():
     assert static.action_space.n == 4 and static.observation_space.shape == (2,)
 
 
-def test_the_gym_env_passes_the_checker():
-    env = gym.make('StealthNav-v0', scenario=SCENARIO, slip=0.1)
-    check_env(env.unwrapped, skip_render_check=True)
+def test_the_gym_env_passes_the_checker_without_any_warning():
+    env = gym.make('StealthNav-v0', scenario=SCENARIO, slip=0.1, render_mode='ansi')
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        check_env(env.unwrapped)
+    env.reset(seed=0)
+    env.unwrapped.step(WAIT)
+    assert 'R' in env.render()
