@@ -21,9 +21,10 @@ Decisions:
 - **Phase of a time**: ``floor(t / bin + 1e-9) mod phase_bins``: the tolerance keeps a time that is
   a multiple of the bin up to rounding (t = 7 * 3.0 s) in its own bin.
 - **Move duration**: ``lattice_move_seconds`` is how long the simulator's robot takes to drive
-  one lattice step from rest to rest at its speed and acceleration limits (a trapezoid), the
-  figure the shipped moving scenarios' ``step_seconds`` is chosen near; in ROS the environment
-  uses the simulator's reported time instead.
+  (or turn) a given amount from rest to rest at its speed and acceleration limits (a
+  trapezoid); ``lattice_step_seconds``, a quarter turn and then a lattice step, is the figure
+  the shipped moving scenarios' ``step_seconds`` (3 s) is rounded from (3.05 s for 0.5 m). In
+  ROS the environment uses the simulator's reported time instead.
 """
 
 from __future__ import annotations
@@ -39,6 +40,8 @@ _DENOMINATOR = 1000
 _TOLERANCE = 1e-9
 DEFAULT_MAX_SPEED = 0.5  # m/s: stealth_bringup/config/simulator.yaml's max_linear_speed
 DEFAULT_MAX_ACCEL = 1.0  # m/s^2: its max_linear_accel
+DEFAULT_MAX_TURN_RATE = 1.5  # rad/s: its max_angular_speed
+DEFAULT_MAX_TURN_ACCEL = 3.0  # rad/s^2: its max_angular_accel
 
 
 class TimingError(ValueError):
@@ -173,3 +176,10 @@ def lattice_move_seconds(
     if distance <= ramp:
         return 2.0 * math.sqrt(distance / max_accel)
     return 2.0 * max_speed / max_accel + (distance - ramp) / max_speed
+
+
+def lattice_step_seconds(step_distance: float) -> float:
+    """Seconds of a lattice move as the simulator's robot makes it at its default limits: a
+    quarter turn in place, then the drive of one step."""
+    turn = lattice_move_seconds(math.pi / 2, DEFAULT_MAX_TURN_RATE, DEFAULT_MAX_TURN_ACCEL)
+    return turn + lattice_move_seconds(step_distance)

@@ -16,6 +16,7 @@ from stealth_env.planners import astar, dark_path, follow, value_iteration, walk
 from stealth_env.reward import Outcome
 from stealth_env.scenario import load_scenario, scenario_paths
 from stealth_env.searchlight import PatrolMotion, SweepMotion
+from stealth_env.timing import lattice_step_seconds
 
 MOVING = [path.stem for path in scenario_paths() if path.stem.endswith('-moving')]
 
@@ -45,6 +46,8 @@ def test_every_map_has_a_moving_variant_with_a_sweep_and_a_patrol_among_them():
     for name in MOVING:
         scenario = load_scenario(name)
         assert scenario.timing is not None and scenario.timing.phase_bins > 1
+        # a step takes about as long as the simulator's robot needs for a turn and a move
+        assert abs(scenario.timing.step_seconds - lattice_step_seconds(0.5)) < 0.1
         kinds |= {type(light.motion) for light in scenario.lights if light.is_moving}
     assert kinds == {SweepMotion, PatrolMotion}
 

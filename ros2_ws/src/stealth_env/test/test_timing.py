@@ -9,6 +9,7 @@ from stealth_env.timing import (
     check_timing,
     joint_cycle,
     lattice_move_seconds,
+    lattice_step_seconds,
     light_period,
 )
 
@@ -82,3 +83,8 @@ def test_a_lattice_move_takes_the_trapezoid_time():
     assert lattice_move_seconds(0.09, 0.5, 1.0) == pytest.approx(0.6)  # a triangle
     with pytest.raises(ValueError):
         lattice_move_seconds(0.5, 0.0)
+
+
+def test_a_lattice_step_is_a_quarter_turn_and_a_drive():
+    # pi/2 at 1.5 rad/s and 3 rad/s^2: 0.5 s up, 0.5 s down (0.75 rad), 0.82 rad at 1.5 rad/s.
+    assert lattice_step_seconds(0.5) == pytest.approx(1.5 + 1.0 + (math.pi / 2 - 0.75) / 1.5)
