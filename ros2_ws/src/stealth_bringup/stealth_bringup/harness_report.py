@@ -262,12 +262,16 @@ def write_animation(out: Path, model: LatticeModel, found: list[Baseline], resul
 
     labelled = _labelled_paths(found, results, baselines=('value iteration',))
     task = model.task
+    lengths = [len(points) for points, _ in labelled]
+    # A greedy path that loops until the step limit adds nothing after twice the optimum's.
+    frames = min(max(lengths), 2 * lengths[0]) if lengths else None
     return animate_scenario(
         task.scenario,
         out / f'paths_{task.scenario.name}.gif',
         [points for points, _ in labelled],
         [label for _, label in labelled],
         goal=task.goal.name,
+        frames=frames,
     )
 
 
