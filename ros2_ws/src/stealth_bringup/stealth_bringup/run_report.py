@@ -159,6 +159,9 @@ class RunReport:
 
         shown = ((learned, label), (optimum_points, optimum_label))
         paths = [(points, name) for points, name in shown if points is not None]
+        frames = None  # a learned path that loops to the step limit: twice the optimum's steps
+        if optimum_points is not None:
+            frames = min(max(len(points) for points, _ in paths), 2 * len(optimum_points))
         try:
             return animate_scenario(
                 plan.scenario,
@@ -166,6 +169,7 @@ class RunReport:
                 [p for p, _ in paths],
                 [name for _, name in paths],
                 goal=plan.goal,
+                frames=frames,
             )
         except Exception as error:  # noqa: BLE001
             self.say(f'{self.prog}: could not draw path.gif: {error}')
