@@ -36,7 +36,7 @@ from tqdm import tqdm
 DEFAULT_EPISODES = {'qlearning': 1500, 'sarsa': 1500, 'dyna': 500}
 # Scenarios with the phase in the state (moving lights) have phase_bins times the states: each
 # learner gets a larger budget there (README: simple-maze-moving's Q-learning settled at 2580,
-# lgfloor-moving's Dyna-Q at 1110; 1000 was too few for Dyna-Q there).
+# Dyna-Q at 1110 on lgfloor-moving and 1810 on floorplan-moving; 1000 was too few there).
 MOVING_EPISODES = {'qlearning': 6000, 'sarsa': 6000, 'dyna': 3000}
 DEFAULT_EVAL_EVERY = 10
 WITHIN = 0.05  # of the optimal return
