@@ -40,6 +40,10 @@ HOLD_START_DELAY = 3600.0
 DRAIN_TIME = 0.1  # s of taking in late reports before each node is stopped
 NAMING_TIME = 2.0  # s for the graph to name the node of a second action publisher
 LINGER_TIME = 30.0  # s a killed node's endpoints may stay on the graph (its DDS lease)
+# A restarted node talks UDP only: the killed process's Fast DDS shared-memory port stays mapped
+# by its peers (so it cannot be removed), and a new participant that takes over its port number
+# was seen to receive nothing.
+RESTARTED_ENVIRONMENT = {'FASTDDS_BUILTIN_TRANSPORTS': 'UDPv4'}
 ROS_OWN_PARAMETERS = {'use_sim_time', 'start_type_description_service'}  # every node has them
 
 
@@ -151,9 +155,9 @@ class Run:
             return {'start_delay': HOLD_START_DELAY}
         return {}
 
-    def _start(self, name: str, values: dict | None = None) -> None:
+    def _start(self, name: str, values: dict | None = None, env: dict | None = None) -> None:
         """Start a node with its parameters file and `values` on top (default: the values it
-        is held with at the run's start)."""
+        is held with at the run's start), `env` on top of the run's environment."""
         plan = self.plan
         params_file = plan.params_file(name).resolve()
         command = plan.commands[name] + plan.parameters[name].ros_args(params_file)
@@ -161,7 +165,7 @@ class Run:
         for key, value in values.items():
             command += ['-p', f'{key}:={ros_arg_value(value)}']
         try:
-            self.supervisor.start(name, command, niceness=NICENESS.get(name, 0))
+            self.supervisor.start(name, command, niceness=NICENESS.get(name, 0), env=env)
         except OSError as error:
             raise RunError(f'{name}: cannot start {command[0]}: {error.strerror}') from None
 
@@ -203,7 +207,7 @@ class Run:
             self.monitor.spin(0.05)  # reports still on their way come in meanwhile
         if self.signals.first is not None:
             return
-        self._start(name, self._restart_values(name, restart))
+        self._start(name, self._restart_values(name, restart), RESTARTED_ENVIRONMENT)
         new = self.supervisor.nodes[name]
 
         def alive() -> bool:
