@@ -406,6 +406,11 @@ class Run:
                 self._release_first_episode()
         self.facts.startup_seconds = time.monotonic() - self.facts.started
         self.say(f'all nodes up after {self.facts.startup_seconds:.1f} s')
+        if self.plan.watch_port is not None:
+            self.say(
+                f'watch live: in Foxglove, Open connection > Foxglove WebSocket > '
+                f'ws://localhost:{self.plan.watch_port} (layout: docs/foxglove/stealth-nav.json)'
+            )
 
     def _release_first_episode(self) -> None:
         """Give the environment its configured start_delay back (it started on hold)."""
