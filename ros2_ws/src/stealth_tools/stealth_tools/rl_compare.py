@@ -59,11 +59,10 @@ def plain(message: Any) -> Any:
         return 'nan' if math.isnan(message) else message
     if isinstance(message, str | bytes | int | bool) or message is None:
         return message
-    if isinstance(message, Mapping):
-        return {key: plain(value) for key, value in message.items()}
     names = _field_names(message)
-    if names is not None:
-        fields = {name: plain(getattr(message, name)) for name in names}
+    if isinstance(message, Mapping) or names is not None:
+        items = message.items() if names is None else ((n, getattr(message, n)) for n in names)
+        fields = {name: plain(value) for name, value in items}
         if 'stamp' in fields and 'frame_id' in fields:  # a std_msgs/Header
             del fields['stamp']
         return fields
@@ -126,7 +125,10 @@ def first_difference(
     for name, topics in (('the first', first), ('the second', second)):
         have = complete_episodes(topics)
         if have < count:
-            return f'{name} recording holds {have} complete episodes, fewer than the {count} compared'
+            return (
+                f'{name} recording holds {have} complete episodes, fewer than the {count} '
+                'compared'
+            )
     a, b = locate(first, count), locate(second, count)
     found = []
     for order, topic in enumerate(RL_TOPICS):
@@ -138,7 +140,8 @@ def first_difference(
         return None
     found.sort(key=lambda item: item[0])
     others = len(found) - 1
-    tail = f' ({others} other topic{"s" if others != 1 else ""} differ too)' if others else ''
+    topics = '1 other topic differs' if others == 1 else f'{others} other topics differ'
+    tail = f' ({topics} too)' if others else ''
     return found[0][1] + tail
 
 
