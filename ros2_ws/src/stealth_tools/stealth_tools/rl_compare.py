@@ -126,8 +126,7 @@ def first_difference(
         have = complete_episodes(topics)
         if have < count:
             return (
-                f'{name} recording holds {have} complete episodes, fewer than the {count} '
-                'compared'
+                f'{name} recording holds {have} complete episodes, fewer than the {count} compared'
             )
     a, b = locate(first, count), locate(second, count)
     found = []

@@ -82,9 +82,7 @@ def test_episodes_of_different_lengths_are_a_difference_not_a_crash():
 
 def test_a_recording_with_too_few_complete_episodes_is_said_so():
     problem = first_difference(episode_messages([3, 2]), episode_messages([3], tail=2), 2)
-    assert problem == (
-        'the second recording holds 1 complete episodes, fewer than the 2 compared'
-    )
+    assert problem == ('the second recording holds 1 complete episodes, fewer than the 2 compared')
 
 
 def test_locate_places_every_message_in_its_episode_and_step():
@@ -93,9 +91,7 @@ def test_locate_places_every_message_in_its_episode_and_step():
         (0, 0), (0, 1), (0, 2), (1, 0), (1, 1), (2, 0), (2, 1)
     ]  # fmt: skip
     assert [(m.episode, m.step) for m in located[ACTION]] == [(0, 1), (0, 2), (1, 1), (2, 1)]
-    assert [(m.episode, m.step) for m in locate(episode_messages([2, 1]), 1)[SUMMARY]] == [
-        (0, 2)
-    ]
+    assert [(m.episode, m.step) for m in locate(episode_messages([2, 1]), 1)[SUMMARY]] == [(0, 2)]
 
 
 def test_plain_drops_header_stamps_and_makes_nan_comparable():
