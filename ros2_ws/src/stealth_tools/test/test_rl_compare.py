@@ -151,3 +151,26 @@ def test_a_path_that_is_no_recording_is_one_line(tmp_path):
     (tmp_path / 'text.mcap').write_text('not a recording')
     with pytest.raises(BagError, match='not an MCAP file'):
         read_rl_topics(tmp_path / 'text.mcap')
+
+
+def test_stealth_bag_compare_names_the_first_difference_or_says_they_are_the_same(
+    capsys, tmp_path
+):
+    from test_cli_offline import run_cli
+
+    same, other = tmp_path / 'same.mcap', tmp_path / 'other.mcap'
+    write_bag(tmp_path / 'run.mcap', rl_samples(episode_messages([3, 2], stamp_sec=1)))
+    write_bag(same, rl_samples(episode_messages([3, 2], stamp_sec=2, tail=1)))
+    write_bag(other, rl_samples(episode_messages([3, 1])))
+    run = str(tmp_path / 'run.mcap')
+    assert run_cli(capsys, 'bag', 'compare', run, str(same)) == (
+        0, 'the first 2 episodes are the same, message for message\n', ''
+    )  # fmt: skip
+    status, out, _ = run_cli(capsys, 'bag', 'compare', run, str(other), '--episodes', '1')
+    assert (status, out) == (0, 'the first 1 episodes are the same, message for message\n')
+    status, out, _ = run_cli(capsys, 'bag', 'compare', run, str(other))
+    assert status == 1
+    assert out.startswith('rl_env/rl_state_reward, message 5 (episode 1, step 1): terminal is')
+    status, out, err = run_cli(capsys, 'bag', 'compare', run, str(tmp_path / 'nope.mcap'))
+    assert (status, out) == (1, '')
+    assert err == f'stealth bag compare: {tmp_path}/nope.mcap: no such file or directory\n'
