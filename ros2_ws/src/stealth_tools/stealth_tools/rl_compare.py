@@ -193,5 +193,8 @@ def read_rl_topics(path: str | os.PathLike) -> dict[str, list]:
             for _, channel, _, decoded in reader.iter_decoded_messages(topics=list(RL_TOPICS)):
                 topics[channel.topic].append(decoded)
     except (McapError, OSError, ValueError, EOFError) as error:
-        raise BagError(f'{mcap_path}: cannot be read as an MCAP recording ({error})') from None
+        raise BagError(
+            f'{mcap_path}: cannot be read as an MCAP recording ({error}); if it was cut off, '
+            f'`stealth bag recover {mcap_path}` writes a complete copy'
+        ) from None
     return topics

@@ -145,12 +145,13 @@ def test_recordings_are_read_back_and_compared(tmp_path):
     )
 
 
-def test_a_path_that_is_no_recording_is_one_line(tmp_path):
-    with pytest.raises(BagError, match='no such file'):
-        read_rl_topics(tmp_path / 'missing.mcap')
-    (tmp_path / 'text.mcap').write_text('not a recording')
-    with pytest.raises(BagError, match='not an MCAP file'):
-        read_rl_topics(tmp_path / 'text.mcap')
+def test_a_recording_that_cannot_be_read_is_one_line(tmp_path):
+    path = tmp_path / 'cut.mcap'
+    write_bag(path, rl_samples(episode_messages([3, 2])))
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])  # cut off mid-file
+    with pytest.raises(BagError, match=r'cut.mcap: cannot be read as an MCAP recording \(') as e:
+        read_rl_topics(path)
+    assert str(e.value).endswith(f'`stealth bag recover {path}` writes a complete copy')
 
 
 def test_stealth_bag_compare_names_the_first_difference_or_says_they_are_the_same(
