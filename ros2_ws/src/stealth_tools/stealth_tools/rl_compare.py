@@ -7,12 +7,12 @@ reads the RL topics of two recordings and finds the first message in which they 
 What is compared: every message's fields, except the header stamps (the wall-clock time a
 message was received is the recording's, not the episode's). A recording may hold the start of
 an episode after the last one the run counted (the agent had begun it when the run stopped),
-so only the first ``episodes`` complete episodes of each are compared: the states and rewards
-up to the ``episodes``-th terminal state, the actions that answered the non-terminal ones, and
-the episode reports numbered below ``episodes``.
+so only the first ``count`` complete episodes of each are compared: the states and rewards up
+to the ``count``-th terminal state, the actions that answered the non-terminal ones, and the
+episode reports numbered below ``count``. `stealth bag compare A B` is the command line.
 
-    episodes = read_rl_episodes('a/recording.mcap')
-    problem = first_difference(episodes, read_rl_episodes('b/recording.mcap'), count=20)
+    first = read_rl_topics('runs/a/recording.mcap')
+    problem = first_difference(first, read_rl_topics('runs/b/recording.mcap'), count=20)
     assert problem is None, problem     # 'rl_agent/rl_action, message 812 (episode 30, ...'
 """
 
@@ -21,6 +21,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 import math
+import numbers
 import os
 from typing import Any
 
@@ -55,10 +56,13 @@ class Located:
 def plain(message: Any) -> Any:
     """A decoded ROS message (mcap_ros2's or rclpy's) as nested dicts and lists, header stamps
     left out and NaN made comparable ('nan')."""
-    if isinstance(message, float):
-        return 'nan' if math.isnan(message) else message
-    if isinstance(message, str | bytes | int | bool) or message is None:
+    if isinstance(message, str | bytes | bool) or message is None:
         return message
+    if isinstance(message, numbers.Integral):
+        return int(message)
+    if isinstance(message, numbers.Real):  # float, and numpy's float32 of rclpy's arrays
+        value = float(message)
+        return 'nan' if math.isnan(value) else value
     names = _field_names(message)
     if isinstance(message, Mapping) or names is not None:
         items = message.items() if names is None else ((n, getattr(message, n)) for n in names)

@@ -2,6 +2,7 @@
 
 import math
 
+import numpy as np
 import pytest
 from sample_bags import START_NS, Sample, write_bag
 from stealth_tools.bag_format import BagError
@@ -108,6 +109,8 @@ def test_plain_drops_header_stamps_and_makes_nan_comparable():
             self.header, self.values = Header(sec), values
 
     assert plain(Message(1, [1.0, math.nan])) == plain(Message(2, [1.0, math.nan]))
+    assert plain(np.array([0.5, np.nan], dtype=np.float32)) == [0.5, 'nan']
+    assert plain(np.array([3], dtype=np.uint8)) == [3] and plain(True) is True
     assert plain(Message(1, [1.0, math.nan])) == {
         'header': {'frame_id': 'map'},
         'values': [1.0, 'nan'],
