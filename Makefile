@@ -54,6 +54,9 @@ $(VENV_STAMP):
 	@VIRTUAL_ENV=$(VENV) $(VENV)/bin/uv pip install --quiet --python $(PYTHON) \
 		-r requirements.in -c requirements.lock
 	@$(PYTHON) scripts/fix_ros_wheels.py
+	@# Ray starts Python agents per node that must report within Ray's timeouts; compiling them
+	@# from source at every start (uv installs no bytecode) missed those on a busy 2-core host.
+	@$(PYTHON) -m compileall -q -j 0 "$$($(PYTHON) -c 'import os, ray; print(os.path.dirname(ray.__file__))')" > /dev/null
 	@mkdir -p $(STAMPS) && rm -f $(STAMPS)/venv-* && echo "$@" > $@
 
 build: $(BUILD_STAMP) ## colcon build the workspace (symlink install)
@@ -116,7 +119,7 @@ RUN_ARGS ?= --scenario simple-maze --goal easy
 run: setup ## The main job: train the agent on the default scenario (runs/<name>/)
 	@$(ROS_ENV) && stealth train $(RUN_ARGS)
 
-eval: setup ## Learners vs A*, Dark Path and value iteration on every scenario (runs/eval/)
+eval: setup ## Learners vs A*, Dark Path and value iteration on every scenario, on local Ray (runs/eval/)
 	@$(ROS_ENV) && python -m stealth_bringup.experiments --out runs/eval
 
 bench: setup ## Benchmarks, each a ratio measured in the same run; writes bench/results.json

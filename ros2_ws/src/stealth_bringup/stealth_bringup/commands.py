@@ -22,4 +22,9 @@ COMMANDS = {
         'main',
         'Render a scenario (walls, visibility heatmap, cones, goals, paths) to PNG.',
     ),
+    'sweep': (
+        'stealth_bringup.sweep',
+        'main',
+        'Sweep learners x scenarios x seeds x hyperparameters on Ray (local or a cluster).',
+    ),
 }
