@@ -8,7 +8,9 @@ over the subnet when nodes on other hosts join it (`--discovery subnet`).
 
 A node that exits normally removes its Fast DDS segments from /dev/shm; a SIGKILLed one cannot.
 `remove_orphaned_shm` removes, after `fastdds shm clean`, the segments that appeared since a
-snapshot and that no live process maps. No rclpy here.
+snapshot and that no live process maps; `remove_dead_shm` (at the start of every run, and
+`stealth doctor`) those of any dead process, from an earlier run whose orchestrator was killed
+say. No rclpy here.
 """
 
 from __future__ import annotations
@@ -22,11 +24,13 @@ import random
 import shutil
 import subprocess
 import sys
+import time
 
 DOMAIN_LOCK_DIR = Path('/tmp/stealth_nav_domains')
 # Linux keeps ids 0-101 clear of the ephemeral port range; 0 is everyone's default, so skip it.
 DOMAIN_IDS = range(1, 102)
 SHM_DIR = Path('/dev/shm')
+SHM_MIN_AGE = 10.0  # s: younger Fast DDS files may belong to a participant still starting
 # --discovery: ROS_AUTOMATIC_DISCOVERY_RANGE of the run's participants.
 DISCOVERY_RANGES = {'localhost': 'LOCALHOST', 'subnet': 'SUBNET'}
 
@@ -120,6 +124,39 @@ def clean_shm() -> None:
             check=False,
             timeout=60,
         )
+
+
+def dead_shm_files(shm_dir: Path = SHM_DIR, min_age: float = SHM_MIN_AGE) -> list[str]:
+    """Fast DDS files in /dev/shm whose owners are all dead: ours, no live process maps them
+    (nor the segment a lock file belongs to), and at least `min_age` s old (a participant that
+    is starting has created its segment but may not have mapped it yet)."""
+    mapped = mapped_shm_names()
+    now = time.time()
+    dead = []
+    for name in shm_segments(shm_dir):
+        if segment_base(name) in mapped:
+            continue
+        try:
+            status = (shm_dir / name).stat()
+        except OSError:
+            continue
+        if status.st_uid == os.getuid() and now - status.st_mtime >= min_age:
+            dead.append(name)
+    return sorted(dead)
+
+
+def remove_dead_shm(shm_dir: Path = SHM_DIR, min_age: float = SHM_MIN_AGE) -> list[str]:
+    """Remove what dead_shm_files finds (`fastdds shm clean` first, as Fast DDS itself would,
+    then whatever is left of it); the names removed."""
+    dead = dead_shm_files(shm_dir, min_age)
+    if not dead:
+        return []
+    clean_shm()
+    for name in dead_shm_files(shm_dir, min_age):
+        with contextlib.suppress(OSError):
+            (shm_dir / name).unlink()
+    left = shm_segments(shm_dir)
+    return [name for name in dead if name not in left]
 
 
 def remove_orphaned_shm(before: set[str], shm_dir: Path = SHM_DIR) -> list[str]:

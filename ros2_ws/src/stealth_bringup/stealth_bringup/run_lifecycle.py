@@ -17,7 +17,12 @@ import time
 
 from stealth_bringup.episode_tracker import Tracker
 from stealth_bringup.remote_nodes import STATIC_PEERS_HINT, RemoteNode, join_command
-from stealth_bringup.run_config import STOP_ORDER, relative_to_cwd, ros_arg_value
+from stealth_bringup.run_config import (
+    ROS_OWN_PARAMETERS,
+    STOP_ORDER,
+    relative_to_cwd,
+    ros_arg_value,
+)
 from stealth_bringup.run_monitor import (
     ACTION_TOPIC,
     EXIT_SIGNAL,
@@ -38,7 +43,6 @@ PARAMETER_TIMEOUT = 10.0  # s for a node's parameter services to answer
 HOLD_START_DELAY = 3600.0
 DRAIN_TIME = 0.1  # s of taking in late reports before each node is stopped
 NAMING_TIME = 2.0  # s for the graph to name the node of a second action publisher
-ROS_OWN_PARAMETERS = {'use_sim_time', 'start_type_description_service'}  # every node has them
 
 
 class RunError(RuntimeError):
@@ -57,6 +61,9 @@ class Run:
         self.facts = RunFacts(time.monotonic() if started is None else started)  # command start
         self.progress = Progress(self.tracker, err or sys.stderr)
         self.say = self.progress.say
+        self.report = RunReport(plan, self.tracker, self.facts, self.say)
+        if plan.continued is not None:  # the earlier part's episodes, streak and clock
+            self.tracker.load(plan.continued.records)
         self.supervisor = None
         self.monitor: Monitor | None = None
         self.crashed: set[str] = set()  # nodes that died on their own (reported already)
@@ -71,9 +78,13 @@ class Run:
         from stealth_bringup.ros_domain import shm_segments
 
         self.plan.write_params_files()
+        for note in self.plan.notes:
+            self.say(f'{self.prog}: {note}')
+        self._remove_dead_shm()
         shm_before = shm_segments()
         facts = self.facts
         with Signals() as signals:
+            self._write_progress()  # a run directory from the start, whatever happens next
             self._run(signals, shm_before)
             if facts.status == 'failed':
                 self.say(f'{self.prog}: {facts.message}')
@@ -82,9 +93,41 @@ class Run:
             facts.remote = {name: node.summary() for name, node in self.remote.items()}
             facts.nodes = dict(self.supervisor.nodes) if self.supervisor else {}
             # A signal now changes nothing: the files get written.
-            report = RunReport(self.plan, self.tracker, facts, self.say)
-            report.print_closing(report.write(), self.out)
+            self.report.print_closing(self.report.write(), self.out)
         return facts.exit_code
+
+    def _remove_dead_shm(self) -> None:
+        """Fast DDS files in /dev/shm that an earlier run's killed processes left: named, gone."""
+        from stealth_bringup.ros_domain import remove_dead_shm
+
+        removed = remove_dead_shm()
+        if removed:
+            self.say(
+                f'{self.prog}: removed {len(removed)} Fast DDS files of dead processes from '
+                f'/dev/shm: {", ".join(removed)}'
+            )
+
+    def _write_progress(self) -> None:
+        """summary.json as the run stands; a full disk is said, not fatal."""
+        if self.plan.mode != 'train':
+            return
+        try:
+            self.report.write_progress()
+        except OSError as error:
+            self.say(f'{self.prog}: could not write summary.json: {error}')
+
+    def _on_record(self, record) -> None:
+        """An episode is complete: the progress bar, its row of episodes.csv at once, and after
+        a greedy evaluation summary.json, so a killed orchestrator leaves them."""
+        from stealth_bringup.run_outputs import append_episode
+
+        self.progress.on_record(record)
+        try:
+            append_episode(record, self.plan.file('episodes.csv'))
+        except OSError as error:
+            self.say(f'{self.prog}: could not append to episodes.csv: {error}')
+        if record.greedy:
+            self._write_progress()
 
     def _run(self, signals: Signals, shm_before: set[str]) -> None:
         """Start, follow and stop the nodes in the private domain."""
@@ -110,8 +153,10 @@ class Run:
             context = None
             try:
                 context = private_ros_context(domain_id, plan.discovery)
+                # A continued run's episode times go on from where its earlier part stopped.
+                offset = max((r.wall_time for r in self.tracker.records), default=0.0)
                 self.monitor = Monitor(
-                    context, self.tracker, self.facts.started, self.progress.on_record
+                    context, self.tracker, self.facts.started - offset, self._on_record
                 )
                 self._start_nodes(signals)
                 self._follow(signals)
@@ -342,7 +387,7 @@ class Run:
             return
         self.facts.training_started = time.monotonic()
         monitor.last_activity = self.facts.training_started
-        self.progress.start(plan.episodes)
+        self.progress.start(plan.episodes, self.tracker.episodes)
         while True:
             if signals.first is not None:
                 self._interrupted(signals.first)
@@ -410,7 +455,8 @@ class Run:
             if self.facts.status in ('success', 'budget'):
                 self._fail(f'{problems[0].name} did not stop cleanly (see its log)')
         if 'recorder' in supervisor.nodes and supervisor.nodes['recorder'].killed:
+            recording = self.plan.parameters['recorder'].values['output']
             self.say(
                 f'{self.prog}: the recording was not closed; `stealth bag recover '
-                f'{relative_to_cwd(self.plan.file("recording.mcap"))}` writes an indexed copy'
+                f'{relative_to_cwd(recording)}` writes an indexed copy'
             )
