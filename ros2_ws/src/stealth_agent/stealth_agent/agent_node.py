@@ -372,7 +372,7 @@ class AgentNode(Node):
             learner = make_learner(learner_name, description.num_actions, self._learner_config())
             index = StateIndex(mapping)
         self._core = ProtocolAgent(learner, index, rng, learning=not evaluate)
-        self._core.episode = self._param('first_episode')  # a continued run goes on numbering
+        self._core.episode = self._param('first_episode')
         self._setup_error = ''
         config = learner.config
         if evaluate:
@@ -463,6 +463,10 @@ class AgentNode(Node):
         ending = resolved.ending
         if ending is Ending.TRUNCATED and self._param('timeout_is_terminal'):
             ending = Ending.TERMINATED
+        if resolved.episode is not None:
+            # The environment numbers the episodes: after a restart of either side (an episode
+            # dropped by one of them) both still name each episode alike.
+            self._core.episode = resolved.episode
         self._process(resolved.state, resolved.reward, True, ending)
 
     def _episode_done(self, result) -> None:
@@ -515,7 +519,7 @@ class AgentNode(Node):
         if self._core is None or not self._core.in_episode:
             return
         ending = OUTCOME_ENDINGS.get(msg.outcome, Ending.TERMINATED)
-        resolved = self._endings.report(msg.steps, ending)
+        resolved = self._endings.report(msg.steps, ending, int(msg.episode))
         if resolved is not None:
             self._end_episode(resolved)
 

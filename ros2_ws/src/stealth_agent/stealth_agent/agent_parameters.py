@@ -59,6 +59,13 @@ PARAMETERS = {
         bounds=(0, 2**31 - 1),
     ),
     'load_policy': Param(False, 'Resume learning from policy_file if it exists.', read_only=True),
+    'first_episode': Param(
+        0,
+        "Number of the first episode this agent runs (a respawned or resumed run's next one); "
+        "later numbers follow the environment's EpisodeSummary.",
+        bounds=(0, 2**31 - 1),
+        read_only=True,
+    ),
     'evaluate': Param(
         False,
         'Greedy, no learning: run the policy in policy_file (rl_agent savedpolicy).',
@@ -85,13 +92,6 @@ PARAMETERS = {
         False,
         "Learn a TIMEOUT episode's last state as terminal, as rl_agent does (biased: timing "
         'out looks cheap); false = bootstrap through the time limit.',
-    ),
-    'first_episode': Param(
-        0,
-        'Number of the first episode of this process (a continued run): episode numbers in '
-        'rl_agent/episode_info and the greedy evaluation schedule go on from it.',
-        bounds=(0, 2**31 - 1),
-        read_only=True,
     ),
     'summary_wait': Param(
         5.0,

@@ -309,6 +309,7 @@ class ResolvedEnd:
     state: tuple[float, ...]
     reward: float
     ending: Ending
+    episode: int | None = None  # the environment's number of the episode, when it reported it
 
 
 class EpisodeEndMatcher:
@@ -324,7 +325,7 @@ class EpisodeEndMatcher:
 
     def __init__(self, keep: int = 8):
         self._pending: tuple[tuple[float, ...], float, int] | None = None
-        self._reports: deque[tuple[int, Ending]] = deque(maxlen=keep)
+        self._reports: deque[tuple[int, Ending, int | None]] = deque(maxlen=keep)
 
     @property
     def waiting(self) -> bool:
@@ -334,21 +335,21 @@ class EpisodeEndMatcher:
     def terminal(self, state, reward, actions: int) -> ResolvedEnd | None:
         """A terminal state after `actions` actions: resolved when its report is already here,
         else None (it waits)."""
-        for steps, ending in reversed(self._reports):
+        for steps, ending, episode in reversed(self._reports):
             if _same_episode(steps, ending, actions):
                 self._reports.clear()
-                return ResolvedEnd(tuple(state), reward, ending)
+                return ResolvedEnd(tuple(state), reward, ending, episode)
         self._pending = (tuple(state), reward, int(actions))
         return None
 
-    def report(self, steps: int, ending: Ending) -> ResolvedEnd | None:
-        """The environment's report of an episode that took `steps` actions."""
+    def report(self, steps: int, ending: Ending, episode: int | None = None) -> ResolvedEnd | None:
+        """The environment's report of its episode number `episode` that took `steps` actions."""
         if self._pending is not None and _same_episode(steps, ending, self._pending[2]):
             state, reward, _ = self._pending
             self._pending = None
             self._reports.clear()
-            return ResolvedEnd(state, reward, ending)
-        self._reports.append((int(steps), ending))
+            return ResolvedEnd(state, reward, ending, episode)
+        self._reports.append((int(steps), ending, episode))
         return None
 
     def give_up(self) -> ResolvedEnd | None:

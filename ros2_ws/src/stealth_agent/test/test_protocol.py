@@ -185,6 +185,13 @@ def test_the_end_matcher_pairs_a_terminal_state_with_its_report_in_either_order(
     assert matcher.terminal([4.0], 0.0, actions=6) is None
     assert matcher.report(5, Ending.TRUNCATED) is None
     assert matcher.report(5, Ending.ABORTED) == ResolvedEnd((4.0,), 0.0, Ending.ABORTED)
+    # The environment's episode number comes with the pairing, in either order.
+    matcher.new_episode()
+    assert matcher.terminal([5.0], 1.0, actions=2) is None
+    assert matcher.report(2, Ending.TERMINATED, episode=41).episode == 41
+    matcher.new_episode()
+    assert matcher.report(3, Ending.TRUNCATED, episode=42) is None
+    assert matcher.terminal([6.0], 1.0, actions=3).episode == 42
 
 
 def test_sarsa_through_the_protocol_bootstraps_on_the_action_it_sends():

@@ -86,7 +86,7 @@ from stealth_interfaces.msg import (
     SearchlightArray,
     StepInfo,
 )
-from stealth_interfaces.srv import ExecuteMove, ResetRobot
+from stealth_interfaces.srv import ExecuteMove, ResetRobot, RestartEpisode
 from stealth_node_kit.conversions import quaternion_yaw, seconds, time_msg
 from stealth_node_kit.endpoints import (
     QUIET_PUBLISHER,
@@ -101,6 +101,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from stealth_env.env_parameters import PARAMETERS
 from stealth_env.episode_flow import (
     JUDGE_ON,
+    Aborted,
     Endpoint,
     EpisodeFlow,
     Phase,
@@ -136,6 +137,15 @@ RL_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )
+# The reports of every step and episode also keep their latest messages for a recorder that
+# (re)joins late, as a respawned one does: it gets what was published while it was away.
+REPORT_HISTORY = 2000  # messages: minutes of steps at the rates the loop reaches
+REPORT_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=REPORT_HISTORY,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
 LATCHED_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=1,
@@ -149,6 +159,7 @@ TOPICS = {
     'summary': 'rl_env/episode_summary',
     'action': 'rl_agent/rl_action',
     'experiment_info': 'rl_agent/rl_experiment_info',
+    'restart': 'rl_env/restart_episode',
     'searchlights': 'searchlights',
     'markers': 'searchlight_markers',
 }
@@ -324,7 +335,7 @@ class EnvironmentNode(StartupNode):
             )
         except ValueError as error:
             raise StartupError(f'parameter goal: {error}') from None
-        self.flow = EpisodeFlow(self.task, values['judge_on'])
+        self.flow = EpisodeFlow(self.task, values['judge_on'], values['first_episode'])
         self.move_timeout = values['move_timeout']
         self.start_delay = values['start_delay']
         self.log_every = values['log_every']
@@ -362,8 +373,8 @@ class EnvironmentNode(StartupNode):
                 'offer ({policy}): it gets no states; the RL topics are reliable and volatile',
             ),
         )
-        self._step_pub = self._quiet_publisher(StepInfo, TOPICS['step_info'], RL_QOS)
-        self._summary_pub = self._quiet_publisher(EpisodeSummary, TOPICS['summary'], RL_QOS)
+        self._step_pub = self._quiet_publisher(StepInfo, TOPICS['step_info'], REPORT_QOS)
+        self._summary_pub = self._quiet_publisher(EpisodeSummary, TOPICS['summary'], REPORT_QOS)
         self._lights_pub = self._quiet_publisher(
             SearchlightArray, TOPICS['searchlights'], LATCHED_QOS
         )
@@ -396,6 +407,7 @@ class EnvironmentNode(StartupNode):
             self._robot = TopicRobot(self, self._topic_config(values), MAP_FRAME)
         if self.reset_mode == 'teleport':
             self._reset_client = self.create_client(ResetRobot, self.reset_service)
+        self.create_service(RestartEpisode, TOPICS['restart'], self._on_restart_episode)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(TICK_PERIOD, self._on_tick, clock=self._steady)
         self._scene_timer = None
@@ -544,15 +556,42 @@ class EnvironmentNode(StartupNode):
         else:
             self._abort(self.flow.token, reason)
 
-    def _agent_gone(self) -> None:
-        withdrawn = self.flow.counts.episodes_withdrawn
+    def _drop_requests(self) -> None:
+        """Whatever the robot was asked to do is void (its answer would be stale)."""
         if self._robot is not None:
             self._robot.cancel()
-        summary = self.flow.agent_lost()
-        if self._pending is not None:  # its answer is stale now
+        if self._pending is not None:
             self._pending.client.remove_pending_request(self._pending.future)
             self._pending = None
-        gone = f'the agent went away (no {TOPICS["action"]} publisher)'
+
+    def _on_restart_episode(self, request, response):
+        """rl_env/restart_episode: a node of the loop was restarted under the episode."""
+        restarted = 'agent' if request.restarted == RestartEpisode.Request.AGENT else 'simulator'
+        why = f'the {restarted} was restarted' + (f' ({request.reason})' if request.reason else '')
+        if restarted == 'agent':
+            summary = self._agent_gone(why)
+        else:
+            self._drop_requests()
+            aborted = self.flow.interrupt(why)
+            if aborted is not None:
+                self._publish_aborted(aborted)
+            summary = None if aborted is None else aborted.summary
+        response.aborted = summary is not None
+        response.episode = -1 if summary is None else summary.episode
+        response.message = (
+            f'episode {summary.episode} ended ABORTED: {why}'
+            if summary is not None
+            else f'{why}; no episode was running'
+        )
+        return response
+
+    def _agent_gone(self, why: str = ''):
+        """No agent any more (or a new one replaced it): back to waiting for one; the summary of
+        the episode this ended ABORTED, if any."""
+        withdrawn = self.flow.counts.episodes_withdrawn
+        self._drop_requests()
+        summary = self.flow.agent_lost()
+        gone = why or f'the agent went away (no {TOPICS["action"]} publisher)'
         if summary is not None:
             self._publish_summary(summary)
             self.get_logger().warning(
@@ -743,15 +782,18 @@ class EnvironmentNode(StartupNode):
 
     def _abort(self, token: int, reason: str) -> None:
         aborted = self.flow.abort(token, reason)
-        if aborted is None:
-            return
+        if aborted is not None:
+            self._publish_aborted(aborted)
+
+    def _publish_aborted(self, aborted: Aborted) -> None:
+        """The terminal state (reward 0) that keeps the agent in step, and the summary."""
         self._state_pub.publish(
             RLStateReward(state=list(aborted.state), reward=0.0, terminal=True)
         )
         self._publish_summary(aborted.summary)
         self.get_logger().error(
             f'episode {aborted.summary.episode} ABORTED after {aborted.summary.steps} steps: '
-            f'{reason}'
+            f'{aborted.reason}'
         )
 
     def _check_map(self, grid: OccupancyGrid) -> None:

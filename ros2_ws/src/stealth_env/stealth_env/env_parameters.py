@@ -37,6 +37,10 @@ PARAMETERS = {
     ),
     'log_every': Param(100, 'Log a progress line every this many episodes (0 = never).',
                        (0, 2**31 - 1)),
+    'first_episode': Param(
+        0, "Number of the first episode (a respawned or resumed run's next one).",
+        (0, 2**31 - 1), read_only=True,
+    ),
     'robot_interface': Param(
         'service', "How moves reach the robot: 'service' (the simulator's sim/execute_move) or "
         "'topics' (closed loop over cmd_vel, odom, amcl_pose and scan: any ROS robot).",

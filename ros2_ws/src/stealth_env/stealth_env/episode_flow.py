@@ -139,7 +139,7 @@ class Counts:
 class EpisodeFlow:
     """Episodes of one task, driven by the node's messages and the simulator's answers."""
 
-    def __init__(self, task: StealthTask, judge_on: str = 'true'):
+    def __init__(self, task: StealthTask, judge_on: str = 'true', first_episode: int = 0):
         if judge_on not in JUDGE_ON:
             raise ValueError(f'judge_on: expected one of {", ".join(JUDGE_ON)}, got {judge_on!r}')
         self.task = task
@@ -147,7 +147,9 @@ class EpisodeFlow:
         self.phase = Phase.WAITING
         self.token = 0
         self.counts = Counts()
-        self.episode = -1  # number of the current (or last) episode; the first is 0
+        # Number of the current (or last) episode; the first is first_episode (0 unless a
+        # restarted or resumed run continues its numbering).
+        self.episode = first_episode - 1
         self.steps = 0  # actions executed in the current episode
         self.action: int | None = None  # the action being executed
         self.state: tuple[float, float] | None = None  # the last state sent
@@ -305,6 +307,20 @@ class EpisodeFlow:
         """The move in flight failed (rejected, no answer, ...): end the episode as ABORTED.
         None when stale."""
         if token != self.token or self.phase is not Phase.MOVING:
+            return None
+        self.counts.states_sent += 1
+        return Aborted(self.state, self._end(Outcome.ABORTED), reason)
+
+    def interrupt(self, reason: str) -> Aborted | None:
+        """The robot was restarted under the episode (it is no longer where the episode left
+        it): a running episode ends ABORTED, whatever it was waiting for; a reset in flight
+        goes back to WAITING. None when no episode was running. Answers still on their way are
+        stale from now on."""
+        self.token += 1
+        if self.phase is Phase.RESETTING:
+            self.phase = Phase.WAITING
+            return None
+        if not self.in_episode:
             return None
         self.counts.states_sent += 1
         return Aborted(self.state, self._end(Outcome.ABORTED), reason)

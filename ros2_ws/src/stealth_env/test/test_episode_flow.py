@@ -252,3 +252,36 @@ def test_an_episode_the_agent_left_before_acting_is_withdrawn(map1):
     assert counts.describe().endswith(
         '1 episodes started, 0 ended, 1 withdrawn before a first action'
     )
+
+
+def test_a_restarted_robot_aborts_the_episode_whatever_it_waited_for(map1):
+    task = StealthTask(map1)
+    # Waiting for the agent's action (no move in flight): still aborted, the robot moved away.
+    flow = started(task)
+    report = step(flow, 0, PlanarPose(2.5, 3.0))
+    aborted = flow.interrupt('the simulator was restarted')
+    assert aborted.state == report.state and aborted.reason == 'the simulator was restarted'
+    assert (aborted.summary.episode, aborted.summary.outcome) == (0, Outcome.ABORTED)
+    assert flow.phase is Phase.ENDED and flow.experiment_info() is None
+    # During a move: its answer, if it ever comes, is stale.
+    token, _ = flow.begin_reset()
+    flow.reset_done(token)
+    assert flow.accept_action(1) is None
+    token = flow.token
+    assert flow.interrupt('again').summary.episode == 1
+    pose = PlanarPose(2.5, 3.0)
+    assert flow.finish_move(token, pose, pose, 1.0) is None
+    # A reset in flight goes back to waiting; with no episode there is nothing to abort.
+    token, _ = flow.begin_reset()
+    assert flow.interrupt('during the reset') is None and flow.phase is Phase.WAITING
+    assert flow.reset_done(token) is None
+    assert flow.interrupt('idle') is None
+    assert flow.counts.outcomes == {'ABORTED': 2}
+
+
+def test_a_continued_run_numbers_its_episodes_from_first_episode(map1):
+    flow = EpisodeFlow(StealthTask(map1), first_episode=17)
+    token, _ = flow.begin_reset()
+    flow.reset_done(token)
+    assert flow.episode == 17
+    assert flow.interrupt('x').summary.episode == 17
