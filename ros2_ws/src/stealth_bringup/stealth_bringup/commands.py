@@ -22,4 +22,9 @@ COMMANDS = {
         'main',
         'Render a scenario (walls, visibility heatmap, cones, goals, paths) to PNG.',
     ),
+    'doctor': (
+        'stealth_bringup.doctor',
+        'main',
+        'Check and tidy what earlier runs left: /dev/shm files, domains, processes, the build.',
+    ),
 }

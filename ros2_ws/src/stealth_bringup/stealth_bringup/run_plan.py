@@ -600,7 +600,7 @@ def _continued_run(args):
         raise RunConfigError(f'{where}: its summary.json is not a JSON object stealth train wrote')
     if summary.get('mode') != 'train':
         raise RunConfigError(
-            f'{where}: a {summary.get("mode") or "unknown"} run, not a training run; only '
+            f'{where}: a run of stealth {summary.get("mode") or "?"}, not a training run; only '
             'stealth train runs can be continued'
         )
     if not (run / 'params').is_dir():

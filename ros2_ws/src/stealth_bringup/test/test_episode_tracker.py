@@ -105,3 +105,18 @@ def test_progress_figures():
     assert tracker.postfix() == 'success 50%, return 1.0, eps 0.100, greedy streak 0/2'
     assert tracker.outcome_counts() == {'SUCCESS': 1, 'DETECTED': 1, 'TIMEOUT': 0, 'ABORTED': 0}
     assert set(tracker.outcome_counts()) == set(OUTCOMES)
+
+
+def test_a_continued_run_goes_on_with_the_earlier_episodes_and_streak():
+    earlier = Tracker()
+    for episode, outcome, greedy in ((0, 'TIMEOUT', False), (1, 'SUCCESS', True),
+                                     (2, 'SUCCESS', False), (3, 'SUCCESS', True)):  # fmt: skip
+        feed(earlier, episode, outcome, greedy)
+    tracker = Tracker(budget=10, streak_goal=3)
+    tracker.load(reversed(earlier.records))
+    assert tracker.episodes == 4 and tracker.next_episode == 4
+    assert (tracker.streak, tracker.streak_start, tracker.greedy_count) == (2, 1, 2)
+    assert tracker.stop_reason() is None
+    feed(tracker, 4, 'SUCCESS', True)
+    assert tracker.stop_reason() == 'streak' and tracker.streak_start == 1
+    assert feed(tracker, 3, 'SUCCESS', True) == []  # an episode counted before is not again

@@ -4,7 +4,9 @@ import os
 
 from stealth_bringup import ros_domain
 from stealth_bringup.ros_domain import (
+    dead_shm_files,
     private_environment,
+    remove_dead_shm,
     remove_orphaned_shm,
     reserved_domain_id,
     segment_base,
@@ -45,3 +47,28 @@ def test_only_new_unmapped_segments_are_removed_with_their_lock_files(tmp_path, 
         'sem.fastrtps_live_mutex',
     ]
     assert segment_base('sem.fastrtps_port7411_mutex') == 'fastrtps_port7411'
+
+
+def test_files_of_dead_processes_are_removed_once_old_enough(tmp_path, monkeypatch):
+    monkeypatch.setattr(ros_domain, 'clean_shm', lambda: None)
+    monkeypatch.setattr(ros_domain, 'mapped_shm_names', lambda: {'fastrtps_live'})
+    names = ('fastrtps_dead', 'fastrtps_dead_el', 'sem.fastrtps_dead_mutex', 'fastrtps_live',
+             'sem.fastrtps_live_mutex', 'fastrtps_new', 'other')  # fmt: skip
+    for name in names:
+        (tmp_path / name).write_bytes(b'')
+        if name != 'fastrtps_new':  # just created: maybe a participant still starting
+            os.utime(tmp_path / name, (0, 0))
+    assert dead_shm_files(tmp_path) == [
+        'fastrtps_dead',
+        'fastrtps_dead_el',
+        'sem.fastrtps_dead_mutex',
+    ]
+    assert remove_dead_shm(tmp_path) == ['fastrtps_dead', 'fastrtps_dead_el',
+                                         'sem.fastrtps_dead_mutex']  # fmt: skip
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        'fastrtps_live',
+        'fastrtps_new',
+        'other',
+        'sem.fastrtps_live_mutex',
+    ]
+    assert remove_dead_shm(tmp_path) == []
