@@ -142,7 +142,7 @@ class Supervisor:
         caller's to report."""
         self.log_dir.mkdir(parents=True, exist_ok=True)
         log_path = self.log_dir / f'{name}.log'
-        with open(log_path, 'wb') as log:
+        with open(log_path, 'ab') as log:  # a continued run's node appends to its log
             process = subprocess.Popen(
                 command,
                 env=self.env,
