@@ -460,19 +460,20 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
         for node in nodes
     }
 
-    run_values_of = {node: dict(values) for node, values in run_values.items()}
     stamp = utc_stamp()
+    # Episode numbers start at 0, or go on after a continued run's last one (agent and
+    # environment alike), whatever a parameter file from another run says.
+    first = {'first_episode': continued.first_episode if continued is not None else 0}
+    parameters['environment'].values.update(first)
     if mode == 'train' and continued is not None:
         directory = Path(args.resume)
         policy_path = directory / 'policy.npz'
-        first = {'first_episode': continued.first_episode}
         agent = {'policy_file': str(policy_path.resolve()), 'eval_every': eval_every, **first}
         agent.update(evaluate=False, load_policy=True)
-        parameters['environment'].values.update(first)
     elif mode == 'train':
         directory = Path(args.runs_dir) / (args.name or f'{scenario.name}-{goal}-{stamp}')
         policy_path = directory / 'policy.npz'
-        agent = {'policy_file': str(policy_path.resolve()), 'eval_every': eval_every}
+        agent = {'policy_file': str(policy_path.resolve()), 'eval_every': eval_every, **first}
         agent.update(evaluate=False, load_policy=False)
     else:
         if args.run is not None:  # the evaluation goes into the run's directory
@@ -486,12 +487,13 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
             'evaluate': True,
             'load_policy': False,
             'eval_every': 0,
+            **first,
         }
     parameters['agent'].values.update(agent)
     if 'recorder' in parameters:
         recording = next_recording_file(directory).resolve()
         parameters['recorder'].values['output'] = str(recording)
-    notes = _check_parameters(args, parameters, params_dir, run_values_of)
+    notes = _check_parameters(args, parameters, params_dir)
     if continued is not None and not policy_path.is_file():
         notes.append(f'{relative_to_cwd(policy_path)} is not there: the agent starts from a '
                      'fresh table (the run was killed before it saved one)')  # fmt: skip
@@ -628,7 +630,7 @@ def _continued_run(args):
     return Continuation(records, summary, first), scenario, goal, params_dir
 
 
-def _check_parameters(args, parameters, params_dir, run_values) -> list[str]:
+def _check_parameters(args, parameters, params_dir) -> list[str]:
     """Before anything starts: every parameter name one the node declares (its installed
     table; a node replaced with --executable is checked once it runs), and the values of a
     --params-dir file that the run sets itself honoured or refused. The notes to say."""

@@ -69,6 +69,9 @@ def test_a_params_dir_value_the_run_sets_is_refused_or_said(tmp_path):
     refused = r'agent.load_policy: true is set by the run itself \(here to false\); use stealth'
     with pytest.raises(RunConfigError, match=refused + ' train --resume'):
         plan_of('--params-dir', str(params), runs_dir=tmp_path / 'runs')
+    (params / 'agent.yaml').write_text('agent:\n  ros__parameters:\n    first_episode: 6\n')
+    with pytest.raises(RunConfigError, match=r'agent.first_episode: 6 is set by the run itself'):
+        plan_of('--params-dir', str(params), runs_dir=tmp_path / 'runs')
     (params / 'agent.yaml').write_text(
         'agent:\n  ros__parameters:\n    policy_file: /elsewhere/policy.npz\n    epsilon: 0.3\n'
     )
