@@ -14,14 +14,8 @@ import signal
 import time
 
 from ros_support import leaked_shm_segments, shm_segments
-from test_system import (  # noqa: F401 - system is the fixture
-    one_line_error,
-    processes_naming,
-    read_bag,
-    short_scenario,
-    system,
-    wait_for_text,
-)
+from test_system import one_line_error, processes_naming, read_bag, short_scenario, wait_for_text
+from test_system import system as system  # noqa: F401, PLC0414 - the fixture, used by name
 
 KILLED_AFTER = 7  # episodes counted before the orchestrator is killed (two greedy ones)
 MORE = 5  # episodes the continued run adds
@@ -41,7 +35,7 @@ def wait_for_episodes(process, path, count: int, timeout: float = 240.0) -> None
         time.sleep(0.2)
 
 
-def test_a_killed_orchestrator_leaves_its_outputs_and_the_run_goes_on(system, tmp_path):  # noqa: F811
+def test_a_killed_orchestrator_leaves_its_outputs_and_the_run_goes_on(system, tmp_path):
     shm_before = shm_segments()
     scenario = short_scenario(tmp_path)
     train = system.start(
@@ -117,10 +111,7 @@ def test_a_killed_orchestrator_leaves_its_outputs_and_the_run_goes_on(system, tm
     one_line_error(result, f'--resume {run}: its scenario file {scenario} changed since the run')
 
 
-def test_bad_resume_and_unknown_parameters_are_one_line_before_anything_starts(
-    system,  # noqa: F811 - the fixture imported above
-    tmp_path,
-):
+def test_bad_resume_and_unknown_parameters_are_one_line_before_anything_starts(system, tmp_path):
     result = system.run('train', '--resume', str(tmp_path))
     one_line_error(result, f'--resume {tmp_path}: not a run directory', 'summary.json')
     result = system.run('train', '--resume', str(tmp_path / 'none'))

@@ -281,10 +281,10 @@ def test_sigint_mid_run_stops_every_process_and_closes_the_recording(system, tmp
     assert len(messages['/rl_env/episode_summary']) >= summary['episodes']
 
 
-def test_a_node_dying_mid_run_stops_the_others_and_cleans_its_shared_memory(system, tmp_path):
+def test_without_respawn_a_node_dying_stops_the_others_and_cleans_its_memory(system, tmp_path):
     train = system.start(
         'train', '--scenario', str(short_scenario(tmp_path)), '--episodes', '1000',
-        '--name', 'killed', '--runs-dir', str(system.runs),
+        '--name', 'killed', '--runs-dir', str(system.runs), '--respawn', '0',
     )  # fmt: skip
     run = system.runs / 'killed'
     wait_for_text(train, 'all nodes up')

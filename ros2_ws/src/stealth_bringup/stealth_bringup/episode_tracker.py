@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 import dataclasses
+import itertools
 import math
 
 from stealth_env.reward import Outcome
@@ -88,6 +89,23 @@ def summary_fields(msg) -> dict:
     }
 
 
+def unfinished_fields(episode: int, steps: list, start: tuple[float, float]) -> dict:
+    """EpisodeSummary fields of an episode whose environment died before summarising it
+    (ABORTED), rebuilt from its StepInfo reports: `steps` holds (reward, visibility,
+    distance_to_goal, x, y) of each, the true pose last; `start` is the scenario's start."""
+    points = [tuple(start), *((x, y) for *_, x, y in steps)]
+    return {
+        'episode': int(episode),
+        'outcome': Outcome.ABORTED.name,
+        'steps': len(steps),
+        'total_reward': float(sum(step[0] for step in steps)),
+        'peak_visibility': float(max((step[1] for step in steps), default=0.0)),
+        'accumulated_visibility': float(sum(step[1] for step in steps)),
+        'path_length': float(sum(math.dist(a, b) for a, b in itertools.pairwise(points))),
+        'final_distance_to_goal': float(steps[-1][2]) if steps else math.nan,
+    }
+
+
 def agent_fields(msg) -> dict:
     """The fields of a stealth_interfaces/AgentEpisodeInfo used here."""
     return {
@@ -152,11 +170,6 @@ class Tracker:
         for record in sorted(records, key=lambda r: r.episode):
             if record.episode not in self._done:
                 self._count(record)
-
-    @property
-    def next_episode(self) -> int:
-        """The number of the episode after the last one counted (0 before any)."""
-        return max(self._done, default=-1) + 1
 
     def _complete(self, episode: int, agent: dict, wall_time: float) -> list[EpisodeRecord]:
         summary = self._summaries.pop(episode)

@@ -11,12 +11,16 @@ from __future__ import annotations
 
 import contextlib
 import functools
+from pathlib import Path
 import signal
 import sys
 import time
 
-from stealth_bringup.episode_tracker import Tracker
+from stealth_tools.bag_files import next_recording_file
+
+from stealth_bringup.episode_tracker import Tracker, unfinished_fields
 from stealth_bringup.remote_nodes import STATIC_PEERS_HINT, RemoteNode, join_command
+from stealth_bringup.respawn import RespawnPolicy, Restart
 from stealth_bringup.run_config import (
     ROS_OWN_PARAMETERS,
     STOP_ORDER,
@@ -43,6 +47,7 @@ PARAMETER_TIMEOUT = 10.0  # s for a node's parameter services to answer
 HOLD_START_DELAY = 3600.0
 DRAIN_TIME = 0.1  # s of taking in late reports before each node is stopped
 NAMING_TIME = 2.0  # s for the graph to name the node of a second action publisher
+LINGER_TIME = 30.0  # s a killed node's endpoints may stay on the graph (its DDS lease)
 
 
 class RunError(RuntimeError):
@@ -69,6 +74,11 @@ class Run:
         self.crashed: set[str] = set()  # nodes that died on their own (reported already)
         self.remote: dict[str, RemoteNode] = {}  # --remote nodes, once their command is out
         self.crowded_since: float | None = None  # when a second action publisher showed up
+        self.respawns = RespawnPolicy(plan.respawn, never=plan.remote)
+        self.signals: Signals | None = None
+        # One file per recorder process: this command's first, then one per restart.
+        recorder = plan.parameters.get('recorder')
+        self.recording_files = [Path(recorder.values['output'])] if recorder else []
 
     def _fail(self, message: str) -> None:
         self.facts.status, self.facts.message, self.facts.exit_code = 'failed', message, 1
@@ -92,6 +102,7 @@ class Run:
                 facts.paths, facts.late = self.monitor.paths, self.monitor.late
             facts.remote = {name: node.summary() for name, node in self.remote.items()}
             facts.nodes = dict(self.supervisor.nodes) if self.supervisor else {}
+            facts.restarts = [restart.as_dict() for restart in self.respawns.restarts]
             # A signal now changes nothing: the files get written.
             self.report.print_closing(self.report.write(), self.out)
         return facts.exit_code
@@ -111,6 +122,7 @@ class Run:
         """summary.json as the run stands; a full disk is said, not fatal."""
         if self.plan.mode != 'train':
             return
+        self.facts.restarts = [restart.as_dict() for restart in self.respawns.restarts]
         try:
             self.report.write_progress()
         except OSError as error:
@@ -140,6 +152,7 @@ class Run:
         from stealth_bringup.supervisor import Supervisor
 
         plan = self.plan
+        self.signals = signals
         with contextlib.ExitStack() as stack:
             try:
                 domain_id = stack.enter_context(reserved_domain_id())
@@ -189,11 +202,14 @@ class Run:
             return {'start_delay': HOLD_START_DELAY}
         return {}
 
-    def _start(self, name: str) -> None:
+    def _start(self, name: str, values: dict | None = None) -> None:
+        """Start a node with its parameters file and `values` on top (default: the values it
+        is held with at the run's start)."""
         plan = self.plan
         params_file = plan.params_file(name).resolve()
         command = plan.commands[name] + plan.parameters[name].ros_args(params_file)
-        for key, value in self._held_values(name).items():
+        values = self._held_values(name) if values is None else values
+        for key, value in values.items():
             command += ['-p', f'{key}:={ros_arg_value(value)}']
         try:
             self.supervisor.start(name, command, niceness=NICENESS.get(name, 0))
@@ -206,21 +222,107 @@ class Run:
         dead = self.supervisor.dead()
         if dead:
             node = dead[0]
+            refusal = self.respawns.refusal(node.name, node.process.returncode)
+            if not refusal:
+                self._respawn(node, during)
+                return
             self.crashed.update(n.name for n in dead)
             log = relative_to_cwd(node.log_path)
-            raise RunError(f'{node.why(during)} (log: {log})')
+            restarted = f'; {refusal}' if self.respawns.count(node.name) else ''
+            raise RunError(f'{node.why(during)} (log: {log}){restarted}')
         if self.remote:
             self._check_remote(during)
         self._check_one_agent()
+
+    # --- respawn ----------------------------------------------------------------------------
+
+    def _respawn(self, node, during: str) -> None:
+        """Start a dead node again (respawn), with what it needs to carry on the run, and tell
+        the environment when the episode in progress cannot go on."""
+        name, facts = node.name, self.facts
+        cause = node.why(during)
+        restart = self.respawns.begin(
+            name, cause, self.tracker.episodes, time.monotonic() - facts.started
+        )
+        self.say(
+            f'{self.prog}: {cause}; restarting it in {restart.delay:g} s (restart '
+            f'{restart.number} of at most {self.respawns.limit})'
+        )
+        noticed = time.monotonic()
+        until = noticed + restart.delay
+        while time.monotonic() < until and self.signals.first is None:
+            self.monitor.spin(0.05)  # reports still on their way come in meanwhile
+        if self.signals.first is not None:
+            return
+        self._start(name, self._restart_values(name, restart))
+        new = self.supervisor.nodes[name]
+
+        def alive() -> bool:
+            return new.alive and self.signals.first is None
+
+        if not self.monitor.answers(name, alive, self.plan.startup_timeout):
+            if alive():
+                raise RunError(
+                    f'{name} did not come back within {self.plan.startup_timeout:g} s of its '
+                    f'restart (log: {relative_to_cwd(new.log_path)})'
+                )
+            return  # it died again or a signal came: the next check says which
+        if name in ('simulator', 'agent'):
+            self._restart_episode(name, restart, node.exit_text())
+        restart.back_after = round(time.monotonic() - noticed, 3)
+        self.monitor.last_activity = time.monotonic()
+        aborted = restart.aborted_episode
+        self.say(
+            f'{self.prog}: {name} is back after {restart.back_after:.1f} s'
+            + (f'; episode {aborted} counted as ABORTED' if aborted is not None else '')
+        )
+
+    def _restart_values(self, name: str, restart: Restart) -> dict:
+        """What a restarted node gets on top of its parameters file."""
+        monitor = self.monitor
+        if name == 'environment':
+            # The episode it left has no summary: counted ABORTED from its steps.
+            episode = monitor.open_episode()
+            if episode is not None:
+                fields = unfinished_fields(
+                    episode, monitor.steps[episode], self.plan.scenario.start[:2]
+                )
+                wall_time = time.monotonic() - self.facts.started
+                for record in self.tracker.add_summary(fields, wall_time):
+                    self._on_record(record)
+                restart.aborted_episode = episode
+            return {'first_episode': monitor.next_episode()}
+        if name == 'agent' and self.plan.mode == 'train':
+            # Its checkpoint (saved every episode) holds the table, the model, the schedules'
+            # position and the random stream.
+            return {'load_policy': True, 'first_episode': monitor.next_episode()}
+        if name == 'recorder':  # a new file: the dead recorder's is recovered at the end
+            self.recording_files.append(next_recording_file(self.plan.directory))
+            return {'output': str(self.recording_files[-1].resolve())}
+        return {}
+
+    def _restart_episode(self, name: str, restart: Restart, reason: str) -> None:
+        """The restarted simulator or agent cannot carry on the episode in progress: the
+        environment ends it ABORTED and starts the next."""
+        response = self.monitor.restart_episode(name, reason, PARAMETER_TIMEOUT)
+        if response is None:
+            if self.signals.first is None:
+                raise RunError(
+                    f'the environment did not answer rl_env/restart_episode after the {name} '
+                    'was restarted; see its log'
+                )
+            return
+        if response.aborted:
+            restart.aborted_episode = int(response.episode)
 
     def _check_one_agent(self) -> None:
         """Two publishers of the actions: two agents answer every state (RunError), once the
         graph names both (or after NAMING_TIME)."""
         agents = self.monitor.publishers_of(ACTION_TOPIC)
-        if len(agents) <= 1:
+        now = time.monotonic()
+        if len(agents) <= 1 or self._killed_agent_lingers(agents, now):
             self.crowded_since = None
             return
-        now = time.monotonic()
         self.crowded_since = self.crowded_since or now
         if None in agents and now - self.crowded_since < NAMING_TIME:
             return
@@ -230,6 +332,15 @@ class Run:
             f'(nodes {names}); a run takes one agent, stop the one that does not belong and '
             'start the run again'
         )
+
+    def _killed_agent_lingers(self, agents: list, now: float) -> bool:
+        """Whether the extra publishers can be agents that died recently: the graph keeps a
+        killed process's endpoints until its DDS lease runs out."""
+        recent = [
+            r for r in self.respawns.restarts
+            if r.node == 'agent' and now - self.facts.started - r.died_at < LINGER_TIME
+        ]  # fmt: skip
+        return len(agents) <= 1 + len(recent) and set(agents) <= {'/agent', None}
 
     def _check_remote(self, during: str) -> None:
         """Remote nodes are supervised through the graph: there once, gone means ended."""
@@ -454,9 +565,34 @@ class Run:
                 self.say(f'{self.prog}: {node.name} {detail}: {node.why()}')
             if self.facts.status in ('success', 'budget'):
                 self._fail(f'{problems[0].name} did not stop cleanly (see its log)')
-        if 'recorder' in supervisor.nodes and supervisor.nodes['recorder'].killed:
-            recording = self.plan.parameters['recorder'].values['output']
-            self.say(
-                f'{self.prog}: the recording was not closed; `stealth bag recover '
-                f'{relative_to_cwd(recording)}` writes an indexed copy'
-            )
+        self._recover_recordings()
+
+    def _recover_recordings(self) -> None:
+        """A recording file whose recorder was killed has no index: rewrite it complete and
+        indexed (everything readable in it), so every file of the recording opens."""
+        from stealth_tools.bag_format import BagError
+        from stealth_tools.bag_recover import recover
+
+        from stealth_bringup.supervisor import CLEAN_EXITS
+
+        recorders = [n for n in self.supervisor.retired if n.name == 'recorder']
+        if 'recorder' in self.supervisor.nodes:
+            recorders.append(self.supervisor.nodes['recorder'])
+        for node, path in zip(recorders, self.recording_files, strict=False):
+            if not path.exists() or (not node.killed and node.process.returncode in CLEAN_EXITS):
+                continue
+            shown = relative_to_cwd(path)
+            temporary = path.with_name(f'.{path.name}.recovering')
+            temporary.unlink(missing_ok=True)
+            try:
+                _, report = recover(path, temporary)
+            except BagError as error:
+                temporary.unlink(missing_ok=True)
+                self.say(
+                    f'{self.prog}: the recording {shown} was not closed and could not be '
+                    f'recovered ({error}); `stealth bag recover {shown}` tries again'
+                )
+                continue
+            temporary.replace(path)
+            self.say(f'{self.prog}: {shown} was not closed (its recorder was killed): '
+                     f'recovered {report.messages} messages into an indexed file')  # fmt: skip

@@ -21,6 +21,7 @@ GRAPH_TOPICS_IGNORED = {'/rosout', '/parameter_events'}
 SIMULATOR_SERVICES = ('/sim/execute_move', '/sim/reset')  # the system is up once they are there
 ACTION_TOPIC = '/rl_agent/rl_action'  # one publisher: the run's agent
 UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'  # rmw's name of a node whose endpoints came first
+RESTART_SERVICE = '/rl_env/restart_episode'  # the environment's, for a respawned node
 
 
 class Signals:
@@ -98,8 +99,12 @@ class Monitor:
         self.on_record = on_record
         self.last_activity = time.monotonic()  # of the latest report (the stall watchdog)
         self.paths: dict[int, list[tuple[float, float]]] = {}  # true (x, y) by episode
+        # (reward, visibility, distance to goal, x, y) of each step, by episode: what is known
+        # of an episode whose environment died before its summary.
+        self.steps: dict[int, list[tuple]] = {}
         self.frozen = False  # set when the run ends: later reports are not counted
         self.late: list[dict] = []  # summaries that arrived after that
+        self._restart_client = None  # rl_env/restart_episode, once a node was respawned
         qos = QoSProfile(
             history=HistoryPolicy.KEEP_ALL,
             reliability=ReliabilityPolicy.RELIABLE,
@@ -143,6 +148,9 @@ class Monitor:
     def _on_step(self, msg) -> None:
         self.last_activity = time.monotonic()
         self.paths.setdefault(msg.episode, []).append((msg.true_pose.x, msg.true_pose.y))
+        self.steps.setdefault(msg.episode, []).append(
+            (msg.reward, msg.visibility, msg.distance_to_goal, msg.true_pose.x, msg.true_pose.y)
+        )
 
     # --- the graph --------------------------------------------------------------------------
 
@@ -195,6 +203,29 @@ class Monitor:
         )
         return None if response is None else set(response.result.names)
 
+    def answers(self, node_name: str, alive, timeout: float, resend: float = 1.0) -> bool:
+        """Whether `node_name` answers its list_parameters service within `timeout` s (alive()
+        false stops waiting). The request goes again every `resend` s: after a restart the
+        graph still lists the dead process's service, and a request sent before the new one
+        is matched reaches only the dead one."""
+        from rcl_interfaces.srv import ListParameters
+
+        client = self.node.create_client(ListParameters, f'/{node_name}/list_parameters')
+        try:
+            deadline = time.monotonic() + timeout
+            future, sent = None, 0.0
+            while time.monotonic() < deadline and alive():
+                if future is not None and future.done() and future.result() is not None:
+                    return True
+                if client.service_is_ready() and time.monotonic() - sent >= resend:
+                    if future is not None:
+                        client.remove_pending_request(future)
+                    future, sent = client.call_async(ListParameters.Request()), time.monotonic()
+                self.spin(0.05)
+            return False
+        finally:
+            self.node.destroy_client(client)
+
     def set_parameter(self, node_name: str, name: str, value, timeout: float) -> bool:
         """Set one parameter of a node; True when it took it."""
         from rclpy.parameter import Parameter
@@ -204,6 +235,42 @@ class Monitor:
             node_name, lambda client: client.set_parameters(parameters), timeout
         )
         return bool(response is not None and all(r.successful for r in response.results))
+
+    def restart_episode(self, restarted: str, reason: str, timeout: float):
+        """Ask the environment to end the episode a restarted node (`restarted`: 'simulator'
+        or 'agent') left behind; its RestartEpisode response, None without one in `timeout`."""
+        from stealth_interfaces.srv import RestartEpisode
+
+        if self._restart_client is None:
+            self._restart_client = self.node.create_client(RestartEpisode, RESTART_SERVICE)
+        client = self._restart_client
+        request = RestartEpisode.Request(
+            restarted=getattr(RestartEpisode.Request, restarted.upper()), reason=reason
+        )
+        deadline = time.monotonic() + timeout
+        while not client.service_is_ready():
+            if time.monotonic() >= deadline:
+                return None
+            self.spin()
+        future = client.call_async(request)
+        while not future.done():
+            if time.monotonic() >= deadline:
+                client.remove_pending_request(future)
+                return None
+            self.spin()
+        return future.result()
+
+    def open_episode(self) -> int | None:
+        """The latest episode with steps but no completed record: the one a dead environment
+        left unfinished; None when there is none."""
+        done = {record.episode for record in self.tracker.records}
+        return max((episode for episode in self.steps if episode not in done), default=None)
+
+    def next_episode(self) -> int:
+        """The number the next episode of the run takes: after every episode completed or
+        stepped in so far."""
+        numbers = [record.episode for record in self.tracker.records] + list(self.paths)
+        return max(numbers, default=-1) + 1
 
     def unrecorded_topics(self, node_name: str) -> list[str]:
         """Topics `node_name` publishes that the recorder does not subscribe to yet."""

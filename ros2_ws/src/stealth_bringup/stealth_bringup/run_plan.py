@@ -45,6 +45,7 @@ DEFAULT_GOAL = 'easy'  # of the default scenario; other scenarios default to the
 DEFAULT_EPISODES = 400
 DEFAULT_EVAL_EVERY = 5
 DEFAULT_STREAK = 3
+DEFAULT_RESPAWN = 3  # restarts per node in stealth train (stealth eval: 0)
 DEFAULT_EVAL_EPISODES = 5
 STARTUP_TIMEOUT = 60.0  # s for every node to appear on the graph
 STALL_TIMEOUT = 120.0  # s without a step before the run is declared stuck
@@ -172,6 +173,16 @@ def _common_options(parser: argparse.ArgumentParser, evaluating: bool = False) -
         help=f'do not start NODE ({", ".join(REMOTE_NODES)}) here: print the command that '
         'starts it on another host, wait for it to join the run, then supervise it through the '
         'ROS graph (repeatable; with --discovery subnet for another host)',
+    )
+    parser.add_argument(
+        '--respawn',
+        type=_non_negative_int,
+        default=0 if evaluating else DEFAULT_RESPAWN,
+        metavar='N',
+        help='restart a node that dies up to N times (each after a longer wait: 0.5, 1, 2, 4, '
+        '8 s), in the same domain with the same parameters; the agent resumes from its '
+        'checkpoint, the episode in progress counts as ABORTED (0 = a dead node ends the run; '
+        'default: %(default)s)',
     )
     parser.add_argument(
         '--join-timeout',
@@ -368,6 +379,7 @@ class RunPlan:
     discovery: str = 'localhost'  # a key of DISCOVERY_RANGES
     remote: tuple[str, ...] = ()  # nodes that join from another host (not in `commands`)
     join_timeout: float = JOIN_TIMEOUT
+    respawn: int = 0  # restarts allowed per node
     continued: Continuation | None = None  # stealth train --resume: the run's earlier part
     notes: list[str] = dataclasses.field(default_factory=list)  # to say before the run starts
     hashes: dict[str, str] = dataclasses.field(default_factory=dict)  # scenario and map SHA-256
@@ -522,6 +534,7 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
         discovery=args.discovery,
         remote=remote,
         join_timeout=args.join_timeout,
+        respawn=args.respawn,
         continued=continued,
         notes=notes,
         hashes=hashes,

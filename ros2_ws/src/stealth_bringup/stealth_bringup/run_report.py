@@ -36,6 +36,7 @@ class RunFacts:
     paths: dict[int, list] = dataclasses.field(default_factory=dict)  # true (x, y) by episode
     late: list[dict] = dataclasses.field(default_factory=list)  # summaries after the end
     remote: dict[str, dict] = dataclasses.field(default_factory=dict)  # --remote nodes' summary
+    restarts: list[dict] = dataclasses.field(default_factory=list)  # respawn.Restart.as_dict()
 
 
 class RunReport:
@@ -263,6 +264,8 @@ class RunReport:
             },
             # Nodes on other hosts: the command printed for them and what the graph showed.
             'remote_nodes': facts.remote,
+            # Each restart of a node that died (--respawn): cause, when, what it cost.
+            'restarts': facts.restarts,
             'files': {key: relative_to_cwd(value) for key, value in files.items()},
         }
         summary['files']['summary'] = relative_to_cwd(plan.file('summary.json'))
@@ -321,6 +324,13 @@ class RunReport:
                     f'{last.steps} steps, return {last.total_reward:.1f}, path '
                     f'{last.path_length:.1f} m, peak visibility {last.peak_visibility:.3f}'
                 )
+        for restart in facts.restarts:
+            back = restart['back_after']
+            lines.append(
+                f'  restarted {restart["node"]} after episode {restart["episode"]}'
+                + (f', back in {back:.1f} s' if back is not None else '')
+                + f': {restart["cause"]}'
+            )
         directory = relative_to_cwd(plan.directory)
         lines.append(f'Files in {directory}/:')
         described = (

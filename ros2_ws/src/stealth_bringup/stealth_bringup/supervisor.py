@@ -135,14 +135,21 @@ class Supervisor:
     def __init__(self, env: dict[str, str], log_dir: Path):
         self.env = env
         self.log_dir = Path(log_dir)
-        self.nodes: dict[str, NodeProcess] = {}
+        self.nodes: dict[str, NodeProcess] = {}  # the latest process of each node
+        self.retired: list[NodeProcess] = []  # processes of nodes that were started again
 
     def start(self, name: str, command: list[str], niceness: int = 0) -> NodeProcess:
         """Start one node (`niceness` lower in priority); OSError (e.g. not executable) is the
         caller's to report."""
         self.log_dir.mkdir(parents=True, exist_ok=True)
         log_path = self.log_dir / f'{name}.log'
-        with open(log_path, 'ab') as log:  # a continued run's node appends to its log
+        previous = self.nodes.get(name)
+        if previous is not None:  # a restart: the dead one's log stays, the new one follows it
+            self.retired.append(previous)
+        with open(log_path, 'ab') as log:
+            if log.tell():
+                log.write(f'--- {name} started again: {" ".join(command)}\n'.encode())
+                log.flush()
             process = subprocess.Popen(
                 command,
                 env=self.env,
@@ -166,7 +173,7 @@ class Supervisor:
         memory behind."""
         return any(
             n.killed or (n.process.returncode is not None and n.process.returncode < 0)
-            for n in self.nodes.values()
+            for n in (*self.nodes.values(), *self.retired)
         )
 
     def stop(

@@ -15,6 +15,9 @@ step may be dropped silently):
   (RLExperimentInfo);
 * StepInfo is built only while someone subscribes (a recorder, a viewer), as the simulator
   does with its periodic topics;
+* serves ``rl_env/restart_episode`` (RestartEpisode): a restarted simulator's or agent's episode
+  ends ABORTED (stealth train's respawn); ``step_info`` and ``episode_summary`` are transient
+  local with the last REPORT_HISTORY messages, for a recorder that (re)joins late;
 * calls ``sim/execute_move`` and ``sim/reset`` (stealth_interfaces) of the simulator node
   (``robot_interface`` service; ``topics``: see below),
   asynchronously: no callback ever blocks the executor; reads the simulator's latched ``map``

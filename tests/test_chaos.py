@@ -1,0 +1,112 @@
+"""Fault tolerance of `stealth train` (respawn): every node SIGKILLed in turn during one training,
+and a node that keeps crashing.
+
+The chaos run kills the agent, the environment, the simulator and the recorder, one every
+KILL_PERIOD seconds; the run must still reach its stop criterion with contiguous episode numbers
+(none counted twice), a recording that holds every step of every episode (the killed recorder's
+file recovered, the respawned recorder's file beside it), and nothing left running or in
+/dev/shm (the `system` fixture checks those two).
+"""
+
+import csv
+import json
+import os
+from pathlib import Path
+import signal
+import stat
+import time
+
+from test_system import processes_naming, read_bag, wait_for_text
+from test_system import system as system  # noqa: F401, PLC0414 - the fixture, used by name
+
+KILL_ORDER = ('agent', 'environment', 'simulator', 'recorder')
+KILL_PERIOD = 20.0  # s between kills
+RESPAWN_TIMEOUT = 120.0  # s for a killed node to be back (a loaded 2-core machine)
+
+
+def kill_node(run: Path, name: str) -> int:
+    """SIGKILL the live process of node `name` of the run (its params file names it)."""
+    pids = processes_naming(run / 'params' / f'{name}.yaml')
+    assert len(pids) == 1, f'{name}: expected one live process, found {pids}'
+    os.kill(pids[0], signal.SIGKILL)
+    return pids[0]
+
+
+def recorded_steps(run: Path) -> dict[tuple[int, int], int]:
+    """{(episode, step): times recorded} over every file of the run's recording."""
+    files = sorted(run.glob('recording*.mcap'))
+    assert [f.name for f in files] == ['recording.mcap', 'recording_1.mcap'], files
+    seen: dict[tuple[int, int], int] = {}
+    for path in files:
+        _, messages, _ = read_bag(path)  # every file opens: the killed one was recovered
+        for step in messages['/rl_env/step_info']:
+            key = (step.episode, step.step)
+            seen[key] = seen.get(key, 0) + 1
+    return seen
+
+
+def test_every_node_killed_in_turn_and_the_run_still_reaches_its_goal(system, tmp_path):
+    # A longer streak than the default keeps the run going through all four kills.
+    train = system.start(
+        'train', '--success-streak', '8', '--episodes', '400', '--name', 'chaos',
+        '--runs-dir', str(system.runs),
+    )  # fmt: skip
+    run = system.runs / 'chaos'
+    wait_for_text(train, 'all nodes up', timeout=180)
+    for name in KILL_ORDER:
+        time.sleep(KILL_PERIOD)
+        assert train.poll() is None, f'the run ended before {name} was killed'
+        kill_node(run, name)
+        wait_for_text(train, f'{name} is back after', timeout=RESPAWN_TIMEOUT)
+    assert train.wait(900) == 0, train.stderr_path.read_text()
+    stderr = train.stderr_path.read_text()
+    assert 'Traceback' not in stderr
+
+    summary = json.loads((run / 'summary.json').read_text())
+    assert summary['status'] == 'success', summary['message']
+    restarts = summary['restarts']
+    assert [r['node'] for r in restarts] == list(KILL_ORDER), restarts
+    for restart in restarts:
+        assert 'was killed by SIGKILL' in restart['cause'] and restart['back_after'] > 0
+    # The environment's unfinished episode is counted ABORTED, rebuilt from its steps.
+    assert restarts[1]['aborted_episode'] is not None
+
+    with open(run / 'episodes.csv', newline='') as stream:
+        rows = list(csv.DictReader(stream))
+    episodes = [int(r['episode']) for r in rows]
+    assert episodes == list(range(len(episodes))), 'episode numbers not contiguous or repeated'
+    assert summary['episodes'] == len(episodes)
+
+    seen = recorded_steps(run)
+    missing = [
+        (int(r['episode']), step)
+        for r in rows
+        for step in range(1, int(r['steps']) + 1)
+        if (int(r['episode']), step) not in seen
+    ]
+    assert not missing, f'{len(missing)} steps not in the recording, first {missing[:5]}'
+    assert {episode for episode, _ in seen} <= set(episodes), 'steps of an uncounted episode'
+
+
+def test_a_node_that_keeps_crashing_is_given_up_after_its_retries(system, tmp_path):
+    crashing = tmp_path / 'crashing_agent'
+    crashing.write_text(
+        '#!/bin/sh\necho "[ERROR] [0.0] [agent]: cannot open /nonexistent/policy.npz"\nexit 1\n'
+    )
+    crashing.chmod(crashing.stat().st_mode | stat.S_IXUSR)
+    result = system.run(
+        'train', '--episodes', '5', '--name', 'crashing', '--runs-dir', str(system.runs),
+        '--executable', f'agent={crashing}', '--respawn', '2',
+    )  # fmt: skip
+    assert result.returncode == 1, result.stderr
+    assert 'Traceback' not in result.stderr
+    line = result.stderr.strip().splitlines()[-1]
+    assert line.startswith('stealth train: agent exited with code 1'), result.stderr
+    assert 'cannot open /nonexistent/policy.npz' in line  # its last log line
+    assert 'not restarted again: it already was 2 times (--respawn 2)' in line
+    run = system.runs / 'crashing'
+    summary = json.loads((run / 'summary.json').read_text())
+    assert summary['status'] == 'failed'
+    assert [r['node'] for r in summary['restarts']] == ['agent', 'agent']
+    assert [r['delay'] for r in summary['restarts']] == [0.5, 1.0]
+    assert (run / 'logs' / 'agent.log').read_text().count('cannot open') == 3
