@@ -30,7 +30,7 @@ DOMAIN_LOCK_DIR = Path('/tmp/stealth_nav_domains')
 # Linux keeps ids 0-101 clear of the ephemeral port range; 0 is everyone's default, so skip it.
 DOMAIN_IDS = range(1, 102)
 SHM_DIR = Path('/dev/shm')
-SHM_MIN_AGE = 10.0  # s: younger Fast DDS files may belong to a participant still starting
+SHM_CONFIRM = 1.0  # s between the two looks that find a Fast DDS file unmapped before removal
 # --discovery: ROS_AUTOMATIC_DISCOVERY_RANGE of the run's participants.
 DISCOVERY_RANGES = {'localhost': 'LOCALHOST', 'subnet': 'SUBNET'}
 
@@ -126,33 +126,39 @@ def clean_shm() -> None:
         )
 
 
-def dead_shm_files(shm_dir: Path = SHM_DIR, min_age: float = SHM_MIN_AGE) -> list[str]:
-    """Fast DDS files in /dev/shm whose owners are all dead: ours, no live process maps them
-    (nor the segment a lock file belongs to), and at least `min_age` s old (a participant that
-    is starting has created its segment but may not have mapped it yet)."""
+def _unmapped_shm(shm_dir: Path) -> set[str]:
+    """Our Fast DDS files in /dev/shm that no live process maps (nor, for a lock or mutex file,
+    the segment it belongs to)."""
     mapped = mapped_shm_names()
-    now = time.time()
-    dead = []
+    unmapped = set()
     for name in shm_segments(shm_dir):
         if segment_base(name) in mapped:
             continue
-        try:
-            status = (shm_dir / name).stat()
-        except OSError:
-            continue
-        if status.st_uid == os.getuid() and now - status.st_mtime >= min_age:
-            dead.append(name)
-    return sorted(dead)
+        with contextlib.suppress(OSError):
+            if (shm_dir / name).stat().st_uid == os.getuid():
+                unmapped.add(name)
+    return unmapped
 
 
-def remove_dead_shm(shm_dir: Path = SHM_DIR, min_age: float = SHM_MIN_AGE) -> list[str]:
+def dead_shm_files(shm_dir: Path = SHM_DIR, confirm: float = SHM_CONFIRM) -> list[str]:
+    """Fast DDS files in /dev/shm whose owners are all dead: no live process maps them, now and
+    again `confirm` s later (a participant that is starting creates its segment a moment before
+    it maps it)."""
+    first = _unmapped_shm(shm_dir)
+    if not first:
+        return []
+    time.sleep(confirm)
+    return sorted(first & _unmapped_shm(shm_dir))
+
+
+def remove_dead_shm(shm_dir: Path = SHM_DIR, confirm: float = SHM_CONFIRM) -> list[str]:
     """Remove what dead_shm_files finds (`fastdds shm clean` first, as Fast DDS itself would,
     then whatever is left of it); the names removed."""
-    dead = dead_shm_files(shm_dir, min_age)
+    dead = dead_shm_files(shm_dir, confirm)
     if not dead:
         return []
     clean_shm()
-    for name in dead_shm_files(shm_dir, min_age):
+    for name in sorted(set(dead) & _unmapped_shm(shm_dir)):
         with contextlib.suppress(OSError):
             (shm_dir / name).unlink()
     left = shm_segments(shm_dir)
