@@ -69,8 +69,9 @@ def test_a_killed_orchestrator_leaves_its_outputs_and_the_run_goes_on(system, tm
     left = sorted(leaked_shm_segments(shm_before))
     doctor = system.run('doctor')
     assert 'Traceback' not in doctor.stderr + doctor.stdout
-    assert all(name in doctor.stdout for name in left[:8]), (left, doctor.stdout)
-    assert not leaked_shm_segments(shm_before)
+    if left:  # named with any other dead process's files (ros_domain's tests check the names)
+        assert 'Fast DDS files of dead processes: fastrtps_' in doctor.stdout, doctor.stdout
+    assert not leaked_shm_segments(shm_before), doctor.stdout
     shown = ', '.join(left) or 'none'
     print(f'\nSIGKILL of stealth train: its nodes gone after {stopped_after:.1f} s; '
           f'{len(left)} Fast DDS files left in /dev/shm ({shown})')  # fmt: skip
