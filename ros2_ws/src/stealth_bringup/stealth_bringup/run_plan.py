@@ -640,6 +640,8 @@ def _continued_run(args):
     records = read_episodes_csv(csv_path) if csv_path.is_file() else []
     first = max((r.episode for r in records), default=-1) + 1
     params_dir = args.params_dir or str(run / 'params')
+    if not (run / 'params' / 'recorder.yaml').is_file():
+        args.no_record = True  # the run was not recorded (--no-record): nor is its continuation
     return Continuation(records, summary, first), scenario, goal, params_dir
 
 

@@ -120,6 +120,8 @@ def test_a_continued_run_goes_on_where_it_stopped(tmp_path):
     assert plan.parameters['recorder'].values['output'] == str(run.resolve() / 'recording_1.mcap')
     assert 'continued from episode 6 (6 done), up to 12 episodes in all' in plan.describe()
     assert any('policy.npz is not there' in note for note in plan.notes)
+    (run / 'params' / 'recorder.yaml').unlink()  # as a run with --no-record leaves it
+    assert 'recorder' not in resume(run, '--episodes', '12').parameters
 
 
 BUDGET_SPENT = 'the run has 6 episodes, its budget of 6 is spent; give --episodes N, the new'
