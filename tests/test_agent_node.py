@@ -237,10 +237,13 @@ def test_agent_learns_reports_episodes_and_saves_a_reloadable_policy(
     wait_for_log(resumed, f'from {policy_file} (40 episodes, 5 states), continuing its random')
     env.wait_for_agent()
     env.report_outcomes()
-    for number in range(5):
+    # Episode numbers are the environment's, from its summaries (this one counts every episode
+    # it ran, 45 so far).
+    first = len(env.infos)
+    for number in range(first, first + 5):
         total, steps, info = env.episode()
         assert info.episode_number == number and info.episode_reward == pytest.approx(total)
-    wait_for_log(resumed, 'episodes 0-4 (learner total 45)')
+    wait_for_log(resumed, f'episodes {first}-{first + 4} (learner total 45)')
     stop(resumed)
     log = resumed.log_path.read_text()
     assert 'outcomes: success 5' in log, log

@@ -8,6 +8,7 @@ import re
 import signal
 import time
 
+from nav_msgs.msg import OccupancyGrid
 import numpy as np
 import pytest
 from rclpy.parameter import Parameter
@@ -15,10 +16,12 @@ from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from ros_support import REPO_ROOT, SpinningNode
 from stealth_env.gym_env import lattice_model
+from stealth_env.markers import visibility_levels
 from stealth_env.move_lattice import ACTIONS
 from stealth_env.planners import dark_path
 from stealth_env.scenario import find_scenario, load_scenario
 from stealth_env.task import StealthTask
+from stealth_env.visibility import visibility_field
 from stealth_interfaces.msg import (
     EpisodeSummary,
     RLAction,
@@ -28,6 +31,7 @@ from stealth_interfaces.msg import (
     SearchlightArray,
     StepInfo,
 )
+from stealth_interfaces.srv import RestartEpisode
 from visualization_msgs.msg import Marker, MarkerArray
 import yaml
 
@@ -84,7 +88,7 @@ class ScriptedAgent(SpinningNode):
 
     def __init__(self, context):
         super().__init__('scripted_agent', context)
-        self.received = {key: [] for key in ('description', 'lights', 'markers')}
+        self.received = {key: [] for key in ('description', 'lights', 'markers', 'grid')}
         self.states: list[RLStateReward] = []
         self.steps: list[StepInfo] = []
         self.summaries: list[EpisodeSummary] = []
@@ -93,6 +97,7 @@ class ScriptedAgent(SpinningNode):
             (RLEnvDescription, 'rl_env/rl_env_description', 'description'),
             (SearchlightArray, 'searchlights', 'lights'),
             (MarkerArray, 'searchlight_markers', 'markers'),
+            (OccupancyGrid, 'visibility_grid', 'grid'),
         ):
             self.node.create_subscription(message_type, topic, self.received[key].append, LATCHED)
         self.node.create_subscription(StepInfo, 'rl_env/step_info', self.steps.append, RL_QOS)
@@ -397,6 +402,17 @@ def test_moving_lights_are_judged_at_the_end_of_each_move_and_redrawn(
     first_cone = next(m for m in agent.received['markers'][0].markers if m.ns == 'cones')
     last_cone = next(m for m in agent.received['markers'][-1].markers if m.ns == 'cones')
     assert first_cone.points != last_cone.points
+    # The visibility grid moves with the lights: the field at t, as 0-100 of the threshold.
+    assert agent.spin_until(lambda: drawn_at(agent.received['grid'][-1]) == t, 5.0)
+    grid = agent.received['grid'][-1]
+    occupancy = scenario.map
+    assert (grid.info.width, grid.info.height) == (occupancy.width, occupancy.height)
+    total, _ = visibility_field(
+        occupancy.blocked, occupancy.resolution, occupancy.origin, scenario.lights, t
+    )
+    levels = visibility_levels(total, scenario.detection_threshold).ravel().tolist()
+    assert list(grid.data) == levels
+    assert list(agent.received['grid'][0].data) != levels
 
 
 def test_a_simulator_on_another_map_is_reported(agent, node_processes):
@@ -455,6 +471,61 @@ def test_simulator_failure_and_agent_loss_abort_and_recover(agent, node_processe
     assert len(agent.summaries) == 2
     counts = totals(stop(env))
     assert (counts['states'], counts['episodes']) == (len(agent.states), 3)
+
+
+def test_a_restarted_simulator_or_agent_ends_the_episode_it_left(agent, node_processes):
+    scenario = load_scenario(SCENARIO)
+    start_sim(node_processes, scenario)
+    env = start_env(node_processes, scenario=SCENARIO, first_episode=7)
+    client = agent.node.create_client(RestartEpisode, 'rl_env/restart_episode')
+
+    def restart(which: int) -> RestartEpisode.Response:
+        assert agent.spin_until(client.service_is_ready, 10.0)
+        future = client.call_async(RestartEpisode.Request(restarted=which, reason='a test'))
+        assert agent.spin_until(future.done, 10.0)
+        return future.result()
+
+    agent.next_state()
+    state, info = agent.act(UP)
+    assert (info.episode, info.step) == (7, 1)  # a continued run's numbering
+    # The simulator restarted while the environment waited for an action: ABORTED all the same.
+    count = len(agent.states)
+    response = restart(RestartEpisode.Request.SIMULATOR)
+    assert (response.aborted, response.episode) == (True, 7), response.message
+    assert agent.spin_until(lambda: len(agent.states) > count, 10.0)
+    aborted = agent.states[count]
+    assert aborted.terminal and aborted.reward == 0.0 and list(aborted.state) == list(state.state)
+    assert agent.spin_until(lambda: agent.summaries, 5.0)
+    summary = agent.summaries[0]
+    assert (summary.episode, summary.outcome, summary.steps) == (7, EpisodeSummary.ABORTED, 1)
+    wait_for_log(env, 'episode 7 ABORTED after 1 steps: the simulator was restarted (a test)')
+
+    # The agent closes it as usual; the next episode takes the next number.
+    agent.info_pub.publish(RLExperimentInfo(episode_number=7, number_actions=2))
+    first = agent.next_state()
+    assert (list(first.state), first.terminal) == ([1.5, 1.5], False)
+    _, info = agent.act(RIGHT)
+    assert (info.episode, info.step) == (8, 1)
+    # The agent restarted: its episode ends ABORTED with nothing sent to it, and the next one
+    # starts for whoever is connected now.
+    count = len(agent.states)
+    response = restart(RestartEpisode.Request.AGENT)
+    assert (response.aborted, response.episode) == (True, 8), response.message
+    assert agent.spin_until(lambda: len(agent.summaries) == 2, 5.0)
+    assert (agent.summaries[1].episode, agent.summaries[1].outcome) == (8, EpisodeSummary.ABORTED)
+    assert agent.spin_until(lambda: len(agent.states) > count, 20.0)
+    fresh = agent.states[count]
+    assert not fresh.terminal and list(fresh.state) == [1.5, 1.5]  # no terminal state was sent
+    _, info = agent.act(UP)
+    assert (info.episode, info.step) == (9, 1)
+    # Nothing running (the reset in flight goes back to waiting): nothing aborted.
+    count = len(agent.states)
+    assert restart(RestartEpisode.Request.SIMULATOR).episode == 9
+    assert agent.spin_until(lambda: len(agent.states) > count, 10.0)  # its terminal state
+    agent.info_pub.publish(RLExperimentInfo(episode_number=9, number_actions=2))
+    assert agent.spin_until(lambda: len(agent.states) > count + 1, 20.0)
+    counts = totals(stop(env))
+    assert counts['episodes'] == 4
 
 
 @pytest.mark.parametrize(

@@ -13,6 +13,7 @@ setup(
             'share/' + package_name + '/config',
             [
                 'config/agent.yaml',
+                'config/bridge.yaml',
                 'config/environment.yaml',
                 'config/recorder.yaml',
                 'config/simulator.yaml',

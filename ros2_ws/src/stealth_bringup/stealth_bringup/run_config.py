@@ -31,9 +31,10 @@ from typing import Any
 
 import yaml
 
-# Start order; shutdown goes the other way round except that the recorder stops last.
-NODE_ORDER = ('recorder', 'simulator', 'environment', 'agent')
-STOP_ORDER = ('agent', 'environment', 'simulator', 'recorder')
+# Start order; shutdown goes the other way round except that the recorder stops last. The
+# bridge (to Foxglove) runs only with --watch.
+NODE_ORDER = ('recorder', 'bridge', 'simulator', 'environment', 'agent')
+STOP_ORDER = ('agent', 'environment', 'simulator', 'bridge', 'recorder')
 
 
 @dataclasses.dataclass(frozen=True)
@@ -48,6 +49,9 @@ class NodeSpec:
 
 NODES = {
     'recorder': NodeSpec('recorder', 'stealth_tools', 'recorder', 'MCAP recorder of every topic'),
+    'bridge': NodeSpec(
+        'bridge', 'stealth_tools', 'bridge', 'Foxglove WebSocket bridge of every topic (--watch)'
+    ),
     'simulator': NodeSpec(
         'simulator', 'stealth_sim', 'sim_node', 'robot, odometry, laser, localisation'
     ),

@@ -48,6 +48,10 @@ HOLD_START_DELAY = 3600.0
 DRAIN_TIME = 0.1  # s of taking in late reports before each node is stopped
 NAMING_TIME = 2.0  # s for the graph to name the node of a second action publisher
 LINGER_TIME = 30.0  # s a killed node's endpoints may stay on the graph (its DDS lease)
+# A restarted node talks UDP only: the killed process's Fast DDS shared-memory port stays mapped
+# by its peers (so it cannot be removed), and a new participant that takes over its port number
+# was seen to receive nothing.
+RESTARTED_ENVIRONMENT = {'FASTDDS_BUILTIN_TRANSPORTS': 'UDPv4'}
 
 
 class RunError(RuntimeError):
@@ -202,9 +206,9 @@ class Run:
             return {'start_delay': HOLD_START_DELAY}
         return {}
 
-    def _start(self, name: str, values: dict | None = None) -> None:
+    def _start(self, name: str, values: dict | None = None, env: dict | None = None) -> None:
         """Start a node with its parameters file and `values` on top (default: the values it
-        is held with at the run's start)."""
+        is held with at the run's start), `env` on top of the run's environment."""
         plan = self.plan
         params_file = plan.params_file(name).resolve()
         command = plan.commands[name] + plan.parameters[name].ros_args(params_file)
@@ -212,7 +216,7 @@ class Run:
         for key, value in values.items():
             command += ['-p', f'{key}:={ros_arg_value(value)}']
         try:
-            self.supervisor.start(name, command, niceness=NICENESS.get(name, 0))
+            self.supervisor.start(name, command, niceness=NICENESS.get(name, 0), env=env)
         except OSError as error:
             raise RunError(f'{name}: cannot start {command[0]}: {error.strerror}') from None
 
@@ -254,7 +258,7 @@ class Run:
             self.monitor.spin(0.05)  # reports still on their way come in meanwhile
         if self.signals.first is not None:
             return
-        self._start(name, self._restart_values(name, restart))
+        self._start(name, self._restart_values(name, restart), RESTARTED_ENVIRONMENT)
         new = self.supervisor.nodes[name]
 
         def alive() -> bool:
@@ -453,6 +457,11 @@ class Run:
                 self._release_first_episode()
         self.facts.startup_seconds = time.monotonic() - self.facts.started
         self.say(f'all nodes up after {self.facts.startup_seconds:.1f} s')
+        if self.plan.watch_port is not None:
+            self.say(
+                f'watch live: in Foxglove, Open connection > Foxglove WebSocket > '
+                f'ws://localhost:{self.plan.watch_port} (layout: docs/foxglove/stealth-nav.json)'
+            )
 
     def _release_first_episode(self) -> None:
         """Give the environment its configured start_delay back (it started on hold)."""

@@ -24,6 +24,7 @@ from pathlib import Path
 from matplotlib.figure import Figure  # no pyplot: no global state, no display (Agg)
 from matplotlib.lines import Line2D
 import numpy as np
+from stealth_env.planners import optimal_path  # noqa: F401 - where run_report takes it
 from stealth_env.reward import Outcome
 
 from stealth_bringup.episode_tracker import CSV_FIELDS, OUTCOMES, EpisodeRecord
@@ -258,18 +259,6 @@ def plot_learning_curve(
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, bbox_inches='tight')
     return path
-
-
-def optimal_path(scenario, goal: str):
-    """The value-iteration optimum on the move lattice: (points (n, 2), PathResult), or None."""
-    from stealth_env.planners import LatticeModel, follow, value_iteration, walk
-    from stealth_env.task import StealthTask
-
-    model = LatticeModel.build(StealthTask(scenario, goal))
-    optimum = value_iteration(model)
-    path = follow(model, lambda i: int(optimum.policy[i]))
-    result = walk(model, path)
-    return result.points, result
 
 
 def plot_paths(

@@ -10,6 +10,7 @@ import argparse
 from collections.abc import Sequence
 import contextlib
 import dataclasses
+import errno
 import json
 import math
 import os
@@ -133,8 +134,9 @@ def _common_options(parser: argparse.ArgumentParser, evaluating: bool = False) -
     parser.add_argument(
         '--watch',
         action='store_true',
-        help='simulate in real time (simulator real_time_factor 1, publish_rate 10) to watch '
-        'in Foxglove/RViz',
+        help='simulate in real time (simulator real_time_factor 1, publish_rate 10) and serve '
+        'the run to the Foxglove app: connect to ws://localhost:8765 (the bridge node; '
+        '--set bridge.port=N for another port)',
     )
     parser.add_argument(
         '--startup-timeout',
@@ -308,7 +310,7 @@ def _check_goal(scenario, goal: str | None, default: str | None = None) -> str:
 
 
 def _executables(
-    no_record: bool, replacements: list[str], remote: tuple[str, ...]
+    nodes: list[str], replacements: list[str], remote: tuple[str, ...]
 ) -> dict[str, list[str]]:
     """{node: command prefix} of the nodes started here; RunConfigError for an executable that
     is not there."""
@@ -321,6 +323,8 @@ def _executables(
             raise RunConfigError(
                 f'--executable {item!r}: expected NODE=PATH with NODE one of {", ".join(NODES)}'
             )
+        if node not in nodes:
+            raise RunConfigError(f'--executable {item!r}: this run has no {node} node')
         if node in remote:
             raise RunConfigError(
                 f'--executable {item!r}: {node} is --remote, started on the other host with '
@@ -328,8 +332,8 @@ def _executables(
             )
         given[node] = path
     commands = {}
-    for name in NODE_ORDER:
-        if (name == 'recorder' and no_record) or name in remote:
+    for name in nodes:
+        if name in remote:
             continue
         spec = NODES[name]
         if name in given:
@@ -376,6 +380,7 @@ class RunPlan:
     stall_timeout: float
     policy_path: Path
     record: bool
+    watch_port: int | None = None  # the bridge's port under --watch
     discovery: str = 'localhost'  # a key of DISCOVERY_RANGES
     remote: tuple[str, ...] = ()  # nodes that join from another host (not in `commands`)
     join_timeout: float = JOIN_TIMEOUT
@@ -448,11 +453,12 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
         episodes, eval_every, streak = _train_settings(args, continued)
     else:
         episodes, eval_every, streak = args.episodes, 0, 0
-    nodes = [n for n in NODE_ORDER if not (n == 'recorder' and args.no_record)]
+    left_out = {'recorder': args.no_record, 'bridge': not args.watch}
+    nodes = [n for n in NODE_ORDER if not left_out.get(n)]
     sources = params_sources(_defaults_dir(), params_dir and Path(params_dir), nodes)
     overrides = parse_set(args.overrides, nodes)
     remote = tuple(n for n in REMOTE_NODES if n in args.remote)
-    commands = _executables(args.no_record, args.executable, remote)
+    commands = _executables(nodes, args.executable, remote)
     hashes = _hashes(scenario)
 
     # The run's own values, on top of the parameter files.
@@ -464,6 +470,7 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
             run_values[node]['seed'] = args.seed
     if args.watch:  # real time, and the simulator's topics at a rate a viewer shows smoothly
         run_values['simulator'].update(real_time_factor=1.0, publish_rate=WATCH_PUBLISH_RATE)
+        run_values['environment']['publish_plan'] = True  # the optimum, for the 3D view
     elif _robot_interface(sources, run_values, overrides) == 'topics':
         run_values['simulator'].update(TOPICS_SIMULATOR)
     # Read the files before creating anything, so a bad one stops us with nothing to undo.
@@ -471,6 +478,9 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
         node: effective_parameters(node, sources[node], run_values[node], overrides.get(node, {}))
         for node in nodes
     }
+
+    if 'bridge' in parameters:
+        _check_port_free(parameters['bridge'].values)
 
     stamp = utc_stamp()
     # Episode numbers start at 0, or go on after a continued run's last one (agent and
@@ -531,6 +541,7 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
         stall_timeout=args.stall_timeout,
         policy_path=policy_path,
         record='recorder' in parameters,
+        watch_port=parameters['bridge'].values.get('port') if 'bridge' in parameters else None,
         discovery=args.discovery,
         remote=remote,
         join_timeout=args.join_timeout,
@@ -668,15 +679,35 @@ def declared_parameters(node: str) -> frozenset[str]:
     from stealth_agent import agent_parameters
     from stealth_env import env_parameters
     from stealth_sim import sim_parameters
-    from stealth_tools import recorder_parameters
+    from stealth_tools import bridge_parameters, recorder_parameters
 
     tables = {
         'recorder': recorder_parameters,
+        'bridge': bridge_parameters,
         'simulator': sim_parameters,
         'environment': env_parameters,
         'agent': agent_parameters,
     }
     return frozenset(tables[node].PARAMETERS) | ROS_OWN_PARAMETERS
+
+
+def _check_port_free(bridge: dict) -> None:
+    """The bridge's port must be free before anything starts (RunConfigError naming it)."""
+    import socket
+
+    from stealth_tools.bridge_core import DEFAULT_PORT, port_in_use_line
+
+    port, address = bridge.get('port', DEFAULT_PORT), bridge.get('address', '127.0.0.1')
+    with socket.socket() as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as the server binds
+        try:
+            probe.bind((address, int(port)))
+        except OSError as error:
+            if error.errno == errno.EADDRINUSE:
+                raise RunConfigError(
+                    'bridge: ' + port_in_use_line(port, '--set bridge.port=N')
+                ) from None
+            raise RunConfigError(f'bridge: cannot listen on {address}:{port}: {error}') from None
 
 
 def _robot_interface(sources, run_values, overrides) -> str:

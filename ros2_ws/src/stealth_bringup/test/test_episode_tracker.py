@@ -2,7 +2,7 @@
 
 import math
 
-from stealth_bringup.episode_tracker import OUTCOMES, Tracker
+from stealth_bringup.episode_tracker import OUTCOMES, Tracker, unfinished_fields
 
 
 def summary(episode, outcome='SUCCESS', steps=10, reward=1.0):
@@ -120,3 +120,23 @@ def test_a_continued_run_goes_on_with_the_earlier_episodes_and_streak():
     feed(tracker, 4, 'SUCCESS', True)
     assert tracker.stop_reason() == 'streak' and tracker.streak_start == 1
     assert feed(tracker, 3, 'SUCCESS', True) == []  # an episode counted before is not again
+
+
+def test_an_episode_whose_environment_died_is_rebuilt_from_its_steps():
+    steps = [(-1.0, 0.1, 4.0, 1.5, 2.0), (-1.0, 0.3, 3.5, 2.0, 2.0), (-2.0, 0.2, 3.0, 2.0, 2.5)]
+    fields = unfinished_fields(12, steps, (1.5, 1.5))
+    assert fields == {
+        'episode': 12,
+        'outcome': 'ABORTED',
+        'steps': 3,
+        'total_reward': -4.0,
+        'peak_visibility': 0.3,
+        'accumulated_visibility': fields['accumulated_visibility'],
+        'path_length': 1.5,
+        'final_distance_to_goal': 3.0,
+    }
+    assert math.isclose(fields['accumulated_visibility'], 0.6)
+    tracker = Tracker(budget=20)
+    (record,) = tracker.add_summary(fields, 5.0)  # complete without the agent's report
+    assert record.outcome == 'ABORTED' and math.isnan(record.epsilon)
+    assert unfinished_fields(3, [], (0.0, 0.0))['path_length'] == 0.0

@@ -2,6 +2,7 @@
 
 import json
 from pathlib import Path
+import socket
 
 import pytest
 from stealth_bringup.episode_tracker import EpisodeRecord, Tracker
@@ -167,3 +168,38 @@ def test_a_run_whose_scenario_changed_is_not_continued(tmp_path):
     with pytest.raises(RunConfigError, match=f'its scenario file {scenario} changed since the '
                        'run started'):  # fmt: skip
         resume(plan.directory)
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(('127.0.0.1', 0))
+        return probe.getsockname()[1]
+
+
+def test_watch_adds_the_foxglove_bridge_on_its_port(tmp_path):
+    plain = plan_of(runs_dir=tmp_path)
+    assert 'bridge' not in plain.nodes and plain.watch_port is None
+    port = free_port()
+    plan = plan_of('--watch', '--set', f'bridge.port={port}', runs_dir=tmp_path)
+    assert plan.nodes == ['recorder', 'bridge', 'simulator', 'environment', 'agent']
+    assert plan.commands['bridge'][0].endswith('/stealth_tools/bridge')
+    assert plan.watch_port == port
+    assert plan.parameters['simulator'].values['real_time_factor'] == 1.0
+
+
+def test_watch_with_the_bridge_port_in_use_is_one_line_naming_port_and_option(tmp_path):
+    with socket.socket() as taken:
+        taken.bind(('127.0.0.1', 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        with pytest.raises(RunConfigError) as error:
+            plan_of('--watch', '--set', f'bridge.port={port}', runs_dir=tmp_path)
+    message = str(error.value)
+    assert '\n' not in message and f'port {port} is in use' in message
+    assert message.endswith('--set bridge.port=N')
+    assert not (tmp_path / 'runs').exists()  # nothing was made
+
+
+def test_a_bridge_executable_without_watch_is_refused(tmp_path):
+    with pytest.raises(RunConfigError, match='this run has no bridge node'):
+        plan_of('--executable', 'bridge=/bin/true', runs_dir=tmp_path)

@@ -89,3 +89,20 @@ def test_last_line_and_exit_descriptions(tmp_path):
     assert last_line(tmp_path / 'missing.log') == ''
     assert exit_description(2) == 'exited with code 2'
     assert exit_description(-signal.SIGSEGV) == 'was killed by SIGSEGV'
+
+
+def test_a_restarted_node_keeps_the_dead_ones_log_and_counts_as_killed(supervisor):
+    first = supervisor.start('crash', [sys.executable, '-c', CRASH])
+    assert wait_for(lambda: supervisor.dead() == [first])
+    second = supervisor.start('crash', [sys.executable, '-c', CRASH])
+    assert supervisor.nodes['crash'] is second and supervisor.retired == [first]
+    assert wait_for(lambda: second in supervisor.dead())
+    lines = second.log_path.read_text().splitlines()
+    assert sum(line.startswith('[FATAL]') for line in lines) == 2
+    assert any(line.startswith('--- crash started again: ') for line in lines)
+    assert not supervisor.any_killed
+    killed = supervisor.start('polite', [sys.executable, '-c', POLITE])
+    killed.signal_group(signal.SIGKILL)
+    assert wait_for(lambda: not killed.alive)
+    supervisor.start('polite', [sys.executable, '-c', POLITE])
+    assert supervisor.any_killed  # an earlier process of a node counts too

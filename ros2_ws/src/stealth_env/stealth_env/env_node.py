@@ -9,8 +9,11 @@ step may be dropped silently):
   every action; ``rl_env/step_info`` (StepInfo) after every action; ``rl_env/episode_summary``
   (EpisodeSummary) at every episode end; ``searchlights`` (SearchlightArray, transient local)
   and ``searchlight_markers`` (visualization_msgs/MarkerArray, transient local): the lights
-  and the scene for RViz and Foxglove, again every ``marker_period`` while lights move or when
-  a new viewer subscribes;
+  and the scene for RViz and Foxglove, and ``visibility_grid`` (nav_msgs/OccupancyGrid,
+  transient local: the lit area as a costmap, 0-100 = total visibility as a percentage of the
+  detection threshold), again every ``marker_period`` while lights move or when a new viewer
+  subscribes; with ``publish_plan`` (on under ``stealth train --watch``), ``planned_path``
+  (nav_msgs/Path, transient local): value iteration's optimum on the move lattice, once;
 * subscribes ``rl_agent/rl_action`` (RLAction) and ``rl_agent/rl_experiment_info``
   (RLExperimentInfo);
 * StepInfo is built only while someone subscribes (a recorder, a viewer), as the simulator
@@ -63,6 +66,7 @@ the node with one line saying which and why, and exit code 2.
 
 from __future__ import annotations
 
+import array
 from collections import Counter
 import functools
 import math
@@ -70,8 +74,8 @@ import time
 from typing import Any, NamedTuple
 
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Point, Pose2D
-from nav_msgs.msg import OccupancyGrid
+from geometry_msgs.msg import Point, Pose2D, PoseStamped
+from nav_msgs.msg import OccupancyGrid, Path
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
@@ -90,7 +94,7 @@ from stealth_interfaces.msg import (
     StepInfo,
 )
 from stealth_interfaces.srv import ExecuteMove, ResetRobot, RestartEpisode
-from stealth_node_kit.conversions import quaternion_yaw, seconds, time_msg
+from stealth_node_kit.conversions import quaternion_yaw, seconds, time_msg, yaw_quaternion
 from stealth_node_kit.endpoints import (
     QUIET_PUBLISHER,
     QUIET_SUBSCRIPTION,
@@ -113,7 +117,13 @@ from stealth_env.episode_flow import (
     is_finite_pose,
 )
 from stealth_env.log_throttle import Throttle
-from stealth_env.markers import WallMap, any_moving, scene_markers, searchlight_fields
+from stealth_env.markers import (
+    WallMap,
+    any_moving,
+    scene_markers,
+    searchlight_fields,
+    visibility_levels,
+)
 from stealth_env.reward import Outcome
 from stealth_env.scenario import ScenarioError, load_scenario
 from stealth_env.task import StealthTask
@@ -165,6 +175,8 @@ TOPICS = {
     'restart': 'rl_env/restart_episode',
     'searchlights': 'searchlights',
     'markers': 'searchlight_markers',
+    'visibility_grid': 'visibility_grid',
+    'planned_path': 'planned_path',
 }
 MOVE_SERVICE = 'sim/execute_move'
 MARKER_KINDS = {
@@ -358,7 +370,8 @@ class EnvironmentNode(StartupNode):
         self._retry_at = 0.0
         self._waiting_logged = time.monotonic()
         self._window: list = []  # EpisodeSummaryFields since the last progress line
-        self._scene_published = {'searchlights': (-1.0, 0), 'markers': (-1.0, 0)}
+        scene = ('searchlights', 'markers', 'visibility_grid')
+        self._scene_published = dict.fromkeys(scene, (-1.0, 0))
         self._markers_cache: tuple[float, MarkerArray] | None = None
         self._move_note_log = Throttle(MOVE_NOTE_LOG_PERIOD)
         self._reset_failed_log = Throttle(RESET_FAILED_LOG_PERIOD)
@@ -382,6 +395,9 @@ class EnvironmentNode(StartupNode):
             SearchlightArray, TOPICS['searchlights'], LATCHED_QOS
         )
         self._markers_pub = self._quiet_publisher(MarkerArray, TOPICS['markers'], LATCHED_QOS)
+        self._grid_pub = self._quiet_publisher(
+            OccupancyGrid, TOPICS['visibility_grid'], LATCHED_QOS
+        )
         self._action_sub = self.create_subscription(
             RLAction,
             TOPICS['action'],
@@ -419,6 +435,8 @@ class EnvironmentNode(StartupNode):
         description = self.task.description(stochastic=True)
         self._description_pub.publish(description_msg(description))
         self._publish_scene(force=True)
+        if values['publish_plan']:
+            self._publish_plan()
         self._configured = True
         goal = self.task.goal
         self.get_logger().info(
@@ -607,6 +625,7 @@ class EnvironmentNode(StartupNode):
             )
         else:
             self.get_logger().info(gone)
+        return summary
 
     def _maybe_start(self, now: float) -> None:
         robot, agent = self._robot_ready(), self._agent_connected()
@@ -884,12 +903,14 @@ class EnvironmentNode(StartupNode):
         return t
 
     def _publish_scene(self, force: bool = False) -> None:
-        """SearchlightArray and markers: when lights moved since they were last sent, or when a
-        new subscriber came (a volatile viewer gets nothing from transient local)."""
+        """SearchlightArray, markers and the visibility grid: when lights moved since they were
+        last sent, or when a new subscriber came (a volatile viewer gets nothing from transient
+        local). Moving lights republish all three here, every marker_period: this is the hook."""
         t = self._scene_time() if self._moving_lights else 0.0
         for key, publisher, build in (
             ('searchlights', self._lights_pub, self._searchlights_msg),
             ('markers', self._markers_pub, self._markers_msg),
+            ('visibility_grid', self._grid_pub, self._visibility_grid_msg),
         ):
             subscribers = publisher.get_subscription_count()
             last_t, last_subscribers = self._scene_published[key]
@@ -906,6 +927,46 @@ class EnvironmentNode(StartupNode):
             specs = scene_markers(self.scenario, self.task.goal.name, t, self._walls)
             self._markers_cache = (t, marker_array_msg(specs, t))
         return self._markers_cache[1]
+
+    def _publish_plan(self) -> None:
+        """planned_path: value iteration's optimum from the start to the goal (frame map)."""
+        from stealth_env.planners import optimal_path
+
+        publisher = self._quiet_publisher(Path, TOPICS['planned_path'], LATCHED_QOS)
+        points, _ = optimal_path(self.scenario, self.task.goal.name)
+        plan = Path()
+        plan.header.frame_id = MAP_FRAME
+        for x, y in points:
+            pose = PoseStamped()
+            pose.header.frame_id = MAP_FRAME
+            pose.pose.position.x, pose.pose.position.y = float(x), float(y)
+            pose.pose.orientation.w = 1.0
+            plan.poses.append(pose)
+        publisher.publish(plan)
+
+    def _visibility_grid_msg(self, t: float) -> OccupancyGrid:
+        """The lit area at time t on the scenario's map grid: static lights' field from the disk
+        cache, moving lights' computed afresh (a cache file per time would only pile up)."""
+        from stealth_env.visibility import scenario_visibility, visibility_field
+
+        occupancy = self.scenario.map
+        if self._moving_lights:
+            total, _ = visibility_field(
+                occupancy.blocked, occupancy.resolution, occupancy.origin, self.scenario.lights, t
+            )
+        else:
+            total, _ = scenario_visibility(self.scenario)
+        grid = OccupancyGrid()
+        grid.header.stamp, grid.header.frame_id = time_msg(t), MAP_FRAME
+        grid.info.map_load_time = grid.header.stamp
+        grid.info.resolution = float(occupancy.resolution)
+        grid.info.width, grid.info.height = occupancy.width, occupancy.height
+        x, y, yaw = occupancy.origin
+        grid.info.origin.position.x, grid.info.origin.position.y = float(x), float(y)
+        grid.info.origin.orientation = yaw_quaternion(yaw)
+        levels = visibility_levels(total, self.scenario.detection_threshold)
+        grid.data = array.array('b', levels.tobytes())  # rows from the bottom, as /map
+        return grid
 
     # --- shutdown -------------------------------------------------------------------------------
 

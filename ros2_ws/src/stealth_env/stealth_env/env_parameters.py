@@ -35,6 +35,10 @@ PARAMETERS = {
         "agent's side of the DDS match (a writer sees a reader before the reader sees the "
         'writer, and a volatile first state sent in between is lost).', (0.0, 3600.0)
     ),
+    'publish_plan': Param(
+        False, 'Publish planned_path (nav_msgs/Path, latched): the optimum by value iteration '
+        'on the move lattice, for viewers; it takes a few seconds at startup.', read_only=True,
+    ),
     'log_every': Param(100, 'Log a progress line every this many episodes (0 = never).',
                        (0, 2**31 - 1)),
     'first_episode': Param(

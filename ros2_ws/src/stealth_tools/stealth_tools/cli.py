@@ -5,6 +5,7 @@ commands other packages add, so habits from a full ROS 2 install carry over.
     stealth topic list|echo|hz|info ...               # ros2 topic
     stealth interface show <pkg/msg/Type>             # ros2 interface show
     stealth bag record|play|info|recover ...          # ros2 bag (+ recover, as mcap recover)
+    stealth bridge [--port 8765] [--topics ...]       # foxglove_bridge, on foxglove-sdk's server
     stealth train|eval|render ...                     # added by stealth_bringup (see below)
 
 Other packages add commands as ros2cli's extension points add verbs: an entry point in the
@@ -28,7 +29,7 @@ from stealth_tools.errors import CommandError
 PROG = 'stealth'
 # Entry points of this group add commands: see the module docstring.
 COMMAND_GROUP = 'stealth.commands'
-OWN_COMMANDS = ('run', 'topic', 'interface', 'bag')
+OWN_COMMANDS = ('run', 'topic', 'interface', 'bag', 'bridge')
 QOS_PROFILES = (
     'unknown',
     'default',
@@ -75,6 +76,19 @@ def _spin_time(parser: argparse.ArgumentParser, default: float) -> None:
         help='at most this many seconds to wait for discovery (no ros2cli daemon here; '
         'default: %(default)s)',
     )
+
+
+def _discovery_arguments(parser: argparse.ArgumentParser, default_ms: int) -> None:
+    """How new topics are looked for (as ros2 bag record's options)."""
+    parser.add_argument(
+        '-p',
+        '--polling-interval',
+        type=_positive_int,
+        default=default_ms,
+        metavar='MS',
+        help='discovery period for new topics, in ms (default: %(default)s)',
+    )
+    parser.add_argument('--include-hidden-topics', action='store_true', help='hidden ones too')
 
 
 def _timeout(parser: argparse.ArgumentParser, help_text: str) -> None:
@@ -328,6 +342,7 @@ def bag_play(args, stop) -> int:
         loop=args.loop,
         start_offset=args.start_offset,
         delay=args.delay,
+        bridge_port=args.bridge_port if args.bridge else 0,
     )
     return play_bag(options, stop)
 
@@ -405,15 +420,7 @@ def _add_bag(commands) -> None:
         metavar='BYTES',
         help='close a chunk at this size (default: %(default)s)',
     )
-    parser.add_argument(
-        '-p',
-        '--polling-interval',
-        type=_positive_int,
-        default=200,
-        metavar='MS',
-        help='discovery period for new topics, in ms (default: %(default)s)',
-    )
-    parser.add_argument('--include-hidden-topics', action='store_true', help='hidden ones too')
+    _discovery_arguments(parser, 200)
     parser.set_defaults(handler=bag_record)
 
     parser = verbs.add_parser(
@@ -453,6 +460,19 @@ def _add_bag(commands) -> None:
         metavar='S',
         help='wait S seconds (for subscribers to connect) before playing',
     )
+    parser.add_argument(
+        '--bridge',
+        action='store_true',
+        help='also serve the played topics to the Foxglove app (ws://localhost:8765; as '
+        '`stealth bridge`)',
+    )
+    parser.add_argument(
+        '--bridge-port',
+        type=_port,
+        default=8765,
+        metavar='PORT',
+        help='the port of --bridge (default: %(default)s)',
+    )
     parser.set_defaults(handler=_in_ros(bag_play))
 
     parser = verbs.add_parser(
@@ -481,6 +501,57 @@ def _add_bag(commands) -> None:
         '--compression', choices=COMPRESSIONS, default='zstd', help='chunk compression'
     )
     parser.set_defaults(handler=bag_recover)
+
+
+# --- bridge ------------------------------------------------------------------------------------
+
+
+def _port(text: str) -> int:
+    value = int(text)
+    if not 1 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f'{text} is not a TCP port (1-65535)')
+    return value
+
+
+def bridge_command(args) -> int:
+    from rclpy.parameter import Parameter
+
+    from stealth_tools.bridge import serve
+
+    overrides = [
+        Parameter('port', value=args.port),
+        Parameter('address', value=args.address),
+        Parameter('discovery_period', value=args.polling_interval / 1000.0),
+        Parameter('include_hidden_topics', value=args.include_hidden_topics),
+    ]
+    if args.topics:
+        overrides.append(Parameter('topics', value=list(args.topics)))
+    return serve(overrides, '--port N', f'{PROG} bridge')
+
+
+def _add_bridge(commands) -> None:
+    parser = commands.add_parser(
+        'bridge',
+        help="Relay the graph's topics to the Foxglove app (as foxglove_bridge)",
+        description='Serve the ROS graph of this domain to the Foxglove app, as foxglove_bridge '
+        "does, on Foxglove's own WebSocket server: in Foxglove, Open connection > Foxglove "
+        'WebSocket > ws://localhost:PORT. Channels are CDR with ros2msg schemas; latched topics '
+        'reach clients that connect late; /clock drives the timeline. Stop with Ctrl-C.',
+    )
+    parser.add_argument(
+        '--port', type=_port, default=8765, help='TCP port to listen on (default: %(default)s)'
+    )
+    parser.add_argument(
+        '--address',
+        default='127.0.0.1',
+        help='address to listen on; 0.0.0.0 for a Foxglove app on another machine '
+        '(default: %(default)s)',
+    )
+    parser.add_argument(
+        '--topics', nargs='+', default=[], metavar='topic', help='only these (default: all)'
+    )
+    _discovery_arguments(parser, 500)
+    parser.set_defaults(handler=bridge_command)
 
 
 # --- commands other packages add ---------------------------------------------------------------
@@ -555,6 +626,7 @@ def build_parser(added: dict[str, tuple[str, str, str]] | None = None) -> argpar
     _add_topic(commands)
     _add_interface(commands)
     _add_bag(commands)
+    _add_bridge(commands)
     _add_delegates(commands, added)
     return parser
 

@@ -41,6 +41,7 @@ class PlayOptions:
     loop: bool = False
     start_offset: float = 0.0  # s into the bag
     delay: float = 0.0  # s to wait (for discovery) before the first message
+    bridge_port: int = 0  # > 0: serve the played topics to Foxglove on this port (--bridge)
 
 
 class _Publishers:
@@ -191,16 +192,53 @@ def play(node, options: PlayOptions, stop: threading.Event) -> int:
 
 
 def play_bag(options: PlayOptions, stop: threading.Event) -> int:
-    """`bag play` in an initialised rclpy session: a node, the playback, cleanup."""
+    """`bag play` in an initialised rclpy session: a node, the playback, cleanup; with
+    `bridge_port`, the Foxglove bridge beside it (its own executor, in a thread)."""
     import rclpy
 
     node = rclpy.create_node('player', enable_rosout=False)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
+    bridge = _start_bridge(options.bridge_port, stop) if options.bridge_port else None
     try:
         count = play(node, options, stop)
         node.get_logger().info(f'Published {count} messages')
     finally:
         executor.shutdown()
         node.destroy_node()
+        if bridge is not None:
+            bridge()
     return 0
+
+
+def _start_bridge(port: int, stop: threading.Event):
+    """The bridge node spinning in a thread; the function that stops it."""
+    from rclpy.parameter import Parameter
+    from stealth_node_kit.parameters import StartupError
+
+    from stealth_tools.bridge import Bridge
+    from stealth_tools.ros_session import spin_until
+
+    try:
+        bridge = Bridge(
+            port_option='--bridge-port PORT',
+            parameter_overrides=[Parameter('port', value=port)],
+        )
+    except StartupError as error:
+        raise BagError(f'--bridge: {error}') from None
+    executor = SingleThreadedExecutor()
+    executor.add_node(bridge)
+    done = threading.Event()
+    thread = threading.Thread(
+        target=spin_until, args=(executor, done, stop.is_set), name='bridge', daemon=True
+    )
+    thread.start()
+
+    def finish() -> None:
+        done.set()
+        thread.join()
+        bridge.close()
+        executor.shutdown()
+        bridge.destroy_node()
+
+    return finish
