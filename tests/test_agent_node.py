@@ -377,6 +377,39 @@ def test_eval_every_makes_every_mth_episode_greedy_and_reports_it(env, node_proc
     assert 'greedy evaluation, episode 2 (after 2 learning episodes)' in log
 
 
+def test_a_late_summary_is_waited_for_while_the_environment_is_there(env, node_processes):
+    """A summary later than summary_wait (a loaded machine) still decides how the episode is
+    learned: the agent warns and keeps waiting. Only when the environment's summary publisher
+    is gone does it learn the terminal state as terminal."""
+    reports: list[AgentEpisodeInfo] = []
+    env.node.create_subscription(AgentEpisodeInfo, 'rl_agent/episode_info', reports.append, RL_QOS)
+    env.describe()
+    agent = start_agent(node_processes, 'agent_late_summary', summary_wait=0.5, epsilon=0.0)
+    wait_for_log(agent, f"environment '{TITLE}'")
+    env.wait_for_agent()
+    env.report_outcomes()
+    env.send([0.0], FIRST_REWARD)
+    assert env.answer() is not None
+    env.send([1.0], -1.0, terminal=True)
+    assert env.experiment_info(timeout=2.0) is None, 'the agent stopped waiting for the summary'
+    log = wait_for_log(agent, 'still waiting for the EpisodeSummary of episode 0', count=2)
+    assert 'learned as terminal' not in log
+    env.summarise(0, EpisodeSummary.TIMEOUT, 1)
+    assert env.experiment_info() is not None
+    assert env.spin_until(lambda: reports, 5.0)
+    assert reports[0].ending == AgentEpisodeInfo.END_TRUNCATED  # as the late summary said
+    # The environment's summary publisher goes away while a terminal state waits.
+    env.send([0.0], FIRST_REWARD)
+    assert env.answer() is not None
+    env.send([1.0], -1.0, terminal=True)
+    wait_for_log(agent, 'still waiting for the EpisodeSummary of episode 1')
+    env.node.destroy_publisher(env.summary_pub)
+    assert env.experiment_info(timeout=10.0) is not None
+    assert env.spin_until(lambda: len(reports) == 2, 5.0)
+    assert reports[1].ending == AgentEpisodeInfo.END_TERMINAL
+    wait_for_log(agent, 'without its EpisodeSummary; learned as terminal')
+
+
 @pytest.mark.parametrize(
     ('timeout_is_terminal', 'expected_q'), [(False, -1.0 + 0.5 * 10.0), (True, -1.0)]
 )

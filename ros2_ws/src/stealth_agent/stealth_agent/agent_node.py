@@ -6,8 +6,12 @@ rl_agent/episode_info (stealth_interfaces/AgentEpisodeInfo: greedy or not, epsil
 every terminal state. An environment that also publishes stealth_interfaces/EpisodeSummary
 (stealth_env does) tells the agent how each episode ended: a TIMEOUT is then a truncation, not a
 terminal state (the last update bootstraps from the final state, so the agent does not learn
-that running out of time is cheap), and an ABORTED episode teaches nothing. A plain rl_msgs
-environment, with no summary publisher, gets rl_agent's behaviour.
+that running out of time is cheap), and an ABORTED episode teaches nothing. A terminal state
+waits for its summary as long as the environment (a summary publisher) is there, with a warning
+every summary_wait seconds: a summary that is only late, on a loaded machine, never turns into a
+guess, so the same seed learns the same episodes whatever the load. Only when no publisher is
+left is the state learned as terminal. A plain rl_msgs environment, with no summary publisher,
+gets rl_agent's behaviour.
 
 With eval_every M > 0, every M-th episode of a learning run is a greedy
 evaluation (epsilon 0, no updates, the schedules stand still), so an experiment can watch the
@@ -21,10 +25,12 @@ message skipped; the node stays up and the table is never touched by a rejected 
 
 from collections import Counter
 import pathlib
+import time
 
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from stealth_interfaces.msg import (
@@ -54,6 +60,7 @@ from .protocol import (
     EpisodeEndMatcher,
     ProtocolAgent,
     ResolvedEnd,
+    SummaryWait,
     format_progress,
     is_greedy_episode,
     parse_description,
@@ -76,6 +83,9 @@ DESCRIPTION_QOS = QoSProfile(
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 FLOAT32_MAX = float(np.finfo(np.float32).max)
+# s of wall time between checks, while a terminal state waits for its summary, that the
+# environment is still there (only its leaving ends the wait; see SummaryWait).
+SUMMARY_CHECK_PERIOD = 0.5
 OUTCOME_NAMES = {
     EpisodeSummary.SUCCESS: 'success',
     EpisodeSummary.DETECTED: 'detected',
@@ -179,7 +189,12 @@ class AgentNode(Node):
                 RL_QOS,
                 event_callbacks=QUIET_SUBSCRIPTION,
             )
-        self._summary_timer = self.create_timer(self._param('summary_wait'), self._summary_late)
+        self._summary_wait = SummaryWait(self._param('summary_wait'))
+        self._summary_timer = self.create_timer(
+            min(SUMMARY_CHECK_PERIOD, self._param('summary_wait')),
+            self._check_summary_wait,
+            clock=Clock(clock_type=ClockType.STEADY_TIME),
+        )
         self._summary_timer.cancel()
         mode = 'evaluating (greedy, no learning)' if self._param('evaluate') else 'learning'
         self.get_logger().info(
@@ -311,7 +326,7 @@ class AgentNode(Node):
             return
         aborted = self._core.abort()
         self._endings.new_episode()
-        self._summary_timer.cancel()
+        self._stop_waiting()
         note = f'; dropped the episode in progress ({aborted.actions} actions)' if aborted else ''
         log.warning(
             f'environment description received again (environment restarted?); '
@@ -444,22 +459,41 @@ class AgentNode(Node):
             return
         resolved = self._endings.terminal(msg.state, msg.reward, self._core.number_actions)
         if resolved is None:
+            self._summary_wait.start(time.monotonic())
             self._summary_timer.reset()
         else:
             self._end_episode(resolved)
 
-    def _summary_late(self) -> None:
-        self._summary_timer.cancel()
-        resolved = self._endings.give_up()
-        if resolved is not None:
+    def _check_summary_wait(self) -> None:
+        """While a terminal state waits: give up only when no environment is left to send the
+        summary (a slow one is waited for: wall time must not change what is learned)."""
+        now = time.monotonic()
+        waited = self._summary_wait.waited(now)
+        verdict = self._summary_wait.tick(now, self._environment_reports_endings())
+        if verdict == 'warn':
             self.get_logger().warning(
-                f'no EpisodeSummary within summary_wait ({self._param("summary_wait")} s) of '
-                'the terminal state; learned as terminal'
+                f'still waiting for the EpisodeSummary of episode {self._core.episode} '
+                f'({waited:.0f} s after its terminal state); the environment is there, so the '
+                'agent keeps waiting (a stuck environment needs a restart)'
             )
-            self._end_episode(resolved)
+        elif verdict == 'give up':
+            self._summary_timer.cancel()
+            resolved = self._endings.give_up()
+            if resolved is not None:
+                self.get_logger().warning(
+                    f'the environment left {waited:.1f} s after the terminal state of episode '
+                    f'{self._core.episode}, without its EpisodeSummary; learned as terminal'
+                )
+                self._end_episode(resolved)
+        elif not self._endings.waiting:
+            self._stop_waiting()
+
+    def _stop_waiting(self) -> None:
+        self._summary_timer.cancel()
+        self._summary_wait.stop()
 
     def _end_episode(self, resolved: ResolvedEnd) -> None:
-        self._summary_timer.cancel()
+        self._stop_waiting()
         ending = resolved.ending
         if ending is Ending.TRUNCATED and self._param('timeout_is_terminal'):
             ending = Ending.TERMINATED

@@ -95,8 +95,9 @@ PARAMETERS = {
     ),
     'summary_wait': Param(
         5.0,
-        'Seconds a terminal state waits for its EpisodeSummary (when a summary publisher '
-        'exists) before it is learned as terminal.',
+        'Seconds between warnings while a terminal state waits for its EpisodeSummary. It '
+        'waits as long as a summary publisher (the environment) exists, so a late summary '
+        'never changes what is learned; with none left it is learned as terminal.',
         bounds=(0.01, 3600.0),
         read_only=True,
     ),

@@ -23,10 +23,12 @@ Services ``sim/execute_move`` and ``sim/reset`` (stealth_interfaces) run the mot
 
 Time is simulated. A move runs as fast as the CPU allows when ``real_time_factor`` is 0, or
 held to that multiple of wall time. Between moves, simulated time flows at the real-time factor
-(at 1x for teleoperation when the factor is 0; with no command and the robot at rest it then
-stands still, so training wastes no CPU). The periodic topics go out at ``publish_rate`` Hz of
-simulated time, and only when someone subscribes: publishing every physics step would slow
-training down.
+(at 1x for teleoperation when the factor is 0). With the factor 0 and no ``cmd_vel`` since the
+last move or reset it stands still, so training wastes no CPU and a seeded run of moves is the
+same whatever the load: no physics step, random draw or clock tick ever happens because wall
+time passed (:mod:`stealth_sim.idle_time`). The periodic topics go out at ``publish_rate`` Hz
+of simulated time, and only when someone subscribes: publishing every physics step would slow
+training down; they draw their scan noise from a stream of their own.
 """
 
 import ctypes
@@ -64,6 +66,7 @@ from stealth_sim.frames import (
     FrameTransform,
     robot_transforms,
 )
+from stealth_sim.idle_time import idle_tick
 from stealth_sim.kinematics import Limits, Pose
 from stealth_sim.laser import LaserConfig
 from stealth_sim.localisation import FilterConfig
@@ -73,7 +76,6 @@ from stealth_sim.odometry_noise import MotionNoise
 from stealth_sim.sim_parameters import PARAMETERS, START_UP
 from stealth_sim.simulator import SimConfig, Simulator, most_open_pose
 
-MAX_CATCH_UP = 0.25  # s of simulated time an idle tick may run before the clock is re-anchored
 # Indices of x, y and yaw in a row-major 6x6 pose covariance (x, y, z, roll, pitch, yaw).
 POSE_COVARIANCE_AXES = (0, 1, 5)
 
@@ -193,6 +195,7 @@ class SimulatorNode(StartupNode):
         self.idle_period = values['idle_period']
         self._command: tuple[float, float] | None = None
         self._command_time = 0.0
+        self._held = True  # left in place by a move or reset: time stands still (idle_time)
         self._next_publish = 0.0
         self._published_updates = self.sim.localisation_updates
         self._pacer = RealTimePacer(self.sim.time)
@@ -343,18 +346,20 @@ class SimulatorNode(StartupNode):
         return self._command
 
     def _on_idle_tick(self) -> None:
-        """Between moves: simulated time runs at the real-time factor under /cmd_vel."""
-        command = self._fresh_command()
-        at_rest = self.sim.state.linear == 0.0 and self.sim.state.angular == 0.0
-        if self.real_time_factor == 0.0 and command is None and at_rest:
-            self._pacer.anchor(self.sim.time)  # training: time stands still between moves
-            return
-        rate = self.real_time_factor or 1.0
-        due = self._pacer.due(rate)
-        if due - self.sim.time > MAX_CATCH_UP:  # fell behind (a busy machine): do not race
+        """Between moves: simulated time runs at the real-time factor under /cmd_vel, and
+        stands still in training (see stealth_sim.idle_time: never on wall time alone)."""
+        tick = idle_tick(
+            self.sim.time,
+            self._pacer.due(self.real_time_factor or 1.0),
+            real_time_factor=self.real_time_factor,
+            commanded=self._fresh_command() is not None,
+            moving=self.sim.state.linear != 0.0 or self.sim.state.angular != 0.0,
+            held=self._held,
+            idle_period=self.idle_period,
+        )
+        if tick.anchor:
             self._pacer.anchor(self.sim.time)
-            due = self.sim.time + self.idle_period * rate
-        while self.sim.time + self.sim.config.physics_dt <= due + 1e-9:
+        while self.sim.time + self.sim.config.physics_dt <= tick.until + 1e-9:
             linear, angular = self._fresh_command() or (0.0, 0.0)
             if self.sim.step(linear, angular):
                 self.get_logger().info('bumped into a wall', throttle_duration_sec=1.0)
@@ -373,6 +378,7 @@ class SimulatorNode(StartupNode):
             return
         self._command = (linear, angular)
         self._command_time = self.sim.time
+        self._held = False
 
     def _on_initial_pose(self, message: PoseWithCovarianceStamped) -> None:
         if message.header.frame_id not in ('', MAP_FRAME):
@@ -400,6 +406,7 @@ class SimulatorNode(StartupNode):
         self._pacer.anchor(self.sim.time)
         result = execute_move(self.sim, move, on_step=self._move_step, step_stops=self._move_stops)
         self._command = None
+        self._held = True
         self._pacer.anchor(self.sim.time)
         if result.outcome == Outcome.REJECTED:
             self.get_logger().warning(f'move rejected: {result.message}')
@@ -423,6 +430,7 @@ class SimulatorNode(StartupNode):
             response.success, response.message = False, str(exc)
             return response
         self._command = None
+        self._held = True
         self._pacer.anchor(self.sim.time)
         self._publish_state(everything=True)
         response.success, response.message = True, ''

@@ -385,6 +385,23 @@ def bag_recover(args) -> int:
     return 0
 
 
+def bag_compare(args) -> int:
+    from stealth_tools.rl_compare import complete_episodes, first_difference, read_rl_topics
+
+    first, second = read_rl_topics(args.first), read_rl_topics(args.second)
+    count = args.episodes
+    if count is None:
+        count = min(complete_episodes(first), complete_episodes(second))
+        if count == 0:
+            raise CommandError('no complete episode to compare (a recording holds none)')
+    difference = first_difference(first, second, count)
+    if difference is not None:
+        print(difference)
+        return 1
+    print(f'the first {count} episodes are the same, message for message')
+    return 0
+
+
 def _add_bag(commands) -> None:
     bag = commands.add_parser(
         'bag', help='Various rosbag related sub-commands', description='ros2 bag, MCAP only.'
@@ -501,6 +518,24 @@ def _add_bag(commands) -> None:
         '--compression', choices=COMPRESSIONS, default='zstd', help='chunk compression'
     )
     parser.set_defaults(handler=bag_recover)
+
+    parser = verbs.add_parser(
+        'compare',
+        help="Compare two recordings' RL episodes message for message",
+        description='Compare the RL topics of two recordings (rl_state_reward, rl_action, '
+        'step_info, episode_summary, rl_experiment_info, episode_info), stamps aside, over '
+        'their first complete episodes: two runs with the same seed and settings must match. '
+        'Prints the first message that differs (exit status 1) or that they are the same (0).',
+    )
+    parser.add_argument('first', help='bag directory or .mcap file (e.g. runs/<name>)')
+    parser.add_argument('second', help='the other bag directory or .mcap file')
+    parser.add_argument(
+        '--episodes',
+        metavar='N',
+        type=_positive_int,
+        help='compare the first N episodes (default: as many as both hold complete)',
+    )
+    parser.set_defaults(handler=bag_compare)
 
 
 # --- bridge ------------------------------------------------------------------------------------
