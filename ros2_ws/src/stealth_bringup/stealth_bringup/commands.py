@@ -27,4 +27,9 @@ COMMANDS = {
         'main',
         'Sweep learners x scenarios x seeds x hyperparameters on Ray (local or a cluster).',
     ),
+    'doctor': (
+        'stealth_bringup.doctor',
+        'main',
+        'Check and tidy what earlier runs left: /dev/shm files, domains, processes, the build.',
+    ),
 }

@@ -35,12 +35,11 @@ import time
 from rclpy.clock import Clock, ClockType
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from stealth_node_kit.parameters import Param, StartupError, declare_parameters
+from stealth_node_kit.parameters import StartupError, declare_parameters
 from stealth_node_kit.running import StartupNode, run_node
 
 from stealth_tools.bridge_core import (
     CLOCK_TOPIC,
-    DEFAULT_PORT,
     MESSAGE_ENCODING,
     SCHEMA_ENCODING,
     ClientSubscriptions,
@@ -51,6 +50,7 @@ from stealth_tools.bridge_core import (
     relay_policies,
     wanted_topic,
 )
+from stealth_tools.bridge_parameters import PARAMETERS
 from stealth_tools.ros_session import (
     absolute_topic,
     describe_qos,
@@ -65,17 +65,6 @@ EVENT_PERIOD = 0.05  # s: how soon a client's (un)subscription is acted on
 WALL_TIME_PERIOD = 0.1  # s between server time broadcasts while no /clock is published
 SDK_LOGGER = 'foxglove'  # the Python logger the SDK's server logs to
 
-PARAMETERS = {
-    'port': Param(DEFAULT_PORT, 'TCP port of the WebSocket server: the Foxglove app connects '
-                  'to ws://localhost:PORT.', (1, 65535), read_only=True),
-    'address': Param('127.0.0.1', 'Address the server listens on (0.0.0.0: every interface, '
-                     'for a Foxglove app on another machine).', read_only=True),
-    'topics': Param(Parameter.Type.STRING_ARRAY, 'Topics to relay (/clock always is); unset: '
-                    'every topic with publishers.', read_only=True),
-    'discovery_period': Param(0.5, 'Seconds (steady) between looks for new topics.',
-                              (0.05, 60.0), read_only=True),
-    'include_hidden_topics': Param(False, 'Relay hidden topics (_name) too.', read_only=True),
-}  # fmt: skip
 PORT_OPTION = '-p port:=N (stealth train: --set bridge.port=N)'
 
 

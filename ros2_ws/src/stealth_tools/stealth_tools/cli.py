@@ -351,10 +351,10 @@ def bag_info(args) -> int:
     from stealth_tools.bag_reading import format_bag_info, read_bag_info
 
     info = read_bag_info(args.bag_path)
-    if not info.indexed:
+    for path in info.unindexed:
         print(
-            f'warning: {info.path} was not closed (no summary); numbers come from a scan. '
-            f'`stealth bag recover {info.path}` writes an indexed copy.',
+            f'warning: {path} was not closed (no summary); numbers come from a scan. '
+            f'`stealth bag recover {path}` writes an indexed copy.',
             file=sys.stderr,
         )
     if args.topic_name:
@@ -365,10 +365,23 @@ def bag_info(args) -> int:
 
 
 def bag_recover(args) -> int:
+    from stealth_tools.bag_files import bag_files
+    from stealth_tools.bag_reading import read_bag_info
     from stealth_tools.bag_recover import recover
 
-    output, report = recover(args.bag_path, args.output, compression=args.compression)
-    print(f'{output}: {report.summary()}')
+    files = bag_files(args.bag_path)
+    if len(files) > 1:  # a split bag: every file that was never closed
+        if args.output:
+            raise CommandError(
+                f'{args.bag_path} holds {len(files)} files; -o names the copy of one: '
+                'give that file instead of the directory'
+            )
+        files = [f for f in files if not read_bag_info(f).indexed]
+        if not files:
+            print(f'{args.bag_path}: every file is complete and indexed; nothing to recover')
+    for file in files:
+        output, report = recover(file, args.output, compression=args.compression)
+        print(f'{output}: {report.summary()}')
     return 0
 
 
@@ -432,7 +445,9 @@ def _add_bag(commands) -> None:
         help='Play back ROS data from a bag',
         description='Publish the messages of a bag with their original timing and QoS.',
     )
-    parser.add_argument('bag_path', help='bag directory or .mcap file')
+    parser.add_argument(
+        'bag_path', help='bag directory (a run directory: all its recording files) or .mcap file'
+    )
     parser.add_argument(
         '-r', '--rate', type=_positive_float, default=1.0, help='playback rate factor'
     )
@@ -482,7 +497,9 @@ def _add_bag(commands) -> None:
         help='Print information about a bag to the screen',
         description="Print a bag's files, size, duration, start, end and topics with counts.",
     )
-    parser.add_argument('bag_path', help='bag directory or .mcap file')
+    parser.add_argument(
+        'bag_path', help='bag directory (a run directory: all its recording files) or .mcap file'
+    )
     parser.add_argument('-t', '--topic-name', action='store_true', help='only the topic names')
     parser.set_defaults(handler=bag_info)
 
@@ -492,7 +509,10 @@ def _add_bag(commands) -> None:
         description='Salvage every readable record of an MCAP that was not closed (SIGKILL, '
         'power loss) into a new complete, indexed file.',
     )
-    parser.add_argument('bag_path', help='bag directory or .mcap file')
+    parser.add_argument(
+        'bag_path',
+        help='bag directory or .mcap file (a directory: each of its files that was not closed)',
+    )
     parser.add_argument('-o', '--output', help='output file (default: <input>.recovered.mcap)')
     parser.add_argument(
         '--compression', choices=COMPRESSIONS, default='zstd', help='chunk compression'

@@ -33,6 +33,7 @@ from stealth_tools.bag_format import (
     BagWriter,
 )
 from stealth_tools.qos_text import subscription_policies
+from stealth_tools.recorder_parameters import SETTINGS
 from stealth_tools.ros_session import (
     absolute_topic,
     describe_qos,
@@ -106,15 +107,7 @@ class Recorder(Node):
         defaults = RecorderSettings()
         self.declare_parameter('topics', Parameter.Type.STRING_ARRAY)
         values = {
-            name: self.declare_parameter(name, getattr(defaults, name)).value
-            for name in (
-                'output',
-                'discovery_period',
-                'max_chunk_duration',
-                'chunk_size',
-                'compression',
-                'include_hidden_topics',
-            )
+            name: self.declare_parameter(name, getattr(defaults, name)).value for name in SETTINGS
         }
         if values['discovery_period'] <= 0:
             raise InvalidParameterValueException(
