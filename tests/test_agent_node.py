@@ -222,6 +222,9 @@ def test_agent_learns_reports_episodes_and_saves_a_reloadable_policy(
         assert (steps, total, info.episode_number) == (GOAL, 4 * -1.0 + 10.0, number)
     stop(evaluator)
     assert policy_file.read_bytes() == saved
+    # Its own totals: a first state and one per action in each episode, no action after the end.
+    totals = f'totals: {5 * (GOAL + 1)} states received, {5 * GOAL} actions sent'
+    assert totals in evaluator.log_path.read_text()
 
     # Resume learning from the file; named outcomes come from the optional EpisodeSummary.
     env.wait_for_no_agent()

@@ -138,6 +138,8 @@ class AgentNode(Node):
         self._window = []
         self._named_outcomes = Counter()
         self._out_of_range = 0
+        self._states_received = 0  # for the shutdown totals, as the environment logs its own
+        self._actions_sent = 0
         self._declared = False
         self._endings = EpisodeEndMatcher()
         self._summary_sub = None
@@ -407,6 +409,7 @@ class AgentNode(Node):
 
     def _on_state(self, msg: RLStateReward) -> None:
         log = self.get_logger()
+        self._states_received += 1
         if self._core is None:
             if self._description is None:
                 log.warning(
@@ -441,6 +444,7 @@ class AgentNode(Node):
                 log.warning(f'{note} ({self._out_of_range} so far); it gets its own table row')
         if step.action is not None:
             self._action_pub.publish(RLAction(action=step.action))
+            self._actions_sent += 1
         if step.result is not None:
             self._episode_done(step.result)
 
@@ -559,14 +563,24 @@ class AgentNode(Node):
 
     # --- policy file -------------------------------------------------------------------------
 
+    def finish(self) -> None:
+        """At exit: the totals (what a lost or doubled message would show in), then save."""
+        self._exit_logger().info(
+            f'totals: {self._states_received} states received, {self._actions_sent} actions sent'
+        )
+        self.save('shutdown')
+
+    def _exit_logger(self):
+        """After Ctrl-C the context is already shut down and /rosout cannot take the message."""
+        return self.get_logger() if self.context.ok() else rclpy.logging.get_logger('agent.exit')
+
     def save(self, reason: str) -> bool:
         """Save the learned policy atomically, if learning with a policy file."""
         path = self._param('policy_file')
         if self._core is None or not self._learning_run or not path:
             return False
         learner, index = self._core.learner, self._core.index
-        # After Ctrl-C the context is already shut down and /rosout cannot take the message.
-        log = self.get_logger() if self.context.ok() else rclpy.logging.get_logger('agent.exit')
+        log = self._exit_logger()
         try:
             save_policy(
                 path,
@@ -593,7 +607,7 @@ def _ending_of(result) -> Ending:
 
 
 def main(args=None) -> int:
-    return run_node(AgentNode, 'agent', args=args, on_exit=lambda node: node.save('shutdown'))
+    return run_node(AgentNode, 'agent', args=args, on_exit=AgentNode.finish)
 
 
 if __name__ == '__main__':
