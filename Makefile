@@ -35,6 +35,9 @@ help: ## List the targets
 # Foxglove's MCAP libraries, for tests/test_bag_compat.py only (make run does not need node).
 JS_CHECK := tools/mcap-js-check
 JS_STAMP := $(STAMPS)/mcap-js-$(call hash_files,$(JS_CHECK)/package.json $(JS_CHECK)/package-lock.json $(JS_CHECK)/.npmrc)
+# A Foxglove WebSocket client (ws + Foxglove's CDR decoder), for tests/test_bridge.py only.
+WS_CHECK := tools/foxglove-ws-check
+WS_STAMP := $(STAMPS)/foxglove-ws-$(call hash_files,$(WS_CHECK)/package.json $(WS_CHECK)/package-lock.json $(WS_CHECK)/.npmrc)
 
 setup: $(BUILD_STAMP) ## Create .venv from pinned wheels and colcon-build ros2_ws (only what changed)
 
@@ -51,6 +54,9 @@ $(VENV_STAMP):
 	@VIRTUAL_ENV=$(VENV) $(VENV)/bin/uv pip install --quiet --python $(PYTHON) \
 		-r requirements.in -c requirements.lock
 	@$(PYTHON) scripts/fix_ros_wheels.py
+	@# Ray starts Python agents per node that must report within Ray's timeouts; compiling them
+	@# from source at every start (uv installs no bytecode) missed those on a busy 2-core host.
+	@$(PYTHON) -m compileall -q -j 0 "$$($(PYTHON) -c 'import os, ray; print(os.path.dirname(ray.__file__))')" > /dev/null
 	@mkdir -p $(STAMPS) && rm -f $(STAMPS)/venv-* && echo "$@" > $@
 
 build: $(BUILD_STAMP) ## colcon build the workspace (symlink install)
@@ -78,7 +84,7 @@ test-packages: setup ## colcon test: each package's pytest suite
 		--pytest-args -q -p no:cacheprovider || rc=$$?; \
 	colcon test-result --verbose || rc=1; exit $$rc
 
-test-system: setup $(JS_STAMP) ## The top-level system tests in tests/
+test-system: setup $(JS_STAMP) $(WS_STAMP) ## The top-level system tests in tests/
 	@$(ROS_ENV) && python -m pytest tests -q -p no:cacheprovider
 
 lint: venv ## ruff check and format check over the whole repository
@@ -93,11 +99,17 @@ $(JS_STAMP):
 	@npm ci --prefix $(JS_CHECK) --no-audit --no-fund --loglevel=error
 	@mkdir -p $(STAMPS) && rm -f $(STAMPS)/mcap-js-* && echo "$@" > $@
 
+$(WS_STAMP):
+	@command -v node >/dev/null && command -v npm >/dev/null || { echo "setup: node (18+) and npm are missing (Debian: sudo apt-get install nodejs npm); tests/test_bridge.py needs them" >&2; exit 1; }
+	@echo "setup: npm ci $(WS_CHECK) (a Foxglove WebSocket client, pinned)"
+	@npm ci --prefix $(WS_CHECK) --no-audit --no-fund --loglevel=error
+	@mkdir -p $(STAMPS) && rm -f $(STAMPS)/foxglove-ws-* && echo "$@" > $@
+
 clean: ## Remove colcon's build, install and log spaces
 	rm -rf $(WS)/build $(WS)/install $(WS)/log $(STAMPS)/build-*
 
-distclean: clean ## Also remove .venv and the JS check's node_modules
-	rm -rf $(VENV) $(STAMPS) $(JS_CHECK)/node_modules
+distclean: clean ## Also remove .venv and the JS tools' node_modules
+	rm -rf $(VENV) $(STAMPS) $(JS_CHECK)/node_modules $(WS_CHECK)/node_modules
 
 -include maps/maps.mk
 
@@ -107,7 +119,7 @@ RUN_ARGS ?= --scenario simple-maze --goal easy
 run: setup ## The main job: train the agent on the default scenario (runs/<name>/)
 	@$(ROS_ENV) && stealth train $(RUN_ARGS)
 
-eval: setup ## Learners vs A*, Dark Path and value iteration on every scenario (runs/eval/)
+eval: setup ## Learners vs A*, Dark Path and value iteration on every scenario, on local Ray (runs/eval/)
 	@$(ROS_ENV) && python -m stealth_bringup.experiments --out runs/eval
 
 bench: setup ## Benchmarks, each a ratio measured in the same run; writes bench/results.json

@@ -16,7 +16,7 @@ import os
 
 import numpy as np
 from stealth_agent.learners import LEARNER_NAMES
-from stealth_bringup.harness import run_grid
+from stealth_bringup.sweep_engine import run_grid
 
 SCENARIO = 'map1'
 SEEDS = (0, 1, 2)

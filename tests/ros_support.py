@@ -27,6 +27,29 @@ from stealth_bringup.ros_domain import (  # the runs' implementation: one lock s
 
 REPO_ROOT = pathlib.Path(__file__).resolve().parent.parent
 VENV = REPO_ROOT / '.venv'
+NODE_MAJOR_MIN = 18
+
+
+def node_tool(tool: pathlib.Path, module: str) -> str:
+    """The node executable for a pinned JS tool of tools/ (with `module` installed); fails,
+    never skips, with what to install."""
+    import shutil
+
+    import pytest
+
+    hint = (
+        'install Node.js 18 or newer with npm (Debian: sudo apt-get install nodejs npm), then '
+        f'`npm ci --prefix {tool.relative_to(REPO_ROOT)}` (make test-system does)'
+    )
+    node = shutil.which('node')
+    if node is None or shutil.which('npm') is None:
+        pytest.fail(f'{tool.name} needs node and npm: {hint}')
+    version = subprocess.run([node, '--version'], capture_output=True, text=True).stdout
+    if int(version.strip().lstrip('v').split('.')[0]) < NODE_MAJOR_MIN:
+        pytest.fail(f'node {version.strip()} is too old for {tool.name}: {hint}')
+    if not (tool / 'node_modules' / module).is_dir():
+        pytest.fail(f'{tool}/node_modules is missing: {hint}')
+    return node
 
 
 @functools.cache

@@ -222,6 +222,9 @@ def test_agent_learns_reports_episodes_and_saves_a_reloadable_policy(
         assert (steps, total, info.episode_number) == (GOAL, 4 * -1.0 + 10.0, number)
     stop(evaluator)
     assert policy_file.read_bytes() == saved
+    # Its own totals: a first state and one per action in each episode, no action after the end.
+    totals = f'totals: {5 * (GOAL + 1)} states received, {5 * GOAL} actions sent'
+    assert totals in evaluator.log_path.read_text()
 
     # Resume learning from the file; named outcomes come from the optional EpisodeSummary.
     env.wait_for_no_agent()
@@ -237,10 +240,13 @@ def test_agent_learns_reports_episodes_and_saves_a_reloadable_policy(
     wait_for_log(resumed, f'from {policy_file} (40 episodes, 5 states), continuing its random')
     env.wait_for_agent()
     env.report_outcomes()
-    for number in range(5):
+    # Episode numbers are the environment's, from its summaries (this one counts every episode
+    # it ran, 45 so far).
+    first = len(env.infos)
+    for number in range(first, first + 5):
         total, steps, info = env.episode()
         assert info.episode_number == number and info.episode_reward == pytest.approx(total)
-    wait_for_log(resumed, 'episodes 0-4 (learner total 45)')
+    wait_for_log(resumed, f'episodes {first}-{first + 4} (learner total 45)')
     stop(resumed)
     log = resumed.log_path.read_text()
     assert 'outcomes: success 5' in log, log
@@ -372,6 +378,39 @@ def test_eval_every_makes_every_mth_episode_greedy_and_reports_it(env, node_proc
     assert all(r.table_states >= 2 for r in reports)
     log = wait_for_log(agent, 'greedy evaluation, episode 5 (after 4 learning episodes)')
     assert 'greedy evaluation, episode 2 (after 2 learning episodes)' in log
+
+
+def test_a_late_summary_is_waited_for_while_the_environment_is_there(env, node_processes):
+    """A summary later than summary_wait (a loaded machine) still decides how the episode is
+    learned: the agent warns and keeps waiting. Only when the environment's summary publisher
+    is gone does it learn the terminal state as terminal."""
+    reports: list[AgentEpisodeInfo] = []
+    env.node.create_subscription(AgentEpisodeInfo, 'rl_agent/episode_info', reports.append, RL_QOS)
+    env.describe()
+    agent = start_agent(node_processes, 'agent_late_summary', summary_wait=0.5, epsilon=0.0)
+    wait_for_log(agent, f"environment '{TITLE}'")
+    env.wait_for_agent()
+    env.report_outcomes()
+    env.send([0.0], FIRST_REWARD)
+    assert env.answer() is not None
+    env.send([1.0], -1.0, terminal=True)
+    assert env.experiment_info(timeout=2.0) is None, 'the agent stopped waiting for the summary'
+    log = wait_for_log(agent, 'still waiting for the EpisodeSummary of episode 0', count=2)
+    assert 'learned as terminal' not in log
+    env.summarise(0, EpisodeSummary.TIMEOUT, 1)
+    assert env.experiment_info() is not None
+    assert env.spin_until(lambda: reports, 5.0)
+    assert reports[0].ending == AgentEpisodeInfo.END_TRUNCATED  # as the late summary said
+    # The environment's summary publisher goes away while a terminal state waits.
+    env.send([0.0], FIRST_REWARD)
+    assert env.answer() is not None
+    env.send([1.0], -1.0, terminal=True)
+    wait_for_log(agent, 'still waiting for the EpisodeSummary of episode 1')
+    env.node.destroy_publisher(env.summary_pub)
+    assert env.experiment_info(timeout=10.0) is not None
+    assert env.spin_until(lambda: len(reports) == 2, 5.0)
+    assert reports[1].ending == AgentEpisodeInfo.END_TERMINAL
+    wait_for_log(agent, 'without its EpisodeSummary; learned as terminal')
 
 
 @pytest.mark.parametrize(

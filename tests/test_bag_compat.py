@@ -29,7 +29,7 @@ from mcap.reader import make_reader
 import pytest
 import rclpy
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from ros_support import REPO_ROOT
+from ros_support import REPO_ROOT, node_tool
 from rosbags.interfaces import MessageDefinitionFormat, QosDurability, QosReliability
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
@@ -39,11 +39,6 @@ from test_recorder import COUNT, RATE, RECORDER, TRAFFIC, wait_for_output
 import yaml
 
 JS_CHECK = REPO_ROOT / 'tools' / 'mcap-js-check'
-NODE_MAJOR_MIN = 18
-INSTALL_HINT = (
-    'install Node.js 18 or newer with npm (Debian: sudo apt-get install nodejs npm), then '
-    '`npm ci --prefix tools/mcap-js-check`'
-)
 
 LATCHED_TOPICS = ('/rl_env/rl_env_description', '/searchlights', '/searchlight_markers')
 VOLATILE_TOPICS = ('/chatter', '/odom', '/rl_env/step_info')
@@ -118,17 +113,7 @@ def read_with_rosbags(path, expected):
 
 def foxglove_check(path):
     """tools/mcap-js-check's JSON report of `path`; fails (never skips) without Node.js."""
-    node = shutil.which('node')
-    if node is None or shutil.which('npm') is None:
-        pytest.fail(f'the Foxglove compatibility check needs node and npm: {INSTALL_HINT}')
-    version = subprocess.run([node, '--version'], capture_output=True, text=True).stdout
-    if int(version.strip().lstrip('v').split('.')[0]) < NODE_MAJOR_MIN:
-        pytest.fail(f'node {version.strip()} is too old for the Foxglove check: {INSTALL_HINT}')
-    if not (JS_CHECK / 'node_modules' / '@mcap' / 'core').is_dir():
-        pytest.fail(
-            f'{JS_CHECK}/node_modules is missing: run `npm ci --prefix tools/mcap-js-check` '
-            '(make setup does)'
-        )
+    node = node_tool(JS_CHECK, '@mcap/core')
     result = subprocess.run(
         [node, str(JS_CHECK / 'check.mjs'), str(path), '--samples'],
         capture_output=True,

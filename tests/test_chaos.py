@@ -87,7 +87,9 @@ def test_every_node_killed_in_turn_and_the_run_still_reaches_its_goal(system, tm
         if (int(r['episode']), step) not in seen
     ]
     assert not missing, f'{len(missing)} steps not in the recording, first {missing[:5]}'
-    assert {episode for episode, _ in seen} <= set(episodes), 'steps of an uncounted episode'
+    # Beyond those, only the episode the stop cut short (after the end criterion, not counted).
+    extra = {episode for episode, _ in seen} - set(episodes)
+    assert extra <= {len(episodes)}, f'steps of uncounted episodes {sorted(extra)}'
 
 
 def test_a_node_that_keeps_crashing_is_given_up_after_its_retries(system, tmp_path):

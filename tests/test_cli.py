@@ -157,7 +157,7 @@ def test_run_errors_are_one_line(node_processes, tmp_path):
     line = one_error_line(
         stealth(node_processes, 'run', 'stealth_tools', 'no_such_node'), 'stealth run: '
     )
-    assert line.endswith("has no executable 'no_such_node' (it has: recorder, stealth)")
+    assert line.endswith("has no executable 'no_such_node' (it has: bridge, recorder, stealth)")
     # A node that fails on start: its reason, then which executable and how it ended.
     crash = stealth(
         node_processes,

@@ -8,6 +8,7 @@ import re
 import signal
 import time
 
+from nav_msgs.msg import OccupancyGrid
 import numpy as np
 import pytest
 from rclpy.parameter import Parameter
@@ -15,10 +16,12 @@ from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from ros_support import REPO_ROOT, SpinningNode
 from stealth_env.gym_env import lattice_model
+from stealth_env.markers import visibility_levels
 from stealth_env.move_lattice import ACTIONS
 from stealth_env.planners import dark_path
 from stealth_env.scenario import find_scenario, load_scenario
 from stealth_env.task import StealthTask
+from stealth_env.visibility import visibility_field
 from stealth_interfaces.msg import (
     EpisodeSummary,
     RLAction,
@@ -85,7 +88,7 @@ class ScriptedAgent(SpinningNode):
 
     def __init__(self, context):
         super().__init__('scripted_agent', context)
-        self.received = {key: [] for key in ('description', 'lights', 'markers')}
+        self.received = {key: [] for key in ('description', 'lights', 'markers', 'grid')}
         self.states: list[RLStateReward] = []
         self.steps: list[StepInfo] = []
         self.summaries: list[EpisodeSummary] = []
@@ -94,6 +97,7 @@ class ScriptedAgent(SpinningNode):
             (RLEnvDescription, 'rl_env/rl_env_description', 'description'),
             (SearchlightArray, 'searchlights', 'lights'),
             (MarkerArray, 'searchlight_markers', 'markers'),
+            (OccupancyGrid, 'visibility_grid', 'grid'),
         ):
             self.node.create_subscription(message_type, topic, self.received[key].append, LATCHED)
         self.node.create_subscription(StepInfo, 'rl_env/step_info', self.steps.append, RL_QOS)
@@ -408,6 +412,17 @@ def test_moving_lights_are_judged_at_the_end_of_each_move_and_redrawn(
     first_cone = next(m for m in agent.received['markers'][0].markers if m.ns == 'cones')
     last_cone = next(m for m in agent.received['markers'][-1].markers if m.ns == 'cones')
     assert first_cone.points != last_cone.points
+    # The visibility grid moves with the lights: the field at t, as 0-100 of the threshold.
+    assert agent.spin_until(lambda: drawn_at(agent.received['grid'][-1]) == t, 5.0)
+    grid = agent.received['grid'][-1]
+    occupancy = scenario.map
+    assert (grid.info.width, grid.info.height) == (occupancy.width, occupancy.height)
+    total, _ = visibility_field(
+        occupancy.blocked, occupancy.resolution, occupancy.origin, scenario.lights, t
+    )
+    levels = visibility_levels(total, scenario.detection_threshold).ravel().tolist()
+    assert list(grid.data) == levels
+    assert list(agent.received['grid'][0].data) != levels
 
 
 def test_a_moving_variant_has_the_phase_in_the_state_and_a_wait(agent, node_processes):

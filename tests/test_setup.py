@@ -90,3 +90,42 @@ def test_broken_msg_fails_the_build_with_rosidls_message(tmp_path):
     assert "'float3' is an invalid message" in text
     assert 'Configuring incomplete' in text
     assert not (tmp_path / 'install' / 'stealth_interfaces' / 'lib').exists()
+
+
+def load_fix_ros_wheels():
+    """scripts/fix_ros_wheels.py as a module (it is a script, not a package)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        'fix_ros_wheels', REPO_ROOT / 'scripts' / 'fix_ros_wheels.py'
+    )
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_wheel_fix_repoints_any_foreign_prefix():
+    fix = load_fix_ros_wheels()
+    exported = (
+        'INTERFACE_INCLUDE_DIRECTORIES "/opt/python/cp311-cp311/include/python3.11;'
+        '/tmp/other/.venv/lib/python3.11/site-packages/numpy/_core/include;'
+        '${_IMPORT_PREFIX}/include/builtin_interfaces"'
+    )
+    text = fix.repoint(exported, '/here/numpy/_core/include', '/here/include/python3.11')
+    assert text == (
+        'INTERFACE_INCLUDE_DIRECTORIES "/here/include/python3.11;/here/numpy/_core/include;'
+        '${_IMPORT_PREFIX}/include/builtin_interfaces"'
+    )
+    assert fix.repoint(text, '/here/numpy/_core/include', '/here/include/python3.11') == text
+
+
+def test_wheel_fix_leaves_the_installers_hard_linked_cache_alone(tmp_path):
+    fix = load_fix_ros_wheels()
+    cached = tmp_path / 'cache.cmake'
+    cached.write_text('from the wheel\n')
+    installed = tmp_path / 'installed.cmake'
+    os.link(cached, installed)
+    fix.replace_file_text(installed, 'for this venv\n')
+    assert installed.read_text() == 'for this venv\n'
+    assert cached.read_text() == 'from the wheel\n'
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['cache.cmake', 'installed.cmake']

@@ -86,9 +86,10 @@ class Runner:
             timeout=timeout,
         )
 
-    def start(self, *args) -> subprocess.Popen:
-        """`stealth args...` in the background (its own session, as a shell job would be)."""
-        stderr = open(self.tmp_path / 'stderr.txt', 'w')  # noqa: SIM115 - closed with the process
+    def start(self, *args, log: str = 'stderr.txt') -> subprocess.Popen:
+        """`stealth args...` in the background (its own session, as a shell job would be), its
+        stderr to the file `log` in the test's directory."""
+        stderr = open(self.tmp_path / log, 'w')  # noqa: SIM115 - closed with the process
         process = subprocess.Popen(
             [STEALTH, *args],
             env=self.env,
@@ -98,7 +99,7 @@ class Runner:
             text=True,
             start_new_session=True,
         )
-        process.stderr_path = self.tmp_path / 'stderr.txt'
+        process.stderr_path = self.tmp_path / log
         self.started.append(process)
         return process
 

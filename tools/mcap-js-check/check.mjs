@@ -17,6 +17,7 @@ import { FileHandleReadable } from '@mcap/nodejs';
 import { loadDecompressHandlers } from '@mcap/support';
 import { parse } from '@foxglove/rosmsg';
 import { MessageReader } from '@foxglove/rosmsg2-serialization';
+import { plain } from '../shared/plain.mjs';
 
 const STREAM_READ_SIZE = 1 << 20;
 const MAX_PROBLEMS = 50;
@@ -24,17 +25,6 @@ const MAX_PROBLEMS = 50;
 function usage() {
   process.stderr.write('usage: check.mjs FILE.mcap [--samples]\n');
   process.exit(2);
-}
-
-// JSON-safe copy of a decoded message: bigint as string, typed arrays as arrays.
-function plain(value) {
-  if (typeof value === 'bigint') return value.toString();
-  if (ArrayBuffer.isView(value)) return Array.from(value, plain);
-  if (Array.isArray(value)) return value.map(plain);
-  if (value && typeof value === 'object') {
-    return Object.fromEntries(Object.entries(value).map(([k, v]) => [k, plain(v)]));
-  }
-  return value;
 }
 
 class Report {

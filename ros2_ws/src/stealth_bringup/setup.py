@@ -13,6 +13,7 @@ setup(
             'share/' + package_name + '/config',
             [
                 'config/agent.yaml',
+                'config/bridge.yaml',
                 'config/environment.yaml',
                 'config/recorder.yaml',
                 'config/simulator.yaml',
@@ -30,7 +31,7 @@ setup(
         'console_scripts': [
             'experiments = stealth_bringup.experiments:main',
         ],
-        # `stealth train|eval|render`: stealth_tools' `stealth` reads this group.
+        # `stealth train|eval|render|sweep`: stealth_tools' `stealth` reads this group.
         'stealth.commands': ['stealth_bringup = stealth_bringup.commands:COMMANDS'],
     },
 )

@@ -15,10 +15,12 @@ setup(
     zip_safe=True,
     maintainer='stealth-nav developers',
     maintainer_email='dev@stealth-nav.org',
-    description='MCAP recorder, replay, recovery and the ros2cli-shaped stealth command.',
+    description='MCAP recorder, replay, recovery, the Foxglove WebSocket bridge and the '
+    'ros2cli-shaped stealth command.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
+            'bridge = stealth_tools.bridge:main',
             'recorder = stealth_tools.recorder:main',
             'stealth = stealth_tools.cli:main',
         ],

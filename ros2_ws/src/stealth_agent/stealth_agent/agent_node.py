@@ -6,8 +6,12 @@ rl_agent/episode_info (stealth_interfaces/AgentEpisodeInfo: greedy or not, epsil
 every terminal state. An environment that also publishes stealth_interfaces/EpisodeSummary
 (stealth_env does) tells the agent how each episode ended: a TIMEOUT is then a truncation, not a
 terminal state (the last update bootstraps from the final state, so the agent does not learn
-that running out of time is cheap), and an ABORTED episode teaches nothing. A plain rl_msgs
-environment, with no summary publisher, gets rl_agent's behaviour.
+that running out of time is cheap), and an ABORTED episode teaches nothing. A terminal state
+waits for its summary as long as the environment (a summary publisher) is there, with a warning
+every summary_wait seconds: a summary that is only late, on a loaded machine, never turns into a
+guess, so the same seed learns the same episodes whatever the load. Only when no publisher is
+left is the state learned as terminal. A plain rl_msgs environment, with no summary publisher,
+gets rl_agent's behaviour.
 
 With eval_every M > 0, every M-th episode of a learning run is a greedy
 evaluation (epsilon 0, no updates, the schedules stand still), so an experiment can watch the
@@ -21,10 +25,12 @@ message skipped; the node stays up and the table is never touched by a rejected 
 
 from collections import Counter
 import pathlib
+import time
 
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from stealth_interfaces.msg import (
@@ -41,9 +47,10 @@ from stealth_node_kit.endpoints import (
     warn_publisher,
     warn_subscription,
 )
-from stealth_node_kit.parameters import Param, StartupError, declare_parameters, non_finite
+from stealth_node_kit.parameters import StartupError, declare_parameters, non_finite
 from stealth_node_kit.running import run_node
 
+from .agent_parameters import PARAMETERS
 from .learners import LearnerConfig, canonical_learner_name, make_learner
 from .policy_store import PolicyFileError, check_compatible, load_policy, save_policy
 from .protocol import (
@@ -53,6 +60,7 @@ from .protocol import (
     EpisodeEndMatcher,
     ProtocolAgent,
     ResolvedEnd,
+    SummaryWait,
     format_progress,
     is_greedy_episode,
     parse_description,
@@ -75,6 +83,9 @@ DESCRIPTION_QOS = QoSProfile(
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 FLOAT32_MAX = float(np.finfo(np.float32).max)
+# s of wall time between checks, while a terminal state waits for its summary, that the
+# environment is still there (only its leaving ends the wait; see SummaryWait).
+SUMMARY_CHECK_PERIOD = 0.5
 OUTCOME_NAMES = {
     EpisodeSummary.SUCCESS: 'success',
     EpisodeSummary.DETECTED: 'detected',
@@ -116,106 +127,6 @@ STRING_CHOICES = {
 }
 
 
-PARAMETERS = {
-    'agent': Param(
-        'qlearning', 'Learner: qlearning (rl_agent qlearner), sarsa or dyna.', read_only=True
-    ),
-    'seed': Param(
-        1,
-        'Seed of the random generator (exploration, tie-breaking, Dyna planning).',
-        bounds=(0, 2**31 - 1),
-        read_only=True,
-    ),
-    'gamma': Param(0.99, 'Discount factor.', bounds=(0.0, 1.0)),
-    'alpha': Param(0.3, 'Learning rate; the start of the alpha schedule.', bounds=(0.0, 1.0)),
-    'epsilon': Param(
-        0.1, 'Exploration rate of epsilon-greedy; the start of its schedule.', bounds=(0.0, 1.0)
-    ),
-    'initialvalue': Param(0.0, 'Initial Q value of every new state-action.', read_only=True),
-    'n': Param(
-        10, 'Dyna-Q: planning updates from the learned model per real step.', bounds=(0, 1_000_000)
-    ),
-    'epsilon_schedule': Param('constant', 'constant, linear or exponential (over episodes).'),
-    'epsilon_final': Param(0.01, 'Epsilon the schedule decays to.', bounds=(0.0, 1.0)),
-    'epsilon_decay_episodes': Param(
-        1000.0,
-        'Linear: episodes to reach epsilon_final; exponential: time constant (episodes); > 0.',
-        bounds=(0.0, 1e12),
-    ),
-    'alpha_schedule': Param('constant', 'constant, linear or exponential (over episodes).'),
-    'alpha_final': Param(0.05, 'Alpha the schedule decays to.', bounds=(0.0, 1.0)),
-    'alpha_decay_episodes': Param(
-        1000.0,
-        'Linear: episodes to reach alpha_final; exponential: time constant (episodes); > 0.',
-        bounds=(0.0, 1e12),
-    ),
-    'nstates': Param(
-        0,
-        'rl_agent --nstates: bins per state feature over the description ranges; '
-        '0 = one table row per distinct state vector.',
-        bounds=(0, 1_000_000_000),
-        read_only=True,
-    ),
-    'state_resolution': Param(
-        0.0,
-        'Bin width of every state feature (state units, e.g. the map cell in m); '
-        'overrides nstates; 0 = off.',
-        bounds=(0.0, 1e12),
-        read_only=True,
-    ),
-    'policy_file': Param(
-        '', 'Policy file (.npz) to save to and load from; empty = none.', read_only=True
-    ),
-    'save_every': Param(
-        100,
-        'Save the policy every this many episodes (0 = only at shutdown).',
-        bounds=(0, 2**31 - 1),
-    ),
-    'load_policy': Param(False, 'Resume learning from policy_file if it exists.', read_only=True),
-    'first_episode': Param(
-        0,
-        "Number of the first episode this agent runs (a respawned or resumed run's next one); "
-        "later numbers follow the environment's EpisodeSummary.",
-        bounds=(0, 2**31 - 1),
-        read_only=True,
-    ),
-    'evaluate': Param(
-        False,
-        'Greedy, no learning: run the policy in policy_file (rl_agent savedpolicy).',
-        read_only=True,
-    ),
-    'log_every': Param(
-        10, 'Log progress every this many episodes (0 = never).', bounds=(0, 2**31 - 1)
-    ),
-    'eval_every': Param(
-        0,
-        'Every this many episodes one greedy evaluation episode (epsilon 0, no learning, the '
-        'schedules stand still): episodes eval_every-1, 2*eval_every-1, ...; 0 = never.',
-        bounds=(0, 2**31 - 1),
-    ),
-    'episode_summary_topic': Param(
-        'rl_env/episode_summary',
-        'stealth_interfaces/EpisodeSummary topic: how each episode ended (a TIMEOUT is '
-        'learned as a truncation, an ABORTED episode not at all) and named outcomes in the '
-        'progress log; optional, an rl_msgs environment without it gets terminal states '
-        'only; empty = off.',
-        read_only=True,
-    ),
-    'timeout_is_terminal': Param(
-        False,
-        "Learn a TIMEOUT episode's last state as terminal, as rl_agent does (biased: timing "
-        'out looks cheap); false = bootstrap through the time limit.',
-    ),
-    'summary_wait': Param(
-        5.0,
-        'Seconds a terminal state waits for its EpisodeSummary (when a summary publisher '
-        'exists) before it is learned as terminal.',
-        bounds=(0.01, 3600.0),
-        read_only=True,
-    ),
-}
-
-
 class AgentNode(Node):
     """rl_agent for rl_msgs environments, with Q-learning, SARSA and Dyna-Q."""
 
@@ -227,6 +138,8 @@ class AgentNode(Node):
         self._window = []
         self._named_outcomes = Counter()
         self._out_of_range = 0
+        self._states_received = 0  # for the shutdown totals, as the environment logs its own
+        self._actions_sent = 0
         self._declared = False
         self._endings = EpisodeEndMatcher()
         self._summary_sub = None
@@ -278,7 +191,12 @@ class AgentNode(Node):
                 RL_QOS,
                 event_callbacks=QUIET_SUBSCRIPTION,
             )
-        self._summary_timer = self.create_timer(self._param('summary_wait'), self._summary_late)
+        self._summary_wait = SummaryWait(self._param('summary_wait'))
+        self._summary_timer = self.create_timer(
+            min(SUMMARY_CHECK_PERIOD, self._param('summary_wait')),
+            self._check_summary_wait,
+            clock=Clock(clock_type=ClockType.STEADY_TIME),
+        )
         self._summary_timer.cancel()
         mode = 'evaluating (greedy, no learning)' if self._param('evaluate') else 'learning'
         self.get_logger().info(
@@ -410,7 +328,7 @@ class AgentNode(Node):
             return
         aborted = self._core.abort()
         self._endings.new_episode()
-        self._summary_timer.cancel()
+        self._stop_waiting()
         note = f'; dropped the episode in progress ({aborted.actions} actions)' if aborted else ''
         log.warning(
             f'environment description received again (environment restarted?); '
@@ -491,6 +409,7 @@ class AgentNode(Node):
 
     def _on_state(self, msg: RLStateReward) -> None:
         log = self.get_logger()
+        self._states_received += 1
         if self._core is None:
             if self._description is None:
                 log.warning(
@@ -525,6 +444,7 @@ class AgentNode(Node):
                 log.warning(f'{note} ({self._out_of_range} so far); it gets its own table row')
         if step.action is not None:
             self._action_pub.publish(RLAction(action=step.action))
+            self._actions_sent += 1
         if step.result is not None:
             self._episode_done(step.result)
 
@@ -543,22 +463,41 @@ class AgentNode(Node):
             return
         resolved = self._endings.terminal(msg.state, msg.reward, self._core.number_actions)
         if resolved is None:
+            self._summary_wait.start(time.monotonic())
             self._summary_timer.reset()
         else:
             self._end_episode(resolved)
 
-    def _summary_late(self) -> None:
-        self._summary_timer.cancel()
-        resolved = self._endings.give_up()
-        if resolved is not None:
+    def _check_summary_wait(self) -> None:
+        """While a terminal state waits: give up only when no environment is left to send the
+        summary (a slow one is waited for: wall time must not change what is learned)."""
+        now = time.monotonic()
+        waited = self._summary_wait.waited(now)
+        verdict = self._summary_wait.tick(now, self._environment_reports_endings())
+        if verdict == 'warn':
             self.get_logger().warning(
-                f'no EpisodeSummary within summary_wait ({self._param("summary_wait")} s) of '
-                'the terminal state; learned as terminal'
+                f'still waiting for the EpisodeSummary of episode {self._core.episode} '
+                f'({waited:.0f} s after its terminal state); the environment is there, so the '
+                'agent keeps waiting (a stuck environment needs a restart)'
             )
-            self._end_episode(resolved)
+        elif verdict == 'give up':
+            self._summary_timer.cancel()
+            resolved = self._endings.give_up()
+            if resolved is not None:
+                self.get_logger().warning(
+                    f'the environment left {waited:.1f} s after the terminal state of episode '
+                    f'{self._core.episode}, without its EpisodeSummary; learned as terminal'
+                )
+                self._end_episode(resolved)
+        elif not self._endings.waiting:
+            self._stop_waiting()
+
+    def _stop_waiting(self) -> None:
+        self._summary_timer.cancel()
+        self._summary_wait.stop()
 
     def _end_episode(self, resolved: ResolvedEnd) -> None:
-        self._summary_timer.cancel()
+        self._stop_waiting()
         ending = resolved.ending
         if ending is Ending.TRUNCATED and self._param('timeout_is_terminal'):
             ending = Ending.TERMINATED
@@ -624,14 +563,24 @@ class AgentNode(Node):
 
     # --- policy file -------------------------------------------------------------------------
 
+    def finish(self) -> None:
+        """At exit: the totals (what a lost or doubled message would show in), then save."""
+        self._exit_logger().info(
+            f'totals: {self._states_received} states received, {self._actions_sent} actions sent'
+        )
+        self.save('shutdown')
+
+    def _exit_logger(self):
+        """After Ctrl-C the context is already shut down and /rosout cannot take the message."""
+        return self.get_logger() if self.context.ok() else rclpy.logging.get_logger('agent.exit')
+
     def save(self, reason: str) -> bool:
         """Save the learned policy atomically, if learning with a policy file."""
         path = self._param('policy_file')
         if self._core is None or not self._learning_run or not path:
             return False
         learner, index = self._core.learner, self._core.index
-        # After Ctrl-C the context is already shut down and /rosout cannot take the message.
-        log = self.get_logger() if self.context.ok() else rclpy.logging.get_logger('agent.exit')
+        log = self._exit_logger()
         try:
             save_policy(
                 path,
@@ -658,7 +607,7 @@ def _ending_of(result) -> Ending:
 
 
 def main(args=None) -> int:
-    return run_node(AgentNode, 'agent', args=args, on_exit=lambda node: node.save('shutdown'))
+    return run_node(AgentNode, 'agent', args=args, on_exit=AgentNode.finish)
 
 
 if __name__ == '__main__':

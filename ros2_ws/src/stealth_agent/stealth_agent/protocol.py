@@ -10,7 +10,9 @@ terminal state, and an agent that learns it as one learns that timing out is che
 time-limit bias of Pardo et al., "Time Limits in Reinforcement Learning", ICML 2018). When the
 environment says how the episode ended (stealth_env's EpisodeSummary), the caller passes an
 Ending: TRUNCATED bootstraps from the final state as a non-terminal step, ABORTED makes no
-update at all; EpisodeEndMatcher pairs the two messages.
+update at all; EpisodeEndMatcher pairs the two messages, and SummaryWait keeps a terminal state
+waiting for its report as long as the environment is there (a late report never turns into a
+guess, so what is learned does not depend on the load of the machine).
 
 ProtocolAgent does exactly that on top of a learner, a state index and a random generator, and
 checks every input first: a bad one raises BadInputError naming the problem and leaves the table,
@@ -353,7 +355,8 @@ class EpisodeEndMatcher:
         return None
 
     def give_up(self) -> ResolvedEnd | None:
-        """No report came: the waiting terminal state is learned as rl_msgs says (terminal)."""
+        """No report can come (the environment is gone): the waiting terminal state is learned
+        as rl_msgs says (terminal)."""
         if self._pending is None:
             return None
         state, reward, _ = self._pending
@@ -364,6 +367,47 @@ class EpisodeEndMatcher:
         """A first state: no report from before it can be about the episode it starts."""
         self._pending = None
         self._reports.clear()
+
+
+class SummaryWait:
+    """How long a terminal state waits for its report: as long as the environment is there.
+
+    A report that is merely late (a loaded machine) must not change what is learned, so there
+    is no deadline: waiting ends with the report, or when no environment is left to send one
+    (``tick`` then says 'give up'). Meanwhile ``tick`` says 'warn' every ``warn_every``
+    seconds, so a wait that never ends is seen. Times are the caller's clock (the node's wall
+    clock); nothing here decides what is learned.
+    """
+
+    def __init__(self, warn_every: float):
+        if not warn_every > 0:
+            raise ValueError(f'warn_every must be > 0 s, got {warn_every}')
+        self.warn_every = float(warn_every)
+        self.since: float | None = None  # when the wait began (None: not waiting)
+        self._next_warning = math.inf
+
+    def start(self, now: float) -> None:
+        self.since = now
+        self._next_warning = now + self.warn_every
+
+    def stop(self) -> None:
+        self.since = None
+        self._next_warning = math.inf
+
+    def tick(self, now: float, environment_present: bool) -> str | None:
+        """'give up' (the environment is gone), 'warn' (another warn_every passed) or None."""
+        if self.since is None:
+            return None
+        if not environment_present:
+            self.stop()
+            return 'give up'
+        if now >= self._next_warning:
+            self._next_warning = now + self.warn_every
+            return 'warn'
+        return None
+
+    def waited(self, now: float) -> float:
+        return 0.0 if self.since is None else now - self.since
 
 
 def _same_episode(reported_steps: int, ending: Ending, actions: int) -> bool:

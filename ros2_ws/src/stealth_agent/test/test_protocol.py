@@ -12,6 +12,7 @@ from stealth_agent.protocol import (
     EpisodeResult,
     ProtocolAgent,
     ResolvedEnd,
+    SummaryWait,
     format_progress,
     outcome_mix,
     parse_description,
@@ -192,6 +193,26 @@ def test_the_end_matcher_pairs_a_terminal_state_with_its_report_in_either_order(
     matcher.new_episode()
     assert matcher.report(3, Ending.TRUNCATED, episode=42) is None
     assert matcher.terminal([6.0], 1.0, actions=3).episode == 42
+
+
+def test_a_terminal_state_waits_for_its_report_as_long_as_the_environment_is_there():
+    """No deadline: a late summary (a loaded machine) must not turn into a guess; only the
+    environment leaving ends the wait, with a warning every warn_every meanwhile."""
+    wait = SummaryWait(warn_every=5.0)
+    assert wait.tick(100.0, environment_present=False) is None  # not waiting: nothing to say
+    wait.start(100.0)
+    assert [wait.tick(t, True) for t in (100.5, 104.9, 105.0, 107.0, 110.0)] == [
+        None, None, 'warn', None, 'warn'
+    ]  # fmt: skip
+    assert wait.tick(3600.0, True) == 'warn' and wait.waited(3600.0) == 3500.0
+    assert wait.tick(3600.5, environment_present=False) == 'give up'
+    assert wait.tick(3601.0, False) is None and wait.waited(3601.0) == 0.0
+    # The report came: stop() ends the wait, nothing more is said.
+    wait.start(10.0)
+    wait.stop()
+    assert wait.tick(20.0, False) is None
+    with pytest.raises(ValueError, match='warn_every must be > 0 s'):
+        SummaryWait(0.0)
 
 
 def test_sarsa_through_the_protocol_bootstraps_on_the_action_it_sends():

@@ -22,4 +22,14 @@ COMMANDS = {
         'main',
         'Render a scenario (walls, visibility heatmap, cones, goals, paths) to PNG.',
     ),
+    'sweep': (
+        'stealth_bringup.sweep',
+        'main',
+        'Sweep learners x scenarios x seeds x hyperparameters on Ray (local or a cluster).',
+    ),
+    'doctor': (
+        'stealth_bringup.doctor',
+        'main',
+        'Check and tidy what earlier runs left: /dev/shm files, domains, processes, the build.',
+    ),
 }

@@ -164,11 +164,22 @@ class Tracker:
             return self._complete(episode, self._agent.pop(episode), wall_time)
         return []
 
+    def load(self, records: Iterable[EpisodeRecord]) -> None:
+        """Take in the episodes of an earlier part of the run (a continued run's episodes.csv),
+        streak and all, as if they had been followed here."""
+        for record in sorted(records, key=lambda r: r.episode):
+            if record.episode not in self._done:
+                self._count(record)
+
     def _complete(self, episode: int, agent: dict, wall_time: float) -> list[EpisodeRecord]:
         summary = self._summaries.pop(episode)
         self._agent.pop(episode, None)
         record = EpisodeRecord(**summary, **agent, wall_time=wall_time)
-        self._done.add(episode)
+        self._count(record)
+        return [record]
+
+    def _count(self, record: EpisodeRecord) -> None:
+        self._done.add(record.episode)
         self.records.append(record)
         if record.greedy:
             self.greedy_count += 1
@@ -178,7 +189,6 @@ class Tracker:
                 self.streak += 1
             else:
                 self.streak, self.streak_start = 0, None
-        return [record]
 
     # --- figures ----------------------------------------------------------------------------
 

@@ -4,8 +4,10 @@ environment, measured against value iteration's optimum and the planning baselin
     python -m stealth_bringup.experiments --scenarios map1 lgfloor --learners qlearning dyna \
         --seeds 0 1 2 --out runs/eval          # or `make eval`; installed as its `experiments`
 
-Each run (``harness``) trains one learner (``stealth_agent``, driven through ``ProtocolAgent``
-exactly as the ROS agent node drives it) for a fixed budget of episodes, and every
+The runs go to a local Ray over ``--jobs`` CPUs (``sweep_engine``, the engine of `stealth
+sweep`), or with ``--jobs 1`` one after another in this process. Each run (``harness``) trains
+one learner (``stealth_agent``, driven through ``ProtocolAgent`` exactly as the ROS agent node
+drives it) for a fixed budget of episodes, and every
 ``--eval-every`` episodes rolls out the greedy policy. Written to ``--out`` (``harness_report``,
 through the report writer ``run_outputs`` that `stealth train` runs use too):
 
@@ -42,10 +44,10 @@ from stealth_bringup.harness import (
     MOVING_EPISODES,
     baselines,
     default_budget,
-    run_grid,
     tuned_config,
 )
 from stealth_bringup.harness_report import write_results
+from stealth_bringup.sweep_engine import run_grid
 
 DEFAULT_SCENARIOS = (
     'simple-maze',
@@ -170,7 +172,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         '--jobs',
         type=int,
         default=os.cpu_count() or 1,
-        help='worker processes (default: the CPU count, %(default)s)',
+        help='CPUs of the local Ray the runs go to; 1: one after another in this process, no Ray '
+        '(default: the CPU count, %(default)s)',
     )
     parser.add_argument(
         '--out', type=Path, default=DEFAULT_OUT, help='output directory (default: %(default)s)'

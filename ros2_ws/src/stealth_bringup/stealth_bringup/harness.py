@@ -14,8 +14,6 @@ just touches it); a run that never settles is reported as not within 5 % in its 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 import dataclasses
 from pathlib import Path
 import time
@@ -29,7 +27,6 @@ from stealth_agent.state_index import StateIndex
 from stealth_env.gym_env import StealthNavEnv, lattice_model
 from stealth_env.planners import LatticeModel, astar, dark_path, follow, value_iteration, walk
 from stealth_env.reward import Outcome
-from tqdm import tqdm
 
 # Training episodes per run, per learner: each well past where every seed settled within 5 %
 # (README); Dyna-Q's 20 planning updates make its episodes ~5x dearer and it needs ~1/6 as many.
@@ -41,6 +38,10 @@ MOVING_EPISODES = {'qlearning': 6000, 'sarsa': 6000, 'dyna': 3000}
 DEFAULT_EVAL_EVERY = 10
 WITHIN = 0.05  # of the optimal return
 BASELINES = ('A*', 'Dark Path', 'value iteration')
+# Settings a sweep may vary (RunSpec.params), over tuned_config's: alpha (constant), epsilon (its
+# start; it decays exponentially to 0 with time constant epsilon_decay episodes), gamma,
+# initial_value (initial Q) and n_planning (Dyna-Q's planning updates per step).
+PARAMETERS = ('alpha', 'epsilon', 'epsilon_decay', 'gamma', 'initial_value', 'n_planning')
 
 
 def tuned_config(learner: str, stochastic: bool = False) -> LearnerConfig:
@@ -66,6 +67,36 @@ def tuned_config(learner: str, stochastic: bool = False) -> LearnerConfig:
     )
 
 
+def configured(learner: str, stochastic: bool = False, params=()) -> LearnerConfig:
+    """tuned_config with the settings in ``params`` ((name, value) pairs of PARAMETERS)
+    instead; ValueError naming a setting that is unknown or out of range."""
+    config = tuned_config(learner, stochastic)
+    values = dict(params)
+    unknown = sorted(set(values) - set(PARAMETERS))
+    if unknown:
+        raise ValueError(
+            f'unknown parameter {unknown[0]!r} (expected one of {", ".join(PARAMETERS)})'
+        )
+    epsilon = config.epsilon
+    if 'epsilon' in values or 'epsilon_decay' in values:
+        epsilon = Schedule(
+            'exponential',
+            float(values.get('epsilon', epsilon.start)),
+            0.0,
+            float(values.get('epsilon_decay', epsilon.decay)),
+        )
+    n_planning = values.get('n_planning', config.n_planning)
+    if isinstance(n_planning, float) and n_planning.is_integer():
+        n_planning = int(n_planning)
+    return LearnerConfig(
+        gamma=float(values.get('gamma', config.gamma)),
+        alpha=Schedule.fixed(values['alpha']) if 'alpha' in values else config.alpha,
+        epsilon=epsilon,
+        initial_value=float(values.get('initial_value', config.initial_value)),
+        n_planning=n_planning,
+    )
+
+
 # --- one run ------------------------------------------------------------------------------------
 
 
@@ -79,6 +110,7 @@ class RunSpec:
     slip: float = 0.0
     goal: str | None = None
     policy_dir: str | None = None  # where to save the final policy, if anywhere
+    params: tuple = ()  # (name, value) pairs over tuned_config: see PARAMETERS
 
 
 @dataclasses.dataclass
@@ -133,7 +165,7 @@ def run(spec: RunSpec) -> RunResult:
     evaluator = StealthNavEnv(spec.scenario, spec.goal, spec.slip)
     optimum = value_iteration(env.model, slip=spec.slip).optimal_return
     learner = make_learner(
-        spec.learner, env.action_space.n, tuned_config(spec.learner, spec.slip > 0)
+        spec.learner, env.action_space.n, configured(spec.learner, spec.slip > 0, spec.params)
     )
     index = StateIndex()
     rng = np.random.default_rng(spec.seed)
@@ -243,52 +275,3 @@ def baselines(model: LatticeModel, slip: float = 0.0) -> tuple[float, list[Basel
             summary['total_reward'] = optimum.optimal_return
         found.append(Baseline(name, summary, seconds))
     return optimum.optimal_return, found
-
-
-# --- the grid -----------------------------------------------------------------------------------
-
-
-def run_grid(
-    scenarios: Sequence[str],
-    learners: Sequence[str],
-    seeds: Sequence[int],
-    *,
-    episodes: int | None = None,
-    eval_every: int = DEFAULT_EVAL_EVERY,
-    slip: float = 0.0,
-    goal: str | None = None,
-    jobs: int = 1,
-    policy_dir: str | None = None,
-    progress: bool = True,
-) -> list[RunResult]:
-    """Every scenario x learner x seed, in ``jobs`` processes; results in grid order.
-    episodes: per run, None for each learner's DEFAULT_EPISODES."""
-    specs = [
-        RunSpec(
-            scenario,
-            learner,
-            seed,
-            episodes or default_budget(learner, scenario),
-            eval_every,
-            slip,
-            goal,
-            policy_dir,
-        )
-        for scenario in scenarios
-        for learner in learners
-        for seed in seeds
-    ]
-    bar = tqdm(total=len(specs), desc='runs', unit='run', disable=not progress)
-    results: list[RunResult | None] = [None] * len(specs)
-    if jobs <= 1:
-        for i, spec in enumerate(specs):
-            results[i] = run(spec)
-            bar.update()
-    else:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            futures = {pool.submit(run, spec): i for i, spec in enumerate(specs)}
-            for future in as_completed(futures):
-                results[futures[future]] = future.result()
-                bar.update()
-    bar.close()
-    return results

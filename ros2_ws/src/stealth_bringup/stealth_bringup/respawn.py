@@ -14,7 +14,6 @@ aborted and the recorder writes a new file of the recording.
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 
 EXIT_CANNOT_START = 2  # stealth_node_kit.running.EXIT_CANNOT_START (bad parameters or input)
 RESPAWN_DELAYS = (0.5, 1.0, 2.0, 4.0, 8.0)  # s before the 1st, 2nd, ... restart of a node
@@ -69,15 +68,3 @@ class RespawnPolicy:
         restart = Restart(node, self.count(node) + 1, cause, episode, died_at, self.delay(node))
         self.restarts.append(restart)
         return restart
-
-
-def next_recording_file(first: Path) -> Path:
-    """The next file of a recording split the way rosbag2 splits: recording.mcap, then
-    recording_1.mcap, recording_2.mcap, ... beside it."""
-    first = Path(first)
-    number = 1
-    while True:
-        candidate = first.with_name(f'{first.stem}_{number}{first.suffix}')
-        if not candidate.exists():
-            return candidate
-        number += 1

@@ -8,7 +8,9 @@ over the subnet when nodes on other hosts join it (`--discovery subnet`).
 
 A node that exits normally removes its Fast DDS segments from /dev/shm; a SIGKILLed one cannot.
 `remove_orphaned_shm` removes, after `fastdds shm clean`, the segments that appeared since a
-snapshot and that no live process maps. No rclpy here.
+snapshot and that no live process maps; `remove_dead_shm` (at the start of every run, and
+`stealth doctor`) those of any dead process, from an earlier run whose orchestrator was killed
+say. No rclpy here.
 """
 
 from __future__ import annotations
@@ -22,11 +24,13 @@ import random
 import shutil
 import subprocess
 import sys
+import time
 
 DOMAIN_LOCK_DIR = Path('/tmp/stealth_nav_domains')
 # Linux keeps ids 0-101 clear of the ephemeral port range; 0 is everyone's default, so skip it.
 DOMAIN_IDS = range(1, 102)
 SHM_DIR = Path('/dev/shm')
+SHM_CONFIRM = 1.0  # s between the two looks that find a Fast DDS file unmapped before removal
 # --discovery: ROS_AUTOMATIC_DISCOVERY_RANGE of the run's participants.
 DISCOVERY_RANGES = {'localhost': 'LOCALHOST', 'subnet': 'SUBNET'}
 
@@ -120,6 +124,45 @@ def clean_shm() -> None:
             check=False,
             timeout=60,
         )
+
+
+def _unmapped_shm(shm_dir: Path) -> set[str]:
+    """Our Fast DDS files in /dev/shm that no live process maps (nor, for a lock or mutex file,
+    the segment it belongs to)."""
+    mapped = mapped_shm_names()
+    unmapped = set()
+    for name in shm_segments(shm_dir):
+        if segment_base(name) in mapped:
+            continue
+        with contextlib.suppress(OSError):
+            if (shm_dir / name).stat().st_uid == os.getuid():
+                unmapped.add(name)
+    return unmapped
+
+
+def dead_shm_files(shm_dir: Path = SHM_DIR, confirm: float = SHM_CONFIRM) -> list[str]:
+    """Fast DDS files in /dev/shm whose owners are all dead: no live process maps them, now and
+    again `confirm` s later (a participant that is starting creates its segment a moment before
+    it maps it)."""
+    first = _unmapped_shm(shm_dir)
+    if not first:
+        return []
+    time.sleep(confirm)
+    return sorted(first & _unmapped_shm(shm_dir))
+
+
+def remove_dead_shm(shm_dir: Path = SHM_DIR, confirm: float = SHM_CONFIRM) -> list[str]:
+    """Remove what dead_shm_files finds (`fastdds shm clean` first, as Fast DDS itself would,
+    then whatever is left of it); the names removed."""
+    dead = dead_shm_files(shm_dir, confirm)
+    if not dead:
+        return []
+    clean_shm()
+    for name in sorted(set(dead) & _unmapped_shm(shm_dir)):
+        with contextlib.suppress(OSError):
+            (shm_dir / name).unlink()
+    left = shm_segments(shm_dir)
+    return [name for name in dead if name not in left]
 
 
 def remove_orphaned_shm(before: set[str], shm_dir: Path = SHM_DIR) -> list[str]:

@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import dataclasses
 import datetime
+import difflib
+import hashlib
 import json
 import math
 import os
@@ -29,9 +31,10 @@ from typing import Any
 
 import yaml
 
-# Start order; shutdown goes the other way round except that the recorder stops last.
-NODE_ORDER = ('recorder', 'simulator', 'environment', 'agent')
-STOP_ORDER = ('agent', 'environment', 'simulator', 'recorder')
+# Start order; shutdown goes the other way round except that the recorder stops last. The
+# bridge (to Foxglove) runs only with --watch.
+NODE_ORDER = ('recorder', 'bridge', 'simulator', 'environment', 'agent')
+STOP_ORDER = ('agent', 'environment', 'simulator', 'bridge', 'recorder')
 
 
 @dataclasses.dataclass(frozen=True)
@@ -46,6 +49,9 @@ class NodeSpec:
 
 NODES = {
     'recorder': NodeSpec('recorder', 'stealth_tools', 'recorder', 'MCAP recorder of every topic'),
+    'bridge': NodeSpec(
+        'bridge', 'stealth_tools', 'bridge', 'Foxglove WebSocket bridge of every topic (--watch)'
+    ),
     'simulator': NodeSpec(
         'simulator', 'stealth_sim', 'sim_node', 'robot, odometry, laser, localisation'
     ),
@@ -64,11 +70,19 @@ MANAGED = {
     'environment.goal': '--goal',
     'agent.policy_file': '--name/--runs-dir (train) or --run/--policy (eval)',
     'agent.evaluate': 'stealth eval',
-    'agent.load_policy': 'stealth eval',
+    'agent.load_policy': 'stealth train --resume or stealth eval',
     'agent.eval_every': '--eval-every',
+    'agent.first_episode': 'stealth train --resume',
+    'environment.first_episode': 'stealth train --resume',
     'recorder.output': '--name/--runs-dir',
 }
+# Of those, the ones that change what a run does: a --params-dir file that sets one to something
+# else than the run would is refused (the others say where things are and are replaced, noted).
+BEHAVIOUR = ('agent.evaluate', 'agent.load_policy', 'agent.eval_every', 'agent.first_episode',
+             'environment.first_episode')  # fmt: skip
 ROS_PARAMETERS = 'ros__parameters'
+# Parameters every rclpy node declares besides its own.
+ROS_OWN_PARAMETERS = frozenset({'use_sim_time', 'start_type_description_service'})
 _NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
 
 
@@ -192,6 +206,67 @@ def parse_set(items: list[str], nodes) -> dict[str, dict[str, Any]]:
             raise RunConfigError(f'--set {item!r}: {text!r} is not a parameter value')
         result.setdefault(node, {})[name] = value
     return result
+
+
+def check_managed(parameters: NodeParameters, file_values: dict[str, Any]) -> list[str]:
+    """A --params-dir file's values of parameters the run sets itself: RunConfigError for one
+    that changes what the run does (agent.load_policy: true in a new run, say), else one note
+    per value the run replaces (a path of another run, say)."""
+    notes = []
+    for name, value in file_values.items():
+        key = f'{parameters.node}.{name}'
+        if key not in MANAGED or parameters.values.get(name) == value:
+            continue
+        if key in BEHAVIOUR:
+            raise RunConfigError(
+                f'parameter file {parameters.source}: {key}: {_yaml_text(value)} is set by the '
+                f'run itself (here to {_yaml_text(parameters.values.get(name))}); use '
+                f'{MANAGED[key]}, and remove the line from the file'
+            )
+        notes.append(
+            f"{parameters.source}: {key} {_yaml_text(value)} replaced by the run's "
+            f'{_yaml_text(parameters.values.get(name))} (set by {MANAGED[key]})'
+        )
+    return notes
+
+
+def _yaml_text(value: Any) -> str:
+    return (
+        yaml.safe_dump(value, default_flow_style=True, width=10_000)
+        .strip()
+        .removesuffix('...')
+        .strip()
+    )
+
+
+def check_parameter_names(parameters: NodeParameters, declared: frozenset[str]) -> None:
+    """Every parameter given to a node must be one it declares: a typo in --set or a file for
+    another version would be ignored without a word. RunConfigError naming where it came from."""
+    unknown = sorted(set(parameters.values) - declared)
+    if not unknown:
+        return
+    name = unknown[0]
+    close = difflib.get_close_matches(name, sorted(declared), n=1)
+    hint = f'did you mean {close[0]!r}? ' if close else ''
+    known = f'its parameters: {", ".join(sorted(declared))}'
+    node = parameters.node
+    if name in parameters.overrides:
+        raise RunConfigError(
+            f'--set {node}.{name}: {node} has no parameter {name!r}; {hint}{known}'
+        )
+    if name in read_params_file(parameters.source, node):
+        raise RunConfigError(
+            f'parameter file {parameters.source}: {node} has no parameter {name!r}; {hint}{known}'
+        )
+    raise RunConfigError(
+        f'the installed {node} has no parameter {name!r}, which the run sets: the workspace is '
+        'older than this command; rebuild it (make setup)'
+    )
+
+
+def file_sha256(path: Path) -> str:
+    """The SHA-256 of a file's bytes (a scenario or map a run used), hex."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def coerce_like(value: Any, default: Any) -> Any:

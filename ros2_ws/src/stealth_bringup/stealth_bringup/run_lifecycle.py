@@ -11,14 +11,22 @@ from __future__ import annotations
 
 import contextlib
 import functools
+from pathlib import Path
 import signal
 import sys
 import time
 
+from stealth_tools.bag_files import next_recording_file
+
 from stealth_bringup.episode_tracker import Tracker, unfinished_fields
 from stealth_bringup.remote_nodes import STATIC_PEERS_HINT, RemoteNode, join_command
-from stealth_bringup.respawn import RespawnPolicy, Restart, next_recording_file
-from stealth_bringup.run_config import STOP_ORDER, relative_to_cwd, ros_arg_value
+from stealth_bringup.respawn import RespawnPolicy, Restart
+from stealth_bringup.run_config import (
+    ROS_OWN_PARAMETERS,
+    STOP_ORDER,
+    relative_to_cwd,
+    ros_arg_value,
+)
 from stealth_bringup.run_monitor import (
     ACTION_TOPIC,
     EXIT_SIGNAL,
@@ -40,7 +48,10 @@ HOLD_START_DELAY = 3600.0
 DRAIN_TIME = 0.1  # s of taking in late reports before each node is stopped
 NAMING_TIME = 2.0  # s for the graph to name the node of a second action publisher
 LINGER_TIME = 30.0  # s a killed node's endpoints may stay on the graph (its DDS lease)
-ROS_OWN_PARAMETERS = {'use_sim_time', 'start_type_description_service'}  # every node has them
+# A restarted node talks UDP only: the killed process's Fast DDS shared-memory port stays mapped
+# by its peers (so it cannot be removed), and a new participant that takes over its port number
+# was seen to receive nothing.
+RESTARTED_ENVIRONMENT = {'FASTDDS_BUILTIN_TRANSPORTS': 'UDPv4'}
 
 
 class RunError(RuntimeError):
@@ -59,6 +70,9 @@ class Run:
         self.facts = RunFacts(time.monotonic() if started is None else started)  # command start
         self.progress = Progress(self.tracker, err or sys.stderr)
         self.say = self.progress.say
+        self.report = RunReport(plan, self.tracker, self.facts, self.say)
+        if plan.continued is not None:  # the earlier part's episodes, streak and clock
+            self.tracker.load(plan.continued.records)
         self.supervisor = None
         self.monitor: Monitor | None = None
         self.crashed: set[str] = set()  # nodes that died on their own (reported already)
@@ -66,7 +80,9 @@ class Run:
         self.crowded_since: float | None = None  # when a second action publisher showed up
         self.respawns = RespawnPolicy(plan.respawn, never=plan.remote)
         self.signals: Signals | None = None
-        self.recording_files = [plan.file('recording.mcap')]  # one per recorder process
+        # One file per recorder process: this command's first, then one per restart.
+        recorder = plan.parameters.get('recorder')
+        self.recording_files = [Path(recorder.values['output'])] if recorder else []
 
     def _fail(self, message: str) -> None:
         self.facts.status, self.facts.message, self.facts.exit_code = 'failed', message, 1
@@ -76,9 +92,13 @@ class Run:
         from stealth_bringup.ros_domain import shm_segments
 
         self.plan.write_params_files()
+        for note in self.plan.notes:
+            self.say(f'{self.prog}: {note}')
+        self._remove_dead_shm()
         shm_before = shm_segments()
         facts = self.facts
         with Signals() as signals:
+            self._write_progress()  # a run directory from the start, whatever happens next
             self._run(signals, shm_before)
             if facts.status == 'failed':
                 self.say(f'{self.prog}: {facts.message}')
@@ -88,9 +108,42 @@ class Run:
             facts.nodes = dict(self.supervisor.nodes) if self.supervisor else {}
             facts.restarts = [restart.as_dict() for restart in self.respawns.restarts]
             # A signal now changes nothing: the files get written.
-            report = RunReport(self.plan, self.tracker, facts, self.say)
-            report.print_closing(report.write(), self.out)
+            self.report.print_closing(self.report.write(), self.out)
         return facts.exit_code
+
+    def _remove_dead_shm(self) -> None:
+        """Fast DDS files in /dev/shm that an earlier run's killed processes left: named, gone."""
+        from stealth_bringup.ros_domain import remove_dead_shm
+
+        removed = remove_dead_shm()
+        if removed:
+            self.say(
+                f'{self.prog}: removed {len(removed)} Fast DDS files of dead processes from '
+                f'/dev/shm: {", ".join(removed)}'
+            )
+
+    def _write_progress(self) -> None:
+        """summary.json as the run stands; a full disk is said, not fatal."""
+        if self.plan.mode != 'train':
+            return
+        self.facts.restarts = [restart.as_dict() for restart in self.respawns.restarts]
+        try:
+            self.report.write_progress()
+        except OSError as error:
+            self.say(f'{self.prog}: could not write summary.json: {error}')
+
+    def _on_record(self, record) -> None:
+        """An episode is complete: the progress bar, its row of episodes.csv at once, and after
+        a greedy evaluation summary.json, so a killed orchestrator leaves them."""
+        from stealth_bringup.run_outputs import append_episode
+
+        self.progress.on_record(record)
+        try:
+            append_episode(record, self.plan.file('episodes.csv'))
+        except OSError as error:
+            self.say(f'{self.prog}: could not append to episodes.csv: {error}')
+        if record.greedy:
+            self._write_progress()
 
     def _run(self, signals: Signals, shm_before: set[str]) -> None:
         """Start, follow and stop the nodes in the private domain."""
@@ -117,8 +170,10 @@ class Run:
             context = None
             try:
                 context = private_ros_context(domain_id, plan.discovery)
+                # A continued run's episode times go on from where its earlier part stopped.
+                offset = max((r.wall_time for r in self.tracker.records), default=0.0)
                 self.monitor = Monitor(
-                    context, self.tracker, self.facts.started, self.progress.on_record
+                    context, self.tracker, self.facts.started - offset, self._on_record
                 )
                 self._start_nodes(signals)
                 self._follow(signals)
@@ -151,9 +206,9 @@ class Run:
             return {'start_delay': HOLD_START_DELAY}
         return {}
 
-    def _start(self, name: str, values: dict | None = None) -> None:
+    def _start(self, name: str, values: dict | None = None, env: dict | None = None) -> None:
         """Start a node with its parameters file and `values` on top (default: the values it
-        is held with at the run's start)."""
+        is held with at the run's start), `env` on top of the run's environment."""
         plan = self.plan
         params_file = plan.params_file(name).resolve()
         command = plan.commands[name] + plan.parameters[name].ros_args(params_file)
@@ -161,7 +216,7 @@ class Run:
         for key, value in values.items():
             command += ['-p', f'{key}:={ros_arg_value(value)}']
         try:
-            self.supervisor.start(name, command, niceness=NICENESS.get(name, 0))
+            self.supervisor.start(name, command, niceness=NICENESS.get(name, 0), env=env)
         except OSError as error:
             raise RunError(f'{name}: cannot start {command[0]}: {error.strerror}') from None
 
@@ -203,7 +258,7 @@ class Run:
             self.monitor.spin(0.05)  # reports still on their way come in meanwhile
         if self.signals.first is not None:
             return
-        self._start(name, self._restart_values(name, restart))
+        self._start(name, self._restart_values(name, restart), RESTARTED_ENVIRONMENT)
         new = self.supervisor.nodes[name]
 
         def alive() -> bool:
@@ -238,7 +293,7 @@ class Run:
                 )
                 wall_time = time.monotonic() - self.facts.started
                 for record in self.tracker.add_summary(fields, wall_time):
-                    self.progress.on_record(record)
+                    self._on_record(record)
                 restart.aborted_episode = episode
             return {'first_episode': monitor.next_episode()}
         if name == 'agent' and self.plan.mode == 'train':
@@ -246,7 +301,7 @@ class Run:
             # position and the random stream.
             return {'load_policy': True, 'first_episode': monitor.next_episode()}
         if name == 'recorder':  # a new file: the dead recorder's is recovered at the end
-            self.recording_files.append(next_recording_file(self.recording_files[0]))
+            self.recording_files.append(next_recording_file(self.plan.directory))
             return {'output': str(self.recording_files[-1].resolve())}
         return {}
 
@@ -402,6 +457,11 @@ class Run:
                 self._release_first_episode()
         self.facts.startup_seconds = time.monotonic() - self.facts.started
         self.say(f'all nodes up after {self.facts.startup_seconds:.1f} s')
+        if self.plan.watch_port is not None:
+            self.say(
+                f'watch live: in Foxglove, Open connection > Foxglove WebSocket > '
+                f'ws://localhost:{self.plan.watch_port} (layout: docs/foxglove/stealth-nav.json)'
+            )
 
     def _release_first_episode(self) -> None:
         """Give the environment its configured start_delay back (it started on hold)."""
@@ -447,7 +507,7 @@ class Run:
             return
         self.facts.training_started = time.monotonic()
         monitor.last_activity = self.facts.training_started
-        self.progress.start(plan.episodes)
+        self.progress.start(plan.episodes, self.tracker.episodes)
         while True:
             if signals.first is not None:
                 self._interrupted(signals.first)

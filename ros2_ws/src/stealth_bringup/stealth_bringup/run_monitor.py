@@ -331,11 +331,13 @@ class Progress:
             else:
                 print(text, file=self.err, flush=True)
 
-    def start(self, total: int) -> None:
+    def start(self, total: int, done: int = 0) -> None:
+        """The bar of `total` episodes, `done` of them before (a continued run)."""
         from tqdm import tqdm
 
         self.bar = tqdm(
             total=total,
+            initial=done,
             unit='ep',
             desc='episodes',
             dynamic_ncols=True,

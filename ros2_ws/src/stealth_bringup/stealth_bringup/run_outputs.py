@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 import csv
+import dataclasses
 import json
 import math
 import os
@@ -23,9 +24,11 @@ from pathlib import Path
 from matplotlib.figure import Figure  # no pyplot: no global state, no display (Agg)
 from matplotlib.lines import Line2D
 import numpy as np
+from stealth_env.planners import optimal_path  # noqa: F401 - where run_report takes it
 from stealth_env.reward import Outcome
 
 from stealth_bringup.episode_tracker import CSV_FIELDS, OUTCOMES, EpisodeRecord
+from stealth_bringup.run_config import RunConfigError
 
 OUTCOME_COLOURS = {
     Outcome.SUCCESS.name: '#1a9641',
@@ -37,13 +40,80 @@ AVERAGE_WINDOW = 20
 
 
 def write_csv(rows: Iterable[dict], fields: Sequence[str], path: Path) -> Path:
-    """A CSV with a header of `fields`; floats to 6 significant digits, NaN and None empty."""
-    with open(path, 'w', newline='', encoding='utf-8') as stream:
+    """A CSV with a header of `fields`; floats to 6 significant digits, NaN and None empty.
+    Written atomically: a reader (or a crash) sees the old file or the new one."""
+
+    def write(stream) -> None:
         writer = csv.DictWriter(stream, fieldnames=fields)
         writer.writeheader()
         for row in rows:
             writer.writerow({k: _csv_value(v) for k, v in row.items()})
+
+    return _replace_atomically(path, write, newline='')
+
+
+def _replace_atomically(path: Path, write, newline: str | None = None) -> Path:
+    """write(stream) into a temporary file beside `path`, then rename it over `path`."""
+    path = Path(path)
+    partial = path.with_name(f'.{path.name}.partial')
+    with open(partial, 'w', newline=newline, encoding='utf-8') as stream:
+        write(stream)
+    os.replace(partial, path)
     return path
+
+
+def append_episode(record: EpisodeRecord, path: Path) -> None:
+    """One more row of episodes.csv (the header first if the file is new), flushed to the OS at
+    once, so a killed orchestrator leaves every episode finished so far."""
+    path = Path(path)
+    new = not path.exists() or path.stat().st_size == 0
+    with open(path, 'a', newline='', encoding='utf-8') as stream:
+        writer = csv.DictWriter(stream, fieldnames=CSV_FIELDS)
+        if new:
+            writer.writeheader()
+        writer.writerow({k: _csv_value(v) for k, v in record.as_row().items()})
+
+
+def read_episodes_csv(path: Path) -> list[EpisodeRecord]:
+    """The episodes of an episodes.csv (as written here); RunConfigError naming the file, the
+    line and the field when it cannot be read back."""
+    kinds = {f.name: f.type for f in dataclasses.fields(EpisodeRecord)}
+    try:
+        with open(path, newline='', encoding='utf-8') as stream:
+            reader = csv.DictReader(stream)
+            if reader.fieldnames is None:
+                return []
+            missing = [f for f in CSV_FIELDS if f not in reader.fieldnames]
+            if missing:
+                columns = ', '.join(missing)
+                raise RunConfigError(f'{path}: no column {columns} (not an episodes.csv)')
+            records = []
+            for row in reader:
+                values = {}
+                for name, kind in kinds.items():
+                    try:
+                        values[name] = _parse_csv_value(row[name], kind)
+                    except (TypeError, ValueError):
+                        raise RunConfigError(
+                            f'{path}, line {reader.line_num}: {name} {row[name]!r} is not '
+                            f'a{"n" if kind == "int" else ""} {kind}'
+                        ) from None
+                records.append(EpisodeRecord(**values))
+    except OSError as error:
+        raise RunConfigError(f'{path}: cannot read it ({error.strerror})') from None
+    return records
+
+
+def _parse_csv_value(text: str, kind: str):
+    if kind == 'float':
+        return math.nan if text == '' else float(text)
+    if kind == 'int':
+        return int(text)
+    if kind == 'bool':
+        if text not in ('True', 'False'):
+            raise ValueError(text)
+        return text == 'True'
+    return text
 
 
 def _csv_value(value):
@@ -58,9 +128,9 @@ def write_episodes_csv(records: Sequence[EpisodeRecord], path: Path) -> Path:
 
 
 def write_json(data: dict, path: Path) -> Path:
-    """JSON with NaN written as null (strict JSON readers refuse NaN)."""
-    path.write_text(json.dumps(_finite(data), indent=2) + '\n', encoding='utf-8')
-    return path
+    """JSON with NaN written as null (strict JSON readers refuse NaN), atomically."""
+    text = json.dumps(_finite(data), indent=2) + '\n'
+    return _replace_atomically(path, lambda stream: stream.write(text))
 
 
 def _finite(value):
@@ -189,18 +259,6 @@ def plot_learning_curve(
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, bbox_inches='tight')
     return path
-
-
-def optimal_path(scenario, goal: str):
-    """The value-iteration optimum on the move lattice: (points (n, 2), PathResult), or None."""
-    from stealth_env.planners import LatticeModel, follow, value_iteration, walk
-    from stealth_env.task import StealthTask
-
-    model = LatticeModel.build(StealthTask(scenario, goal))
-    optimum = value_iteration(model)
-    path = follow(model, lambda i: int(optimum.policy[i]))
-    result = walk(model, path)
-    return result.points, result
 
 
 def plot_paths(

@@ -10,6 +10,7 @@ import argparse
 from collections.abc import Sequence
 import contextlib
 import dataclasses
+import errno
 import json
 import math
 import os
@@ -17,15 +18,22 @@ from pathlib import Path
 import re
 import shlex
 
+from stealth_tools.bag_files import next_recording_file
+
 from stealth_bringup.ros_domain import DISCOVERY_RANGES
 from stealth_bringup.run_config import (
     NODE_ORDER,
     NODES,
+    ROS_OWN_PARAMETERS,
     NodeParameters,
     RunConfigError,
+    check_managed,
+    check_parameter_names,
     effective_parameters,
+    file_sha256,
     params_sources,
     parse_set,
+    read_params_file,
     relative_to_cwd,
     run_directory,
     scenario_parameters,
@@ -126,8 +134,9 @@ def _common_options(parser: argparse.ArgumentParser, evaluating: bool = False) -
     parser.add_argument(
         '--watch',
         action='store_true',
-        help='simulate in real time (simulator real_time_factor 1, publish_rate 10) to watch '
-        'in Foxglove/RViz',
+        help='simulate in real time (simulator real_time_factor 1, publish_rate 10) and serve '
+        'the run to the Foxglove app: connect to ws://localhost:8765 (the bridge node; '
+        '--set bridge.port=N for another port)',
     )
     parser.add_argument(
         '--startup-timeout',
@@ -196,9 +205,8 @@ def train_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         '--scenario',
-        default=DEFAULT_SCENARIO,
         metavar='NAME|PATH',
-        help='scenario name (scenarios/) or YAML path (default: %(default)s)',
+        help=f'scenario name (scenarios/) or YAML path (default: {DEFAULT_SCENARIO})',
     )
     parser.add_argument(
         '--goal',
@@ -208,25 +216,33 @@ def train_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         '--episodes',
         type=_positive_int,
-        default=DEFAULT_EPISODES,
         metavar='N',
-        help='episode budget, greedy evaluations included (default: %(default)s)',
+        help='episode budget, greedy evaluations included (default: '
+        f"{DEFAULT_EPISODES}); with --resume the new total, the run's earlier episodes "
+        "included (default: the run's budget)",
     )
     parser.add_argument(
         '--eval-every',
         type=_non_negative_int,
-        default=DEFAULT_EVAL_EVERY,
         metavar='M',
         help='every M-th episode is a greedy evaluation, no exploration and no learning '
-        '(0 = never; default: %(default)s)',
+        f"(0 = never; default: {DEFAULT_EVAL_EVERY}, with --resume the run's)",
     )
     parser.add_argument(
         '--success-streak',
         type=_non_negative_int,
-        default=DEFAULT_STREAK,
         metavar='K',
         help='stop once K greedy evaluations in a row reached the goal (0 = run the whole '
-        'budget; default: %(default)s)',
+        f"budget; default: {DEFAULT_STREAK}, with --resume the run's)",
+    )
+    parser.add_argument(
+        '--resume',
+        metavar='RUN',
+        help='continue the training run in directory RUN (stopped, crashed or finished): its '
+        'scenario, goal, parameters (RUN/params/, or --params-dir) and settings unless given '
+        'here, the agent from RUN/policy.npz, the episode numbers, episodes.csv and the streak '
+        'where they were; appends to episodes.csv and summary.json, redraws the plots and '
+        'records into the next RUN/recording_<n>.mcap',
     )
     _common_options(parser)
     return parser
@@ -294,7 +310,7 @@ def _check_goal(scenario, goal: str | None, default: str | None = None) -> str:
 
 
 def _executables(
-    no_record: bool, replacements: list[str], remote: tuple[str, ...]
+    nodes: list[str], replacements: list[str], remote: tuple[str, ...]
 ) -> dict[str, list[str]]:
     """{node: command prefix} of the nodes started here; RunConfigError for an executable that
     is not there."""
@@ -307,6 +323,8 @@ def _executables(
             raise RunConfigError(
                 f'--executable {item!r}: expected NODE=PATH with NODE one of {", ".join(NODES)}'
             )
+        if node not in nodes:
+            raise RunConfigError(f'--executable {item!r}: this run has no {node} node')
         if node in remote:
             raise RunConfigError(
                 f'--executable {item!r}: {node} is --remote, started on the other host with '
@@ -314,8 +332,8 @@ def _executables(
             )
         given[node] = path
     commands = {}
-    for name in NODE_ORDER:
-        if (name == 'recorder' and no_record) or name in remote:
+    for name in nodes:
+        if name in remote:
             continue
         spec = NODES[name]
         if name in given:
@@ -336,6 +354,15 @@ def _executables(
 
 
 @dataclasses.dataclass
+class Continuation:
+    """What the earlier part of a continued run left (stealth train --resume)."""
+
+    records: list  # its episodes (EpisodeRecord), from its episodes.csv
+    summary: dict  # its summary.json
+    first_episode: int  # the number of the first episode of this part
+
+
+@dataclasses.dataclass
 class RunPlan:
     """Everything decided before anything starts."""
 
@@ -353,10 +380,14 @@ class RunPlan:
     stall_timeout: float
     policy_path: Path
     record: bool
+    watch_port: int | None = None  # the bridge's port under --watch
     discovery: str = 'localhost'  # a key of DISCOVERY_RANGES
     remote: tuple[str, ...] = ()  # nodes that join from another host (not in `commands`)
     join_timeout: float = JOIN_TIMEOUT
     respawn: int = 0  # restarts allowed per node
+    continued: Continuation | None = None  # stealth train --resume: the run's earlier part
+    notes: list[str] = dataclasses.field(default_factory=list)  # to say before the run starts
+    hashes: dict[str, str] = dataclasses.field(default_factory=dict)  # scenario and map SHA-256
 
     @property
     def nodes(self) -> list[str]:
@@ -372,6 +403,11 @@ class RunPlan:
         if self.mode != 'train':
             return f'{self.title}, policy {self.policy_path}, {self.episodes} greedy episodes'
         ending = f'up to {self.episodes} episodes'
+        if self.continued is not None:
+            done = len(self.continued.records)
+            ending = f'continued from episode {self.continued.first_episode} ({done} done), ' + (
+                ending + ' in all'
+            )
         if self.eval_every:
             ending += f', a greedy evaluation every {self.eval_every}'
         if self.streak:
@@ -399,23 +435,31 @@ class RunPlan:
 
 def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
     """Check every input and lay out the run; RunConfigError before anything exists."""
-    if mode == 'train':
-        scenario = _load_scenario(args.scenario)
+    continued = None
+    if mode == 'train' and args.resume is not None:
+        continued, scenario, goal, params_dir = _continued_run(args)
+    elif mode == 'train':
+        scenario = _load_scenario(args.scenario or DEFAULT_SCENARIO)
         # The default scenario's quick goal, however it is named (by name or by its file).
         is_default = (
             Path(scenario.path).resolve() == Path(_load_scenario(DEFAULT_SCENARIO).path).resolve()
         )
         default_goal = DEFAULT_GOAL if is_default else None
         goal = _check_goal(scenario, args.goal, default_goal)
-        source_policy = None
         params_dir = args.params_dir
     else:
         scenario, goal, source_policy, params_dir = _eval_source(args)
-    nodes = [n for n in NODE_ORDER if not (n == 'recorder' and args.no_record)]
+    if mode == 'train':
+        episodes, eval_every, streak = _train_settings(args, continued)
+    else:
+        episodes, eval_every, streak = args.episodes, 0, 0
+    left_out = {'recorder': args.no_record, 'bridge': not args.watch}
+    nodes = [n for n in NODE_ORDER if not left_out.get(n)]
     sources = params_sources(_defaults_dir(), params_dir and Path(params_dir), nodes)
     overrides = parse_set(args.overrides, nodes)
     remote = tuple(n for n in REMOTE_NODES if n in args.remote)
-    commands = _executables(args.no_record, args.executable, remote)
+    commands = _executables(nodes, args.executable, remote)
+    hashes = _hashes(scenario)
 
     # The run's own values, on top of the parameter files.
     run_values = {n: {} for n in nodes}
@@ -426,6 +470,7 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
             run_values[node]['seed'] = args.seed
     if args.watch:  # real time, and the simulator's topics at a rate a viewer shows smoothly
         run_values['simulator'].update(real_time_factor=1.0, publish_rate=WATCH_PUBLISH_RATE)
+        run_values['environment']['publish_plan'] = True  # the optimum, for the 3D view
     elif _robot_interface(sources, run_values, overrides) == 'topics':
         run_values['simulator'].update(TOPICS_SIMULATOR)
     # Read the files before creating anything, so a bad one stops us with nothing to undo.
@@ -434,13 +479,23 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
         for node in nodes
     }
 
+    if 'bridge' in parameters:
+        _check_port_free(parameters['bridge'].values)
+
     stamp = utc_stamp()
-    if mode == 'train':
-        directory = run_directory(
-            Path(args.runs_dir), args.name, f'{scenario.name}-{goal}-{stamp}'
-        )
+    # Episode numbers start at 0, or go on after a continued run's last one (agent and
+    # environment alike), whatever a parameter file from another run says.
+    first = {'first_episode': continued.first_episode if continued is not None else 0}
+    parameters['environment'].values.update(first)
+    if mode == 'train' and continued is not None:
+        directory = Path(args.resume)
         policy_path = directory / 'policy.npz'
-        agent = {'policy_file': str(policy_path.resolve()), 'eval_every': args.eval_every}
+        agent = {'policy_file': str(policy_path.resolve()), 'eval_every': eval_every, **first}
+        agent.update(evaluate=False, load_policy=True)
+    elif mode == 'train':
+        directory = Path(args.runs_dir) / (args.name or f'{scenario.name}-{goal}-{stamp}')
+        policy_path = directory / 'policy.npz'
+        agent = {'policy_file': str(policy_path.resolve()), 'eval_every': eval_every, **first}
         agent.update(evaluate=False, load_policy=False)
     else:
         if args.run is not None:  # the evaluation goes into the run's directory
@@ -454,30 +509,205 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
             'evaluate': True,
             'load_policy': False,
             'eval_every': 0,
+            **first,
         }
     parameters['agent'].values.update(agent)
     if 'recorder' in parameters:
-        parameters['recorder'].values['output'] = str((directory / 'recording.mcap').resolve())
+        recording = next_recording_file(directory).resolve()
+        parameters['recorder'].values['output'] = str(recording)
+    notes = _check_parameters(args, parameters, params_dir)
+    if continued is not None and not policy_path.is_file():
+        notes.append(f'{relative_to_cwd(policy_path)} is not there: the agent starts from a '
+                     'fresh table (the run was killed before it saved one)')  # fmt: skip
+    if mode == 'train' and continued is None:  # created last: a refused run leaves nothing
+        directory = run_directory(Path(args.runs_dir), args.name, directory.name)
+        policy_path = directory / 'policy.npz'
+        parameters['agent'].values['policy_file'] = str(policy_path.resolve())
+        if 'recorder' in parameters:
+            recording = (directory / 'recording.mcap').resolve()
+            parameters['recorder'].values['output'] = str(recording)
     return RunPlan(
         mode=mode,
         command_line=' '.join(['stealth', mode, *map(shlex.quote, argv)]),
         scenario=scenario,
         goal=goal,
         directory=directory,
-        episodes=args.episodes,
-        eval_every=args.eval_every if mode == 'train' else 0,
-        streak=args.success_streak if mode == 'train' and args.eval_every else 0,
+        episodes=episodes,
+        eval_every=eval_every,
+        streak=streak if eval_every else 0,
         parameters=parameters,
         commands=commands,
         startup_timeout=args.startup_timeout,
         stall_timeout=args.stall_timeout,
         policy_path=policy_path,
         record='recorder' in parameters,
+        watch_port=parameters['bridge'].values.get('port') if 'bridge' in parameters else None,
         discovery=args.discovery,
         remote=remote,
         join_timeout=args.join_timeout,
         respawn=args.respawn,
+        continued=continued,
+        notes=notes,
+        hashes=hashes,
     )
+
+
+def _train_settings(args, continued: Continuation | None) -> tuple[int, int, int]:
+    """(episode budget, eval_every, success streak) of a training run: the options given, else
+    a continued run's own, else the defaults; RunConfigError when a continued run would stop
+    at once."""
+    if continued is None:
+        return (
+            DEFAULT_EPISODES if args.episodes is None else args.episodes,
+            DEFAULT_EVAL_EVERY if args.eval_every is None else args.eval_every,
+            DEFAULT_STREAK if args.success_streak is None else args.success_streak,
+        )
+    saved = continued.summary
+    episodes = _given(args.episodes, saved.get('episode_budget'), DEFAULT_EPISODES)
+    eval_every = _given(args.eval_every, saved.get('eval_every'), DEFAULT_EVAL_EVERY)
+    streak = _given(args.success_streak, saved.get('success_streak'), DEFAULT_STREAK)
+    from stealth_bringup.episode_tracker import Tracker
+
+    tracker = Tracker(episodes, (streak if eval_every else 0) or None)
+    tracker.load(continued.records)
+    reason = tracker.stop_reason()
+    where = f'--resume {args.resume}'
+    if reason == 'budget':
+        raise RunConfigError(
+            f'{where}: the run has {tracker.episodes} episodes, its budget of {episodes} is '
+            f'spent; give --episodes N, the new total (more than {tracker.episodes})'
+        )
+    if reason == 'streak':
+        raise RunConfigError(
+            f'{where}: the run ended on {tracker.streak} greedy successes in a row (its '
+            f'--success-streak {streak}); give a larger --success-streak, or 0 to spend the '
+            'budget'
+        )
+    return episodes, eval_every, streak
+
+
+def _given(value, saved, default):
+    """An option's value: given on the command line, else the run's saved one, else default."""
+    if value is not None:
+        return value
+    return saved if isinstance(saved, int) and not isinstance(saved, bool) else default
+
+
+def _hashes(scenario) -> dict[str, str]:
+    """SHA-256 of the scenario file and of its map, for a continued run to compare."""
+    hashes = {}
+    for key, path in (('sha256', scenario.path), ('map_sha256', scenario.map_path)):
+        try:
+            hashes[key] = file_sha256(Path(path))
+        except OSError as error:
+            raise RunConfigError(f'{path}: cannot read it ({error.strerror})') from None
+    return hashes
+
+
+def _continued_run(args):
+    """(Continuation, scenario, goal, params dir) of `stealth train --resume RUN`;
+    RunConfigError saying why RUN cannot be continued."""
+    from stealth_bringup.run_outputs import read_episodes_csv
+
+    run = Path(args.resume)
+    where = f'--resume {run}'
+    if not run.is_dir():
+        raise RunConfigError(f'{where}: no such directory')
+    for option in ('name', 'scenario', 'goal'):
+        if getattr(args, option) is not None:
+            raise RunConfigError(f'{where}: a continued run keeps its {option}; drop --{option}')
+    if not (run / 'summary.json').is_file():
+        raise RunConfigError(
+            f'{where}: not a run directory (it has no summary.json, which stealth train writes '
+            'as a run starts)'
+        )
+    summary = _read_run_summary(run)
+    if not summary:
+        raise RunConfigError(f'{where}: its summary.json is not a JSON object stealth train wrote')
+    if summary.get('mode') != 'train':
+        raise RunConfigError(
+            f'{where}: a run of stealth {summary.get("mode") or "?"}, not a training run; only '
+            'stealth train runs can be continued'
+        )
+    if not (run / 'params').is_dir():
+        raise RunConfigError(f'{where}: it has no params/ directory (not a complete run)')
+    saved = summary.get('scenario') or {}
+    path = saved.get('path')
+    if not isinstance(path, str) or not Path(path).is_file():
+        raise RunConfigError(f'{where}: its scenario file {path} is not there any more')
+    scenario = _load_scenario(path)
+    for key, now in _hashes(scenario).items():
+        then = saved.get(key)
+        if then is not None and then != now:
+            what = 'scenario file' if key == 'sha256' else 'map'
+            changed = scenario.path if key == 'sha256' else scenario.map_path
+            raise RunConfigError(
+                f'{where}: its {what} {changed} changed since the run started (SHA-256 '
+                f'{then[:12]}... then, {now[:12]}... now); the policy was learned on the old '
+                'one: restore it, or start a new run'
+            )
+    goal = _check_goal(scenario, summary.get('goal'))
+    csv_path = run / 'episodes.csv'
+    records = read_episodes_csv(csv_path) if csv_path.is_file() else []
+    first = max((r.episode for r in records), default=-1) + 1
+    params_dir = args.params_dir or str(run / 'params')
+    if not (run / 'params' / 'recorder.yaml').is_file():
+        args.no_record = True  # the run was not recorded (--no-record): nor is its continuation
+    return Continuation(records, summary, first), scenario, goal, params_dir
+
+
+def _check_parameters(args, parameters, params_dir) -> list[str]:
+    """Before anything starts: every parameter name one the node declares (its installed
+    table; a node replaced with --executable is checked once it runs), and the values of a
+    --params-dir file that the run sets itself honoured or refused. The notes to say."""
+    replaced = {item.partition('=')[0] for item in args.executable}
+    for node, values in parameters.items():
+        if node not in replaced:
+            check_parameter_names(values, declared_parameters(node))
+    notes = []
+    if args.params_dir is None:
+        return notes
+    for node, values in parameters.items():
+        if Path(values.source).parent == Path(params_dir):
+            file_values = read_params_file(values.source, node)
+            notes += check_managed(values, file_values)
+    return notes
+
+
+def declared_parameters(node: str) -> frozenset[str]:
+    """The parameters the installed node declares: its table, and those of every ROS node."""
+    from stealth_agent import agent_parameters
+    from stealth_env import env_parameters
+    from stealth_sim import sim_parameters
+    from stealth_tools import bridge_parameters, recorder_parameters
+
+    tables = {
+        'recorder': recorder_parameters,
+        'bridge': bridge_parameters,
+        'simulator': sim_parameters,
+        'environment': env_parameters,
+        'agent': agent_parameters,
+    }
+    return frozenset(tables[node].PARAMETERS) | ROS_OWN_PARAMETERS
+
+
+def _check_port_free(bridge: dict) -> None:
+    """The bridge's port must be free before anything starts (RunConfigError naming it)."""
+    import socket
+
+    from stealth_tools.bridge_core import DEFAULT_PORT, port_in_use_line
+
+    port, address = bridge.get('port', DEFAULT_PORT), bridge.get('address', '127.0.0.1')
+    with socket.socket() as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as the server binds
+        try:
+            probe.bind((address, int(port)))
+        except OSError as error:
+            if error.errno == errno.EADDRINUSE:
+                raise RunConfigError(
+                    'bridge: ' + port_in_use_line(port, '--set bridge.port=N')
+                ) from None
+            raise RunConfigError(f'bridge: cannot listen on {address}:{port}: {error}') from None
 
 
 def _robot_interface(sources, run_values, overrides) -> str:

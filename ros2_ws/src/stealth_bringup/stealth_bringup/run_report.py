@@ -11,6 +11,8 @@ import math
 from pathlib import Path
 import time
 
+from stealth_tools.bag_files import recording_files
+
 from stealth_bringup.episode_tracker import Tracker
 from stealth_bringup.run_config import relative_to_cwd
 from stealth_bringup.run_plan import RunPlan
@@ -72,6 +74,28 @@ class RunReport:
             info['as_last_evaluated'] = saved.learner.updates == last.learner_updates
             info['updates_since_last_evaluation'] = saved.learner.updates - last.learner_updates
         return info
+
+    def write_progress(self) -> Path:
+        """summary.json as the run stands (status 'running'), rewritten atomically: what a
+        killed orchestrator leaves besides episodes.csv (no pictures: --resume draws them)."""
+        from stealth_bringup.run_outputs import write_json
+
+        records = sorted(self.tracker.records, key=lambda r: r.episode)
+        summary = self._summary(records, None, self._existing_files(), status='running')
+        return write_json(summary, self.plan.file('summary.json'))
+
+    def _existing_files(self) -> dict[str, Path]:
+        """The run's files that exist besides the pictures, summary.json and episodes.csv."""
+        plan = self.plan
+        files = {}
+        recordings = recording_files(plan.directory)
+        if recordings:  # several: the run directory reads as all of them (stealth bag ...)
+            files['recording'] = recordings[0] if len(recordings) == 1 else plan.directory
+        if plan.file('policy.npz').exists():
+            files['policy'] = plan.file('policy.npz')
+        files['params'] = plan.file('params')
+        files['logs'] = plan.file('logs')
+        return files
 
     def write(self) -> dict[str, Path]:
         """Every output file of the run, written; {key: path} of what exists afterwards."""
@@ -142,11 +166,7 @@ class RunReport:
                 animation = self._animate(plan, learned, label, optimum_points, optimum_label)
                 if animation is not None:
                     files['path_animation'] = animation
-        for key, name in (('recording', 'recording.mcap'), ('policy', 'policy.npz')):
-            if plan.file(name).exists():
-                files[key] = plan.file(name)
-        files['params'] = plan.file('params')
-        files['logs'] = plan.file('logs')
+        files.update(self._existing_files())
         summary = self._summary(records, optimum, files)
         write_json(summary, plan.file('summary.json'))
         written = {k: Path(v) for k, v in files.items()}
@@ -175,12 +195,14 @@ class RunReport:
             self.say(f'{self.prog}: could not draw path.gif: {error}')
             return None
 
-    def _summary(self, records, optimum, files) -> dict:
+    def _summary(self, records, optimum, files, status: str | None = None) -> dict:
         plan, tracker, facts = self.plan, self.tracker, self.facts
         agent = plan.parameters['agent'].values
         training = [r for r in records if not r.greedy]
         greedy = [r for r in records if r.greedy]
         steps = sum(r.steps for r in records)
+        first = plan.continued.first_episode if plan.continued is not None else 0
+        steps_here = sum(r.steps for r in records if r.episode >= first)
         end = facts.stopped_at or time.monotonic()
         run_seconds = end - facts.training_started if facts.training_started else 0.0
         last = tracker.last_greedy()
@@ -193,15 +215,20 @@ class RunReport:
             'epsilon_final', 'epsilon_decay_episodes', 'alpha_schedule', 'alpha_final',
             'alpha_decay_episodes',
         )  # fmt: skip
+        status = status or facts.status
+        message = facts.message if status == facts.status else f'{len(records)} episodes so far'
         summary = {
-            'status': facts.status,
-            'message': facts.message,
+            'status': status,
+            'message': message,
             'mode': plan.mode,
             'command': plan.command_line,
+            # Each part of a run continued with --resume: its command, episodes and ending.
+            'parts': [*self._earlier_parts(), self._this_part(records, status, message)],
             'scenario': {
                 'name': plan.scenario.name,
                 'path': str(Path(plan.scenario.path).resolve()),
                 'map': str(Path(plan.scenario.map_path).resolve()),
+                **plan.hashes,
             },
             'goal': plan.goal,
             'seeds': seeds,
@@ -248,7 +275,7 @@ class RunReport:
             if math.isfinite(facts.startup_seconds)
             else None,
             'run_s': round(run_seconds, 2),
-            'steps_per_s': round(steps / run_seconds, 2) if run_seconds > 0 else None,
+            'steps_per_s': round(steps_here / run_seconds, 2) if run_seconds > 0 else None,
             'ros_domain_id': facts.domain_id,
             'discovery': plan.discovery,
             'policy': self._policy_check(),
@@ -268,7 +295,32 @@ class RunReport:
             'files': {key: relative_to_cwd(value) for key, value in files.items()},
         }
         summary['files']['summary'] = relative_to_cwd(plan.file('summary.json'))
+        if 'recording' in files:
+            summary['files']['recording_files'] = [
+                relative_to_cwd(path) for path in recording_files(plan.directory)
+            ]
         return summary
+
+    def _earlier_parts(self) -> list[dict]:
+        continued = self.plan.continued
+        if continued is None:
+            return []
+        parts = continued.summary.get('parts')
+        if isinstance(parts, list):
+            return parts
+        saved = continued.summary  # a run written before parts were kept: its one part
+        return [{key: saved.get(key) for key in ('command', 'status', 'message', 'wall_time_s')}]
+
+    def _this_part(self, records, status: str, message: str) -> dict:
+        first = self.plan.continued.first_episode if self.plan.continued is not None else 0
+        mine = [r.episode for r in records if r.episode >= first]
+        return {
+            'command': self.plan.command_line,
+            'status': status,
+            'message': message,
+            'episodes': [first, max(mine)] if mine else [],
+            'wall_time_s': round(time.monotonic() - self.facts.started, 2),
+        }
 
     def print_closing(self, files: dict[str, Path], out) -> None:
         """The closing lines on `out`: how it ended, the episodes, the files, what to do next."""
@@ -321,6 +373,9 @@ class RunReport:
         for key, name, what in described:
             if key in files and files[key].exists():
                 lines.append(f'  {name:<20}{what}')
+        recordings = recording_files(plan.directory)
+        if len(recordings) > 1:
+            lines.append(f'  {"recording_<n>.mcap":<20}its continuation: one more file per part')
         if 'recording' in files and files['recording'].exists():
             bag = relative_to_cwd(files['recording'])
             lines.append(f'Replay:    stealth bag play {bag}   (details: stealth bag info {bag})')

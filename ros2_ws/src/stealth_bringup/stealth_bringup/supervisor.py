@@ -138,9 +138,12 @@ class Supervisor:
         self.nodes: dict[str, NodeProcess] = {}  # the latest process of each node
         self.retired: list[NodeProcess] = []  # processes of nodes that were started again
 
-    def start(self, name: str, command: list[str], niceness: int = 0) -> NodeProcess:
-        """Start one node (`niceness` lower in priority); OSError (e.g. not executable) is the
-        caller's to report."""
+    def start(
+        self, name: str, command: list[str], niceness: int = 0, env: dict | None = None
+    ) -> NodeProcess:
+        """Start one node (`niceness` lower in priority, `env` on top of the run's environment);
+        OSError (e.g. not executable) is the caller's to report. A node started again appends
+        to its log."""
         self.log_dir.mkdir(parents=True, exist_ok=True)
         log_path = self.log_dir / f'{name}.log'
         previous = self.nodes.get(name)
@@ -152,7 +155,7 @@ class Supervisor:
                 log.flush()
             process = subprocess.Popen(
                 command,
-                env=self.env,
+                env={**self.env, **(env or {})},
                 stdin=subprocess.DEVNULL,
                 stdout=log,
                 stderr=subprocess.STDOUT,

@@ -6,11 +6,11 @@ from stealth_bringup.commands import COMMANDS
 from stealth_tools import cli
 
 
-def test_stealth_finds_train_eval_and_render_in_this_order():
+def test_stealth_finds_train_eval_render_sweep_and_doctor_in_this_order():
     added = cli.added_commands()
-    assert list(added)[:3] == ['train', 'eval', 'render']
+    assert list(added)[:5] == ['train', 'eval', 'render', 'sweep', 'doctor']
     assert {name: added[name] for name in COMMANDS} == COMMANDS
-    assert cli.build_parser().description.endswith(', plus train, eval and render.')
+    assert cli.build_parser().description.endswith(', plus train, eval, render, sweep and doctor.')
 
 
 @pytest.mark.parametrize('command', list(COMMANDS))

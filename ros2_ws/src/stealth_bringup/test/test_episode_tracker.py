@@ -107,6 +107,21 @@ def test_progress_figures():
     assert set(tracker.outcome_counts()) == set(OUTCOMES)
 
 
+def test_a_continued_run_goes_on_with_the_earlier_episodes_and_streak():
+    earlier = Tracker()
+    for episode, outcome, greedy in ((0, 'TIMEOUT', False), (1, 'SUCCESS', True),
+                                     (2, 'SUCCESS', False), (3, 'SUCCESS', True)):  # fmt: skip
+        feed(earlier, episode, outcome, greedy)
+    tracker = Tracker(budget=10, streak_goal=3)
+    tracker.load(reversed(earlier.records))
+    assert tracker.episodes == 4
+    assert (tracker.streak, tracker.streak_start, tracker.greedy_count) == (2, 1, 2)
+    assert tracker.stop_reason() is None
+    feed(tracker, 4, 'SUCCESS', True)
+    assert tracker.stop_reason() == 'streak' and tracker.streak_start == 1
+    assert feed(tracker, 3, 'SUCCESS', True) == []  # an episode counted before is not again
+
+
 def test_an_episode_whose_environment_died_is_rebuilt_from_its_steps():
     steps = [(-1.0, 0.1, 4.0, 1.5, 2.0), (-1.0, 0.3, 3.5, 2.0, 2.0), (-2.0, 0.2, 3.0, 2.0, 2.5)]
     fields = unfinished_fields(12, steps, (1.5, 1.5))

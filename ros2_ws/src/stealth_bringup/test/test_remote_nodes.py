@@ -58,4 +58,4 @@ def test_remote_flags_parse_and_a_remote_node_is_not_started_here():
     with pytest.raises(SystemExit):
         train_parser().parse_args(['--remote', 'recorder'])  # it writes the run directory here
     with pytest.raises(RunConfigError, match=r"--executable 'agent=/x': agent is --remote"):
-        _executables(False, ['agent=/x'], ('agent',))
+        _executables(['recorder', 'simulator', 'environment', 'agent'], ['agent=/x'], ('agent',))

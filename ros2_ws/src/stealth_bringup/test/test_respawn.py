@@ -1,6 +1,6 @@
 """Respawn decisions and records (no ROS)."""
 
-from stealth_bringup.respawn import RESPAWN_DELAYS, RespawnPolicy, next_recording_file
+from stealth_bringup.respawn import RESPAWN_DELAYS, RespawnPolicy
 
 
 def test_restarts_are_bounded_per_node_with_growing_delays():
@@ -30,10 +30,3 @@ def test_the_delay_stops_growing():
     for _ in range(len(RESPAWN_DELAYS) + 3):
         policy.begin('recorder', 'x', 0, 0.0)
     assert policy.delay('recorder') == RESPAWN_DELAYS[-1]
-
-
-def test_recording_files_are_split_as_rosbag2_names_them(tmp_path):
-    first = tmp_path / 'recording.mcap'
-    assert next_recording_file(first) == tmp_path / 'recording_1.mcap'
-    (tmp_path / 'recording_1.mcap').touch()
-    assert next_recording_file(first) == tmp_path / 'recording_2.mcap'

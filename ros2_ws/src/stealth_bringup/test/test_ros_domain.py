@@ -1,10 +1,13 @@
 """The run's private domain id and the clean-up of a killed node's shared memory (no ROS)."""
 
+import itertools
 import os
 
 from stealth_bringup import ros_domain
 from stealth_bringup.ros_domain import (
+    dead_shm_files,
     private_environment,
+    remove_dead_shm,
     remove_orphaned_shm,
     reserved_domain_id,
     segment_base,
@@ -45,3 +48,23 @@ def test_only_new_unmapped_segments_are_removed_with_their_lock_files(tmp_path, 
         'sem.fastrtps_live_mutex',
     ]
     assert segment_base('sem.fastrtps_port7411_mutex') == 'fastrtps_port7411'
+
+
+def test_files_of_dead_processes_are_removed_when_twice_unmapped(tmp_path, monkeypatch):
+    monkeypatch.setattr(ros_domain, 'clean_shm', lambda: None)
+    looks = itertools.cycle([{'fastrtps_live'}, {'fastrtps_live', 'fastrtps_new'}])
+    monkeypatch.setattr(ros_domain, 'mapped_shm_names', lambda: next(looks))
+    names = ('fastrtps_dead', 'fastrtps_dead_el', 'sem.fastrtps_dead_mutex', 'fastrtps_live',
+             'sem.fastrtps_live_mutex', 'fastrtps_new', 'other')  # fmt: skip
+    for name in names:
+        (tmp_path / name).write_bytes(b'')
+    # fastrtps_new was unmapped at the first look only: a participant mapping its new segment.
+    dead = ['fastrtps_dead', 'fastrtps_dead_el', 'sem.fastrtps_dead_mutex']
+    assert dead_shm_files(tmp_path, confirm=0) == dead
+    assert remove_dead_shm(tmp_path, confirm=0) == dead
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        'fastrtps_live',
+        'fastrtps_new',
+        'other',
+        'sem.fastrtps_live_mutex',
+    ]

@@ -8,11 +8,14 @@ import math
 import numpy as np
 import pytest
 from stealth_bringup.episode_tracker import CSV_FIELDS, EpisodeRecord
+from stealth_bringup.run_config import RunConfigError
 from stealth_bringup.run_outputs import (
+    append_episode,
     moving_average,
     optimal_path,
     plot_learning_curve,
     plot_path,
+    read_episodes_csv,
     write_episodes_csv,
     write_json,
 )
@@ -95,3 +98,34 @@ def test_the_path_picture_shows_the_learned_path_and_the_optimum(tmp_path, scena
     )
     assert path.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
     assert plot_path(scenario, 'easy', tmp_path / 'n.png', None, 'l', None, 'o', 't') is None
+
+
+def test_episodes_appended_one_by_one_read_back_as_written(tmp_path):
+    path = tmp_path / 'episodes.csv'
+    for item in RECORDS:
+        append_episode(item, path)
+    assert path.read_text() == write_episodes_csv(RECORDS, tmp_path / 'whole.csv').read_text()
+    back = read_episodes_csv(path)
+    assert [r.episode for r in back] == [0, 1, 2, 3, 4] and back[2].greedy is True
+    assert math.isnan(back[4].epsilon) and back[1].total_reward == -1100.0
+    assert dataclasses.replace(back[0], wall_time=0.0) == dataclasses.replace(
+        RECORDS[0], wall_time=0.0
+    )
+
+
+def test_an_unreadable_episodes_csv_names_the_line_and_the_field(tmp_path):
+    path = write_episodes_csv(RECORDS, tmp_path / 'episodes.csv')
+    path.write_text(path.read_text().replace('\n2,SUCCESS,42', '\nx,SUCCESS,42'))
+    with pytest.raises(RunConfigError, match=r'episodes.csv, line 4: episode .x. is not an int'):
+        read_episodes_csv(path)
+    (tmp_path / 'other.csv').write_text('a,b\n1,2\n')
+    with pytest.raises(RunConfigError, match='no column episode, outcome'):
+        read_episodes_csv(tmp_path / 'other.csv')
+
+
+def test_summary_json_is_replaced_whole(tmp_path):
+    path = tmp_path / 'summary.json'
+    write_json({'episodes': 1}, path)
+    write_json({'episodes': 2}, path)
+    assert json.loads(path.read_text()) == {'episodes': 2}
+    assert [p.name for p in tmp_path.iterdir()] == ['summary.json']  # no partial file left

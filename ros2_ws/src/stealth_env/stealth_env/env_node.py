@@ -9,8 +9,11 @@ step may be dropped silently):
   every action; ``rl_env/step_info`` (StepInfo) after every action; ``rl_env/episode_summary``
   (EpisodeSummary) at every episode end; ``searchlights`` (SearchlightArray, transient local)
   and ``searchlight_markers`` (visualization_msgs/MarkerArray, transient local): the lights
-  and the scene for RViz and Foxglove, again every ``marker_period`` while lights move or when
-  a new viewer subscribes;
+  and the scene for RViz and Foxglove, and ``visibility_grid`` (nav_msgs/OccupancyGrid,
+  transient local: the lit area as a costmap, 0-100 = total visibility as a percentage of the
+  detection threshold), again every ``marker_period`` while lights move or when a new viewer
+  subscribes; with ``publish_plan`` (on under ``stealth train --watch``), ``planned_path``
+  (nav_msgs/Path, transient local): value iteration's optimum on the move lattice, once;
 * subscribes ``rl_agent/rl_action`` (RLAction) and ``rl_agent/rl_experiment_info``
   (RLExperimentInfo);
 * StepInfo is built only while someone subscribes (a recorder, a viewer), as the simulator
@@ -63,6 +66,7 @@ the node with one line saying which and why, and exit code 2.
 
 from __future__ import annotations
 
+import array
 from collections import Counter
 import functools
 import math
@@ -70,8 +74,8 @@ import time
 from typing import Any, NamedTuple
 
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Point, Pose2D
-from nav_msgs.msg import OccupancyGrid
+from geometry_msgs.msg import Point, Pose2D, PoseStamped
+from nav_msgs.msg import OccupancyGrid, Path
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
@@ -90,17 +94,18 @@ from stealth_interfaces.msg import (
     StepInfo,
 )
 from stealth_interfaces.srv import ExecuteMove, ResetRobot, RestartEpisode
-from stealth_node_kit.conversions import quaternion_yaw, seconds, time_msg
+from stealth_node_kit.conversions import quaternion_yaw, seconds, time_msg, yaw_quaternion
 from stealth_node_kit.endpoints import (
     QUIET_PUBLISHER,
     QUIET_SUBSCRIPTION,
     warn_publisher,
     warn_subscription,
 )
-from stealth_node_kit.parameters import Param, StartupError, declare_parameters, non_finite
+from stealth_node_kit.parameters import StartupError, declare_parameters, non_finite
 from stealth_node_kit.running import StartupNode, run_node
 from visualization_msgs.msg import Marker, MarkerArray
 
+from stealth_env.env_parameters import PARAMETERS
 from stealth_env.episode_flow import (
     JUDGE_ON,
     Aborted,
@@ -112,7 +117,13 @@ from stealth_env.episode_flow import (
     is_finite_pose,
 )
 from stealth_env.log_throttle import Throttle
-from stealth_env.markers import WallMap, any_moving, scene_markers, searchlight_fields
+from stealth_env.markers import (
+    WallMap,
+    any_moving,
+    scene_markers,
+    searchlight_fields,
+    visibility_levels,
+)
 from stealth_env.reward import Outcome
 from stealth_env.scenario import ScenarioError, load_scenario
 from stealth_env.task import WAIT, StealthTask
@@ -164,6 +175,8 @@ TOPICS = {
     'restart': 'rl_env/restart_episode',
     'searchlights': 'searchlights',
     'markers': 'searchlight_markers',
+    'visibility_grid': 'visibility_grid',
+    'planned_path': 'planned_path',
 }
 MOVE_SERVICE = 'sim/execute_move'
 MARKER_KINDS = {
@@ -173,88 +186,6 @@ MARKER_KINDS = {
     'cylinder': Marker.CYLINDER,
     'text': Marker.TEXT_VIEW_FACING,
 }
-
-
-PARAMETERS = {
-    'scenario': Param(
-        '',
-        'Scenario (required): a name such as lgfloor (scenarios/ or $STEALTH_NAV_SCENARIOS) '
-        'or the path of a scenario YAML.',
-        read_only=True,
-    ),
-    'goal': Param('', "Goal pursued: easy, medium or hard; '' = the scenario's default.",
-                  read_only=True),
-    'judge_on': Param(
-        'true',
-        "Pose that visibility, detection and the goal are judged on: 'true' (the lights see "
-        "the real robot) or 'estimate' (the original's estimate-only way). From the next step.",
-    ),
-    'seed': Param(0, "Seed of the random draws of 'probabilistic' detection.", (0, 2**31 - 1),
-                  read_only=True),
-    'move_timeout': Param(
-        60.0, 'Wall-clock seconds to wait for an answer of sim/execute_move or sim/reset; a '
-        'move without one ends the episode as ABORTED.', (0.1, 3600.0)
-    ),
-    'marker_period': Param(
-        1.0, 'Wall-clock seconds between updates of searchlights and searchlight_markers '
-        '(moving lights drawn at the latest simulated time); 0 = publish once.', (0.0, 3600.0)
-    ),
-    'start_delay': Param(
-        0.5, 'Wall-clock seconds to wait, once the simulator and an agent are there, before '
-        'the first episode starts: time for recorders and viewers to connect, and for the '
-        "agent's side of the DDS match (a writer sees a reader before the reader sees the "
-        'writer, and a volatile first state sent in between is lost).', (0.0, 3600.0)
-    ),
-    'log_every': Param(100, 'Log a progress line every this many episodes (0 = never).',
-                       (0, 2**31 - 1)),
-    'first_episode': Param(
-        0, "Number of the first episode (a respawned or resumed run's next one).",
-        (0, 2**31 - 1), read_only=True,
-    ),
-    'robot_interface': Param(
-        'service', "How moves reach the robot: 'service' (the simulator's sim/execute_move) or "
-        "'topics' (closed loop over cmd_vel, odom, amcl_pose and scan: any ROS robot).",
-        read_only=True,
-    ),
-    'reset_mode': Param(
-        'teleport', "How an episode puts the robot back at the start: 'teleport' (call "
-        "reset_service) or 'drive' (topics only: drive back along a collision-free path on the "
-        'move lattice, lights ignored, then publish initialpose).', read_only=True,
-    ),
-    'reset_service': Param(
-        'sim/reset', 'The teleport of reset_mode teleport: a stealth_interfaces/ResetRobot '
-        'service.', read_only=True,
-    ),
-    'unresponsive_moves': Param(
-        3, 'topics: after this many moves in a row timed out without the robot moving, the '
-        'robot is not responding to cmd_vel: the episode is ABORTED and the node exits (3).',
-        (1, 1000), read_only=True,
-    ),
-    'bump_distance': Param(
-        0.05, 'topics: m to an obstacle in the way (laser scan) that ends a move BUMPED.',
-        (0.0, 1.0), read_only=True,
-    ),
-    'stall_time': Param(
-        1.0, "topics: s (robot's clock) without progress while driving that end a move BUMPED.",
-        (0.05, 60.0), read_only=True,
-    ),
-    'max_linear_speed': Param(
-        Limits.max_linear_speed, "topics: the controller's speed limit (m/s; the robot's or "
-        'lower, as the following three).', (0.01, 5.0), read_only=True,
-    ),
-    'max_angular_speed': Param(
-        Limits.max_angular_speed, 'topics: turn rate limit (rad/s).', (0.01, 10.0),
-        read_only=True,
-    ),
-    'max_linear_accel': Param(
-        Limits.max_linear_accel, 'topics: acceleration limit (m/s^2).', (0.01, 20.0),
-        read_only=True,
-    ),
-    'max_angular_accel': Param(
-        Limits.max_angular_accel, 'topics: angular acceleration limit (rad/s^2).', (0.01, 50.0),
-        read_only=True,
-    ),
-}  # fmt: skip
 
 
 # --- message conversions ------------------------------------------------------------------------
@@ -439,7 +370,8 @@ class EnvironmentNode(StartupNode):
         self._retry_at = 0.0
         self._waiting_logged = time.monotonic()
         self._window: list = []  # EpisodeSummaryFields since the last progress line
-        self._scene_published = {'searchlights': (-1.0, 0), 'markers': (-1.0, 0)}
+        scene = ('searchlights', 'markers', 'visibility_grid')
+        self._scene_published = dict.fromkeys(scene, (-1.0, 0))
         self._markers_cache: tuple[float, MarkerArray] | None = None
         self._move_note_log = Throttle(MOVE_NOTE_LOG_PERIOD)
         self._reset_failed_log = Throttle(RESET_FAILED_LOG_PERIOD)
@@ -463,6 +395,9 @@ class EnvironmentNode(StartupNode):
             SearchlightArray, TOPICS['searchlights'], LATCHED_QOS
         )
         self._markers_pub = self._quiet_publisher(MarkerArray, TOPICS['markers'], LATCHED_QOS)
+        self._grid_pub = self._quiet_publisher(
+            OccupancyGrid, TOPICS['visibility_grid'], LATCHED_QOS
+        )
         self._action_sub = self.create_subscription(
             RLAction,
             TOPICS['action'],
@@ -500,6 +435,8 @@ class EnvironmentNode(StartupNode):
         description = self.task.description(stochastic=True)
         self._description_pub.publish(description_msg(description))
         self._publish_scene(force=True)
+        if values['publish_plan']:
+            self._publish_plan()
         self._configured = True
         goal = self.task.goal
         self.get_logger().info(
@@ -974,12 +911,14 @@ class EnvironmentNode(StartupNode):
         return t
 
     def _publish_scene(self, force: bool = False) -> None:
-        """SearchlightArray and markers: when lights moved since they were last sent, or when a
-        new subscriber came (a volatile viewer gets nothing from transient local)."""
+        """SearchlightArray, markers and the visibility grid: when lights moved since they were
+        last sent, or when a new subscriber came (a volatile viewer gets nothing from transient
+        local). Moving lights republish all three here, every marker_period: this is the hook."""
         t = self._scene_time() if self._moving_lights else 0.0
         for key, publisher, build in (
             ('searchlights', self._lights_pub, self._searchlights_msg),
             ('markers', self._markers_pub, self._markers_msg),
+            ('visibility_grid', self._grid_pub, self._visibility_grid_msg),
         ):
             subscribers = publisher.get_subscription_count()
             last_t, last_subscribers = self._scene_published[key]
@@ -996,6 +935,46 @@ class EnvironmentNode(StartupNode):
             specs = scene_markers(self.scenario, self.task.goal.name, t, self._walls)
             self._markers_cache = (t, marker_array_msg(specs, t))
         return self._markers_cache[1]
+
+    def _publish_plan(self) -> None:
+        """planned_path: value iteration's optimum from the start to the goal (frame map)."""
+        from stealth_env.planners import optimal_path
+
+        publisher = self._quiet_publisher(Path, TOPICS['planned_path'], LATCHED_QOS)
+        points, _ = optimal_path(self.scenario, self.task.goal.name)
+        plan = Path()
+        plan.header.frame_id = MAP_FRAME
+        for x, y in points:
+            pose = PoseStamped()
+            pose.header.frame_id = MAP_FRAME
+            pose.pose.position.x, pose.pose.position.y = float(x), float(y)
+            pose.pose.orientation.w = 1.0
+            plan.poses.append(pose)
+        publisher.publish(plan)
+
+    def _visibility_grid_msg(self, t: float) -> OccupancyGrid:
+        """The lit area at time t on the scenario's map grid: static lights' field from the disk
+        cache, moving lights' computed afresh (a cache file per time would only pile up)."""
+        from stealth_env.visibility import scenario_visibility, visibility_field
+
+        occupancy = self.scenario.map
+        if self._moving_lights:
+            total, _ = visibility_field(
+                occupancy.blocked, occupancy.resolution, occupancy.origin, self.scenario.lights, t
+            )
+        else:
+            total, _ = scenario_visibility(self.scenario)
+        grid = OccupancyGrid()
+        grid.header.stamp, grid.header.frame_id = time_msg(t), MAP_FRAME
+        grid.info.map_load_time = grid.header.stamp
+        grid.info.resolution = float(occupancy.resolution)
+        grid.info.width, grid.info.height = occupancy.width, occupancy.height
+        x, y, yaw = occupancy.origin
+        grid.info.origin.position.x, grid.info.origin.position.y = float(x), float(y)
+        grid.info.origin.orientation = yaw_quaternion(yaw)
+        levels = visibility_levels(total, self.scenario.detection_threshold)
+        grid.data = array.array('b', levels.tobytes())  # rows from the bottom, as /map
+        return grid
 
     # --- shutdown -------------------------------------------------------------------------------
 

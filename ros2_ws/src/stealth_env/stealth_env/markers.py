@@ -23,6 +23,10 @@ labels     text           'start' and the goals' names
 
 ``searchlight_fields(light, t)`` is a light as stealth_interfaces/Searchlight's fields.
 
+``visibility_levels(total, threshold)`` is the lit area as a costmap shows it: the data of the
+``visibility_grid`` OccupancyGrid, 0-100 = total visibility as a percentage of the detection
+threshold (100 at or above it: a cell where the robot would be seen).
+
 The cone's cut at walls is for display: rays marched from the lamp in half-cell steps stop in
 the first blocked cell other than the lamp's own (a lamp may sit in a wall). Judging uses the
 exact model (``stealth_env.lighting``), never this picture.
@@ -328,6 +332,24 @@ def _label(index: int, x: float, y: float, text: str) -> MarkerSpec:
 
 def any_moving(scenario) -> bool:
     return any(light.is_moving for light in scenario.lights)
+
+
+# --- the visibility grid -----------------------------------------------------------------------
+
+GRID_MAX = 100  # nav_msgs/OccupancyGrid's top value: here, visibility at the detection threshold
+
+
+def visibility_levels(total: np.ndarray, threshold: float) -> np.ndarray:
+    """int8 levels 0-100 of a total-visibility field (rows from the bottom, as the map's):
+    visibility / threshold * 100, rounded, capped at 100; ValueError for a threshold <= 0 or a
+    field that is not finite."""
+    if not (math.isfinite(threshold) and threshold > 0):
+        raise ValueError(f'detection threshold: expected a finite number > 0, got {threshold}')
+    total = np.asarray(total, dtype=np.float64)
+    if total.ndim != 2 or not np.all(np.isfinite(total)):
+        raise ValueError('visibility field: expected a 2-D array of finite numbers')
+    scaled = np.rint(np.clip(total, 0.0, None) / threshold * GRID_MAX)
+    return np.minimum(scaled, GRID_MAX).astype(np.int8)
 
 
 # --- stealth_interfaces/Searchlight -------------------------------------------------------------

@@ -440,3 +440,11 @@ def baseline_paths(
     return {
         name: (path, None if path is None else walk(model, path)) for name, path in paths.items()
     }
+
+
+def optimal_path(scenario, goal: str):
+    """The value-iteration optimum on the move lattice: (points (n, 2), PathResult)."""
+    model = LatticeModel.build(StealthTask(scenario, goal))
+    optimum = value_iteration(model)
+    result = walk(model, follow(model, lambda i: int(optimum.policy[i])))
+    return result.points, result

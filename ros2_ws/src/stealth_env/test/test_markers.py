@@ -21,6 +21,7 @@ from stealth_env.markers import (
     ring_radii,
     scene_markers,
     searchlight_fields,
+    visibility_levels,
 )
 from stealth_env.scenario import load_scenario
 from stealth_env.searchlight import PatrolMotion, Searchlight, SweepMotion
@@ -203,3 +204,42 @@ def test_searchlight_fields_follow_the_message(map1):
     assert fields['motion'] == MOTION_PATROL and fields['linear_speed'] == 0.5
     assert fields['waypoints'] == ((13.0, 3.5), (13.0, 5.0))  # no repeat of the start
     assert fields['position'] == pytest.approx((13.0, 4.0))
+
+
+# --- the visibility grid ----------------------------------------------------------------------
+
+
+def test_visibility_levels_scale_to_the_detection_threshold_and_cap_at_100():
+    total = np.array([[0.0, 0.03, 0.15], [0.2999, 0.3, 2.0]])
+    levels = visibility_levels(total, 0.3)
+    assert levels.dtype == np.int8
+    assert levels.tolist() == [[0, 10, 50], [100, 100, 100]]
+
+
+def test_visibility_levels_of_a_scenario_match_the_model_at_cell_centres():
+    from stealth_env.visibility import scenario_visibility
+
+    scenario = load_scenario('simple-maze')
+    total, _ = scenario_visibility(scenario)
+    levels = visibility_levels(total, scenario.detection_threshold)
+    assert levels.shape == (scenario.map.height, scenario.map.width)
+    assert levels.min() == 0 and levels.max() == 100  # dark cells, and cells where one is seen
+    lit = np.argwhere(total > 0)
+    row, col = lit[len(lit) // 2]
+    res, (x0, y0, _) = scenario.map.resolution, scenario.map.origin
+    x, y = x0 + (col + 0.5) * res, y0 + (row + 0.5) * res  # row 0 is the bottom row
+    expected = point_visibility(
+        scenario.map.blocked, res, scenario.map.origin, scenario.lights, x, y
+    )
+    assert levels[row, col] == min(100, round(expected / scenario.detection_threshold * 100))
+
+
+@pytest.mark.parametrize('threshold', [0.0, -1.0, math.nan])
+def test_visibility_levels_refuse_a_threshold_that_is_not_positive(threshold):
+    with pytest.raises(ValueError, match='detection threshold'):
+        visibility_levels(np.zeros((2, 2)), threshold)
+
+
+def test_visibility_levels_refuse_a_field_that_is_not_finite():
+    with pytest.raises(ValueError, match='finite'):
+        visibility_levels(np.array([[0.0, math.inf]]), 0.3)

@@ -9,22 +9,13 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 import math
-from typing import Any, NamedTuple
+from typing import Any
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
+from stealth_node_kit.param_table import Param, Unset
 
-class Param(NamedTuple):
-    """One parameter: default, description, inclusive (low, high) range, fixed after startup.
-
-    Integer bounds give an integer range, float bounds a floating-point one; a default of a
-    ``Parameter.Type`` declares the parameter without a value (it may stay unset).
-    """
-
-    default: Any
-    description: str
-    bounds: tuple | None = None
-    read_only: bool = False
+__all__ = ['Param', 'StartupError', 'Unset', 'declare_parameters', 'descriptor', 'non_finite']
 
 
 class StartupError(RuntimeError):
@@ -51,10 +42,15 @@ def declare_parameters(node, table: Mapping[str, Param]) -> dict[str, Any]:
     StartupError names the parameter when rclpy refuses a value (type, range, or the node's
     on-set callback).
     """
+    from rclpy.parameter import Parameter
+
     values = {}
     for name, param in table.items():
+        default = param.default
+        if isinstance(default, Unset):  # declared with a type, without a value
+            default = Parameter.Type[default.type]
         try:
-            parameter = node.declare_parameter(name, param.default, descriptor(param))
+            parameter = node.declare_parameter(name, default, descriptor(param))
         except Exception as error:  # rclpy's type, range and validation errors
             raise StartupError(f'parameter {name}: {error}') from None
         values[name] = parameter.value

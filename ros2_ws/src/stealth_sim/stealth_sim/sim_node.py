@@ -23,10 +23,12 @@ Services ``sim/execute_move`` and ``sim/reset`` (stealth_interfaces) run the mot
 
 Time is simulated. A move runs as fast as the CPU allows when ``real_time_factor`` is 0, or
 held to that multiple of wall time. Between moves, simulated time flows at the real-time factor
-(at 1x for teleoperation when the factor is 0; with no command and the robot at rest it then
-stands still, so training wastes no CPU). The periodic topics go out at ``publish_rate`` Hz of
-simulated time, and only when someone subscribes: publishing every physics step would slow
-training down.
+(at 1x for teleoperation when the factor is 0). With the factor 0 and no ``cmd_vel`` since the
+last move or reset it stands still, so training wastes no CPU and a seeded run of moves is the
+same whatever the load: no physics step, random draw or clock tick ever happens because wall
+time passed (:mod:`stealth_sim.idle_time`). The periodic topics go out at ``publish_rate`` Hz
+of simulated time, and only when someone subscribes: publishing every physics step would slow
+training down; they draw their scan noise from a stream of their own.
 """
 
 import ctypes
@@ -53,7 +55,7 @@ from sensor_msgs.msg import LaserScan
 from stealth_interfaces.srv import ExecuteMove, ResetRobot
 from stealth_node_kit.conversions import quaternion_yaw, time_msg, yaw_quaternion
 from stealth_node_kit.endpoints import QUIET_PUBLISHER, warn_publisher, warn_subscription
-from stealth_node_kit.parameters import Param, StartupError, declare_parameters
+from stealth_node_kit.parameters import StartupError, declare_parameters
 from stealth_node_kit.running import StartupNode, run_node
 from tf2_msgs.msg import TFMessage
 
@@ -64,68 +66,18 @@ from stealth_sim.frames import (
     FrameTransform,
     robot_transforms,
 )
+from stealth_sim.idle_time import idle_tick
 from stealth_sim.kinematics import Limits, Pose
 from stealth_sim.laser import LaserConfig
 from stealth_sim.localisation import FilterConfig
 from stealth_sim.move_executor import Move, Outcome, StepStops, execute_move, warm_up
 from stealth_sim.occupancy_map import MapError, OccupancyMap, load_map, to_occupancy_grid_data
 from stealth_sim.odometry_noise import MotionNoise
+from stealth_sim.sim_parameters import PARAMETERS, START_UP
 from stealth_sim.simulator import SimConfig, Simulator, most_open_pose
 
-IDLE_PERIOD = 0.02  # s of wall time between idle ticks (50 Hz: teleop is smooth, idling cheap)
-MAX_CATCH_UP = 0.25  # s of simulated time an idle tick may run before the clock is re-anchored
 # Indices of x, y and yaw in a row-major 6x6 pose covariance (x, y, z, roll, pitch, yaw).
 POSE_COVARIANCE_AXES = (0, 1, 5)
-
-_DEFAULTS = SimConfig()
-_NOISE = _DEFAULTS.odometry_noise
-_LIMITS = _DEFAULTS.limits
-_FILTER = _DEFAULTS.filter
-
-
-UNIT = (0.0, 1.0)
-START_UP = ('map', 'initial_pose')  # used once to build the simulator
-PARAMETERS = {
-    'map': Param('', 'Path to a nav2 map YAML (required).', read_only=True),
-    'initial_pose': Param(
-        Parameter.Type.DOUBLE_ARRAY,
-        'Start pose [x (m), y (m), yaw (rad)], map frame; unset: the most open point.',
-        read_only=True,
-    ),
-    'physics_dt': Param(_DEFAULTS.physics_dt, 'Physics step (s).', (0.001, 0.1), True),
-    'max_linear_speed': Param(_LIMITS.max_linear_speed, 'Speed limit (m/s).', (0.01, 5.0)),
-    'max_angular_speed': Param(
-        _LIMITS.max_angular_speed, 'Turn rate limit (rad/s).', (0.01, 10.0)
-    ),
-    'max_linear_accel': Param(_LIMITS.max_linear_accel, 'Accel. limit (m/s^2).', (0.01, 20.0)),
-    'max_angular_accel': Param(_LIMITS.max_angular_accel, 'Accel. limit (rad/s^2).', (0.01, 50.0)),
-    'robot_radius': Param(_DEFAULTS.robot_radius, 'Robot disc radius (m).', (0.0, 1.0), True),
-    'odom_alpha1': Param(_NOISE.alpha1, 'Odometry rotation noise from rotation.', UNIT),
-    'odom_alpha2': Param(_NOISE.alpha2, 'Odometry rotation noise from translation.', UNIT),
-    'odom_alpha3': Param(_NOISE.alpha3, 'Odometry translation noise from translation.', UNIT),
-    'odom_alpha4': Param(_NOISE.alpha4, 'Odometry translation noise from rotation.', UNIT),
-    'laser_beams': Param(_DEFAULTS.laser.beams, 'Beams of the 360-degree scan.', (3, 3600), True),
-    'laser_range': Param(_DEFAULTS.laser.range_max, 'Laser range (m).', (0.5, 100.0), True),
-    'laser_noise': Param(_DEFAULTS.laser.noise_std, 'Laser range noise, std. dev. (m).', UNIT),
-    'particles': Param(_DEFAULTS.filter.particles, 'Filter particles.', (10, 100_000), True),
-    'update_min_d': Param(_FILTER.update_min_d, 'AMCL update distance (m).', (0.0, 5.0), True),
-    'update_min_a': Param(_FILTER.update_min_a, 'AMCL update turn (rad).', (0.0, math.pi), True),
-    'seed': Param(_DEFAULTS.seed, 'Seed of every random stream.', (0, 2**31 - 1), True),
-    'real_time_factor': Param(
-        0.0, 'Simulated s per wall s; 0: moves run as fast as possible.', (0.0, 1000.0)
-    ),
-    'cmd_vel_timeout': Param(0.5, 'Drop a cmd_vel older than this (s, simulated).', (0.01, 60.0)),
-    'publish_rate': Param(
-        10.0, 'Rate of odom, ground_truth, scan, clock, tf (Hz).', (0.1, 1000.0)
-    ),
-    'idle_period': Param(
-        IDLE_PERIOD,
-        'Wall s between ticks of time between moves (under cmd_vel, the control '
-        'period of a robot driven over topics is this times real_time_factor).',
-        (0.001, 1.0),
-        True,
-    ),
-}
 
 
 def sim_config(values: dict) -> SimConfig:
@@ -243,6 +195,7 @@ class SimulatorNode(StartupNode):
         self.idle_period = values['idle_period']
         self._command: tuple[float, float] | None = None
         self._command_time = 0.0
+        self._held = True  # left in place by a move or reset: time stands still (idle_time)
         self._next_publish = 0.0
         self._published_updates = self.sim.localisation_updates
         self._pacer = RealTimePacer(self.sim.time)
@@ -393,18 +346,20 @@ class SimulatorNode(StartupNode):
         return self._command
 
     def _on_idle_tick(self) -> None:
-        """Between moves: simulated time runs at the real-time factor under /cmd_vel."""
-        command = self._fresh_command()
-        at_rest = self.sim.state.linear == 0.0 and self.sim.state.angular == 0.0
-        if self.real_time_factor == 0.0 and command is None and at_rest:
-            self._pacer.anchor(self.sim.time)  # training: time stands still between moves
-            return
-        rate = self.real_time_factor or 1.0
-        due = self._pacer.due(rate)
-        if due - self.sim.time > MAX_CATCH_UP:  # fell behind (a busy machine): do not race
+        """Between moves: simulated time runs at the real-time factor under /cmd_vel, and
+        stands still in training (see stealth_sim.idle_time: never on wall time alone)."""
+        tick = idle_tick(
+            self.sim.time,
+            self._pacer.due(self.real_time_factor or 1.0),
+            real_time_factor=self.real_time_factor,
+            commanded=self._fresh_command() is not None,
+            moving=self.sim.state.linear != 0.0 or self.sim.state.angular != 0.0,
+            held=self._held,
+            idle_period=self.idle_period,
+        )
+        if tick.anchor:
             self._pacer.anchor(self.sim.time)
-            due = self.sim.time + self.idle_period * rate
-        while self.sim.time + self.sim.config.physics_dt <= due + 1e-9:
+        while self.sim.time + self.sim.config.physics_dt <= tick.until + 1e-9:
             linear, angular = self._fresh_command() or (0.0, 0.0)
             if self.sim.step(linear, angular):
                 self.get_logger().info('bumped into a wall', throttle_duration_sec=1.0)
@@ -423,6 +378,7 @@ class SimulatorNode(StartupNode):
             return
         self._command = (linear, angular)
         self._command_time = self.sim.time
+        self._held = False
 
     def _on_initial_pose(self, message: PoseWithCovarianceStamped) -> None:
         if message.header.frame_id not in ('', MAP_FRAME):
@@ -450,6 +406,7 @@ class SimulatorNode(StartupNode):
         self._pacer.anchor(self.sim.time)
         result = execute_move(self.sim, move, on_step=self._move_step, step_stops=self._move_stops)
         self._command = None
+        self._held = True
         self._pacer.anchor(self.sim.time)
         if result.outcome == Outcome.REJECTED:
             self.get_logger().warning(f'move rejected: {result.message}')
@@ -473,6 +430,7 @@ class SimulatorNode(StartupNode):
             response.success, response.message = False, str(exc)
             return response
         self._command = None
+        self._held = True
         self._pacer.anchor(self.sim.time)
         self._publish_state(everything=True)
         response.success, response.message = True, ''

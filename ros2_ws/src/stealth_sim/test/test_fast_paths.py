@@ -260,3 +260,11 @@ def test_the_kernels_sums_and_remainders_are_numpys_and_pythons():
     for angle in angles.tolist():
         for modulus in (math.pi, 2.0 * math.pi):
             assert compiled_move._remainder(angle, modulus) == math.remainder(angle, modulus)
+
+
+def test_whoever_listens_the_walk_is_the_same_bit_for_bit():
+    """A viewer or recorder subscribing (sim_node's hook, due at other steps) changes where the
+    kernel pauses, never what a seeded walk does: a run is repeatable whoever listens."""
+    alone = walk(TRAINING, False)
+    for publisher in ({'period': 0.1}, {'period': 0.5, 'on_update': False}):
+        assert hooked_walk(False, **publisher)[0] == alone

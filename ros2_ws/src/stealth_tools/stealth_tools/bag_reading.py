@@ -1,12 +1,15 @@
 """Reading recordings: a bag's summary and `ros2 bag info`'s text.
 
-A bag path is a .mcap file or a rosbag2 directory holding one. The summary comes from the MCAP
-summary section; a recording that was never closed (SIGKILL, power loss) has none, and its
-numbers come from a salvage scan instead, flagged so the caller can suggest `bag recover`.
+A bag path is a .mcap file or a directory holding one recording, in one file or split over
+several (bag_files: a run directory's recording.mcap, recording_1.mcap, ...), read as one bag.
+The summary comes from the MCAP summary section; a recording that was never closed (SIGKILL,
+power loss) has none, and its numbers come from a salvage scan instead, flagged so the caller
+can suggest `bag recover`.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 import os
 from pathlib import Path
@@ -16,12 +19,8 @@ from mcap.exceptions import McapError
 from mcap.reader import SeekingReader, make_reader
 import yaml
 
-from stealth_tools.bag_format import (
-    ROSBAG2_METADATA_NAME,
-    STORAGE_ID,
-    BagError,
-    resolve_bag_file,
-)
+from stealth_tools.bag_files import bag_files
+from stealth_tools.bag_format import ROSBAG2_METADATA_NAME, STORAGE_ID, BagError
 
 INFO_INDENT = 19  # rosbag2: the longest field name ('Topic information: ') plus one
 
@@ -47,10 +46,16 @@ class BagInfo:
     message_count: int
     topics: tuple[TopicInfo, ...]
     indexed: bool = True
+    files: tuple[Path, ...] = ()  # the files of a split bag, in order (empty: just `path`)
+    unindexed: tuple[Path, ...] = ()  # those of them that were never closed
 
     @property
     def duration_ns(self) -> int:
         return self.end_ns - self.start_ns
+
+    @property
+    def paths(self) -> tuple[Path, ...]:
+        return self.files or (self.path,)
 
 
 def open_indexed_reader(stream) -> SeekingReader:
@@ -104,8 +109,37 @@ def _topics(channels: dict, schemas: dict, counts: dict) -> tuple[TopicInfo, ...
 
 
 def read_bag_info(path: str | os.PathLike) -> BagInfo:
-    """Info of a bag from its summary, or from a salvage scan when it has none."""
-    mcap_path = resolve_bag_file(path)
+    """Info of a bag (all its files) from their summaries, or from a salvage scan of a file
+    that has none."""
+    infos = [_file_info(file) for file in bag_files(path)]
+    return infos[0] if len(infos) == 1 else merge_bag_infos(Path(path), infos)
+
+
+def merge_bag_infos(path: Path, infos: list[BagInfo]) -> BagInfo:
+    """One info for the files of a split bag, as rosbag2 totals them."""
+    topics: dict[str, TopicInfo] = {}
+    for info in infos:
+        for topic in info.topics:
+            known = topics.get(topic.name)
+            count = topic.count + (known.count if known else 0)
+            topics[topic.name] = dataclasses.replace(known or topic, count=count)
+    with_messages = [i for i in infos if i.message_count]
+    return BagInfo(
+        path=path,
+        size=sum(i.size for i in infos),
+        ros_distro=next((i.ros_distro for i in reversed(infos) if i.ros_distro), ''),
+        start_ns=min((i.start_ns for i in with_messages), default=0),
+        end_ns=max((i.end_ns for i in with_messages), default=0),
+        message_count=sum(i.message_count for i in infos),
+        topics=tuple(topics.values()),
+        indexed=all(i.indexed for i in infos),
+        files=tuple(i.path for i in infos),
+        unindexed=tuple(i.path for i in infos if not i.indexed),
+    )
+
+
+def _file_info(mcap_path: Path) -> BagInfo:
+    """Info of one .mcap file."""
     size = mcap_path.stat().st_size
     with open(mcap_path, 'rb') as stream:
         try:
@@ -155,6 +189,7 @@ def _scanned_bag_info(mcap_path: Path, size: int) -> BagInfo:
         message_count=total,
         topics=_topics(channels, schemas, counts),
         indexed=False,
+        unindexed=(mcap_path,),
     )
 
 
@@ -189,9 +224,14 @@ def format_bag_info(info: BagInfo, shown_path: str | None = None) -> str:
         for t in info.topics
     ]
     topics_text = ('\n' + pad).join(topic_lines)
+    if info.files:  # a split bag: each file, under the path given
+        shown = [os.path.join(shown_path, f.name) if shown_path else str(f) for f in info.files]
+    else:
+        shown = [str(shown_path or info.path)]
+    files_text = ('\n' + pad).join(shown)
     lines = [
         '',
-        f'Files:             {shown_path or info.path}',
+        f'Files:             {files_text}',
         f'Bag size:          {format_file_size(info.size)}',
         f'Storage id:        {STORAGE_ID}',
         f'ROS Distro:        {info.ros_distro or "unknown"}',

@@ -5,6 +5,7 @@ commands other packages add, so habits from a full ROS 2 install carry over.
     stealth topic list|echo|hz|info ...               # ros2 topic
     stealth interface show <pkg/msg/Type>             # ros2 interface show
     stealth bag record|play|info|recover ...          # ros2 bag (+ recover, as mcap recover)
+    stealth bridge [--port 8765] [--topics ...]       # foxglove_bridge, on foxglove-sdk's server
     stealth train|eval|render ...                     # added by stealth_bringup (see below)
 
 Other packages add commands as ros2cli's extension points add verbs: an entry point in the
@@ -28,7 +29,7 @@ from stealth_tools.errors import CommandError
 PROG = 'stealth'
 # Entry points of this group add commands: see the module docstring.
 COMMAND_GROUP = 'stealth.commands'
-OWN_COMMANDS = ('run', 'topic', 'interface', 'bag')
+OWN_COMMANDS = ('run', 'topic', 'interface', 'bag', 'bridge')
 QOS_PROFILES = (
     'unknown',
     'default',
@@ -75,6 +76,19 @@ def _spin_time(parser: argparse.ArgumentParser, default: float) -> None:
         help='at most this many seconds to wait for discovery (no ros2cli daemon here; '
         'default: %(default)s)',
     )
+
+
+def _discovery_arguments(parser: argparse.ArgumentParser, default_ms: int) -> None:
+    """How new topics are looked for (as ros2 bag record's options)."""
+    parser.add_argument(
+        '-p',
+        '--polling-interval',
+        type=_positive_int,
+        default=default_ms,
+        metavar='MS',
+        help='discovery period for new topics, in ms (default: %(default)s)',
+    )
+    parser.add_argument('--include-hidden-topics', action='store_true', help='hidden ones too')
 
 
 def _timeout(parser: argparse.ArgumentParser, help_text: str) -> None:
@@ -328,6 +342,7 @@ def bag_play(args, stop) -> int:
         loop=args.loop,
         start_offset=args.start_offset,
         delay=args.delay,
+        bridge_port=args.bridge_port if args.bridge else 0,
     )
     return play_bag(options, stop)
 
@@ -336,10 +351,10 @@ def bag_info(args) -> int:
     from stealth_tools.bag_reading import format_bag_info, read_bag_info
 
     info = read_bag_info(args.bag_path)
-    if not info.indexed:
+    for path in info.unindexed:
         print(
-            f'warning: {info.path} was not closed (no summary); numbers come from a scan. '
-            f'`stealth bag recover {info.path}` writes an indexed copy.',
+            f'warning: {path} was not closed (no summary); numbers come from a scan. '
+            f'`stealth bag recover {path}` writes an indexed copy.',
             file=sys.stderr,
         )
     if args.topic_name:
@@ -350,10 +365,40 @@ def bag_info(args) -> int:
 
 
 def bag_recover(args) -> int:
+    from stealth_tools.bag_files import bag_files
+    from stealth_tools.bag_reading import read_bag_info
     from stealth_tools.bag_recover import recover
 
-    output, report = recover(args.bag_path, args.output, compression=args.compression)
-    print(f'{output}: {report.summary()}')
+    files = bag_files(args.bag_path)
+    if len(files) > 1:  # a split bag: every file that was never closed
+        if args.output:
+            raise CommandError(
+                f'{args.bag_path} holds {len(files)} files; -o names the copy of one: '
+                'give that file instead of the directory'
+            )
+        files = [f for f in files if not read_bag_info(f).indexed]
+        if not files:
+            print(f'{args.bag_path}: every file is complete and indexed; nothing to recover')
+    for file in files:
+        output, report = recover(file, args.output, compression=args.compression)
+        print(f'{output}: {report.summary()}')
+    return 0
+
+
+def bag_compare(args) -> int:
+    from stealth_tools.rl_compare import complete_episodes, first_difference, read_rl_topics
+
+    first, second = read_rl_topics(args.first), read_rl_topics(args.second)
+    count = args.episodes
+    if count is None:
+        count = min(complete_episodes(first), complete_episodes(second))
+        if count == 0:
+            raise CommandError('no complete episode to compare (a recording holds none)')
+    difference = first_difference(first, second, count)
+    if difference is not None:
+        print(difference)
+        return 1
+    print(f'the first {count} episodes are the same, message for message')
     return 0
 
 
@@ -392,15 +437,7 @@ def _add_bag(commands) -> None:
         metavar='BYTES',
         help='close a chunk at this size (default: %(default)s)',
     )
-    parser.add_argument(
-        '-p',
-        '--polling-interval',
-        type=_positive_int,
-        default=200,
-        metavar='MS',
-        help='discovery period for new topics, in ms (default: %(default)s)',
-    )
-    parser.add_argument('--include-hidden-topics', action='store_true', help='hidden ones too')
+    _discovery_arguments(parser, 200)
     parser.set_defaults(handler=bag_record)
 
     parser = verbs.add_parser(
@@ -408,7 +445,9 @@ def _add_bag(commands) -> None:
         help='Play back ROS data from a bag',
         description='Publish the messages of a bag with their original timing and QoS.',
     )
-    parser.add_argument('bag_path', help='bag directory or .mcap file')
+    parser.add_argument(
+        'bag_path', help='bag directory (a run directory: all its recording files) or .mcap file'
+    )
     parser.add_argument(
         '-r', '--rate', type=_positive_float, default=1.0, help='playback rate factor'
     )
@@ -438,6 +477,19 @@ def _add_bag(commands) -> None:
         metavar='S',
         help='wait S seconds (for subscribers to connect) before playing',
     )
+    parser.add_argument(
+        '--bridge',
+        action='store_true',
+        help='also serve the played topics to the Foxglove app (ws://localhost:8765; as '
+        '`stealth bridge`)',
+    )
+    parser.add_argument(
+        '--bridge-port',
+        type=_port,
+        default=8765,
+        metavar='PORT',
+        help='the port of --bridge (default: %(default)s)',
+    )
     parser.set_defaults(handler=_in_ros(bag_play))
 
     parser = verbs.add_parser(
@@ -445,7 +497,9 @@ def _add_bag(commands) -> None:
         help='Print information about a bag to the screen',
         description="Print a bag's files, size, duration, start, end and topics with counts.",
     )
-    parser.add_argument('bag_path', help='bag directory or .mcap file')
+    parser.add_argument(
+        'bag_path', help='bag directory (a run directory: all its recording files) or .mcap file'
+    )
     parser.add_argument('-t', '--topic-name', action='store_true', help='only the topic names')
     parser.set_defaults(handler=bag_info)
 
@@ -455,12 +509,84 @@ def _add_bag(commands) -> None:
         description='Salvage every readable record of an MCAP that was not closed (SIGKILL, '
         'power loss) into a new complete, indexed file.',
     )
-    parser.add_argument('bag_path', help='bag directory or .mcap file')
+    parser.add_argument(
+        'bag_path',
+        help='bag directory or .mcap file (a directory: each of its files that was not closed)',
+    )
     parser.add_argument('-o', '--output', help='output file (default: <input>.recovered.mcap)')
     parser.add_argument(
         '--compression', choices=COMPRESSIONS, default='zstd', help='chunk compression'
     )
     parser.set_defaults(handler=bag_recover)
+
+    parser = verbs.add_parser(
+        'compare',
+        help="Compare two recordings' RL episodes message for message",
+        description='Compare the RL topics of two recordings (rl_state_reward, rl_action, '
+        'step_info, episode_summary, rl_experiment_info, episode_info), stamps aside, over '
+        'their first complete episodes: two runs with the same seed and settings must match. '
+        'Prints the first message that differs (exit status 1) or that they are the same (0).',
+    )
+    parser.add_argument('first', help='bag directory or .mcap file (e.g. runs/<name>)')
+    parser.add_argument('second', help='the other bag directory or .mcap file')
+    parser.add_argument(
+        '--episodes',
+        metavar='N',
+        type=_positive_int,
+        help='compare the first N episodes (default: as many as both hold complete)',
+    )
+    parser.set_defaults(handler=bag_compare)
+
+
+# --- bridge ------------------------------------------------------------------------------------
+
+
+def _port(text: str) -> int:
+    value = int(text)
+    if not 1 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f'{text} is not a TCP port (1-65535)')
+    return value
+
+
+def bridge_command(args) -> int:
+    from rclpy.parameter import Parameter
+
+    from stealth_tools.bridge import serve
+
+    overrides = [
+        Parameter('port', value=args.port),
+        Parameter('address', value=args.address),
+        Parameter('discovery_period', value=args.polling_interval / 1000.0),
+        Parameter('include_hidden_topics', value=args.include_hidden_topics),
+    ]
+    if args.topics:
+        overrides.append(Parameter('topics', value=list(args.topics)))
+    return serve(overrides, '--port N', f'{PROG} bridge')
+
+
+def _add_bridge(commands) -> None:
+    parser = commands.add_parser(
+        'bridge',
+        help="Relay the graph's topics to the Foxglove app (as foxglove_bridge)",
+        description='Serve the ROS graph of this domain to the Foxglove app, as foxglove_bridge '
+        "does, on Foxglove's own WebSocket server: in Foxglove, Open connection > Foxglove "
+        'WebSocket > ws://localhost:PORT. Channels are CDR with ros2msg schemas; latched topics '
+        'reach clients that connect late; /clock drives the timeline. Stop with Ctrl-C.',
+    )
+    parser.add_argument(
+        '--port', type=_port, default=8765, help='TCP port to listen on (default: %(default)s)'
+    )
+    parser.add_argument(
+        '--address',
+        default='127.0.0.1',
+        help='address to listen on; 0.0.0.0 for a Foxglove app on another machine '
+        '(default: %(default)s)',
+    )
+    parser.add_argument(
+        '--topics', nargs='+', default=[], metavar='topic', help='only these (default: all)'
+    )
+    _discovery_arguments(parser, 500)
+    parser.set_defaults(handler=bridge_command)
 
 
 # --- commands other packages add ---------------------------------------------------------------
@@ -535,6 +661,7 @@ def build_parser(added: dict[str, tuple[str, str, str]] | None = None) -> argpar
     _add_topic(commands)
     _add_interface(commands)
     _add_bag(commands)
+    _add_bridge(commands)
     _add_delegates(commands, added)
     return parser
 

@@ -9,6 +9,7 @@ playback's bag time, so nodes under use_sim_time follow the replayed run.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 import threading
 import time
@@ -17,7 +18,8 @@ from rclpy.duration import Duration
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from stealth_tools.bag_format import BagError, resolve_bag_file
+from stealth_tools.bag_files import bag_files
+from stealth_tools.bag_format import BagError
 from stealth_tools.bag_reading import open_indexed_reader
 from stealth_tools.interfaces import InterfaceError, message_class
 from stealth_tools.qos_text import parse_offered_qos_yaml, playback_profile
@@ -39,45 +41,63 @@ class PlayOptions:
     loop: bool = False
     start_offset: float = 0.0  # s into the bag
     delay: float = 0.0  # s to wait (for discovery) before the first message
+    bridge_port: int = 0  # > 0: serve the played topics to Foxglove on this port (--bridge)
 
 
 class _Publishers:
-    """A publisher per replayed channel, created with the recorded QoS."""
+    """A publisher per replayed topic, created with the recorded QoS; the files of a split bag
+    share them (each file has channel ids of its own)."""
 
-    def __init__(self, node, summary, topics: tuple[str, ...]):
-        wanted = {absolute_topic(t) for t in topics}
-        self.by_channel: dict[int, object] = {}
+    def __init__(self, node, summaries, topics: tuple[str, ...]):
+        self.node = node
+        self.wanted = {absolute_topic(t) for t in topics}
+        self.by_topic: dict[str, object] = {}
         self.reliable: list[object] = []
-        bag_topics = {channel.topic for channel in summary.channels.values()}
-        if wanted and not wanted & bag_topics:
+        bag_topics = {c.topic for summary in summaries for c in summary.channels.values()}
+        if self.wanted and not self.wanted & bag_topics:
             raise BagError(
-                f'none of {", ".join(sorted(wanted))} is in the bag '
+                f'none of {", ".join(sorted(self.wanted))} is in the bag '
                 f'(it has {", ".join(sorted(bag_topics)) or "no topics"})'
             )
+        self.by_file = [self._channels(summary) for summary in summaries]
+
+    def _channels(self, summary) -> dict[int, object]:
+        """{channel id: publisher} of one file."""
+        by_channel = {}
         for channel_id, channel in sorted(summary.channels.items()):
-            if wanted and channel.topic not in wanted:
+            if self.wanted and channel.topic not in self.wanted:
                 continue
-            schema = summary.schemas.get(channel.schema_id)
-            try:
-                msg_type = message_class(schema.name if schema else '')
-            except InterfaceError as error:
-                node.get_logger().warning(f"Not replaying '{channel.topic}': {error}")
-                continue
-            offers = parse_offered_qos_yaml(channel.metadata.get('offered_qos_profiles', ''))
-            profile, agreed = playback_profile(offers)
-            if not agreed:
-                node.get_logger().warning(
-                    f"'{channel.topic}': its publishers offered different QoS; replaying with "
-                    'the default profile'
-                )
-            publisher = node.create_publisher(msg_type, channel.topic, qos_profile(profile))
-            self.by_channel[channel_id] = publisher
-            if profile.reliability == 'reliable':
-                self.reliable.append(publisher)
+            if channel.topic not in self.by_topic:
+                publisher = self._create(summary, channel)
+                if publisher is None:
+                    continue
+                self.by_topic[channel.topic] = publisher
+            by_channel[channel_id] = self.by_topic[channel.topic]
+        return by_channel
+
+    def _create(self, summary, channel):
+        node = self.node
+        schema = summary.schemas.get(channel.schema_id)
+        try:
+            msg_type = message_class(schema.name if schema else '')
+        except InterfaceError as error:
+            node.get_logger().warning(f"Not replaying '{channel.topic}': {error}")
+            return None
+        offers = parse_offered_qos_yaml(channel.metadata.get('offered_qos_profiles', ''))
+        profile, agreed = playback_profile(offers)
+        if not agreed:
+            node.get_logger().warning(
+                f"'{channel.topic}': its publishers offered different QoS; replaying with "
+                'the default profile'
+            )
+        publisher = node.create_publisher(msg_type, channel.topic, qos_profile(profile))
+        if profile.reliability == 'reliable':
+            self.reliable.append(publisher)
+        return publisher
 
     @property
     def topics(self) -> list[str]:
-        return sorted(p.topic_name for p in self.by_channel.values())
+        return sorted(self.by_topic)
 
     def wait_for_acks(self, timeout: float) -> None:
         deadline = time.monotonic() + timeout
@@ -127,36 +147,43 @@ def _wait_until(
 
 
 def play(node, options: PlayOptions, stop: threading.Event) -> int:
-    """Publish the bag's messages on schedule; the number published."""
+    """Publish the bag's messages (every file of a split bag, in order) on schedule; the number
+    published."""
     if options.rate <= 0:
         raise BagError('--rate must be positive')
-    path = resolve_bag_file(options.bag)
+    paths = bag_files(options.bag)
     published = 0
-    with open(path, 'rb') as stream:
-        reader = open_indexed_reader(stream)
-        summary = reader.get_summary()
-        publishers = _Publishers(node, summary, options.topics)
+    with contextlib.ExitStack() as files:
+        readers = [open_indexed_reader(files.enter_context(open(p, 'rb'))) for p in paths]
+        summaries = [reader.get_summary() for reader in readers]
+        publishers = _Publishers(node, summaries, options.topics)
         clock = _ClockPublisher(node, options.clock_hz)
+        shown = str(paths[0]) if len(paths) == 1 else f'{options.bag} ({len(paths)} files)'
         node.get_logger().info(
-            f'Playing {path} ({", ".join(publishers.topics) or "no topics"}) at rate '
+            f'Playing {shown} ({", ".join(publishers.topics) or "no topics"}) at rate '
             f'{options.rate:g}'
         )
         if stop.wait(options.delay):
             return 0
-        first = summary.statistics.message_start_time + round(options.start_offset * NS)
-        channels = set(publishers.by_channel)
+        start = min(s.statistics.message_start_time for s in summaries)
+        first = start + round(options.start_offset * NS)
         while not stop.is_set():
             timeline = PlaybackTimeline(first, time.monotonic(), options.rate)
             clock.start(timeline.wall_start)
             this_pass = 0
-            messages = reader.iter_messages(log_time_order=True, starting_at=first)
-            for _, channel, message in messages:
-                if channel.id not in channels:
-                    continue
-                if not _wait_until(timeline.wall_time(message.log_time), timeline, clock, stop):
+            for reader, by_channel in zip(readers, publishers.by_file, strict=True):
+                messages = reader.iter_messages(log_time_order=True, starting_at=first)
+                for _, channel, message in messages:
+                    if channel.id not in by_channel:
+                        continue
+                    if not _wait_until(
+                        timeline.wall_time(message.log_time), timeline, clock, stop
+                    ):
+                        break
+                    by_channel[channel.id].publish(bytes(message.data))
+                    this_pass += 1
+                if stop.is_set():
                     break
-                publishers.by_channel[channel.id].publish(bytes(message.data))
-                this_pass += 1
             published += this_pass
             if not options.loop or not this_pass:
                 break
@@ -165,16 +192,53 @@ def play(node, options: PlayOptions, stop: threading.Event) -> int:
 
 
 def play_bag(options: PlayOptions, stop: threading.Event) -> int:
-    """`bag play` in an initialised rclpy session: a node, the playback, cleanup."""
+    """`bag play` in an initialised rclpy session: a node, the playback, cleanup; with
+    `bridge_port`, the Foxglove bridge beside it (its own executor, in a thread)."""
     import rclpy
 
     node = rclpy.create_node('player', enable_rosout=False)
     executor = SingleThreadedExecutor()
     executor.add_node(node)
+    bridge = _start_bridge(options.bridge_port, stop) if options.bridge_port else None
     try:
         count = play(node, options, stop)
         node.get_logger().info(f'Published {count} messages')
     finally:
         executor.shutdown()
         node.destroy_node()
+        if bridge is not None:
+            bridge()
     return 0
+
+
+def _start_bridge(port: int, stop: threading.Event):
+    """The bridge node spinning in a thread; the function that stops it."""
+    from rclpy.parameter import Parameter
+    from stealth_node_kit.parameters import StartupError
+
+    from stealth_tools.bridge import Bridge
+    from stealth_tools.ros_session import spin_until
+
+    try:
+        bridge = Bridge(
+            port_option='--bridge-port PORT',
+            parameter_overrides=[Parameter('port', value=port)],
+        )
+    except StartupError as error:
+        raise BagError(f'--bridge: {error}') from None
+    executor = SingleThreadedExecutor()
+    executor.add_node(bridge)
+    done = threading.Event()
+    thread = threading.Thread(
+        target=spin_until, args=(executor, done, stop.is_set), name='bridge', daemon=True
+    )
+    thread.start()
+
+    def finish() -> None:
+        done.set()
+        thread.join()
+        bridge.close()
+        executor.shutdown()
+        bridge.destroy_node()
+
+    return finish

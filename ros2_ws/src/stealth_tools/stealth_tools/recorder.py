@@ -32,18 +32,18 @@ from stealth_tools.bag_format import (
     BagError,
     BagWriter,
 )
-from stealth_tools.interfaces import InterfaceError, definition_text, message_class
 from stealth_tools.qos_text import subscription_policies
+from stealth_tools.recorder_parameters import SETTINGS
 from stealth_tools.ros_session import (
     absolute_topic,
     describe_qos,
+    discovered_topics,
+    raw_subscription,
     ros_session,
     spin_until,
-    topic_types,
 )
 
 NODE_NAME = 'recorder'
-DRAIN_BATCH = 200  # messages taken per callback; bounded so timers and signals get a turn
 
 
 def default_output() -> str:
@@ -107,15 +107,7 @@ class Recorder(Node):
         defaults = RecorderSettings()
         self.declare_parameter('topics', Parameter.Type.STRING_ARRAY)
         values = {
-            name: self.declare_parameter(name, getattr(defaults, name)).value
-            for name in (
-                'output',
-                'discovery_period',
-                'max_chunk_duration',
-                'chunk_size',
-                'compression',
-                'include_hidden_topics',
-            )
+            name: self.declare_parameter(name, getattr(defaults, name)).value for name in SETTINGS
         }
         if values['discovery_period'] <= 0:
             raise InvalidParameterValueException(
@@ -143,28 +135,14 @@ class Recorder(Node):
         if not self._clock_started():
             return
         include_hidden = self.settings.include_hidden_topics or bool(self.requested)
-        for topic, types in topic_types(self, include_hidden).items():
-            if not self._wanted(topic):
-                continue
-            offers = self.get_publishers_info_by_topic(topic)
-            if not offers:
-                continue  # only subscribers so far: no offered QoS to match yet
-            if len(types) != 1:
-                self._skip(topic, f'it has several types ({", ".join(types)})')
-                continue
-            self._record(topic, types[0], offers)
+        for topic, *found in discovered_topics(self, include_hidden, self._wanted, self._skip):
+            self._record(topic, *found)
 
     def _skip(self, topic: str, why: str) -> None:
         self.skipped.add(topic)
         self.get_logger().warning(f"Not recording '{topic}': {why}")
 
-    def _record(self, topic: str, type_name: str, offers) -> None:
-        try:
-            msg_type = message_class(type_name)
-            definition = definition_text(type_name)
-        except InterfaceError as error:
-            self._skip(topic, str(error))
-            return
+    def _record(self, topic: str, type_name: str, msg_type, definition: str, offers) -> None:
         offered = [describe_qos(info.qos_profile) for info in offers]
         hashes = {str(info.topic_type_hash) for info in offers} - {'INVALID'}
         self.bag.add_topic(
@@ -180,46 +158,12 @@ class Recorder(Node):
         self.get_logger().info(f"Subscribed to topic '{topic}' ({reliability}, {durability})")
 
     def _subscribe(self, topic: str, msg_type, qos: QoSProfile):
-        from rclpy.event_handler import SubscriptionEventCallbacks, UnsupportedEventTypeError
-
         def report_loss(status) -> None:
             self.get_logger().warning(
                 f"'{topic}': DDS lost {status.total_count_change} messages "
                 f'({status.total_count} so far)'
             )
 
-        subscription = []  # filled once created: the callback drains it
-        callback = self._writer_for(topic, msg_type, subscription)
-        # Only the loss report: rclpy's default handlers (incompatible QoS and type) cannot fire
-        # on a subscription that copies the publishers' QoS and type, yet each is one more entity
-        # in every executor wait. Measured in `make run` (19 topics): the recorder's CPU time
-        # went from 48 s to 35 s of a 65 s run.
-        try:
-            created = self.create_subscription(
-                msg_type,
-                topic,
-                callback,
-                qos,
-                raw=True,
-                event_callbacks=SubscriptionEventCallbacks(
-                    message_lost=report_loss, use_default_callbacks=False
-                ),
-            )
-        except UnsupportedEventTypeError:
-            quiet = SubscriptionEventCallbacks(use_default_callbacks=False)
-            created = self.create_subscription(
-                msg_type, topic, callback, qos, raw=True, event_callbacks=quiet
-            )
-        subscription.append(created)
-        return created
-
-    def _writer_for(self, topic: str, msg_type, subscription: list):
-        """The subscription callback: serialized bytes and message info into the bag.
-
-        After the message it is called with, it takes what else is queued on the subscription
-        (up to DRAIN_BATCH), because the executor's cost per callback is several times that of
-        writing a message: it lifts the recording rate from ~3,000 to ~30,000 msg/s.
-        """
         write, clock, use_sim_time = self.bag.write, self.get_clock(), self.use_sim_time
 
         def record_one(data: bytes, info: dict) -> None:
@@ -227,17 +171,7 @@ class Recorder(Node):
             log_time = received or clock.now().nanoseconds
             write(topic, data, log_time, info.get('source_timestamp', 0))
 
-        def on_message(data: bytes, info: dict) -> None:
-            record_one(data, info)
-            handle = subscription[0].handle
-            with handle:
-                for _ in range(DRAIN_BATCH):
-                    taken = handle.take_message(msg_type, True)
-                    if taken is None:
-                        break
-                    record_one(*taken)
-
-        return on_message
+        return raw_subscription(self, topic, msg_type, qos, record_one, report_loss)
 
     def close(self) -> str:
         """Finish the bag; a line saying what was recorded."""

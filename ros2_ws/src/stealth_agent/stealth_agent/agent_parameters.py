@@ -1,0 +1,104 @@
+"""The agent node's parameters (agent_node declares them), importable without rclpy: an
+orchestrator checks parameter names against them before it starts the node."""
+
+from stealth_node_kit.param_table import Param
+
+PARAMETERS = {
+    'agent': Param(
+        'qlearning', 'Learner: qlearning (rl_agent qlearner), sarsa or dyna.', read_only=True
+    ),
+    'seed': Param(
+        1,
+        'Seed of the random generator (exploration, tie-breaking, Dyna planning).',
+        bounds=(0, 2**31 - 1),
+        read_only=True,
+    ),
+    'gamma': Param(0.99, 'Discount factor.', bounds=(0.0, 1.0)),
+    'alpha': Param(0.3, 'Learning rate; the start of the alpha schedule.', bounds=(0.0, 1.0)),
+    'epsilon': Param(
+        0.1, 'Exploration rate of epsilon-greedy; the start of its schedule.', bounds=(0.0, 1.0)
+    ),
+    'initialvalue': Param(0.0, 'Initial Q value of every new state-action.', read_only=True),
+    'n': Param(
+        10, 'Dyna-Q: planning updates from the learned model per real step.', bounds=(0, 1_000_000)
+    ),
+    'epsilon_schedule': Param('constant', 'constant, linear or exponential (over episodes).'),
+    'epsilon_final': Param(0.01, 'Epsilon the schedule decays to.', bounds=(0.0, 1.0)),
+    'epsilon_decay_episodes': Param(
+        1000.0,
+        'Linear: episodes to reach epsilon_final; exponential: time constant (episodes); > 0.',
+        bounds=(0.0, 1e12),
+    ),
+    'alpha_schedule': Param('constant', 'constant, linear or exponential (over episodes).'),
+    'alpha_final': Param(0.05, 'Alpha the schedule decays to.', bounds=(0.0, 1.0)),
+    'alpha_decay_episodes': Param(
+        1000.0,
+        'Linear: episodes to reach alpha_final; exponential: time constant (episodes); > 0.',
+        bounds=(0.0, 1e12),
+    ),
+    'nstates': Param(
+        0,
+        'rl_agent --nstates: bins per state feature over the description ranges; '
+        '0 = one table row per distinct state vector.',
+        bounds=(0, 1_000_000_000),
+        read_only=True,
+    ),
+    'state_resolution': Param(
+        0.0,
+        'Bin width of every state feature (state units, e.g. the map cell in m); '
+        'overrides nstates; 0 = off.',
+        bounds=(0.0, 1e12),
+        read_only=True,
+    ),
+    'policy_file': Param(
+        '', 'Policy file (.npz) to save to and load from; empty = none.', read_only=True
+    ),
+    'save_every': Param(
+        100,
+        'Save the policy every this many episodes (0 = only at shutdown).',
+        bounds=(0, 2**31 - 1),
+    ),
+    'load_policy': Param(False, 'Resume learning from policy_file if it exists.', read_only=True),
+    'first_episode': Param(
+        0,
+        "Number of the first episode this agent runs (a respawned or resumed run's next one); "
+        "later numbers follow the environment's EpisodeSummary.",
+        bounds=(0, 2**31 - 1),
+        read_only=True,
+    ),
+    'evaluate': Param(
+        False,
+        'Greedy, no learning: run the policy in policy_file (rl_agent savedpolicy).',
+        read_only=True,
+    ),
+    'log_every': Param(
+        10, 'Log progress every this many episodes (0 = never).', bounds=(0, 2**31 - 1)
+    ),
+    'eval_every': Param(
+        0,
+        'Every this many episodes one greedy evaluation episode (epsilon 0, no learning, the '
+        'schedules stand still): episodes eval_every-1, 2*eval_every-1, ...; 0 = never.',
+        bounds=(0, 2**31 - 1),
+    ),
+    'episode_summary_topic': Param(
+        'rl_env/episode_summary',
+        'stealth_interfaces/EpisodeSummary topic: how each episode ended (a TIMEOUT is '
+        'learned as a truncation, an ABORTED episode not at all) and named outcomes in the '
+        'progress log; optional, an rl_msgs environment without it gets terminal states '
+        'only; empty = off.',
+        read_only=True,
+    ),
+    'timeout_is_terminal': Param(
+        False,
+        "Learn a TIMEOUT episode's last state as terminal, as rl_agent does (biased: timing "
+        'out looks cheap); false = bootstrap through the time limit.',
+    ),
+    'summary_wait': Param(
+        5.0,
+        'Seconds between warnings while a terminal state waits for its EpisodeSummary. It '
+        'waits as long as a summary publisher (the environment) exists, so a late summary '
+        'never changes what is learned; with none left it is learned as terminal.',
+        bounds=(0.01, 3600.0),
+        read_only=True,
+    ),
+}

@@ -1,0 +1,118 @@
+"""Sweeps without Ray: the sweep file checked and laid out as trials, one trial's runs as
+records, and the report written from records (what --resume reads back)."""
+
+import json
+
+import pytest
+from stealth_bringup.harness import configured, tuned_config
+from stealth_bringup.sweep_plan import SweepError, make_trial, parse_plan
+from stealth_bringup.sweep_report import SweepStore, best_configurations, write_report
+from stealth_bringup.sweep_trials import objective, record_result, ros_command, run_trial
+
+BASE = {'scenarios': ['simple-maze'], 'learners': ['qlearning', 'dyna'], 'seeds': [0, 1]}
+
+
+def plan(path='sweep.yaml', **fields):
+    from pathlib import Path
+
+    return parse_plan({**BASE, **fields}, Path(path))
+
+
+def test_a_grid_crosses_values_with_seeds_and_ids_depend_only_on_settings():
+    grid = plan(params={'alpha': [0.5, 1.0], 'n_planning': [5]})
+    trials = grid.fixed_trials()
+    assert len(trials) == 2 * 2 * 2  # learners x alpha values x seeds
+    assert len({t['id'] for t in trials}) == len(trials)
+    assert {t['params']['alpha'] for t in trials} == {0.5, 1.0}
+    again = plan(params={'n_planning': [5], 'alpha': [0.5, 1.0]}).fixed_trials()
+    assert sorted(t['id'] for t in again) == sorted(t['id'] for t in trials)
+
+
+def test_random_samples_are_reproducible_and_inside_their_ranges():
+    fields = {'search': 'random', 'trials': 3, 'params': {'epsilon': {'low': 0.05, 'high': 0.3}}}
+    first, second = plan(**fields).fixed_trials(), plan(**fields).fixed_trials()
+    assert [t['id'] for t in first] == [t['id'] for t in second]
+    assert len(first) == 2 * 3 * 2
+    assert all(0.05 <= t['params']['epsilon'] <= 0.3 for t in first)
+    assert plan(**{**fields, 'seed': 1}).fixed_trials()[0]['id'] != first[0]['id']
+
+
+def test_optuna_lays_out_only_the_extra_trials():
+    search = plan(
+        search='optuna',
+        trials=4,
+        params={'alpha': {'low': 0.1, 'high': 1.0}},
+        extra=[{'mode': 'ros', 'learner': 'dyna', 'episodes': 20}],
+    )
+    trials = search.fixed_trials()
+    assert [t['mode'] for t in trials] == ['ros'] and trials[0]['seeds'] == [0]
+    assert set(search.optuna_space()) == {'alpha'}
+
+
+@pytest.mark.parametrize(
+    ('fields', 'expected'),
+    [
+        ({'learners': ['ppo']}, "learners: unknown learner 'ppo'"),
+        ({'scenarios': ['nowhere']}, "scenarios[0]: scenario 'nowhere'"),
+        ({'scenarios': [{'scenario': 'simple-maze', 'goal': 'top'}]}, "has no goal 'top'"),
+        ({'params': {'beta': [1]}}, 'params.beta: unknown parameter'),
+        ({'params': {'alpha': []}}, 'params.alpha: empty list'),
+        ({'search': 'random', 'params': {'alpha': {'low': 1, 'high': 0.5}}}, 'empty range'),
+        ({'params': {'alpha': {'low': 0.1, 'high': 0.5}}}, 'a grid needs a list'),
+        ({'params': {'alpha': [2.0]}}, 'params.alpha: alpha must stay in [0, 1]'),
+        ({'episodes': {'qlearning': 10}}, "episodes: no budget for learner 'dyna'"),
+        ({'seeds': []}, 'seeds: expected a non-empty list'),
+        ({'colour': 'red'}, 'colour: unknown field'),
+        ({'extra': [{'mode': 'ros', 'learner': 'q', 'params': {'alpha': [0.1, 0.2]}}]},
+         'extra[0].params.alpha: an extra trial takes one value'),
+    ],
+)  # fmt: skip
+def test_bad_input_is_one_line_naming_the_field(fields, expected):
+    with pytest.raises(SweepError) as error:
+        plan('bad.yaml', **fields)
+    message = str(error.value)
+    assert message.startswith('sweep file bad.yaml: ') and expected in message
+    assert '\n' not in message
+
+
+def test_parameters_override_the_tuned_settings():
+    config = configured('dyna', False, [('alpha', 0.5), ('epsilon', 0.2), ('n_planning', 3.0)])
+    tuned = tuned_config('dyna')
+    assert config.alpha(0) == 0.5 and config.epsilon(0) == 0.2 and config.n_planning == 3
+    assert config.epsilon.decay == tuned.epsilon.decay and config.gamma == tuned.gamma
+
+
+def test_a_ros_trial_is_a_stealth_train_with_the_parameters_set(tmp_path):
+    trial = make_trial('ros', 'simple-maze', 'easy', 'dyna', [3], 40, 5, 0.0, {'alpha': 0.4})
+    command = ros_command(trial, 3, tmp_path)
+    assert command[1:3] == ['-m', 'stealth_bringup.orchestrate']
+    text = ' '.join(command)
+    assert '--seed 3' in text and '--goal easy' in text and '--episodes 40' in text
+    assert 'agent.agent=dyna' in text and 'agent.alpha=0.4' in text
+
+
+def test_runs_become_records_and_the_report_and_resume_read_them(tmp_path):
+    ok = make_trial('gym', 'simple-maze', 'easy', 'qlearning', [0, 1], 20, 10, 0.0, {})
+    bad = make_trial('gym', 'simple-maze', 'easy', 'qlearning', [0], 20, 10, 0.7, {'alpha': 2.0})
+    records = run_trial(ok, {'node': 'n1'})
+    assert [r['status'] for r in records] == ['ok', 'ok'] and records[0]['policy']
+    assert records[0]['node'] == 'n1' and len(records[0]['eval_returns']) == 2
+    result = record_result(records[0])
+    assert result.spec.seed == 0 and result.eval_at.tolist() == [10, 20]
+    failed = run_trial(bad)
+    assert failed[0]['status'] == 'failed' and 'alpha' in failed[0]['error']
+    assert objective(failed) == -1.0 and objective(records) > -1.0
+    store = SweepStore(tmp_path)
+    store.add(records)
+    store.add(failed)
+    assert store.finished() == {ok['id']}  # the failed trial runs again on --resume
+    assert (tmp_path / 'policies' / f'{ok["id"]}-seed1.npz').stat().st_size > 0
+    kept = json.loads((tmp_path / 'trials' / f'{ok["id"]}.json').read_text())['records']
+    assert 'policy' not in kept[0] and kept[0]['policy_file'].startswith('policies/')
+    [best] = best_configurations(store.records())
+    assert best['learner'] == 'qlearning' and best['seeds'] == 2
+    report = write_report(store, 'unit', 'settings', plots=True)
+    text = report.read_text()
+    assert '## Best configuration per scenario' in text and 'failed: ValueError' in text
+    assert (tmp_path / 'results.csv').read_text().count('\n') == 4  # header + 3 runs
+    assert (tmp_path / 'curves_simple-maze.png').stat().st_size > 10_000

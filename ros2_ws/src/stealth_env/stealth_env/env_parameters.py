@@ -1,0 +1,91 @@
+"""The environment node's parameters (env_node declares them), importable without rclpy: an
+orchestrator checks parameter names against them before it starts the node."""
+
+from stealth_node_kit.param_table import Param
+
+from stealth_env.topic_moves import Limits
+
+PARAMETERS = {
+    'scenario': Param(
+        '',
+        'Scenario (required): a name such as lgfloor (scenarios/ or $STEALTH_NAV_SCENARIOS) '
+        'or the path of a scenario YAML.',
+        read_only=True,
+    ),
+    'goal': Param('', "Goal pursued: easy, medium or hard; '' = the scenario's default.",
+                  read_only=True),
+    'judge_on': Param(
+        'true',
+        "Pose that visibility, detection and the goal are judged on: 'true' (the lights see "
+        "the real robot) or 'estimate' (the original's estimate-only way). From the next step.",
+    ),
+    'seed': Param(0, "Seed of the random draws of 'probabilistic' detection.", (0, 2**31 - 1),
+                  read_only=True),
+    'move_timeout': Param(
+        60.0, 'Wall-clock seconds to wait for an answer of sim/execute_move or sim/reset; a '
+        'move without one ends the episode as ABORTED.', (0.1, 3600.0)
+    ),
+    'marker_period': Param(
+        1.0, 'Wall-clock seconds between updates of searchlights and searchlight_markers '
+        '(moving lights drawn at the latest simulated time); 0 = publish once.', (0.0, 3600.0)
+    ),
+    'start_delay': Param(
+        0.5, 'Wall-clock seconds to wait, once the simulator and an agent are there, before '
+        'the first episode starts: time for recorders and viewers to connect, and for the '
+        "agent's side of the DDS match (a writer sees a reader before the reader sees the "
+        'writer, and a volatile first state sent in between is lost).', (0.0, 3600.0)
+    ),
+    'publish_plan': Param(
+        False, 'Publish planned_path (nav_msgs/Path, latched): the optimum by value iteration '
+        'on the move lattice, for viewers; it takes a few seconds at startup.', read_only=True,
+    ),
+    'log_every': Param(100, 'Log a progress line every this many episodes (0 = never).',
+                       (0, 2**31 - 1)),
+    'first_episode': Param(
+        0, "Number of the first episode (a respawned or resumed run's next one).",
+        (0, 2**31 - 1), read_only=True,
+    ),
+    'robot_interface': Param(
+        'service', "How moves reach the robot: 'service' (the simulator's sim/execute_move) or "
+        "'topics' (closed loop over cmd_vel, odom, amcl_pose and scan: any ROS robot).",
+        read_only=True,
+    ),
+    'reset_mode': Param(
+        'teleport', "How an episode puts the robot back at the start: 'teleport' (call "
+        "reset_service) or 'drive' (topics only: drive back along a collision-free path on the "
+        'move lattice, lights ignored, then publish initialpose).', read_only=True,
+    ),
+    'reset_service': Param(
+        'sim/reset', 'The teleport of reset_mode teleport: a stealth_interfaces/ResetRobot '
+        'service.', read_only=True,
+    ),
+    'unresponsive_moves': Param(
+        3, 'topics: after this many moves in a row timed out without the robot moving, the '
+        'robot is not responding to cmd_vel: the episode is ABORTED and the node exits (3).',
+        (1, 1000), read_only=True,
+    ),
+    'bump_distance': Param(
+        0.05, 'topics: m to an obstacle in the way (laser scan) that ends a move BUMPED.',
+        (0.0, 1.0), read_only=True,
+    ),
+    'stall_time': Param(
+        1.0, "topics: s (robot's clock) without progress while driving that end a move BUMPED.",
+        (0.05, 60.0), read_only=True,
+    ),
+    'max_linear_speed': Param(
+        Limits.max_linear_speed, "topics: the controller's speed limit (m/s; the robot's or "
+        'lower, as the following three).', (0.01, 5.0), read_only=True,
+    ),
+    'max_angular_speed': Param(
+        Limits.max_angular_speed, 'topics: turn rate limit (rad/s).', (0.01, 10.0),
+        read_only=True,
+    ),
+    'max_linear_accel': Param(
+        Limits.max_linear_accel, 'topics: acceleration limit (m/s^2).', (0.01, 20.0),
+        read_only=True,
+    ),
+    'max_angular_accel': Param(
+        Limits.max_angular_accel, 'topics: angular acceleration limit (rad/s^2).', (0.01, 50.0),
+        read_only=True,
+    ),
+}  # fmt: skip

@@ -1,0 +1,209 @@
+"""`stealth sweep` on a two-node Ray cluster on this machine: a head and a second node, one CPU
+each, on loopback. A small sweep (2 learners x 2 seeds in-process, and one ROS-in-the-loop trial
+on the default scenario) runs on it; while it runs, the worker process of a trial is killed.
+Checked: trials ran on both nodes, every run is recorded with its results and policy, the killed
+trial was retried and the sweep completed; then, one trial's results removed as if the sweep had
+stopped before it, `--resume` runs that trial alone. Both nodes are stopped at the end (by their
+process ids, never `ray stop`, which would stop every Ray on the machine), also when the test
+fails.
+"""
+
+import contextlib
+import csv
+import os
+from pathlib import Path
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+
+import pytest
+from ros_support import _sourced_environment
+from stealth_bringup.sweep_engine import RAY_ENVIRONMENT
+
+RAY = str(Path(sys.executable).parent / 'ray')
+START_TIMEOUT = 240.0  # s: a Ray node on two loaded cores
+SWEEP_TIMEOUT = 420.0
+
+SWEEP = """
+name: two-nodes
+scenarios: [{scenario: simple-maze, goal: easy}]
+learners: [qlearning, dyna]
+seeds: [0, 1]
+episodes: {qlearning: 60, dyna: 20}
+eval_every: 5
+mode: gym
+extra:
+  - {mode: ros, scenario: simple-maze, goal: easy, learner: dyna, seed: 0, episodes: 10}
+"""
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(('127.0.0.1', 0))
+        return s.getsockname()[1]
+
+
+def _children() -> dict[int, list[int]]:
+    tree: dict[int, list[int]] = {}
+    for stat in Path('/proc').glob('[0-9]*/stat'):
+        with contextlib.suppress(OSError, ValueError, IndexError):
+            fields = stat.read_text().rsplit(')', 1)[1].split()
+            tree.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    return tree
+
+
+def _cmdline(pid: int) -> str:
+    try:
+        return Path(f'/proc/{pid}/cmdline').read_bytes().replace(b'\0', b' ').decode()
+    except OSError:
+        return ''
+
+
+def _cluster_processes(temp_dirs) -> list[int]:
+    """The processes of our Ray nodes (their command lines name our temp dirs) and every
+    descendant (workers, `stealth train` and its nodes)."""
+    roots = [
+        int(p.name)
+        for p in Path('/proc').glob('[0-9]*')
+        if any(d in _cmdline(int(p.name)) for d in temp_dirs)
+    ]
+    tree, found, stack = _children(), [], list(roots)
+    while stack:
+        pid = stack.pop()
+        if pid != os.getpid() and pid not in found:
+            found.append(pid)
+            stack += tree.get(pid, [])
+    return found
+
+
+def _stop_cluster(temp_dirs) -> None:
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        for pid in _cluster_processes(temp_dirs):
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.kill(pid, sig)
+        deadline = time.monotonic() + 15
+        while time.monotonic() < deadline and _cluster_processes(temp_dirs):
+            time.sleep(0.5)
+
+
+def _trial_workers(temp_dirs) -> list[int]:
+    """Ray worker processes running a trial (Tune's function trainable actor)."""
+    return [
+        pid
+        for pid in _cluster_processes(temp_dirs)
+        if _cmdline(pid).startswith('ray::ImplicitFunc')
+    ]
+
+
+def _sweep(args: list[str], env: dict, log) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, '-m', 'stealth_bringup.sweep', *args],
+        env=env,
+        stdout=log,
+        stderr=subprocess.STDOUT,
+        start_new_session=True,
+    )
+
+
+def _finish(process: subprocess.Popen, log, watch=lambda: None) -> tuple[int | None, str]:
+    """(exit code, output) of a sweep, calling ``watch`` while it runs; killed at the timeout."""
+    try:
+        deadline = time.monotonic() + SWEEP_TIMEOUT
+        while process.poll() is None and time.monotonic() < deadline:
+            watch()
+            time.sleep(0.5)
+        code = process.poll()
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+        log.seek(0)
+        output = log.read()
+    return code, output
+
+
+def _rows(out: Path) -> list[dict]:
+    with open(out / 'results.csv', encoding='utf-8') as stream:
+        return list(csv.DictReader(stream))
+
+
+@pytest.fixture
+def cluster():
+    """(address, environment, temp dirs): a Ray head and a second node, one CPU each."""
+    env = dict(_sourced_environment())
+    env.update(RAY_ENVIRONMENT)
+    env['RAY_AUTH_MODE'] = 'disabled'  # loopback only, a cluster of this test's own
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    # Short paths: Ray's sockets live under the temp dir (108-byte socket path limit).
+    temp_dirs = [
+        tempfile.mkdtemp(prefix='swh', dir='/tmp'),
+        tempfile.mkdtemp(prefix='sww', dir='/tmp'),
+    ]
+    port = _free_port()
+    address = f'127.0.0.1:{port}'
+    common = ['--num-cpus', '1', '--node-ip-address', '127.0.0.1', '--disable-usage-stats']
+    try:
+        subprocess.run(
+            [RAY, 'start', '--head', '--port', str(port), '--include-dashboard', 'false',
+             '--temp-dir', temp_dirs[0], *common],
+            env=env, check=True, timeout=START_TIMEOUT, capture_output=True,
+        )  # fmt: skip
+        subprocess.run(
+            [RAY, 'start', '--address', address, '--temp-dir', temp_dirs[1], *common],
+            env=env, check=True, timeout=START_TIMEOUT, capture_output=True,
+        )  # fmt: skip
+        yield address, env, temp_dirs
+    finally:
+        _stop_cluster(temp_dirs)
+        leftover = _cluster_processes(temp_dirs)
+        for d in temp_dirs:
+            subprocess.run(['rm', '-rf', d], check=False)
+        assert not leftover, f'Ray processes still running: {leftover}'
+
+
+def test_a_sweep_on_two_nodes_survives_a_killed_worker(cluster, tmp_path):
+    address, env, temp_dirs = cluster
+    sweep_file = tmp_path / 'sweep.yaml'
+    sweep_file.write_text(SWEEP)
+    out = tmp_path / 'out'
+    killed = []
+
+    def kill_a_trial_worker() -> None:
+        workers = _trial_workers(temp_dirs)
+        if not killed and workers:
+            time.sleep(3)  # well into the trial
+            if workers[0] in _trial_workers(temp_dirs):
+                killed.append(workers[0])
+                os.kill(workers[0], signal.SIGKILL)
+
+    with open(tmp_path / 'sweep.log', 'w+') as log:
+        process = _sweep([str(sweep_file), '--address', address, '--out', str(out)], env, log)
+        code, output = _finish(process, log, kill_a_trial_worker)
+    assert code == 0, f'the sweep did not complete (exit {code}):\n{output[-3000:]}'
+    assert killed, 'no trial worker was seen to kill'
+    assert '1 retried' in output, output[-3000:]
+    rows = _rows(out)
+    assert len(rows) == 5, rows  # 2 learners x 2 seeds in-process, and the ROS trial
+    assert all(row['status'] == 'ok' for row in rows), [row['error'] for row in rows]
+    assert sorted(row['mode'] for row in rows) == ['gym'] * 4 + ['ros']
+    assert len({row['node'] for row in rows}) == 2, 'the trials did not run on both nodes'
+    for row in rows:
+        assert float(row['greedy_return']) != 0.0 and row['wall_seconds']
+        assert (out / 'policies' / f'{row["trial"]}-seed{row["seed"]}.npz').stat().st_size > 0
+    results = (out / 'results.md').read_text()
+    assert '## Best configuration per scenario' in results and '| ros |' in results
+
+    # As if the sweep had stopped before this trial ended: --resume runs it alone.
+    gone = rows[0]['trial']
+    (out / 'trials' / f'{gone}.json').unlink()
+    with open(tmp_path / 'resume.log', 'w+') as log:
+        resumed = _sweep(['--resume', str(out), '--address', address], env, log)
+        code, output = _finish(resumed, log)
+    assert code == 0, output[-3000:]
+    assert '4 trial(s) already finished' in output and '1 to run' in output, output[-3000:]
+    again = _rows(out)
+    assert sorted(r['trial'] for r in again) == sorted(r['trial'] for r in rows)
+    assert all(r['status'] == 'ok' for r in again)
