@@ -446,10 +446,16 @@ def test_a_moving_variant_has_the_phase_in_the_state_and_a_wait(agent, node_proc
     check_step(task, state, info)
     assert list(state.state[:2]) == list(first.state[:2]) and not state.terminal
     waited = info.header.stamp.sec + info.header.stamp.nanosec * 1e-9
-    assert waited > 1.0  # turning about takes simulated time
+    slot = task.step_seconds
+    assert waited == pytest.approx(slot, abs=1e-6)  # a wait holds still for a step's slot
+    assert state.state[2] == scenario.timing.phase_of(slot)
     state, info = agent.act(RIGHT)
     check_step(task, state, info)
     assert state.state[0] == pytest.approx(first.state[0] + scenario.step_distance)
+    # A move that ends early is padded to its slot's end, a slower one ends a little late.
+    moved = info.header.stamp.sec + info.header.stamp.nanosec * 1e-9
+    assert 2 * slot - 1e-6 <= moved < 2 * slot + scenario.timing.bin_seconds
+    assert state.state[2] == scenario.timing.phase_of(2 * slot)
 
 
 def test_a_simulator_on_another_map_is_reported(agent, node_processes):

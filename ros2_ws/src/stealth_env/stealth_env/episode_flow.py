@@ -23,6 +23,14 @@ Decisions:
   time (the phase, where lights move). The first state of an episode is that of the reset pose
   at the reset's time (the simulator re-initialises localisation there, as AMCL does on
   /initialpose), with reward 0 and terminal false.
+- **The episode's clock** (where lights move): the lights' time is the simulated time since the
+  episode's reset, so an episode starts at phase 0 with the lights where the scenario puts them,
+  as in the Gymnasium env. Each step has a *slot* of ``step_seconds``: the node pads a move
+  that ends early with a hold (``step_time_left``), so a step ends on its slot's end and the
+  phase advances one step's worth per step, as the time-expanded model assumes; a move slower
+  than its slot (a quarter turn and a drive take a little over 3 s on the default robot) ends
+  late, the next step's slot stays where it was, and a step whose phase is not its slot's is
+  counted (``off_schedule``).
 - **Steps** are judged on ``task.step_visibility``: the straight way from the pose the previous
   step was judged at (the start, after a reset) to the judged pose, sampled in space and in
   the simulator's time from the previous step's end to this one's, so a beam crossed on the way
@@ -128,6 +136,7 @@ class Counts:
     states_sent: int = 0  # RLStateReward handed out: first states, step results, abort states
     episodes_started: int = 0
     episodes_withdrawn: int = 0  # first state sent, but the agent went away before acting
+    off_schedule: int = 0  # steps that ended in another phase than their slot's (too slow)
     outcomes: Counter = dataclasses.field(default_factory=Counter)  # by Outcome name
 
     def describe(self) -> str:
@@ -142,6 +151,11 @@ class Counts:
             f'{self.episodes_started} episodes started, {ended} ended'
             + (f' ({names})' if names else '')
             + (f', {withdrawn} withdrawn before a first action' if withdrawn else '')
+            + (
+                f', {self.off_schedule} steps ended past their time slot by a phase bin or more'
+                if self.off_schedule
+                else ''
+            )
         )
 
 
@@ -165,6 +179,7 @@ class EpisodeFlow:
         self.stats: EpisodeStats | None = None
         self.estimate: PlanarPose | None = None  # the robot's last pose estimate
         self._judged_at: tuple[float, float, float] | None = None  # x, y, t of the last judging
+        self.origin = 0.0  # simulated time of the episode's reset: its clock's zero (s)
 
     # --- episodes -------------------------------------------------------------------------------
 
@@ -192,10 +207,11 @@ class EpisodeFlow:
         x, y, yaw = self.task.scenario.start
         self.episode += 1
         self.steps = 0
+        self.origin = float(t)
         self.stats = self.task.start_episode(x, y, self.episode)
-        self.state = self.task.state_of(x, y, t)
+        self.state = self.task.state_of(x, y, 0.0)
         self.estimate = PlanarPose(x, y, yaw)
-        self._judged_at = (x, y, float(t))
+        self._judged_at = (x, y, 0.0)
         self.phase = Phase.RUNNING
         self.counts.episodes_started += 1
         self.counts.states_sent += 1
@@ -294,9 +310,14 @@ class EpisodeFlow:
             )
         x, y = self._on_map(judged.x, judged.y)
         x0, y0, t0 = self._judged_at
-        visibility = task.step_visibility(x0, y0, min(t0, t), x, y, t)
-        judgement = task.judge(x, y, t, self.steps + 1, visibility=visibility)
-        self._judged_at = (x, y, float(t))
+        te = self.episode_time(t)
+        visibility = task.step_visibility(x0, y0, min(t0, te), x, y, te)
+        judgement = task.judge(x, y, te, self.steps + 1, visibility=visibility)
+        self._judged_at = (x, y, te)
+        if task.timing is not None:
+            slot_end = (self.steps + 1) * task.step_seconds
+            if task.timing.phase_of(te) != task.timing.phase_of(slot_end):
+                self.counts.off_schedule += 1
         self.estimate = PlanarPose(*estimate)
         self.steps += 1
         counted = judgement
@@ -304,7 +325,7 @@ class EpisodeFlow:
             distance = task.distance_to_goal(truth.x, truth.y)
             counted = judgement._replace(distance_to_goal=distance)
         self.stats.add(truth.x, truth.y, counted)
-        self.state = task.state_of(estimate.x, estimate.y, t)
+        self.state = task.state_of(estimate.x, estimate.y, te)
         self.counts.states_sent += 1
         summary = None
         if judgement.terminal:
@@ -323,6 +344,18 @@ class EpisodeFlow:
             float(t),
             summary,
         )
+
+    def episode_time(self, t: float) -> float:
+        """The episode's clock at simulated time t (s): the lights' time."""
+        return float(t) - self.origin
+
+    def step_time_left(self, t: float) -> float:
+        """Seconds from simulated time t to the end of the running step's slot: what a move
+        that ended at t is to be padded with (0 without moving lights, or when it is late)."""
+        if self.task.timing is None or self.phase is not Phase.MOVING:
+            return 0.0
+        slot_end = self.origin + (self.steps + 1) * self.task.step_seconds
+        return max(0.0, slot_end - float(t))
 
     def abort(self, token: int, reason: str) -> Aborted | None:
         """The move in flight failed (rejected, no answer, ...): end the episode as ABORTED.
