@@ -45,7 +45,7 @@ RL_QOS = QoSProfile(
 LATCHED = QoSProfile(
     depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
 )
-UP, DOWN, LEFT, RIGHT = range(4)
+UP, DOWN, LEFT, RIGHT, WAIT = range(5)
 SCENARIO = 'simple-maze'  # start (1.5, 1.5); easy goal up the west side, round a light
 # The cheapest simulator that still closes the loop: big physics steps, fast robot, a tiny
 # filter (what the lossless and speed runs need; localisation is poor, which they ignore).
@@ -217,14 +217,24 @@ def totals(log: str) -> dict:
     return dict(zip(keys, map(int, match.groups()), strict=True))
 
 
+_JUDGED: dict[int, tuple[float, float, float]] = {}  # per task: the last judged x, y, t
+
+
 def check_step(task, state: RLStateReward, info: StepInfo, judged: str = 'true'):
-    """The state is the estimate's cell; reward and visibility the core's for the judged pose."""
+    """The state is the estimate's cell (and phase); reward and visibility the core's for the
+    step from the pose judged before (the start at the first step) to the judged pose."""
     assert list(info.state) == list(state.state)
     estimate = info.estimated_pose
-    assert tuple(state.state) == pytest.approx(task.state_of(estimate.x, estimate.y), abs=1e-6)
-    pose = info.true_pose if judged == 'true' else estimate
     t = info.header.stamp.sec + info.header.stamp.nanosec * 1e-9
-    judgement = task.judge(pose.x, pose.y, t, info.step)
+    expected_state = task.state_of(estimate.x, estimate.y, t)
+    assert tuple(state.state) == pytest.approx(expected_state, abs=1e-6)
+    pose = info.true_pose if judged == 'true' else estimate
+    x0, y0, t0 = _JUDGED.get(id(task), (*task.scenario.start[:2], 0.0))
+    if info.step == 1:  # from the start, at the reset: the previous episode's end
+        x0, y0 = task.scenario.start[:2]
+    _JUDGED[id(task)] = (pose.x, pose.y, t)
+    visibility = task.step_visibility(x0, y0, min(t0, t), pose.x, pose.y, t)
+    judgement = task.judge(pose.x, pose.y, t, info.step, visibility=visibility)
     assert info.visibility == pytest.approx(judgement.visibility, rel=1e-6, abs=1e-7)
     assert state.reward == pytest.approx(judgement.reward, rel=1e-6)
     assert state.terminal == info.terminal == judgement.terminal
@@ -413,6 +423,39 @@ def test_moving_lights_are_judged_at_the_end_of_each_move_and_redrawn(
     levels = visibility_levels(total, scenario.detection_threshold).ravel().tolist()
     assert list(grid.data) == levels
     assert list(agent.received['grid'][0].data) != levels
+
+
+def test_a_moving_variant_has_the_phase_in_the_state_and_a_wait(agent, node_processes):
+    """simple-maze-moving: RLEnvDescription grows by the phase and the wait action; a wait
+    keeps the robot at its node while simulated time passes; states carry the phase of the
+    move's end time and steps are judged along the way."""
+    name = 'simple-maze-moving'
+    scenario = load_scenario(name)
+    task = StealthTask(scenario)
+    start_sim(node_processes, scenario)
+    start_env(node_processes, scenario=name)
+    assert agent.spin_until(lambda: agent.received['description'], 20.0)
+    description = agent.received['description'][-1]
+    assert description.num_actions == 5
+    assert list(description.min_state_range) == pytest.approx(task.state_bounds()[0])
+    assert list(description.max_state_range) == pytest.approx(task.state_bounds()[1])
+    assert description.max_state_range[2] == scenario.timing.phase_bins - 1
+    first = agent.next_state()
+    assert list(first.state) == [*scenario.start[:2], 0.0]
+    state, info = agent.act(WAIT)
+    check_step(task, state, info)
+    assert list(state.state[:2]) == list(first.state[:2]) and not state.terminal
+    waited = info.header.stamp.sec + info.header.stamp.nanosec * 1e-9
+    slot = task.step_seconds
+    assert waited == pytest.approx(slot, abs=1e-6)  # a wait holds still for a step's slot
+    assert state.state[2] == scenario.timing.phase_of(slot)
+    state, info = agent.act(RIGHT)
+    check_step(task, state, info)
+    assert state.state[0] == pytest.approx(first.state[0] + scenario.step_distance)
+    # A move that ends early is padded to its slot's end, a slower one ends a little late.
+    moved = info.header.stamp.sec + info.header.stamp.nanosec * 1e-9
+    assert 2 * slot - 1e-6 <= moved < 2 * slot + scenario.timing.bin_seconds
+    assert state.state[2] == scenario.timing.phase_of(2 * slot)
 
 
 def test_a_simulator_on_another_map_is_reported(agent, node_processes):

@@ -75,8 +75,10 @@ class SimClient(SpinningNode):
         assert self.spin_until(future.done, timeout), 'no answer from the simulator'
         return future.result()
 
-    def move(self, kind: int, distance: float = 0.0, heading: float = 0.0):
-        request = ExecuteMove.Request(kind=kind, distance=distance, heading=heading)
+    def move(self, kind: int, distance: float = 0.0, heading: float = 0.0, seconds: float = 0.0):
+        request = ExecuteMove.Request(
+            kind=kind, distance=distance, heading=heading, seconds=seconds
+        )
         return self.call(self.move_client, request)
 
     def reset(self, x: float, y: float, yaw: float, covariance=(0.0,) * 9):
@@ -181,6 +183,12 @@ def test_moves_resets_and_bad_requests(client, node_processes, map_yaml):
         abs(math.remainder(yaw_of(turned.estimate.pose.orientation) - math.pi, 2 * math.pi)) < 0.05
     )
 
+    held = client.move(ExecuteMove.Request.HOLD, seconds=2.0)
+    assert (held.outcome, held.duration) == (ExecuteMove.Response.DONE, pytest.approx(2.0))
+    stamp = lambda answer: answer.stamp.sec + answer.stamp.nanosec * 1e-9  # noqa: E731
+    assert stamp(held) == pytest.approx(stamp(turned) + 2.0)
+    assert held.true_pose.position.x == pytest.approx(turned.true_pose.position.x, abs=1e-4)
+
     bumped = client.move(ExecuteMove.Request.DRIVE_DISTANCE, 4.0)  # the west wall is 2.45 m away
     assert bumped.outcome == ExecuteMove.Response.BUMPED and 'wall' in bumped.message
     assert bumped.true_pose.position.x == pytest.approx(0.05 + 0.2, abs=0.01)
@@ -191,6 +199,7 @@ def test_moves_resets_and_bad_requests(client, node_processes, map_yaml):
         (ExecuteMove.Request.DOWN, -0.5, 0.0, 'distance'),
         (ExecuteMove.Request.LEFT, 1e9, 0.0, 'diagonal'),
         (ExecuteMove.Request.TURN_TO_HEADING, 0.0, math.inf, 'heading'),
+        (ExecuteMove.Request.HOLD, 0.0, 0.0, 'seconds'),  # no seconds given
         (42, 0.5, 0.0, 'kind'),
     ):
         rejected = client.move(kind, distance, heading)

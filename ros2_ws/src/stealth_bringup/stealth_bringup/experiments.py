@@ -18,6 +18,8 @@ through the report writer ``run_outputs`` that `stealth train` runs use too):
 - ``learning_curves.png`` and ``curves_<scenario>.png``: greedy return against episodes, the
   mean over seeds with a min-max band, the training return faintly, the optimum and the 5 % line;
 - ``paths_<scenario>.png``: every method's path over the scenario's visibility picture;
+  ``paths_<scenario>.gif`` where lights move: the optimum and each learner's greedy path walked
+  step by step while the lights move;
 - ``policies/<scenario>-<learner>-seed<k>.npz``: each final policy, a ``stealth_agent`` policy
   file the ROS agent node loads (``policy_file``, ``load_policy``/``evaluate``) unchanged.
 
@@ -39,6 +41,7 @@ from stealth_env.gym_env import lattice_model
 from stealth_bringup.harness import (
     DEFAULT_EPISODES,
     DEFAULT_EVAL_EVERY,
+    MOVING_EPISODES,
     baselines,
     default_budget,
     tuned_config,
@@ -46,7 +49,16 @@ from stealth_bringup.harness import (
 from stealth_bringup.harness_report import write_results
 from stealth_bringup.sweep_engine import run_grid
 
-DEFAULT_SCENARIOS = ('simple-maze', 'map1', 'lgfloor', 'floorplan')
+DEFAULT_SCENARIOS = (
+    'simple-maze',
+    'map1',
+    'lgfloor',
+    'floorplan',
+    'simple-maze-moving',
+    'map1-moving',
+    'lgfloor-moving',
+    'floorplan-moving',
+)
 DEFAULT_SEEDS = (0, 1, 2)
 DEFAULT_OUT = Path('runs/eval')
 
@@ -82,7 +94,15 @@ def evaluate(
         policy_dir=str(out / 'policies'),
         progress=progress,
     )
-    budgets = ', '.join(f'{name} {episodes or default_budget(name)}' for name in learners)
+    budgets = ', '.join(
+        f'{name} {episodes or default_budget(name)}'
+        + (
+            ''
+            if episodes
+            else f' ({default_budget(name, "simple-maze-moving")} where lights move)'
+        )
+        for name in learners
+    )
     settings = (
         f'Seeds {", ".join(map(str, seeds))}; training episodes per run: {budgets}; greedy '
         f'evaluation every {eval_every} episodes; slip {slip:g}. Learner settings (all '
@@ -131,6 +151,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         type=int,
         help='training episodes per run (default per learner: '
         + ', '.join(f'{name} {budget}' for name, budget in DEFAULT_EPISODES.items())
+        + '; where lights move: '
+        + ', '.join(f'{name} {budget}' for name, budget in MOVING_EPISODES.items())
         + ')',
     )
     parser.add_argument(

@@ -237,11 +237,11 @@ def write_curves(out: Path, results: Sequence[RunResult], optima: dict[str, floa
     return written
 
 
-def write_paths(out: Path, model: LatticeModel, found: list[Baseline], results) -> Path:
-    """The scenario picture with every method's path (learners: their first seed's)."""
+def _labelled_paths(found: list[Baseline], results, baselines=BASELINES):
+    """(points, label) of the baselines named and each learner's first seed."""
     labelled = []
     for baseline in found:
-        if baseline.summary.get('points') is not None:
+        if baseline.name in baselines and baseline.summary.get('points') is not None:
             outcome = _outcome_name(baseline.summary['outcome']).lower()
             labelled.append((baseline.summary['points'], f'{baseline.name} ({outcome})'))
     seen = set()
@@ -252,6 +252,32 @@ def write_paths(out: Path, model: LatticeModel, found: list[Baseline], results) 
         outcome = _outcome_name(result.final['outcome']).lower()
         label = f'{result.spec.learner} seed {result.spec.seed} ({outcome})'
         labelled.append((result.final['points'], label))
+    return labelled
+
+
+def write_animation(out: Path, model: LatticeModel, found: list[Baseline], results) -> Path:
+    """paths_<scenario>.gif: the lights moving, the optimum and each learner's first seed's
+    greedy path walked step by step (scenarios with moving lights)."""
+    from stealth_env.render import animate_scenario
+
+    labelled = _labelled_paths(found, results, baselines=('value iteration',))
+    task = model.task
+    lengths = [len(points) for points, _ in labelled]
+    # A greedy path that loops until the step limit adds nothing after twice the optimum's.
+    frames = min(max(lengths), 2 * lengths[0]) if lengths else None
+    return animate_scenario(
+        task.scenario,
+        out / f'paths_{task.scenario.name}.gif',
+        [points for points, _ in labelled],
+        [label for _, label in labelled],
+        goal=task.goal.name,
+        frames=frames,
+    )
+
+
+def write_paths(out: Path, model: LatticeModel, found: list[Baseline], results) -> Path:
+    """The scenario picture with every method's path (learners: their first seed's)."""
+    labelled = _labelled_paths(found, results)
     task = model.task
     return plot_paths(
         task.scenario,
@@ -291,6 +317,8 @@ def write_results(
         for scenario, model in models.items():
             mine = [r for r in results if r.spec.scenario == scenario]
             images.append(write_paths(out, model, planned[scenario][1], mine))
+            if model.task.scenario.has_moving_lights:
+                images.append(write_animation(out, model, planned[scenario][1], mine))
         text += '\n' + '\n'.join(f'![{p.stem}]({p.name})' for p in images) + '\n'
     (out / 'results.md').write_text(text, encoding='utf-8')
     return rows

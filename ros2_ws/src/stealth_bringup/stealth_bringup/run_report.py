@@ -162,12 +162,38 @@ class RunReport:
                 picture = None
             if picture is not None:
                 files['path'] = picture
+            if getattr(plan.scenario, 'has_moving_lights', False):
+                animation = self._animate(plan, learned, label, optimum_points, optimum_label)
+                if animation is not None:
+                    files['path_animation'] = animation
         files.update(self._existing_files())
         summary = self._summary(records, optimum, files)
         write_json(summary, plan.file('summary.json'))
         written = {k: Path(v) for k, v in files.items()}
         written['summary'] = plan.file('summary.json')
         return written
+
+    def _animate(self, plan, learned, label, optimum_points, optimum_label) -> Path | None:
+        """path.gif: the lights moving with the learned path and the optimum, step by step."""
+        from stealth_env.render import animate_scenario
+
+        shown = ((learned, label), (optimum_points, optimum_label))
+        paths = [(points, name) for points, name in shown if points is not None]
+        frames = None  # a learned path that loops to the step limit: twice the optimum's steps
+        if optimum_points is not None:
+            frames = min(max(len(points) for points, _ in paths), 2 * len(optimum_points))
+        try:
+            return animate_scenario(
+                plan.scenario,
+                plan.file('path.gif'),
+                [p for p, _ in paths],
+                [name for _, name in paths],
+                goal=plan.goal,
+                frames=frames,
+            )
+        except Exception as error:  # noqa: BLE001
+            self.say(f'{self.prog}: could not draw path.gif: {error}')
+            return None
 
     def _summary(self, records, optimum, files, status: str | None = None) -> dict:
         plan, tracker, facts = self.plan, self.tracker, self.facts
@@ -340,6 +366,7 @@ class RunReport:
             ('episodes', 'episodes.csv', 'one row per episode'),
             ('learning_curve', 'learning_curve.png', 'return per episode, outcomes, epsilon'),
             ('path', 'path.png', 'the learned path over the scenario, with the optimum'),
+            ('path_animation', 'path.gif', 'the same as the lights move, step by step'),
             ('params', 'params/', 'the parameter file each node ran with'),
             ('logs', 'logs/', "each node's log"),
         )

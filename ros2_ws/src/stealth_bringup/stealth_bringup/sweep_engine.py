@@ -411,7 +411,7 @@ def run_grid(
             scenario,
             learner,
             seed,
-            episodes or default_budget(learner),
+            episodes or default_budget(learner, scenario),
             eval_every,
             slip,
             goal,

@@ -8,7 +8,16 @@ import pytest
 from stealth_agent.policy_store import check_compatible, load_policy
 from stealth_agent.protocol import ProtocolAgent
 from stealth_bringup import experiments
-from stealth_bringup.harness import RunSpec, policy_path, run, settled_within, tuned_config
+from stealth_bringup.harness import (
+    DEFAULT_EPISODES,
+    MOVING_EPISODES,
+    RunSpec,
+    default_budget,
+    policy_path,
+    run,
+    settled_within,
+    tuned_config,
+)
 from stealth_env.gym_env import lattice_model
 from stealth_env.planners import value_iteration
 from stealth_env.reward import Outcome
@@ -113,3 +122,21 @@ def test_the_command_line(tmp_path, capsys):
     )  # fmt: skip
     assert code == 0 and (tmp_path / 'results.md').is_file()
     assert not (tmp_path / 'learning_curves.png').exists()
+
+
+def test_the_moving_variants_are_in_the_grid_with_their_optimum_and_time_aware_dark_path(
+    tmp_path,
+):
+    assert {'simple-maze-moving', 'floorplan-moving'} <= set(experiments.DEFAULT_SCENARIOS)
+    assert default_budget('dyna', 'simple-maze-moving') == MOVING_EPISODES['dyna']
+    assert default_budget('dyna', 'simple-maze') == DEFAULT_EPISODES['dyna']
+    rows = experiments.evaluate(
+        ['simple-maze-moving'], ['dyna'], [0], episodes=5, out=tmp_path, plots=False,
+        progress=False,
+    )  # fmt: skip
+    by_method = {row['method']: row for row in rows}
+    assert by_method['A*']['greedy_outcome'] == 'DETECTED'
+    assert by_method['Dark Path']['greedy_outcome'] == 'SUCCESS'
+    assert by_method['Dark Path']['greedy_over_optimum'] > 0.95
+    assert by_method['value iteration']['greedy_outcome'] == 'SUCCESS'
+    assert '| simple-maze-moving | Dark Path | success |' in (tmp_path / 'results.md').read_text()

@@ -126,8 +126,8 @@ from stealth_env.markers import (
 )
 from stealth_env.reward import Outcome
 from stealth_env.scenario import ScenarioError, load_scenario
-from stealth_env.task import StealthTask
-from stealth_env.topic_moves import Limits, Pose, TopicConfig, go_to, route_home
+from stealth_env.task import WAIT, StealthTask
+from stealth_env.topic_moves import Limits, Pose, TopicConfig, go_to, hold, route_home
 from stealth_env.topic_robot import TOPICS as ROBOT_TOPICS
 from stealth_env.topic_robot import MoveEnd, TopicRobot
 
@@ -135,6 +135,7 @@ NODE_NAME = 'environment'
 MAP_FRAME = 'map'
 TICK_PERIOD = 0.1  # s of wall time between housekeeping ticks (start, timeouts, agent presence)
 RESET_RETRY = 1.0  # s of wall time before a failed reset is tried again
+SLOT_TOLERANCE = 1e-3  # s: a move ending this close to its step's slot end is not padded
 WAITING_LOG_PERIOD = 10.0  # s of wall time between 'still waiting' lines
 MOVE_NOTE_LOG_PERIOD = 5.0  # s of wall time between lines about bumped moves
 RESET_FAILED_LOG_PERIOD = 10.0  # s of wall time between lines about failed resets
@@ -365,6 +366,9 @@ class EnvironmentNode(StartupNode):
         self._walls = WallMap.of(self.scenario.map)
         self._moving_lights = any_moving(self.scenario)
         self._sim_time = 0.0  # the latest simulated time the simulator reported (s)
+        # A move that ended before its step's time slot: (token, outcome, message) while the
+        # hold that pads it runs (EpisodeFlow's "episode's clock").
+        self._padding: tuple[int, int, str] | None = None
         self._pending: Pending | None = None
         self._ready_since: float | None = None
         self._retry_at = 0.0
@@ -716,7 +720,10 @@ class EnvironmentNode(StartupNode):
 
     def _episode_ready(self, token: int) -> None:
         """The robot is at the start: the first state goes out."""
-        state = self.flow.reset_done(token)
+        if self._robot is not None and self._robot.tracker.latest is not None:
+            # The robot's clock ran on while it was placed (odometry from after the teleport).
+            self._sim_time = max(self._sim_time, self._robot.tracker.latest.t)
+        state = self.flow.reset_done(token, self._sim_time)
         if state is None:
             return  # stale: the agent went away meanwhile
         self._state_pub.publish(RLStateReward(state=list(state), reward=0.0, terminal=False))
@@ -780,6 +787,14 @@ class EnvironmentNode(StartupNode):
             return
         t = seconds(stamp)
         self._sim_time = max(self._sim_time, t)
+        padded, self._padding = self._padding, None
+        if padded is not None and padded[0] == token:  # the hold after the move: judge it now
+            if outcome == ExecuteMove.Response.DONE:
+                outcome, message = padded[1:]
+        elif token == self.flow.token and self.flow.step_time_left(t) >= SLOT_TOLERANCE:
+            self._padding = (token, outcome, message)  # early: stand still to the slot's end
+            self._hold(token, self.flow.step_time_left(t))
+            return
         try:
             report = self.flow.finish_move(token, estimate, truth, t)
         except ValueError as error:
@@ -842,16 +857,31 @@ class EnvironmentNode(StartupNode):
             return
         # Every action is a drive to a lattice node (StealthTask.move_target), over either
         # interface: the robot stays on the lattice the agent's states and the planners assume.
-        x, y = self.task.move_target(*self.flow.state, self.flow.action)
+        # A wait (where lights move) stands still for the rest of the step's time slot.
+        if self.flow.action == WAIT:
+            self._hold(self.flow.token, self.flow.step_time_left(self._sim_time))
+            return
+        x, y = self.task.move_target(*self.flow.state[:2], self.flow.action)
+        request = ExecuteMove.Request(kind=ExecuteMove.Request.GO_TO, x=x, y=y)
+        self._run(self.flow.token, go_to(x, y), request)
+
+    def _hold(self, token: int, seconds: float) -> None:
+        """Stand still for `seconds` (a whole step's slot when nothing is left of it: a wait
+        that comes after a late step still takes time)."""
+        if seconds < SLOT_TOLERANCE:
+            seconds = self.task.step_seconds
+        request = ExecuteMove.Request(kind=ExecuteMove.Request.HOLD, seconds=seconds)
+        self._run(token, hold(seconds), request)
+
+    def _run(self, token: int, move, request: ExecuteMove.Request) -> None:
+        """A move over the robot's topics or the simulator's service."""
         if self._robot is not None:
-            token = self.flow.token
-            self._robot.run([go_to(x, y)], functools.partial(self._on_move_end, token))
+            self._robot.run([move], functools.partial(self._on_move_end, token))
             return
         if not self._move_client.service_is_ready():
-            self._abort(self.flow.token, f'{MOVE_SERVICE} is not available')
+            self._abort(token, f'{MOVE_SERVICE} is not available')
             return
-        request = ExecuteMove.Request(kind=ExecuteMove.Request.GO_TO, x=x, y=y)
-        self._send(self._move_client, request, self.flow.token, MOVE_SERVICE, self._on_move_answer)
+        self._send(self._move_client, request, token, MOVE_SERVICE, self._on_move_answer)
 
     def _on_experiment_info(self, message: RLExperimentInfo) -> None:
         problem = self.flow.experiment_info()
@@ -895,12 +925,12 @@ class EnvironmentNode(StartupNode):
             self._scene_timer = self.create_timer(period, self._publish_scene, clock=self._steady)
 
     def _scene_time(self) -> float:
-        """The simulated time the lights are drawn at: the latest the simulator reported, or
-        the ROS clock under use_sim_time."""
+        """The lights' time to draw them at: the episode's clock (EpisodeFlow) at the latest
+        simulated time the simulator reported, or at the ROS clock under use_sim_time."""
         t = self._sim_time
         if self.get_parameter('use_sim_time').value:
             t = max(t, self.get_clock().now().nanoseconds * 1e-9)
-        return t
+        return self.flow.episode_time(t)
 
     def _publish_scene(self, force: bool = False) -> None:
         """SearchlightArray, markers and the visibility grid: when lights moved since they were

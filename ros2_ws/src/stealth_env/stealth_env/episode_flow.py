@@ -19,18 +19,31 @@ by the agent leaving) is stale and changes nothing.
 
 Decisions:
 
-- **States**: ``task.state_of`` of the localisation estimate after the move. The first state
-  of an episode is that of the reset pose (the simulator re-initialises localisation there,
-  as AMCL does on /initialpose), with reward 0 and terminal false.
+- **States**: ``task.state_of`` of the localisation estimate after the move, at the move's end
+  time (the phase, where lights move). The first state of an episode is that of the reset pose
+  at the reset's time (the simulator re-initialises localisation there, as AMCL does on
+  /initialpose), with reward 0 and terminal false.
+- **The episode's clock** (where lights move): the lights' time is the simulated time since the
+  episode's reset, so an episode starts at phase 0 with the lights where the scenario puts them,
+  as in the Gymnasium env. Each step has a *slot* of ``step_seconds``: the node pads a move
+  that ends early with a hold (``step_time_left``), so a step ends on its slot's end and the
+  phase advances one step's worth per step, as the time-expanded model assumes; a move slower
+  than its slot (a quarter turn and a drive take a little over 3 s on the default robot) ends
+  late, the next step's slot stays where it was, and a step whose phase is not its slot's is
+  counted (``off_schedule``).
+- **Steps** are judged on ``task.step_visibility``: the straight way from the pose the previous
+  step was judged at (the start, after a reset) to the judged pose, sampled in space and in
+  the simulator's time from the previous step's end to this one's, so a beam crossed on the way
+  or one sweeping over a waiting robot is seen.
 - **Judging**: ``judge_on='true'`` judges visibility, detection and the goal on the true pose
   (the lights see the real robot); ``'estimate'`` on the estimate, as the original did. An
   estimate off the map (possible only with very poor localisation) is judged at the nearest
   point of the map. Episode statistics follow EpisodeSummary: path length and final distance
   to the goal are always the true pose's.
 - **Actions** are accepted only while the flow waits for one (RUNNING) and only when they are
-  0-3; anything else is dropped with a reason for the log, never queued: an action that
-  arrives during a move or after a terminal state would otherwise be applied to a state the
-  agent never saw.
+  0-3, or 4 (wait) where lights move (``task.num_actions``); anything else is dropped with a
+  reason for the log, never queued: an action that arrives during a move or after a terminal
+  state would otherwise be applied to a state the agent never saw.
 - **Aborts**: a move the simulator rejects, fails or does not answer in time ends the episode
   as ABORTED. The agent still gets a terminal RLStateReward (its last state again, reward 0):
   rl_msgs has no other way to end an episode, and without it a lockstep agent would wait
@@ -51,12 +64,16 @@ import enum
 import math
 from typing import NamedTuple
 
-from stealth_env.move_lattice import ACTIONS
 from stealth_env.reward import Outcome
-from stealth_env.task import EpisodeStats, EpisodeSummaryFields, StealthTask, StepJudgement
+from stealth_env.task import (
+    ACTION_NAMES,
+    EpisodeStats,
+    EpisodeSummaryFields,
+    StealthTask,
+    StepJudgement,
+)
 
 JUDGE_ON = ('true', 'estimate')
-NUM_ACTIONS = len(ACTIONS)
 _ON_MAP_MARGIN = 1e-6  # m: how far inside the map an off-map estimate is moved to be judged
 
 
@@ -84,7 +101,7 @@ class StepReport(NamedTuple):
     episode: int
     step: int  # action index within the episode, from 1
     action: int
-    state: tuple[float, float]
+    state: tuple[float, ...]
     judgement: StepJudgement
     estimate: PlanarPose
     truth: PlanarPose
@@ -104,7 +121,7 @@ class StepReport(NamedTuple):
 class Aborted(NamedTuple):
     """An episode ended from outside: the terminal state to send and the summary."""
 
-    state: tuple[float, float]
+    state: tuple[float, ...]
     summary: EpisodeSummaryFields
     reason: str
 
@@ -119,6 +136,7 @@ class Counts:
     states_sent: int = 0  # RLStateReward handed out: first states, step results, abort states
     episodes_started: int = 0
     episodes_withdrawn: int = 0  # first state sent, but the agent went away before acting
+    off_schedule: int = 0  # steps that ended in another phase than their slot's (too slow)
     outcomes: Counter = dataclasses.field(default_factory=Counter)  # by Outcome name
 
     def describe(self) -> str:
@@ -133,6 +151,11 @@ class Counts:
             f'{self.episodes_started} episodes started, {ended} ended'
             + (f' ({names})' if names else '')
             + (f', {withdrawn} withdrawn before a first action' if withdrawn else '')
+            + (
+                f', {self.off_schedule} steps ended past their time slot by a phase bin or more'
+                if self.off_schedule
+                else ''
+            )
         )
 
 
@@ -152,8 +175,11 @@ class EpisodeFlow:
         self.episode = first_episode - 1
         self.steps = 0  # actions executed in the current episode
         self.action: int | None = None  # the action being executed
-        self.state: tuple[float, float] | None = None  # the last state sent
+        self.state: tuple[float, ...] | None = None  # the last state sent
         self.stats: EpisodeStats | None = None
+        self.estimate: PlanarPose | None = None  # the robot's last pose estimate
+        self._judged_at: tuple[float, float, float] | None = None  # x, y, t of the last judging
+        self.origin = 0.0  # simulated time of the episode's reset: its clock's zero (s)
 
     # --- episodes -------------------------------------------------------------------------------
 
@@ -173,15 +199,19 @@ class EpisodeFlow:
         self.token += 1
         return self.token, tuple(float(v) for v in self.task.scenario.start)
 
-    def reset_done(self, token: int) -> tuple[float, float] | None:
-        """The robot is at the start: the episode's first state, or None when stale."""
+    def reset_done(self, token: int, t: float = 0.0) -> tuple[float, ...] | None:
+        """The robot is at the start at simulated time t (s): the episode's first state, or None
+        when stale."""
         if token != self.token or self.phase is not Phase.RESETTING:
             return None
-        x, y, _ = self.task.scenario.start
+        x, y, yaw = self.task.scenario.start
         self.episode += 1
         self.steps = 0
+        self.origin = float(t)
         self.stats = self.task.start_episode(x, y, self.episode)
-        self.state = self.task.state_of(x, y)
+        self.state = self.task.state_of(x, y, 0.0)
+        self.estimate = PlanarPose(x, y, yaw)
+        self._judged_at = (x, y, 0.0)
         self.phase = Phase.RUNNING
         self.counts.episodes_started += 1
         self.counts.states_sent += 1
@@ -242,9 +272,11 @@ class EpisodeFlow:
         if (
             isinstance(action, bool)
             or not isinstance(action, int)
-            or not (0 <= action < NUM_ACTIONS)
+            or not (0 <= action < self.task.num_actions)
         ):
-            names = ', '.join(f'{i} {name}' for i, (name, _) in enumerate(ACTIONS))
+            names = ', '.join(
+                f'{i} {name}' for i, name in enumerate(ACTION_NAMES[: self.task.num_actions])
+            )
             return f'action {action!r} dropped: expected one of {names}'
         if self.phase is not Phase.RUNNING:
             return f'action {action} dropped: the environment is {self._now}'
@@ -276,14 +308,24 @@ class EpisodeFlow:
                 f'the true pose ({truth.x:.3f}, {truth.y:.3f}) lies outside the map of scenario '
                 f'{task.scenario.name!r} ({task.scenario.map_path})'
             )
-        judgement = task.judge(*self._on_map(judged.x, judged.y), t, self.steps + 1)
+        x, y = self._on_map(judged.x, judged.y)
+        x0, y0, t0 = self._judged_at
+        te = self.episode_time(t)
+        visibility = task.step_visibility(x0, y0, min(t0, te), x, y, te)
+        judgement = task.judge(x, y, te, self.steps + 1, visibility=visibility)
+        self._judged_at = (x, y, te)
+        if task.timing is not None:
+            slot_end = (self.steps + 1) * task.step_seconds
+            if task.timing.phase_of(te) != task.timing.phase_of(slot_end):
+                self.counts.off_schedule += 1
+        self.estimate = PlanarPose(*estimate)
         self.steps += 1
         counted = judgement
         if judged is not truth:  # EpisodeSummary's distances are the true pose's
             distance = task.distance_to_goal(truth.x, truth.y)
             counted = judgement._replace(distance_to_goal=distance)
         self.stats.add(truth.x, truth.y, counted)
-        self.state = task.state_of(estimate.x, estimate.y)
+        self.state = task.state_of(estimate.x, estimate.y, te)
         self.counts.states_sent += 1
         summary = None
         if judgement.terminal:
@@ -302,6 +344,18 @@ class EpisodeFlow:
             float(t),
             summary,
         )
+
+    def episode_time(self, t: float) -> float:
+        """The episode's clock at simulated time t (s): the lights' time."""
+        return float(t) - self.origin
+
+    def step_time_left(self, t: float) -> float:
+        """Seconds from simulated time t to the end of the running step's slot: what a move
+        that ended at t is to be padded with (0 without moving lights, or when it is late)."""
+        if self.task.timing is None or self.phase is not Phase.MOVING:
+            return 0.0
+        slot_end = self.origin + (self.steps + 1) * self.task.step_seconds
+        return max(0.0, slot_end - float(t))
 
     def abort(self, token: int, reason: str) -> Aborted | None:
         """The move in flight failed (rejected, no answer, ...): end the episode as ABORTED.

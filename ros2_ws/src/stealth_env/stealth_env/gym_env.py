@@ -27,7 +27,6 @@ from matplotlib import colormaps
 from matplotlib.colors import to_rgb
 import numpy as np
 
-from stealth_env.move_lattice import ACTIONS
 from stealth_env.planners import PERPENDICULAR, LatticeModel
 from stealth_env.render import DARK_COLOUR, HEATMAP, UNKNOWN_COLOUR, WALL_COLOUR
 from stealth_env.reward import Outcome
@@ -59,20 +58,25 @@ class StealthNavEnv(gym.Env):
     scenario's ``step_distance`` (m) in the map frame. A move whose swept disc (``robot_radius``)
     would touch a wall leaves the robot in place; it still counts as a step and pays the step
     reward. With ``slip`` > 0 the robot moves at right angles to the chosen direction with that
-    probability (each side half of it).
+    probability (each side half of it). Scenarios with moving lights add ``4`` wait (stay at the
+    node for one step; it never slips): ``Discrete(5)``.
 
     ## Observation Space
 
     ``Box(low, high, (2,), float32)``: ``[x, y]`` of the robot (m, map frame) rounded to the
     state grid ``start + k*state_cell`` (cells centred on the move lattice's nodes), exactly the
     state the ROS environment sends (``StealthTask.state_of``); low and high span the map.
+    Scenarios with ``phase_bins`` add the phase of the lights' cycle (0 .. phase_bins - 1):
+    ``(3,)``. Each step takes the scenario's ``step_seconds``; an episode starts at phase 0.
 
     ## Rewards
 
     Those of the scenario (``stealth_env.reward``), with d the distance to the goal point and v
     the light on the robot: detected, ``-(detection_penalty + detection_distance_weight * d)``;
     goal reached, ``goal_reward + goal_distance_weight * (goal_radius - d)``; otherwise
-    ``-(visibility_weight * v + distance_weight * d + time_cost)``.
+    ``-(visibility_weight * v + distance_weight * d + time_cost)``. v is the most light on the
+    robot during the step, sampled along the move in space and time
+    (``StealthTask.step_visibility``).
 
     ## Starting State
 
@@ -90,8 +94,7 @@ class StealthNavEnv(gym.Env):
     ## Arguments
 
     ```python
-    gym.make('StealthNav-v0', scenario='map1', goal=None, slip=0.0, render_mode=None,
-             step_seconds=1.0)
+    gym.make('StealthNav-v0', scenario='map1', goal=None, slip=0.0, render_mode=None)
     ```
 
     - ``scenario``: a shipped scenario's name, a scenario YAML path, or a loaded ``Scenario``.
@@ -99,8 +102,6 @@ class StealthNavEnv(gym.Env):
     - ``slip``: probability in [0, 1] of moving sideways instead.
     - ``render_mode``: 'ansi' (a text picture of the lattice) or 'rgb_array' (the map at one
       pixel per map cell: visibility heat, walls, the path so far, the robot).
-    - ``step_seconds``: simulated time per move, for moving lights (a light at time
-      ``steps * step_seconds``); the shipped scenarios' lights are static.
 
     ## Version History
 
@@ -115,27 +116,24 @@ class StealthNavEnv(gym.Env):
         goal: str | None = None,
         slip: float = 0.0,
         render_mode: str | None = None,
-        step_seconds: float = 1.0,
     ):
         if render_mode is not None and render_mode not in self.metadata['render_modes']:
             raise ValueError(f'render_mode: expected one of ansi, rgb_array, got {render_mode!r}')
         if not 0.0 <= slip <= 1.0:
             raise ValueError(f'slip: expected a probability in [0, 1], got {slip!r}')
-        if not step_seconds > 0:
-            raise ValueError(f'step_seconds: expected a number > 0, got {step_seconds!r}')
         self.model = lattice_model(scenario, goal)
         self.task = self.model.task
         self.scenario = self.task.scenario
         self.slip = float(slip)
-        self.step_seconds = float(step_seconds)
+        self.step_seconds = self.task.step_seconds
         self.render_mode = render_mode
-        self._moving_lights = any(light.is_moving for light in self.scenario.lights)
         # Plain Python containers: indexing them is several times faster than numpy scalars.
         self._successors = self.model.successors.tolist()
         self._points = [tuple(p) for p in self.model.points.tolist()]
         self._visibility = self.model.visibility.tolist()
+        self._step_visibility = self.model.step_visibility.tolist()
         low, high = self.task.state_bounds()
-        self.action_space = spaces.Discrete(len(ACTIONS))
+        self.action_space = spaces.Discrete(self.model.num_actions)
         self.observation_space = spaces.Box(
             np.array(low, dtype=np.float32), np.array(high, dtype=np.float32), dtype=np.float32
         )
@@ -186,15 +184,17 @@ class StealthNavEnv(gym.Env):
 
     def step(self, action):
         if not self.action_space.contains(action):
-            raise ValueError(f'action: expected one of 0, 1, 2, 3, got {action!r}')
+            choices = ', '.join(map(str, range(self.action_space.n)))
+            raise ValueError(f'action: expected one of {choices}, got {action!r}')
         direction = int(action)
-        if self.slip and self.np_random.random() < self.slip:
+        if self.slip and PERPENDICULAR[direction] and self.np_random.random() < self.slip:
             direction = PERPENDICULAR[direction][int(self.np_random.integers(2))]
         self._steps += 1
-        node = self._node = self._successors[self._node][direction]
+        before = self._node
+        node = self._node = self._successors[before][direction]
         self._path.append(node)
         x, y = self._points[node]
-        visibility = None if self._moving_lights else self._visibility[node]
+        visibility = self._step_visibility[before][direction]
         judgement = self.task.judge(x, y, self._steps * self.step_seconds, self._steps, visibility)
         self._judgements.append(judgement)
         outcome = judgement.outcome
@@ -225,12 +225,14 @@ class StealthNavEnv(gym.Env):
         columns, rows = lattice.shape
         grid = [['#'] * columns for _ in range(rows)]
         threshold = self.scenario.detection_threshold
+        n = len(model.nodes)
+        phase_start = self._node - model.node_of(self._node)  # the lights at the robot's phase
         for i, (a, b) in enumerate(model.nodes):
-            v = self._visibility[i]
+            v = self._visibility[phase_start + i]
             mark = 'G' if model.goal[i] else '!' if v >= threshold else '+' if v > 0 else '.'
             grid[rows - 1 - (b - lattice.j_min)][a - lattice.i_min] = mark
         for i, mark in ((model.start, 'S'), (self._node, 'R')):
-            a, b = model.nodes[i]
+            a, b = model.nodes[i % n]
             grid[rows - 1 - (b - lattice.j_min)][a - lattice.i_min] = mark
         x, y = self._points[self._node]
         status = (

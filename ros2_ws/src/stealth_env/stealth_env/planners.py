@@ -20,9 +20,14 @@ arrays), and every path is judged by ``StealthTask.judge``, as the environments 
   (rewards after the first state, summed), which is what the project's 5 % criterion compares;
   the learners themselves discount (gamma 0.99 by default).
 
-Moving lights are frozen at time ``t`` (the model is not time-aware); the shipped scenarios'
-lights are static. Walls: a move into a wall leaves the robot where it is, and still counts as
-a step (the model's successor of a blocked move is the node itself).
+With moving lights and ``phase_bins`` the model is time-expanded: its places are (node, phase)
+pairs, a step advances the phase, a fifth action waits, and every step is judged on the most
+light along it (sampled in space and time, ``StealthTask.step_visibility``), so the optimum
+times its passages and cannot slip through a beam between two nodes; ``dark_path`` is then a
+time-aware Dark Path (A* over (node, phase), never taking a detected step). Moving lights
+without ``phase_bins`` are frozen at time ``t``. Walls: a move into a wall leaves the robot
+where it is, and still counts as a step (the model's successor of a blocked move is the node
+itself, at the next phase).
 """
 
 from __future__ import annotations
@@ -45,17 +50,21 @@ from stealth_env.reward import (
 )
 from stealth_env.task import StealthTask
 
-# The two moves at right angles to each action (0 up, 1 down, 2 left, 3 right).
-PERPENDICULAR = ((2, 3), (2, 3), (0, 1), (0, 1))
+# The two moves at right angles to each action (0 up, 1 down, 2 left, 3 right); wait (4) never
+# slips.
+PERPENDICULAR = ((2, 3), (2, 3), (0, 1), (0, 1), ())
 DEFAULT_DARK_PATH_WEIGHT = 10.0  # m per unit of visibility: a 0.3 glimpse costs 3 m of detour
 
 
-def action_distribution(slip: float) -> np.ndarray:
-    """P[a, b]: probability that action a moves the robot in direction b."""
+def action_distribution(slip: float, num_actions: int = len(ACTIONS)) -> np.ndarray:
+    """P[a, b]: probability that action a moves the robot in direction b (a wait, action 4,
+    always waits)."""
     if not 0.0 <= slip <= 1.0:
         raise ValueError(f'slip: expected a probability in [0, 1], got {slip!r}')
-    matrix = np.eye(len(ACTIONS)) * (1.0 - slip)
-    for action, sideways in enumerate(PERPENDICULAR):
+    matrix = np.eye(num_actions)
+    for action, sideways in enumerate(PERPENDICULAR[:num_actions]):
+        if sideways:
+            matrix[action, action] = 1.0 - slip
         for direction in sideways:
             matrix[action, direction] += slip / 2
     return matrix
@@ -63,65 +72,132 @@ def action_distribution(slip: float) -> np.ndarray:
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class LatticeModel:
-    """The task on its move lattice as arrays over valid nodes (index order of
-    ``MoveLattice.valid_nodes``).
+    """The task on its time-expanded move lattice, as arrays over *places*: a place is a valid
+    node at a phase of the lights' cycle, index ``phase * len(nodes) + node`` (node in the order
+    of ``MoveLattice.valid_nodes``); one phase when the lights do not move or the state has no
+    phase (moving lights are then frozen at time ``t``, and the model is not the task).
 
-    successors[i, b]: the node index a move in direction b from node i reaches (i itself when
-    the move is blocked); visibility[i]: ``task.visibility`` at node i at time t (the per-point
-    model); states[i]: the agent's float32 state there (``task.state_of``).
+    successors[i, b]: the place a step in direction b (0-3 the moves, 4 a wait where lights
+    move) from place i reaches: the target node (i's own when the move is blocked) at the phase
+    ``bins_per_step`` later. step_visibility[i, b]: that step's visibility
+    (``StealthTask.step_visibility``: the most light along the move, sampled in space and
+    time, the arrival included), what the step is judged on. visibility[i]: the light at the
+    place itself (its node at its phase's start); states[i]: the agent's float32 state there.
     """
 
     task: StealthTask
     t: float
     nodes: list[Node]
-    points: np.ndarray  # (n, 2) float64, m
-    states: np.ndarray  # (n, 2) float32
-    successors: np.ndarray  # (n, 4) int
-    visibility: np.ndarray  # (n,)
-    distance: np.ndarray  # (n,) to the goal point, m
-    goal: np.ndarray  # (n,) bool: within the goal's radius
+    points: np.ndarray  # (places, 2) float64, m
+    states: np.ndarray  # (places, features) float32
+    successors: np.ndarray  # (places, directions) int
+    step_visibility: np.ndarray  # (places, directions)
+    visibility: np.ndarray  # (places,)
+    distance: np.ndarray  # (places,) to the goal point, m
+    goal: np.ndarray  # (places,) bool: within the goal's radius
     start: int
+    phases: int = 1
 
     @classmethod
     def build(cls, task: StealthTask, t: float = 0.0) -> LatticeModel:
         lattice = task.lattice
         nodes = list(lattice.valid_nodes())
+        n = len(nodes)
         index = {node: i for i, node in enumerate(nodes)}
-        points = np.array([lattice.node_to_point(node) for node in nodes], dtype=np.float64)
-        successors = np.empty((len(nodes), len(ACTIONS)), dtype=np.int64)
+        node_points = np.array([lattice.node_to_point(node) for node in nodes], dtype=np.float64)
+        directions = task.num_actions
+        moves = np.empty((n, directions), dtype=np.int64)
         for i, node in enumerate(nodes):
-            for action in range(len(ACTIONS)):
-                target = lattice.successor(node, action)
-                successors[i, action] = i if target is None else index[target]
+            for action in range(directions):
+                target = lattice.successor(node, action) if action < len(ACTIONS) else None
+                moves[i, action] = i if target is None else index[target]
+        timing = task.timing
+        phases = task.phase_bins
+        advance = 0 if timing is None else timing.bins_per_step
+        bin_seconds = 0.0 if timing is None else timing.bin_seconds
+        step_seconds = 0.0 if timing is None else timing.step_seconds
+        see = task._point_visibility
+        places = np.arange(n * phases)
+        phase_of_place = places // n
+        node_of_place = places % n
+        successors = ((phase_of_place[:, None] + advance) % phases) * n + moves[node_of_place]
+        step_visibility = np.empty((n * phases, directions))
+        visibility = np.empty(n * phases)
+        ends = node_points[moves]  # (n, directions, 2)
+        for phase in range(phases):
+            t0 = t + phase * bin_seconds
+            xs, ys, ts = task.step_samples_of(
+                node_points[:, None, 0], node_points[:, None, 1], t0,
+                ends[..., 0], ends[..., 1], t0 + step_seconds,
+            )  # fmt: skip
+            peak = np.max([see.many(x, y, time) for x, y, time in zip(xs, ys, ts, strict=True)], 0)
+            step_visibility[phase * n : (phase + 1) * n] = peak
+            visibility[phase * n : (phase + 1) * n] = see.many(*node_points.T, t0)
+        points = node_points[node_of_place]
         goal = task.goal
         distance = np.hypot(points[:, 0] - goal.x, points[:, 1] - goal.y)
-        start = lattice.point_to_node(*task.scenario.start[:2])
+        start = index[lattice.point_to_node(*task.scenario.start[:2])]
+        phase_times = t + phase_of_place * bin_seconds
+        states = np.array(
+            [task.state_of(x, y, time) for (x, y), time in zip(points, phase_times, strict=True)],
+            dtype=np.float32,
+        )
         return cls(
             task=task,
             t=float(t),
             nodes=nodes,
             points=points,
-            states=np.array([task.state_of(x, y) for x, y in points], dtype=np.float32),
+            states=states,
             successors=successors,
-            visibility=np.array([task.visibility(x, y, t) for x, y in points]),
+            step_visibility=step_visibility,
+            visibility=visibility,
             distance=distance,
-            goal=np.array([task.distance_to_goal(x, y) <= goal.radius for x, y in points]),
-            start=index[start],
+            goal=distance <= goal.radius,
+            start=start,
+            phases=phases,
         )
 
     @property
     def size(self) -> int:
-        return len(self.nodes)
+        """The number of places (nodes x phases)."""
+        return len(self.points)
+
+    @property
+    def num_actions(self) -> int:
+        return self.successors.shape[1]
+
+    def node_of(self, place: int) -> int:
+        """The node index (into ``nodes``) of a place."""
+        return place % len(self.nodes)
 
     @property
     def seen(self) -> np.ndarray:
-        """(n,) bool: nodes at or above the detection threshold."""
+        """(places,) bool: places at or above the detection threshold."""
         return self.visibility >= self.task.scenario.detection_threshold
 
-    def judge(self, i: int, step_index: int):
-        """``StealthTask.judge`` of arriving at node i with action number step_index."""
+    @property
+    def step_seen(self) -> np.ndarray:
+        """(places, directions) bool: steps whose visibility reaches the detection threshold."""
+        return self.step_visibility >= self.task.scenario.detection_threshold
+
+    def direction(self, i: int, j: int) -> int:
+        """The direction of a step from place i to place j (ValueError when there is none)."""
+        found = np.flatnonzero(self.successors[i] == j)
+        if found.size == 0:
+            raise ValueError(f'no step leads from place {i} to place {j}')
+        return int(found[0])
+
+    def judge(self, i: int, step_index: int, direction: int | None = None, previous=None):
+        """``StealthTask.judge`` of a step in ``direction`` from place ``previous`` into place i
+        (action number step_index); without them, of arriving at i with its own light."""
         x, y = self.points[i]
-        return self.task.judge(x, y, self.t, step_index, visibility=self.visibility[i])
+        if previous is None:
+            visibility = self.visibility[i]
+        else:
+            direction = self.direction(previous, i) if direction is None else direction
+            visibility = self.step_visibility[previous, direction]
+        t = self.t + step_index * self.task.step_seconds
+        return self.task.judge(x, y, t, step_index, visibility=visibility)
 
 
 # --- judging paths ------------------------------------------------------------------------------
@@ -144,14 +220,14 @@ class PathResult(NamedTuple):
 
 
 def walk(model: LatticeModel, path: Sequence[int]) -> PathResult:
-    """Judge each node of the path in turn (the first is the start, not judged) until one ends
-    the episode (goal, detection or the step limit)."""
+    """Judge each step of the path of places in turn (the first is the start, not judged) until
+    one ends the episode (goal, detection or the step limit)."""
     task = model.task
     stats = task.start_episode(*model.points[path[0]])
     outcome = None
     walked = 1
-    for step_index, i in enumerate(path[1:], start=1):
-        judgement = model.judge(i, step_index)
+    for step_index, (previous, i) in enumerate(zip(path, path[1:], strict=False), start=1):
+        judgement = model.judge(i, step_index, previous=previous)
         stats.add(*model.points[i], judgement)
         walked += 1
         if judgement.terminal:
@@ -173,19 +249,19 @@ def walk(model: LatticeModel, path: Sequence[int]) -> PathResult:
 
 def _cheapest_path(
     model: LatticeModel,
-    entry_cost: np.ndarray,
+    step_cost: np.ndarray,
     passable: np.ndarray,
     heuristic: np.ndarray,
 ) -> list[int] | None:
-    """A* from the start to any goal node: a move into node j costs entry_cost[j] (>= the
-    heuristic's drop, so the heuristic is consistent); only passable nodes are entered."""
+    """A* over places from the start to any goal place: a step in direction b from place i
+    costs step_cost[i, b] (>= the heuristic's drop, so the heuristic is consistent) and is taken
+    only when passable[i, b]. Steps that lead nowhere new (a blocked move) are skipped."""
     start = model.start
-    if not passable[start]:
-        return None
     best = {start: 0.0}
     came_from: dict[int, int] = {}
     frontier = [(float(heuristic[start]), 0.0, start)]
     closed = set()
+    successors = model.successors.tolist()
     while frontier:
         _, cost, i = heapq.heappop(frontier)
         if i in closed:
@@ -196,10 +272,10 @@ def _cheapest_path(
                 path.append(came_from[path[-1]])
             return path[::-1]
         closed.add(i)
-        for j in set(model.successors[i].tolist()) - {i}:
-            if not passable[j] or j in closed:
+        for direction, j in enumerate(successors[i]):
+            if j == i or j in closed or not passable[i, direction]:
                 continue
-            candidate = cost + float(entry_cost[j])
+            candidate = cost + float(step_cost[i, direction])
             if candidate < best.get(j, math.inf):
                 best[j] = candidate
                 came_from[j] = i
@@ -208,36 +284,50 @@ def _cheapest_path(
 
 
 def _moves_to_goal(model: LatticeModel) -> np.ndarray:
-    """(n,) Manhattan distance in moves to the nearest goal node: an admissible heuristic."""
+    """(places,) Manhattan distance in moves to the nearest goal node: an admissible
+    heuristic."""
     nodes = np.asarray(model.nodes)
-    targets = nodes[model.goal]
+    n = len(nodes)
+    targets = nodes[model.goal[:n]]
     if targets.size == 0:
         return np.zeros(model.size)
     gaps = np.abs(nodes[:, None, :] - targets[None, :, :]).sum(axis=2)
-    return gaps.min(axis=1).astype(np.float64)
+    return np.tile(gaps.min(axis=1).astype(np.float64), model.phases)
+
+
+def _is_move(model: LatticeModel) -> np.ndarray:
+    """(places, directions): whether the step changes the node (not a wait or a blocked move)."""
+    n = len(model.nodes)
+    return (model.successors % n) != (np.arange(model.size) % n)[:, None]
 
 
 def astar(model: LatticeModel) -> list[int] | None:
-    """The shortest path (fewest moves) from the start to the goal, ignoring the lights."""
+    """The shortest path (fewest moves) from the start to the goal, ignoring the lights (and so
+    never waiting)."""
     step = model.task.scenario.step_distance
     return _cheapest_path(
         model,
-        np.full(model.size, step),
-        np.ones(model.size, dtype=bool),
+        np.full(model.successors.shape, step),
+        _is_move(model),
         step * _moves_to_goal(model),
     )
 
 
 def dark_path(model: LatticeModel, weight: float = DEFAULT_DARK_PATH_WEIGHT) -> list[int] | None:
-    """The cheapest path with cost step_distance + weight * visibility per node entered, through
-    nodes below the detection threshold only; None when every way is seen."""
+    """The cheapest path with cost step_distance + weight * visibility per step (a wait costs
+    the same as a move: it takes a step), never taking a step whose visibility reaches the
+    detection threshold; None when every way is seen. With moving lights this is A* over
+    (node, phase): it waits where waiting lets a beam pass."""
     if not (math.isfinite(weight) and weight >= 0):
         raise ValueError(f'weight: expected a number >= 0 (m per unit visibility), got {weight!r}')
     step = model.task.scenario.step_distance
+    moves = _is_move(model)
+    if model.phases > 1:  # a wait goes somewhere new: the same node at another phase
+        moves |= model.successors != np.arange(model.size)[:, None]
     return _cheapest_path(
         model,
-        step + weight * model.visibility,
-        ~model.seen,
+        step + weight * model.step_visibility,
+        ~model.step_seen & moves,
         step * _moves_to_goal(model),
     )
 
@@ -247,17 +337,18 @@ def dark_path(model: LatticeModel, weight: float = DEFAULT_DARK_PATH_WEIGHT) -> 
 
 class ValueIterationResult(NamedTuple):
     optimal_return: float  # expected return from the start with the whole step limit ahead
-    values: np.ndarray  # (n,) the same from every node
-    q: np.ndarray  # (n, 4) action values with the whole step limit ahead
-    policy: np.ndarray  # (n,) greedy action of q (first maximal)
+    values: np.ndarray  # (places,) the same from every place
+    q: np.ndarray  # (places, actions) action values with the whole step limit ahead
+    policy: np.ndarray  # (places,) greedy action of q (first maximal)
     converged: bool  # one more step of horizon would not change the start's value
     horizon: int
     gamma: float
     slip: float
 
 
-def arrival_terms(model: LatticeModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per node entered: (probability of detection, reward if detected, reward otherwise).
+def step_terms(model: LatticeModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per step (place, direction): (probability of detection, reward if detected, reward
+    otherwise), judged on the step's visibility at the place it enters.
 
     Detection is judged first, then the goal (``reward.step_outcome``'s order); in 'threshold'
     mode the probability is 0 or 1.
@@ -265,17 +356,19 @@ def arrival_terms(model: LatticeModel) -> tuple[np.ndarray, np.ndarray, np.ndarr
     scenario = model.task.scenario
     weights = scenario.rewards
     threshold = scenario.detection_threshold
+    visibility = model.step_visibility
     if scenario.detection_mode == 'threshold':
-        p_detected = model.seen.astype(np.float64)
+        p_detected = model.step_seen.astype(np.float64)
     else:
-        p_detected = np.array([detection_probability(v, threshold) for v in model.visibility])
-    caught = np.array([detection_reward(d, weights) for d in model.distance])
+        p_detected = np.vectorize(lambda v: detection_probability(v, threshold))(visibility)
+    distance = model.distance[model.successors]
+    at_goal = model.goal[model.successors]
+    caught = np.vectorize(lambda d: detection_reward(d, weights))(distance)
     radius = model.task.goal.radius
-    safe = np.array(
-        [
-            success_reward(d, radius, weights) if at_goal else step_reward(v, d, weights)
-            for v, d, at_goal in zip(model.visibility, model.distance, model.goal, strict=True)
-        ]
+    safe = np.where(
+        at_goal,
+        np.vectorize(lambda d: success_reward(d, radius, weights))(distance),
+        np.vectorize(lambda v, d: step_reward(v, d, weights))(visibility, distance),
     )
     return p_detected, caught, safe
 
@@ -284,22 +377,24 @@ def value_iteration(
     model: LatticeModel, slip: float = 0.0, gamma: float = 1.0, horizon: int | None = None
 ) -> ValueIterationResult:
     """Optimal expected return and policy by backward induction over ``horizon`` steps (default:
-    the scenario's step limit), V_0 = 0 (the episode is truncated)."""
+    the scenario's step limit), V_0 = 0 (the episode is truncated); over (node, phase) places
+    where lights move, so exact with time."""
     if not 0.0 <= gamma <= 1.0:
         raise ValueError(f'gamma: expected a number in [0, 1], got {gamma!r}')
     horizon = model.task.step_limit if horizon is None else int(horizon)
-    moves = action_distribution(slip)  # (actions, directions)
-    p_detected, caught, safe = arrival_terms(model)
-    goes_on = (1.0 - p_detected) * ~model.goal  # probability the episode continues after entry
-    immediate = p_detected * caught + (1.0 - p_detected) * safe
+    moves = action_distribution(slip, model.num_actions)  # (actions, directions)
+    p_detected, caught, safe = step_terms(model)
+    # probability the episode continues after each step
+    goes_on = (1.0 - p_detected) * ~model.goal[model.successors]
+    immediate = p_detected * caught + (1.0 - p_detected) * safe  # (places, directions)
     values = np.zeros(model.size)
     previous = values
-    q = np.zeros((model.size, len(ACTIONS)))
+    q = np.zeros((model.size, model.num_actions))
     for _ in range(horizon):
-        arrival = immediate + gamma * goes_on * values  # (n,): worth of entering each node
-        q = arrival[model.successors] @ moves.T  # (n, directions) -> (n, actions)
+        outcome = immediate + gamma * goes_on * values[model.successors]  # (places, directions)
+        q = outcome @ moves.T  # (places, actions)
         previous, values = values, q.max(axis=1)
-    # Nodes that cannot reach the goal keep losing value with every step of horizon; what
+    # Places that cannot reach the goal keep losing value with every step of horizon; what
     # matters is whether the step limit binds from the start.
     converged = bool(abs(values[model.start] - previous[model.start]) <= 1e-9)
     return ValueIterationResult(
@@ -317,15 +412,17 @@ def value_iteration(
 def follow(
     model: LatticeModel, choose: Callable[[int], int], limit: int | None = None
 ) -> list[int]:
-    """The deterministic path (no slip) from the start taking action choose(i) at node i, until
-    a node ends the episode or the step limit."""
+    """The deterministic path of places (no slip) from the start taking action choose(i) at
+    place i, until a step ends the episode or the step limit."""
     limit = model.task.step_limit if limit is None else limit
-    seen = model.seen
+    seen = model.step_seen
     path = [model.start]
     for _ in range(limit):
-        i = int(model.successors[path[-1], choose(path[-1])])
+        here = path[-1]
+        action = choose(here)
+        i = int(model.successors[here, action])
         path.append(i)
-        if model.goal[i] or seen[i]:
+        if model.goal[i] or seen[here, action]:
             break
     return path
 

@@ -3,6 +3,11 @@ optionally paths, to PNG (for the README and for every run).
 
     render lgfloor -o lgfloor.png --path run.csv --time 2.5
     render --all                     # docs/images/scenarios/<name>.png for every scenario
+    render map1-moving --animate map1-moving.gif --optimum --path learned.csv
+
+``--animate`` writes an animated GIF: the lights moving (one frame per step of the scenario's
+``step_seconds``) and each path walked one point per frame; ``--optimum`` adds the value-iteration
+optimum on the (time-expanded) lattice.
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ import sys
 from typing import NamedTuple
 
 from matplotlib import patches
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure  # no pyplot: no global state, no display needed (Agg)
 from matplotlib.lines import Line2D
@@ -175,9 +181,18 @@ def _label(ax, x, y, text, colour):
     )
 
 
-def render_scenario(
+def render_scenario(scenario, out_png: str | os.PathLike, **drawing) -> Path:
+    """Draw the scenario (``scenario_figure``'s keyword arguments: paths, field, t, goal,
+    path_labels, title, cache_dir) and write it to out_png; returns the path written."""
+    fig = scenario_figure(scenario, **drawing)
+    out_png = Path(out_png)
+    out_png.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out_png, bbox_inches='tight', pad_inches=0.15)
+    return out_png
+
+
+def scenario_figure(
     scenario,
-    out_png: str | os.PathLike,
     paths: Iterable[Sequence[Sequence[float]]] = (),
     field: np.ndarray | None = None,
     t: float = 0.0,
@@ -185,8 +200,10 @@ def render_scenario(
     path_labels: Sequence[str] | None = None,
     title: str | None = None,
     cache_dir: str | os.PathLike | None = None,
-) -> Path:
-    """Draw the scenario at time t (s) and write it to out_png; returns the path written.
+    dpi: int = 110,
+) -> Figure:
+    """The scenario at time t (s) as a Figure: walls, the visibility heatmap, cones, start,
+    goals and paths.
 
     field: total visibility (height, width) to show instead of computing (cached) the
     scenario's; paths: sequences of (x, y) in metres; goal: the goal pursued, highlighted.
@@ -200,7 +217,7 @@ def render_scenario(
     x0, y0, x1, y1 = occupancy.bounds
     aspect = (y1 - y0) / (x1 - x0)
     width_in = 9.0 if aspect <= 1.2 else max(9.0 / aspect * 1.2, 5.0)
-    fig = Figure(figsize=(width_in + 1.4, width_in * aspect + 1.6), dpi=110)
+    fig = Figure(figsize=(width_in + 1.4, width_in * aspect + 1.6), dpi=dpi)
     ax = fig.add_subplot()
     ax.set_facecolor(DARK_COLOUR)
     image = _draw_map(ax, occupancy, np.asarray(field, dtype=float), threshold)
@@ -294,10 +311,73 @@ def render_scenario(
     ax.set_ylabel('y (m)')
     name = getattr(scenario, 'name', 'scenario')
     ax.set_title(title or f'{name}: visibility at t = {t:g} s')
-    out_png = Path(out_png)
-    out_png.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out_png, bbox_inches='tight', pad_inches=0.15)
-    return out_png
+    return fig
+
+
+def animate_scenario(
+    scenario,
+    out: str | os.PathLike,
+    paths: Sequence[Sequence[Sequence[float]]] = (),
+    path_labels: Sequence[str] | None = None,
+    goal: str | None = None,
+    frames: int | None = None,
+    fps: float = 4.0,
+    cache_dir: str | os.PathLike | None = None,
+    progress=None,
+) -> Path:
+    """An animated GIF of the lights moving, each path walked one point per frame (a point per
+    step, ``step_seconds`` of the scenario apart; a path's later frames hold its last point).
+
+    frames: how many (default: the longest path's points, or one joint cycle of the lights);
+    progress: called with (frame, frames) after each frame. Returns the path written.
+    """
+    from PIL import Image
+
+    out = Path(out)
+    if out.suffix.lower() != '.gif':
+        raise ValueError(f'{out}: expected a .gif file name (an animated GIF)')
+    paths = [np.asarray(p, dtype=float).reshape(-1, 2) for p in paths]
+    timing = getattr(scenario, 'timing', None)
+    step = timing.step_seconds if timing is not None else 1.0
+    if frames is None:
+        cycle = timing.phase_bins // timing.bins_per_step if timing is not None else 1
+        frames = max([len(p) for p in paths] + [cycle])
+    if frames < 1:
+        raise ValueError(f'frames: expected a number >= 1, got {frames}')
+    labels = list(path_labels) if path_labels else [f'path {k + 1}' for k in range(len(paths))]
+    images = []
+    name = getattr(scenario, 'name', 'scenario')
+    for k in range(frames):
+        t = k * step
+        if timing is not None:  # the same instants every cycle: the field cache serves them
+            t = ((k * timing.bins_per_step) % timing.phase_bins) * timing.bin_seconds
+        walked = [p[: min(k, len(p) - 1) + 1] for p in paths]
+        fig = scenario_figure(
+            scenario,
+            walked,
+            t=t,
+            goal=goal,
+            path_labels=labels,
+            title=f'{name}: step {k}, t = {k * step:g} s',
+            cache_dir=cache_dir,
+            dpi=60,
+        )
+        canvas = FigureCanvasAgg(fig)
+        canvas.draw()
+        rgba = np.asarray(canvas.buffer_rgba())
+        images.append(Image.fromarray(rgba[..., :3]).convert('P', palette=Image.ADAPTIVE))
+        if progress is not None:
+            progress(k + 1, frames)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    images[0].save(
+        out,
+        save_all=True,
+        append_images=images[1:],
+        duration=round(1000 / fps),
+        loop=0,
+        optimize=False,
+    )
+    return out
 
 
 def shipped_scenarios() -> list[Path]:
@@ -343,6 +423,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         help=f'render every shipped scenario into --out-dir (default {DEFAULT_OUT_DIR})',
     )
     parser.add_argument('--out-dir', default=str(DEFAULT_OUT_DIR), help='directory for --all')
+    parser.add_argument(
+        '--animate',
+        metavar='OUT.gif',
+        help='write an animated GIF of the lights moving and the paths walked, step by step',
+    )
+    parser.add_argument(
+        '--optimum',
+        action='store_true',
+        help='also draw the value-iteration optimum on the lattice (time-expanded where lights'
+        ' move)',
+    )
+    parser.add_argument('--frames', type=int, help='--animate: frames (default: longest path)')
+    parser.add_argument('--fps', type=float, default=4.0, help='--animate: frames per second')
     parser.add_argument('--cache-dir', help='visibility cache (default $STEALTH_NAV_CACHE)')
     args = parser.parse_args(argv)
 
@@ -359,8 +452,26 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.goal is not None and args.goal not in [m.name for m in goal_marks(scenario)]:
             parser.error(f'--goal {args.goal!r}: the scenario has no such goal')
         paths = [read_path_csv(path) for path in args.path]
-        out = args.output or f'{scenario.name}.png'
         labels = [Path(path).stem for path in args.path]
+        if args.optimum:
+            paths.append(optimal_points(scenario, args.goal))
+            labels.append('optimum (value iteration)')
+        if args.animate:
+            print(
+                animate_scenario(
+                    scenario,
+                    args.animate,
+                    paths,
+                    labels,
+                    goal=args.goal,
+                    frames=args.frames,
+                    fps=args.fps,
+                    cache_dir=args.cache_dir,
+                    progress=_show_progress,
+                )
+            )
+            return 0
+        out = args.output or f'{scenario.name}.png'
         written = render_scenario(
             scenario,
             out,
@@ -375,6 +486,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
     print(written)
     return 0
+
+
+def _show_progress(done: int, total: int) -> None:
+    print(f'\rrender: frame {done}/{total}', end='\n' if done == total else '', file=sys.stderr)
+
+
+def optimal_points(scenario, goal: str | None = None) -> np.ndarray:
+    """(steps + 1, 2): the poses of the value-iteration optimum from the start."""
+    from stealth_env.planners import LatticeModel, follow, value_iteration, walk
+    from stealth_env.task import StealthTask
+
+    model = LatticeModel.build(StealthTask(scenario, goal))
+    optimum = value_iteration(model)
+    return walk(model, follow(model, lambda i: int(optimum.policy[i]))).points
 
 
 if __name__ == '__main__':

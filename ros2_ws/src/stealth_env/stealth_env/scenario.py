@@ -19,6 +19,10 @@ from +x) and radians in the :class:`Scenario`. Example, every field::
     detection_threshold: 0.3        # total visibility at which the robot is seen
     detection_mode: threshold       # or probabilistic
     step_limit: 300                 # moves per episode
+    phase_bins: 8                   # moving lights only: bins of the lights' joint cycle, the
+                                    # phase is then a state feature (stealth_env.timing)
+    step_seconds: 3.0               # moving lights only: simulated s per move or wait, a whole
+                                    # number of bins (default: one bin)
     lights:
       - name: kitchen               # default: L<number>
         x: 13.0
@@ -36,7 +40,10 @@ Validation checks the fields' types and ranges, that the start and goals lie in 
 the map, that the start has ``robot_radius`` of clearance, that every goal is reachable from the
 start on the robot's move lattice (:mod:`stealth_env.move_lattice`) and that every light and
 patrol waypoint lies inside the map (a lamp may sit on a wall, as ``stealth_env.lighting``
-allows). Whether the goals can be reached unseen is a property of the shipped scenarios, proved
+allows), and that moving lights' periods and the step fit the phase bins
+(:mod:`stealth_env.timing`). A scenario whose lights move without ``phase_bins`` loads with a
+warning: the state does not say where the lights are, so the task is not Markov. Whether the
+goals can be reached unseen is a property of the shipped scenarios, proved
 by their tests, not a load-time check.
 """
 
@@ -45,6 +52,7 @@ import math
 import os
 from pathlib import Path
 from typing import Any, NamedTuple
+import warnings
 
 from stealth_sim.occupancy_map import (
     FieldReader,
@@ -63,6 +71,7 @@ from stealth_env.reward import (
     undetected_visibility_bound,
 )
 from stealth_env.searchlight import LightError, PatrolMotion, Searchlight, SweepMotion
+from stealth_env.timing import Timing, TimingError, check_timing
 
 DIFFICULTIES = ('easy', 'medium', 'hard')
 SCENARIOS_ENV = 'STEALTH_NAV_SCENARIOS'
@@ -79,6 +88,8 @@ FIELDS = (
     'detection_threshold',
     'detection_mode',
     'step_limit',
+    'phase_bins',
+    'step_seconds',
     'lights',
     'rewards',
 )
@@ -123,6 +134,11 @@ class Scenario:
     detection_mode: str
     step_limit: int
     rewards: RewardWeights
+    timing: Timing | None = None  # moving lights with phase_bins: the phase state feature
+
+    @property
+    def has_moving_lights(self) -> bool:
+        return any(light.is_moving for light in self.lights)
 
     @property
     def goal(self) -> Goal:
@@ -193,6 +209,7 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
     if default_goal not in goals:
         fields.fail('default_goal', f'one of the goals given ({", ".join(goals)})', default_goal)
     lights = _lights(fields, occupancy)
+    timing = _timing(fields, lights, path)
     rewards = _rewards(fields, occupancy, numbers, len(lights))
     return Scenario(
         name=name,
@@ -204,8 +221,41 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
         default_goal=default_goal,
         lights=lights,
         rewards=rewards,
+        timing=timing,
         **numbers,
     )
+
+
+class NotMarkovWarning(UserWarning):
+    """Moving lights without the phase in the state: the same state is safe or deadly
+    depending on the time."""
+
+
+def _timing(fields: FieldReader, lights, path: Path) -> Timing | None:
+    moving = [light.name for light in lights if light.is_moving]
+    if not fields.has('phase_bins'):
+        if fields.has('step_seconds'):
+            fields.fail('step_seconds', 'no step_seconds without phase_bins', 'a value')
+        if moving:
+            warnings.warn(
+                f'{path}: lights {", ".join(moving)} move but the scenario has no phase_bins: '
+                'the state is the position only, so the task is not Markov (the same cell is '
+                'safe or seen depending on the time); add phase_bins',
+                NotMarkovWarning,
+                stacklevel=3,
+            )
+        return None
+    bins = fields.integer('phase_bins', 'an integer >= 1', lambda v: v >= 1)
+    step = None
+    if fields.has('step_seconds'):
+        step = fields.number('step_seconds', f'{POSITIVE} (s)', lambda v: v > 0)
+    try:
+        timing = check_timing(lights, bins, step)
+    except TimingError as error:
+        raise ScenarioError(f'{path}: {error}') from None
+    if timing is None:
+        fields.fail('phase_bins', 'phase_bins only in a scenario whose lights move', bins)
+    return timing
 
 
 def _load_map(fields: FieldReader, path: Path) -> tuple[Path, OccupancyMap]:
@@ -345,7 +395,7 @@ def _motion(light: FieldReader, occupancy, direction: float) -> SweepMotion | Pa
             f'[{low:g}, {low + 360:g}]',
             lambda v: low <= v <= low + 360,
         )
-        speed = motion.number('angular_speed', 'a number >= 0 (degrees/s)', lambda v: v >= 0)
+        speed = motion.number('angular_speed', 'a number > 0 (degrees/s)', lambda v: v > 0)
         if (direction - low) % 360 > high - low + 1e-9 and (low - direction) % 360 > 1e-9:
             light.fail('direction', f'an angle inside the sweep [{low:g}, {high:g}]', direction)
         return SweepMotion(math.radians(low), math.radians(high), math.radians(speed))
@@ -361,7 +411,7 @@ def _motion(light: FieldReader, occupancy, direction: float) -> SweepMotion | Pa
             x, y = point.numbers(key, 2, 'an [x, y] point (m)')
             _inside(point, occupancy, x, y, 'a waypoint', keys=(key, key))
             waypoints.append((x, y))
-        speed = motion.number('speed', 'a number >= 0 (m/s)', lambda v: v >= 0)
+        speed = motion.number('speed', 'a number > 0 (m/s)', lambda v: v > 0)
         return PatrolMotion(tuple(waypoints), speed)
     motion.fail('type', 'sweep or patrol', kind)
 

@@ -22,6 +22,16 @@ Decisions:
   than Python's round-half-even, so every cell is the same size (on both sides of 0 too, for
   maps with negative coordinates such as lgfloor); a point exactly half-way belongs to the cell
   above.
+- **Time** (scenarios with moving lights): the state grows by the features of
+  ``state_features`` beyond x and y; today ``phase``, the bin of the lights' joint cycle
+  (``stealth_env.timing``) the time falls in, when the scenario sets ``phase_bins``. A fifth
+  action, ``wait`` (4), keeps the robot at its node for one step; it exists only where lights
+  move (``num_actions``). A step takes ``step_seconds`` of simulated time in-process; in ROS
+  the simulator's reported time.
+- **A step's visibility** is the most light the robot gets during it (``step_visibility``):
+  the move (or the wait) is sampled at the map's resolution, each sample at its own time
+  (the move's time shared out evenly along it), up to and including the arrival, so a robot
+  cannot slip through a beam between two lattice nodes, nor sit still while a sweep crosses it.
 - **Visibility** of a pose at time t is the per-point lighting model
   (``lighting.point_visibility``) at the pose itself: the definition of the model, not the
   cell-centre field. It is computed by ``visibility.PointVisibility``, equal to the reference to
@@ -53,6 +63,9 @@ from stealth_env.scenario import Goal, Scenario
 from stealth_env.visibility import PointVisibility, scenario_point_visibility
 
 NUM_ACTIONS = len(ACTIONS)  # 0 up (+y), 1 down (-y), 2 left (-x), 3 right (+x)
+WAIT = NUM_ACTIONS  # 4: stay one step (scenarios with moving lights only)
+ACTION_NAMES = (*(name for name, _ in ACTIONS), 'wait')
+DEFAULT_STEP_SECONDS = 1.0  # s per step when the scenario does not say (no phase_bins)
 _CELL_TOLERANCE = 1e-9  # in cells: a map edge this close to a cell boundary counts as on it
 
 
@@ -141,6 +154,17 @@ class StealthTask:
         self.cell = float(scenario.state_cell)
         self.step_limit = int(scenario.step_limit)
         self._anchor = (float(scenario.start[0]), float(scenario.start[1]))  # state grid origin
+        self.timing = scenario.timing
+        self.step_seconds = (
+            self.timing.step_seconds if self.timing is not None else DEFAULT_STEP_SECONDS
+        )
+        self.num_actions = NUM_ACTIONS + 1 if scenario.has_moving_lights else NUM_ACTIONS
+        # Features beyond (x, y), in order: (name, low, high) each. Issue 18 adds heading here.
+        self.extra_features: tuple[tuple[str, float, float], ...] = ()
+        if self.timing is not None:
+            self.extra_features += (('phase', 0.0, float(self.timing.phase_bins - 1)),)
+        samples = math.ceil(scenario.step_distance / scenario.map.resolution - 1e-9)
+        self.step_samples = max(samples, 1)  # samples of a step, the arrival included
 
     @property
     def title(self) -> str:
@@ -154,10 +178,28 @@ class StealthTask:
 
     # --- states ---------------------------------------------------------------------------------
 
-    def state_of(self, x: float, y: float) -> tuple[float, float]:
-        """The agent's state for a pose: (x, y) rounded to the nearest point of the state grid
-        ``start + k*state_cell`` (see "State" in the module docstring)."""
-        return (self._centre(x, self._anchor[0]), self._centre(y, self._anchor[1]))
+    @property
+    def state_features(self) -> tuple[str, ...]:
+        """The names of the state's dimensions, in order: x, y, then any extra features."""
+        return ('x', 'y', *(name for name, _, _ in self.extra_features))
+
+    @property
+    def phase_bins(self) -> int:
+        """Phases of the state (1 when the state has no phase)."""
+        return 1 if self.timing is None else self.timing.phase_bins
+
+    def state_of(self, x: float, y: float, t: float = 0.0) -> tuple[float, ...]:
+        """The agent's state for a pose at time t (s): (x, y) rounded to the nearest point of
+        the state grid ``start + k*state_cell`` (see "State" in the module docstring), then the
+        extra features (the phase of t)."""
+        position = (self._centre(x, self._anchor[0]), self._centre(y, self._anchor[1]))
+        return position + self.features_at(t)
+
+    def features_at(self, t: float) -> tuple[float, ...]:
+        """The extra state features at time t (s): () or (phase,)."""
+        if self.timing is None:
+            return ()
+        return (float(self.timing.phase_of(t)),)
 
     def _centre(self, value: float, anchor: float) -> float:
         return anchor + math.floor((float(value) - anchor) / self.cell + 0.5) * self.cell
@@ -174,15 +216,19 @@ class StealthTask:
         node = lattice.point_to_node(x, y)
         if not lattice.is_valid(node):  # beside a wall, or localisation far off: the nearest
             node = lattice.nearest_valid_node(x, y)
-        successor = lattice.successor(node, action)
+        successor = None if action == WAIT else lattice.successor(node, action)
         return lattice.node_to_point(node if successor is None else successor)
 
-    def state_bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
-        """(min, max) state over every point of the map: RLEnvDescription's state ranges."""
+    def state_bounds(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """(min, max) state over every point of the map and time: RLEnvDescription's state
+        ranges."""
         x_min, y_min, x_max, y_max = self.scenario.map.bounds
         (x_anchor, y_anchor) = self._anchor
         high = (self._last_centre_below(x_max, x_anchor), self._last_centre_below(y_max, y_anchor))
-        return self.state_of(x_min, y_min), high
+        low = (self._centre(x_min, x_anchor), self._centre(y_min, y_anchor))
+        extra_low = tuple(low for _, low, _ in self.extra_features)
+        extra_high = tuple(high for _, _, high in self.extra_features)
+        return low + extra_low, high + extra_high
 
     def _last_centre_below(self, value: float, anchor: float) -> float:
         """The state of the points just below ``value`` (the map's upper edge, excluded)."""
@@ -217,8 +263,8 @@ class StealthTask:
         lattice = self.lattice
         states = {self.state_of(*lattice.node_to_point(n)) for n in lattice.valid_nodes()}
         return {
-            'num_actions': NUM_ACTIONS,
-            'num_states': len(states),
+            'num_actions': self.num_actions,
+            'num_states': len(states) * self.phase_bins,
             'min_state_range': list(low),
             'max_state_range': list(high),
             'max_reward': max_reward,
@@ -234,6 +280,28 @@ class StealthTask:
         """Total visibility at (x, y) m at time t s, by the per-point model (ValueError off the
         map)."""
         return self._point_visibility(x, y, t)
+
+    def step_samples_of(self, x0, y0, t0, x1, y1, t1):
+        """(xs, ys, ts): the samples a step from (x0, y0) at t0 to (x1, y1) at t1 is judged on,
+        ``step_samples`` of them evenly along it in space and time, the arrival last (the
+        departure is the previous step's arrival). Works on arrays of steps too (then (k, ...))."""
+        fractions = np.arange(1, self.step_samples + 1) / self.step_samples
+        shape = (-1,) + (1,) * np.ndim(x0)
+        fractions = fractions.reshape(shape)
+        x0, y0, x1, y1 = (np.asarray(v, dtype=np.float64) for v in (x0, y0, x1, y1))
+        xs = x0 + (x1 - x0) * fractions
+        ys = y0 + (y1 - y0) * fractions
+        ts = t0 + (t1 - t0) * fractions.ravel()
+        xs[-1], ys[-1] = x1, y1  # exactly the arrival
+        return xs, ys, ts
+
+    def step_visibility(self, x0, y0, t0: float, x1, y1, t1: float) -> float:
+        """The most light on the robot during a step from (x0, y0) at t0 s to (x1, y1) at t1 s
+        (see "A step's visibility"): what ``judge`` is given."""
+        xs, ys, ts = self.step_samples_of(x0, y0, t0, x1, y1, t1)
+        if not self.scenario.has_moving_lights:
+            return float(self._point_visibility.many(xs, ys, t1).max())
+        return max(self._point_visibility(x, y, t) for x, y, t in zip(xs, ys, ts, strict=True))
 
     @cached_property
     def _point_visibility(self) -> PointVisibility:

@@ -188,16 +188,23 @@ def interpolate(a: Odom, b: Odom, t: float) -> Pose:
 class Move(NamedTuple):
     """Turn to ``heading`` (rad, map frame), then drive ``distance`` (m; 0: only the turn); or,
     with a ``target`` (x, y in m, map frame), turn to face it and drive there, as the
-    simulator's GO_TO (heading and distance then follow from where the move starts)."""
+    simulator's GO_TO (heading and distance then follow from where the move starts); or, with
+    ``hold`` > 0, stand still that long (s of the robot's clock), as the simulator's HOLD."""
 
     heading: float
     distance: float = 0.0
     target: tuple[float, float] | None = None
+    hold: float = 0.0
 
 
 def go_to(x: float, y: float) -> Move:
     """The move to the point (x, y) of the map frame."""
     return Move(0.0, 0.0, (float(x), float(y)))
+
+
+def hold(seconds: float) -> Move:
+    """Standing still for ``seconds`` of the robot's clock."""
+    return Move(0.0, 0.0, None, float(seconds))
 
 
 class Command(NamedTuple):
@@ -235,6 +242,7 @@ class Phase(enum.Enum):
     TURN = 'turn'
     DRIVE = 'drive'
     BRAKE = 'brake'
+    HOLD = 'hold'
 
 
 MESSAGES = {
@@ -266,7 +274,7 @@ class TopicMove:
                 move = Move(start.yaw, 0.0, move.target)
             else:
                 move = Move(math.atan2(dy, dx), distance, move.target)
-        self.move = Move(wrap_angle(move.heading), move.distance, move.target)
+        self.move = Move(wrap_angle(move.heading), move.distance, move.target, move.hold)
         self.start_time = t
         self.start = start
         limits = config.limits
@@ -275,7 +283,7 @@ class TopicMove:
             + move.distance / limits.max_linear_speed
         )
         self.time_limit = controller.time_limit_factor * nominal + controller.time_limit_margin
-        self.phase = Phase.TURN
+        self.phase = Phase.HOLD if move.hold > 0 else Phase.TURN
         self._after_brake: Outcome | None = None  # None: continue with the drive
         self._target: tuple[float, float] | None = None
         self._start_odom: Pose | None = None
@@ -302,6 +310,8 @@ class TopicMove:
 
     def _decide(self, t, estimate, odom, clearance, period) -> Command | Finished:
         elapsed = t - self.start_time
+        if self.phase is Phase.HOLD:
+            return self._hold(elapsed)
         if self.phase is not Phase.BRAKE and elapsed > self.time_limit:
             return self._brake(Outcome.TIMED_OUT)
         if self.phase is Phase.TURN:
@@ -312,6 +322,12 @@ class TopicMove:
 
     # --- phases ---------------------------------------------------------------------------------
 
+    def _hold(self, elapsed: float) -> Command | Finished:
+        """Stop and stay; done when the time is up (a robot that still rolls has moved)."""
+        if elapsed >= self.move.hold:
+            return Finished(Outcome.DONE, '', elapsed, self._moved)
+        return STOP
+
     def _turn(self, t: float, estimate: Pose, odom: Odom, period: float) -> Command | Finished:
         error = wrap_angle(self.move.heading - estimate.yaw)
         if abs(error) <= self.controller.heading_tolerance:
@@ -320,7 +336,7 @@ class TopicMove:
         return Command(0.0, self._turn_rate(error, odom.angular, period))
 
     def _start_drive(self, estimate: Pose) -> None:
-        heading, distance, target = self.move
+        heading, distance, target, _ = self.move
         self._target = target or (
             estimate.x + distance * math.cos(heading),
             estimate.y + distance * math.sin(heading),

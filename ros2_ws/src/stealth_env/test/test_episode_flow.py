@@ -14,7 +14,7 @@ from stealth_env.episode_flow import (
 )
 from stealth_env.reward import Outcome
 from stealth_env.scenario import load_scenario
-from stealth_env.task import StealthTask
+from stealth_env.task import WAIT, StealthTask
 
 
 @pytest.fixture(scope='module')
@@ -285,3 +285,53 @@ def test_a_continued_run_numbers_its_episodes_from_first_episode(map1):
     flow.reset_done(token)
     assert flow.episode == 17
     assert flow.interrupt('x').summary.episode == 17
+
+
+# --- the episode's clock where lights move ------------------------------------------------------
+
+
+@pytest.fixture(scope='module')
+def moving():
+    return StealthTask(load_scenario('simple-maze-moving'))
+
+
+def test_an_episode_starts_at_phase_zero_whatever_the_simulators_clock_says(moving):
+    flow = EpisodeFlow(moving)
+    token, _ = flow.begin_reset()
+    bin_seconds = moving.timing.bin_seconds
+    state = flow.reset_done(token, 1000.0 + 5 * bin_seconds + 0.3)  # mid-bin of phase 5
+    assert state[2] == 0.0 and flow.episode_time(1000.0 + 5 * bin_seconds + 0.3) == 0.0
+    x, y = moving.scenario.start[:2]
+    report = step(flow, WAIT, PlanarPose(x, y), t=flow.origin + moving.step_seconds)
+    assert report.state[2] == moving.timing.phase_of(moving.step_seconds)
+    assert report.t == flow.origin + moving.step_seconds  # stamps stay the simulator's
+
+
+def test_a_step_is_padded_to_its_slot_and_a_late_one_counted(moving):
+    flow = EpisodeFlow(moving)
+    token, _ = flow.begin_reset()
+    flow.reset_done(token, 50.0)
+    slot = moving.step_seconds
+    assert flow.step_time_left(51.0) == 0.0  # no move under way
+    x, y = moving.scenario.start[:2]
+    assert flow.accept_action(WAIT) is None
+    assert flow.step_time_left(51.2) == pytest.approx(50.0 + slot - 51.2)
+    flow.finish_move(flow.token, PlanarPose(x, y), PlanarPose(x, y), 50.0 + slot)
+    assert flow.counts.off_schedule == 0
+    # The next slot ends at 2 slots whatever the last step took: 0.5 s late is the same phase...
+    assert flow.accept_action(WAIT) is None
+    assert flow.step_time_left(50.0 + 2 * slot + 0.5) == 0.0
+    flow.finish_move(flow.token, PlanarPose(x, y), PlanarPose(x, y), 50.0 + 2 * slot + 0.5)
+    assert flow.counts.off_schedule == 0 and flow.state[2] == moving.timing.phase_of(2 * slot)
+    # ... a phase bin late is not, and is counted.
+    assert flow.accept_action(WAIT) is None
+    late = 50.0 + 3 * slot + moving.timing.bin_seconds
+    flow.finish_move(flow.token, PlanarPose(x, y), PlanarPose(x, y), late)
+    assert flow.counts.off_schedule == 1
+    assert 'steps ended past their time slot' in flow.counts.describe()
+
+
+def test_without_moving_lights_nothing_is_padded(map1):
+    flow = started(StealthTask(map1))
+    assert flow.accept_action(0) is None
+    assert flow.step_time_left(0.0) == 0.0

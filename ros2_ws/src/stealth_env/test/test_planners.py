@@ -9,10 +9,10 @@ from stealth_env.gym_env import StealthNavEnv, lattice_model
 from stealth_env.planners import (
     PERPENDICULAR,
     action_distribution,
-    arrival_terms,
     astar,
     dark_path,
     follow,
+    step_terms,
     value_iteration,
     walk,
 )
@@ -44,9 +44,13 @@ def test_the_model_is_the_lattice(model):
 def test_slip_goes_sideways_only():
     moves = action_distribution(0.2)
     np.testing.assert_allclose(moves.sum(axis=1), 1.0)
-    for action, sideways in enumerate(PERPENDICULAR):
+    for action, sideways in enumerate(PERPENDICULAR[:4]):
         assert moves[action, action] == pytest.approx(0.8)
         assert all(moves[action, side] == pytest.approx(0.1) for side in sideways)
+    with_wait = action_distribution(0.2, 5)
+    np.testing.assert_allclose(with_wait[:4, :4], moves)
+    assert with_wait[4].tolist() == [0, 0, 0, 0, 1]  # a wait never slips
+    assert with_wait[:4, 4].tolist() == [0, 0, 0, 0]  # and no move turns into one
     with pytest.raises(ValueError, match='slip'):
         action_distribution(1.5)
 
@@ -121,8 +125,8 @@ def test_value_iteration_with_slip_is_the_expected_return_in_the_env(model):
 def test_probabilistic_detection_is_an_expectation(model):
     scenario = dataclasses.replace(model.task.scenario, detection_mode='probabilistic')
     probabilistic = lattice_model(scenario)
-    p_detected, _, _ = arrival_terms(probabilistic)
-    lit = probabilistic.visibility > 0
+    p_detected, _, _ = step_terms(probabilistic)
+    lit = probabilistic.step_visibility > 0
     assert ((p_detected > 0) & (p_detected < 1))[lit].all() and (p_detected[~lit] == 0).all()
     assert value_iteration(probabilistic).optimal_return <= value_iteration(model).optimal_return
 

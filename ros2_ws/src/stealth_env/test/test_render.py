@@ -121,7 +121,8 @@ def test_cli_renders_a_shipped_scenario_with_paths(tmp_path, capsys):
 def test_cli_renders_every_scenario(tmp_path, capsys):
     assert render.main(['--all', '--out-dir', str(tmp_path), '--cache-dir', str(tmp_path)]) == 0
     written = sorted(path.name for path in tmp_path.glob('*.png'))
-    assert written == ['floorplan.png', 'lgfloor.png', 'map1.png', 'simple-maze.png']
+    maps = ['floorplan', 'lgfloor', 'map1', 'simple-maze']
+    assert written == sorted(f'{name}{kind}.png' for name in maps for kind in ('', '-moving'))
 
 
 def test_cli_reports_bad_input(tmp_path, capsys):

@@ -9,6 +9,7 @@ import pytest
 from stealth_env.reward import RewardWeights
 from stealth_env.scenario import (
     Goal,
+    NotMarkovWarning,
     ScenarioError,
     find_scenario,
     load_scenario,
@@ -21,13 +22,14 @@ import yaml
 
 REPO = Path(__file__).resolve().parents[4]
 SHIPPED = ['floorplan', 'lgfloor', 'map1', 'simple-maze']
+MOVING = [f'{name}-moving' for name in SHIPPED]
 
 
 # --- the shipped scenarios ----------------------------------------------------------------------
 
 
-def test_the_four_scenarios_are_found_by_name():
-    assert [path.stem for path in scenario_paths()] == SHIPPED
+def test_the_four_scenarios_and_their_moving_variants_are_found_by_name():
+    assert [path.stem for path in scenario_paths()] == sorted(SHIPPED + MOVING)
     assert find_scenario('lgfloor') == REPO / 'scenarios' / 'lgfloor.yaml'
 
 
@@ -457,6 +459,90 @@ def test_patrol_waypoint_outside_the_map(write):
         "field 'lights[1].motion.waypoints[1]'",
         'a waypoint inside the map',
     )
+
+
+@pytest.mark.parametrize(
+    ('light', 'motion', 'field'),
+    [
+        (0, {'type': 'sweep', 'min_direction': 60, 'max_direction': 120, 'angular_speed': 0},
+         'angular_speed'),
+        (1, {'type': 'patrol', 'waypoints': [[1, 1]], 'speed': 0}, 'speed'),
+    ],
+)  # fmt: skip
+def test_motion_with_zero_speed(write, light, motion, field):
+    assert_scenario_error(
+        write(setter(f'lights.{light}.motion', motion)),
+        f"field 'lights[{light}].motion.{field}'",
+        'a number > 0',
+        'got 0',
+    )
+
+
+SWEEP_12S = {'type': 'sweep', 'min_direction': 60, 'max_direction': 120, 'angular_speed': 10}
+
+
+def moving(phase_bins=None, step_seconds=None, motion=SWEEP_12S):
+    def change(values):
+        values['lights'][0]['motion'] = motion
+        if phase_bins is not None:
+            values['phase_bins'] = phase_bins
+        if step_seconds is not None:
+            values['step_seconds'] = step_seconds
+
+    return change
+
+
+def test_phase_bins_and_step_seconds(write):
+    scenario = load_scenario(write(moving(phase_bins=6, step_seconds=4.0)))
+    timing = scenario.timing
+    assert (timing.cycle, timing.phase_bins, timing.step_seconds) == (12.0, 6, 4.0)
+    assert timing.bins_per_step == 2
+    assert load_scenario(write(moving(phase_bins=4))).timing.step_seconds == 3.0  # one bin
+    assert load_scenario(write()).timing is None
+
+
+def test_phase_bins_of_zero(write):
+    assert_scenario_error(
+        write(moving(phase_bins=0)), "field 'phase_bins'", 'an integer >= 1, got 0'
+    )
+
+
+def test_a_period_that_does_not_divide_into_the_bins(write):
+    patrol = {'type': 'patrol', 'waypoints': [[3, 5]], 'speed': 1}  # 2 m there, 2 back: 4 s
+
+    def change(values):
+        moving(phase_bins=4)(values)  # the cycle, lcm(12, 4) = 12 s, in bins of 3 s
+        values['lights'][1]['motion'] = patrol
+        values['lights'][1]['x'], values['lights'][1]['y'] = 3.0, 3.0
+
+    assert_scenario_error(
+        write(change),
+        "searchlight 'L2': field 'motion.speed'",
+        'its period 4 s is 1.33333 phase bins of 3 s',
+        'expected a whole number',
+    )
+
+
+def test_a_step_that_is_not_a_whole_number_of_bins(write):
+    assert_scenario_error(
+        write(moving(phase_bins=4, step_seconds=4.5)),
+        "field 'step_seconds'",
+        'a whole number (>= 1) of phase bins of 3 s',
+    )
+
+
+def test_phase_bins_without_moving_lights(write):
+    assert_scenario_error(
+        write(setter('phase_bins', 4)),
+        "field 'phase_bins'",
+        'only in a scenario whose lights move',
+    )
+
+
+def test_moving_lights_without_phase_bins_warn_that_the_task_is_not_markov(write):
+    with pytest.warns(NotMarkovWarning, match=r'lights a move .* the task is not Markov'):
+        scenario = load_scenario(write(moving()))
+    assert scenario.timing is None and scenario.has_moving_lights
 
 
 def test_patrol_waypoint_not_a_point(write):

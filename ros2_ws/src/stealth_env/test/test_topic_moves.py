@@ -22,6 +22,7 @@ from stealth_env.topic_moves import (
     TopicMove,
     forward_clearance,
     go_to,
+    hold,
     pose_problem,
     route_home,
 )
@@ -200,6 +201,17 @@ def test_a_robot_that_ignores_cmd_vel_times_out_without_moving(maze):
     assert controller.time_limit == pytest.approx(4 * (math.pi / 2 / 1.5 + 1.0) + 5, abs=0.05)
     assert result.message == f'the move did not finish within {controller.time_limit:.1f} s'
     assert controller.time_limit < result.duration < controller.time_limit + 0.5
+
+
+def test_a_hold_stops_the_robot_and_ends_when_its_time_is_up(maze):
+    robot = TopicRobot(maze, maze.start)
+    run_move(robot, action_move(3, 0.5))
+    before = robot.sim.ground_truth
+    result, periods, _ = run_move(robot, hold(3.0))
+    assert (result.outcome, result.message) == (Outcome.DONE, '')
+    assert 3.0 <= result.duration < 3.0 + 0.2  # the first odometry past the time
+    assert periods == 16  # 0.2 s odometry periods: 3 s after the start, then the Finished
+    assert math.dist(robot.sim.ground_truth[:2], before[:2]) < 1e-3
 
 
 def test_the_estimate_is_amcl_pose_carried_by_the_odometry(maze):

@@ -42,6 +42,7 @@ class MoveKind(enum.IntEnum):
     TURN_TO_HEADING = 4
     DRIVE_DISTANCE = 5
     GO_TO = 6
+    HOLD = 7
 
 
 class Outcome(enum.IntEnum):
@@ -64,13 +65,14 @@ GRID_HEADINGS = {
 @dataclasses.dataclass(frozen=True)
 class Move:
     """A move request: ``distance`` (m) for the drives, ``heading`` (rad, map) for the turn,
-    ``x``, ``y`` (m, map) for GO_TO."""
+    ``x``, ``y`` (m, map) for GO_TO, ``seconds`` (simulated) for HOLD."""
 
     kind: int
     distance: float = 0.0
     heading: float = 0.0
     x: float = 0.0
     y: float = 0.0
+    seconds: float = 0.0
 
 
 class StepStops(NamedTuple):
@@ -119,6 +121,9 @@ class ControllerConfig:
     time_limit_margin: float = 5.0
 
 
+MAX_HOLD_SECONDS = 600.0  # a HOLD longer than this is a mistake in the caller, not a wait
+
+
 def move_problem(move: Move, max_distance: float, start: Pose | None = None) -> str | None:
     """Why a move request cannot be executed, or None when it can (GO_TO: from `start`)."""
     try:
@@ -126,6 +131,13 @@ def move_problem(move: Move, max_distance: float, start: Pose | None = None) -> 
     except ValueError:
         kinds = ', '.join(f'{k.value} ({k.name})' for k in MoveKind)
         return f'kind: expected one of {kinds}, got {move.kind!r}'
+    if kind == MoveKind.HOLD:
+        if not (math.isfinite(move.seconds) and 0.0 < move.seconds <= MAX_HOLD_SECONDS):
+            return (
+                f'seconds: expected a number of seconds > 0 and at most {MAX_HOLD_SECONDS:g}, '
+                f'got {move.seconds!r}'
+            )
+        return None
     if kind == MoveKind.TURN_TO_HEADING:
         if not math.isfinite(move.heading):
             return f'heading: expected a finite angle (rad), got {move.heading!r}'
@@ -171,6 +183,8 @@ def execute_move(
     if problem:
         return MoveResult(Outcome.REJECTED, problem)
     kind = MoveKind(move.kind)
+    if kind == MoveKind.HOLD:
+        return hold(sim, move.seconds, on_step, step_stops)
     target = None
     if kind == MoveKind.GO_TO:
         distance = math.hypot(move.x - start.x, move.y - start.y)
@@ -196,6 +210,57 @@ def execute_move(
         Outcome.TIMED_OUT: f'the move did not finish within {run.time_limit:.1f} s',
     }
     return MoveResult(outcome, messages[outcome], sim.time - run.start_time, run.steps)
+
+
+def hold(
+    sim: Simulator,
+    seconds: float,
+    on_step: Callable[[Simulator], None] | None = None,
+    step_stops: Callable[[], StepStops] | None = None,
+) -> MoveResult:
+    """Stand still for ``seconds`` of simulated time (at least one physics step): brake a robot
+    that still moves (a move's end may leave < 1 mm/s) with no command, then let the time pass.
+
+    The reference (``sim.reference``) steps every physics step; otherwise the steps at rest
+    between the hook's stops are passed at once (``Simulator.stand_still``), which changes
+    nothing but their cost: the state, the random streams and the clock end up the same.
+    """
+    dt = sim.config.physics_dt
+    count = max(1, round(seconds / dt))
+    start_time, start_step, end = sim.time, sim.steps, sim.steps + count
+    stops = step_stops() if on_step is not None and step_stops is not None else None
+    while sim.steps < end:
+        at_rest = sim.state.linear == 0.0 and sim.state.angular == 0.0
+        every_step = sim.reference or (on_step is not None and (stops is None or stops.every_step))
+        if at_rest and not every_step:
+            sim.stand_still(_steps_to_stop(sim, end, stops) - sim.steps)
+        elif sim.step(0.0, 0.0):
+            message = 'the robot touched a wall or unknown space while braking to stand still'
+            return MoveResult(
+                Outcome.BUMPED, message, sim.time - start_time, sim.steps - start_step
+            )
+        if on_step is not None and (
+            stops is None or stops.due(sim.time, sim.localisation_updates)
+        ):
+            on_step(sim)
+            if step_stops is not None:
+                stops = step_stops()
+    return MoveResult(Outcome.DONE, '', sim.time - start_time, count)
+
+
+def _steps_to_stop(sim: Simulator, end: int, stops: StepStops | None) -> int:
+    """The physics step count at which a hold's hook is next due (or its end)."""
+    if stops is None:
+        return end
+    if stops.updates >= 0 and stops.updates != sim.localisation_updates:
+        return sim.steps + 1  # a filter update the hook has not seen yet (the move's last)
+    if not math.isfinite(stops.time):
+        return end
+    dt = sim.config.physics_dt
+    until = min(end, max(sim.steps + 1, math.ceil(stops.time / dt - 1e-6)))
+    while until < end and until * dt < stops.time:
+        until += 1
+    return until
 
 
 _fallback_logged = set()

@@ -401,7 +401,9 @@ class SimulatorNode(StartupNode):
     # --- services ----------------------------------------------------------------------------
 
     def _on_execute_move(self, request, response):
-        move = Move(request.kind, request.distance, request.heading, request.x, request.y)
+        move = Move(
+            request.kind, request.distance, request.heading, request.x, request.y, request.seconds
+        )
         self._command = None  # a move takes over the robot
         self._pacer.anchor(self.sim.time)
         result = execute_move(self.sim, move, on_step=self._move_step, step_stops=self._move_stops)

@@ -173,6 +173,20 @@ class Simulator:
             self._update_localisation(odom_pose)
         return bumped
 
+    def stand_still(self, steps: int) -> None:
+        """Let ``steps`` physics steps pass on a robot at rest with no command: only the clock
+        moves. Exactly what as many ``step(0, 0)`` would do, without their cost: at rest the
+        pose stays, odometry draws no noise for no motion and the filter sees no movement.
+
+        Raises ValueError for a robot that is moving (brake it with ``step`` first).
+        """
+        if self.state.linear != 0.0 or self.state.angular != 0.0:
+            raise ValueError('the robot is moving: step it to rest before standing still')
+        if steps < 0:
+            raise ValueError(f'steps: expected >= 0, got {steps}')
+        self.steps += steps
+        self.time = self.steps * self.config.physics_dt
+
     def localise_now(self) -> bool:
         """A filter update now, if the odometry moved since the last (AMCL's forced update)."""
         odom_pose = self.odometry.pose

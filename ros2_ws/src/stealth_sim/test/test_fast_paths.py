@@ -35,6 +35,7 @@ START = Pose(3.0, 2.0, 0.0)
 TRAINING = SimConfig(physics_dt=0.04, filter=FilterConfig(particles=200))
 MOVES = [
     Move(MoveKind.UP, 0.5),
+    Move(MoveKind.HOLD, seconds=3.0),  # from a move's residual speed: brake, then stand
     Move(MoveKind.LEFT, 0.5),
     Move(MoveKind.TURN_TO_HEADING, heading=-2.5),
     Move(MoveKind.DRIVE_DISTANCE, 1.0),
@@ -48,7 +49,13 @@ MOVES = [
     Move(MoveKind.GO_TO, x=3.5, y=-2.0),  # through the bottom wall: BUMPED
     Move(MoveKind.GO_TO, x=float('inf'), y=1.0),  # rejected
     Move(MoveKind.GO_TO, x=2.0, y=1.5),
+    Move(MoveKind.HOLD, seconds=0.01),  # less than a physics step: one step
+    Move(MoveKind.HOLD, seconds=float('nan')),  # rejected
+    Move(MoveKind.HOLD, seconds=1.7),
 ]
+
+
+KERNEL_MOVES = [move for move in MOVES if move.kind != MoveKind.HOLD]
 
 
 def walk(config, reference, moves=MOVES, seen=None, controller=None):
@@ -117,7 +124,7 @@ def test_fast_moves_time_out_as_the_reference_does():
 
 def test_the_step_hook_sees_the_same_states_on_both_paths():
     fast_seen, reference_seen = [], []
-    moves = MOVES[:3] + MOVES[9:12]
+    moves = KERNEL_MOVES[:3] + KERNEL_MOVES[9:12]
     walk(TRAINING, False, moves, fast_seen)
     walk(TRAINING, True, moves, reference_seen)
     assert len(fast_seen) > 100
@@ -191,10 +198,10 @@ def test_the_kernel_pauses_exactly_at_the_steps_the_hook_is_due(publisher, monke
         return run_move(*arguments)
 
     monkeypatch.setattr(compiled_move, 'run_move', counted)
-    fast = hooked_walk(False, **publisher)
+    fast = hooked_walk(False, moves=KERNEL_MOVES, **publisher)
     fast_calls = len(calls)
-    assert fast == hooked_walk(False, per_step=True, **publisher)
-    assert_equal_within_tolerance(fast, hooked_walk(True, **publisher))
+    assert fast == hooked_walk(False, per_step=True, moves=KERNEL_MOVES, **publisher)
+    assert_equal_within_tolerance(fast, hooked_walk(True, moves=KERNEL_MOVES, **publisher))
     record, seen = fast
     executed = sum(entry[0][0] != Outcome.REJECTED for entry in record)
     assert fast_calls == len(seen) + executed
@@ -204,6 +211,20 @@ def test_the_kernel_pauses_exactly_at_the_steps_the_hook_is_due(publisher, monke
         assert seen == []
     steps = sum(entry[0][3] for entry in record)
     assert fast_calls < steps / 2
+
+
+@pytest.mark.parametrize('publisher', [{'period': 0.1}, {'period': 0.3, 'on_time': False}])
+def test_holds_pass_their_steps_at_rest_at_once_but_stop_where_the_hook_is_due(publisher):
+    """A hold jumps over the steps at rest between the hook's stops: the same hook calls, states
+    and clock as stepping every physics step (bit for bit) and as the reference."""
+    fast = hooked_walk(False, **publisher)
+    assert fast == hooked_walk(False, per_step=True, **publisher)
+    assert_equal_within_tolerance(fast, hooked_walk(True, **publisher))
+    record, seen = fast
+    held = [entry for move, entry in zip(MOVES, record, strict=True) if move.kind == MoveKind.HOLD]
+    done, rejected = Outcome.DONE, Outcome.REJECTED
+    assert [entry[0][0] for entry in held] == [done, done, rejected, done]
+    assert [entry[0][3] for entry in held] == [75, 1, 0, 42]  # 3, 0.01 and 1.7 s in 0.04 s steps
 
 
 def test_a_hook_with_stops_due_every_step_sees_every_step():

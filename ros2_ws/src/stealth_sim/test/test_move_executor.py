@@ -128,6 +128,27 @@ def test_a_move_that_runs_out_of_time_reports_it_and_still_ends_at_rest():
     assert (sim.state.linear, sim.state.angular) == (0.0, 0.0)
 
 
+def test_a_hold_lets_time_pass_with_the_robot_where_it_stopped():
+    sim = make_sim()
+    execute_move(sim, Move(MoveKind.UP, 0.5))
+    before = snapshot(sim)
+    result = execute_move(sim, Move(MoveKind.HOLD, seconds=3.0))
+    steps = round(3.0 / sim.config.physics_dt)
+    assert (result.outcome, result.message, result.steps) == (Outcome.DONE, '', steps)
+    assert result.duration == pytest.approx(3.0) and sim.time == pytest.approx(before[0] + 3.0)
+    assert (sim.state.linear, sim.state.angular) == (0.0, 0.0)
+    # The move left it within 1 mm/s of rest: braking that takes it nowhere measurable.
+    assert math.dist(sim.ground_truth[:2], before[1].pose[:2]) < 1e-4
+    assert snapshot(sim)[4:] == before[4:]  # no filter update: it did not move
+
+
+def test_standing_still_refuses_a_moving_robot():
+    sim = make_sim()
+    sim.step(0.5, 0.0)
+    with pytest.raises(ValueError, match='moving'):
+        sim.stand_still(10)
+
+
 @pytest.mark.parametrize(
     ('move', 'fragment'),
     [
@@ -140,6 +161,10 @@ def test_a_move_that_runs_out_of_time_reports_it_and_still_ends_at_rest():
         (Move(MoveKind.GO_TO, x=math.nan, y=2.0), 'finite point'),
         (Move(MoveKind.GO_TO, x=3.0, y=math.inf), 'finite point'),
         (Move(MoveKind.GO_TO, x=3.0, y=1e6), 'diagonal'),
+        (Move(MoveKind.HOLD, seconds=0.0), 'seconds'),
+        (Move(MoveKind.HOLD, seconds=-1.0), 'seconds'),
+        (Move(MoveKind.HOLD, seconds=math.nan), 'seconds'),
+        (Move(MoveKind.HOLD, seconds=601.0), 'at most 600'),
         (Move(17, 0.5), 'kind'),
     ],
 )

@@ -1,0 +1,62 @@
+"""render --animate: an animated GIF of the lights moving and paths walked step by step."""
+
+import numpy as np
+from PIL import Image
+import pytest
+from stealth_env.render import animate_scenario, main, optimal_points
+from stealth_env.scenario import load_scenario
+
+
+@pytest.fixture(scope='module')
+def scenario():
+    return load_scenario('simple-maze-moving')
+
+
+def frames_of(path) -> list[np.ndarray]:
+    with Image.open(path) as image:
+        frames = []
+        for k in range(image.n_frames):
+            image.seek(k)
+            frames.append(np.asarray(image.convert('RGB')))
+    return frames
+
+
+def test_the_animation_shows_the_lights_moving_and_the_path_walked(scenario, tmp_path):
+    path = np.array([scenario.start[:2], (2.0, 1.5), (2.5, 1.5)])
+    out = animate_scenario(
+        scenario, tmp_path / 'a.gif', [path], ['walk'], frames=4, cache_dir=tmp_path
+    )
+    frames = frames_of(out)
+    assert len(frames) == 4
+    assert all(frame.shape == frames[0].shape for frame in frames)
+    assert not np.array_equal(frames[0], frames[1])  # the sweep moved, the robot too
+    assert not np.array_equal(frames[2], frames[3])  # the path is over: the light still moves
+
+
+def test_the_default_is_one_cycle_or_the_longest_path(scenario, tmp_path):
+    cycle = scenario.timing.phase_bins // scenario.timing.bins_per_step
+    assert len(frames_of(animate_scenario(scenario, tmp_path / 'c.gif', cache_dir=tmp_path))) == (
+        cycle
+    )
+
+
+def test_only_gif(scenario, tmp_path):
+    with pytest.raises(ValueError, match=r'expected a \.gif'):
+        animate_scenario(scenario, tmp_path / 'a.mp4')
+
+
+def test_the_command_animates_the_optimum(tmp_path, capsys):
+    out = tmp_path / 'optimum.gif'
+    argv = ['simple-maze-moving', '--animate', str(out), '--optimum', '--frames', '3']
+    assert main([*argv, '--cache-dir', str(tmp_path)]) == 0
+    assert len(frames_of(out)) == 3
+    captured = capsys.readouterr()
+    assert str(out) in captured.out and 'frame 3/3' in captured.err
+    assert main(['simple-maze-moving', '--animate', str(tmp_path / 'x.png')]) == 1
+    assert 'expected a .gif' in capsys.readouterr().err
+
+
+def test_the_optimum_reaches_the_goal(scenario):
+    points = optimal_points(scenario)
+    goal = scenario.goal
+    assert np.hypot(*(points[-1] - goal.point)) <= goal.radius
