@@ -125,6 +125,31 @@ def _finish(process: subprocess.Popen, log, watch=lambda: None) -> tuple[int | N
     return code, output
 
 
+ALIVE_NODES = """
+import sys, ray
+ray.init(address=sys.argv[1], log_to_driver=False, logging_level='ERROR')
+print(sum(1 for node in ray.nodes() if node['Alive'] and node['Resources'].get('CPU')))
+ray.shutdown()
+"""
+
+
+def _wait_for_nodes(address: str, env: dict, count: int) -> None:
+    """Until the cluster has ``count`` live nodes with a CPU: `ray start` returns before a
+    node on a loaded host has registered, and a sweep started then runs on the head alone."""
+    deadline = time.monotonic() + START_TIMEOUT
+    alive = ''
+    while time.monotonic() < deadline:
+        result = subprocess.run(
+            [sys.executable, '-c', ALIVE_NODES, address],
+            env=env, capture_output=True, text=True, timeout=START_TIMEOUT,
+        )  # fmt: skip
+        alive = result.stdout.strip().splitlines()[-1:] or [result.stderr[-500:]]
+        if alive == [str(count)]:
+            return
+        time.sleep(2.0)
+    raise AssertionError(f'the cluster never had {count} live nodes (last: {alive})')
+
+
 def _rows(out: Path) -> list[dict]:
     with open(out / 'results.csv', encoding='utf-8') as stream:
         return list(csv.DictReader(stream))
@@ -155,6 +180,7 @@ def cluster():
             [RAY, 'start', '--address', address, '--temp-dir', temp_dirs[1], *common],
             env=env, check=True, timeout=START_TIMEOUT, capture_output=True,
         )  # fmt: skip
+        _wait_for_nodes(address, env, 2)
         yield address, env, temp_dirs
     finally:
         _stop_cluster(temp_dirs)
