@@ -367,10 +367,14 @@ class Sarsa(TabularLearner):
 class DynaQ(QLearning):
     """Dyna-Q (Sutton & Barto 8.2): Q-learning plus n planning updates per real step.
 
-    The model remembers, for every (s, a) tried, the last reward, next row and terminal flag
-    seen (exact for deterministic environments, a sample for stochastic ones). Each planning
-    update picks a remembered (s, a) uniformly at random and applies the Q-learning update
-    to the remembered outcome.
+    The model counts, for every (s, a) tried, each outcome seen (next row and terminal flag) and
+    its mean reward. Each planning update picks a remembered (s, a) uniformly at random and
+    applies the Q-learning update to the expected outcome, the outcomes weighted by how often
+    they were seen. In a deterministic environment that is the textbook model (one outcome per
+    pair, the same updates and random draws); in a stochastic one (slip, or the simulated robot
+    through ROS, whose pose noise now and then carries a move into another cell or a beam), the
+    last sample would stand for the pair until the pair is tried again, and n planning updates
+    would spread a rare outcome (a detection, say) as if it were certain.
     """
 
     name = 'dyna'
@@ -380,12 +384,12 @@ class DynaQ(QLearning):
         self._model_index: dict[tuple[int, int], int] = {}
         self._model_s: list[int] = []
         self._model_a: list[int] = []
-        self._model_r: list[float] = []
-        self._model_next: list[int] = []  # -1 when terminal
-        self._model_terminal: list[bool] = []
+        # Per pair: {(next row or -1 when terminal, terminal): [count, mean reward]}.
+        self._model_outcomes: list[dict[tuple[int, bool], list]] = []
 
     @property
     def model_size(self) -> int:
+        """State-action pairs in the model."""
         return len(self._model_s)
 
     def _check_update_extra(self, rng) -> None:
@@ -393,43 +397,58 @@ class DynaQ(QLearning):
             raise ValueError('Dyna-Q planning needs the random generator (rng=...)')
 
     def _after_update(self, s, a, r, s_next, terminated, rng) -> None:
-        next_row = -1 if terminated else s_next
-        key = (s, a)
-        i = self._model_index.get(key)
-        if i is None:
-            self._model_index[key] = len(self._model_s)
-            self._model_s.append(s)
-            self._model_a.append(a)
-            self._model_r.append(r)
-            self._model_next.append(next_row)
-            self._model_terminal.append(terminated)
-        else:
-            self._model_r[i], self._model_next[i], self._model_terminal[i] = (
-                r,
-                next_row,
-                terminated,
-            )
+        self._remember(s, a, (-1 if terminated else s_next, bool(terminated)), r, 1)
         self.plan(self.config.n_planning, rng)
 
+    def _remember(self, s: int, a: int, outcome: tuple[int, bool], reward: float, count: int):
+        i = self._model_index.get((s, a))
+        if i is None:
+            i = self._model_index[(s, a)] = len(self._model_s)
+            self._model_s.append(s)
+            self._model_a.append(a)
+            self._model_outcomes.append({})
+        seen = self._model_outcomes[i].setdefault(outcome, [0, 0.0])
+        seen[0] += count
+        # A running mean: an outcome whose reward never changes keeps it exactly.
+        seen[1] += (reward - seen[1]) * count / seen[0]
+
     def plan(self, n: int, rng: np.random.Generator) -> None:
-        """n simulated Q-learning updates from remembered transitions."""
+        """n simulated Q-learning updates from the model's expected outcomes."""
         if n <= 0 or not self._model_s:
             return
         q, gamma, alpha = self._q, self.config.gamma, self._alpha
         for i in rng.integers(len(self._model_s), size=n).tolist():
             s, a = self._model_s[i], self._model_a[i]
-            target = self._model_r[i]
-            if not self._model_terminal[i]:
-                target += gamma * q[self._model_next[i]].max()
+            outcomes = self._model_outcomes[i]
+            if len(outcomes) == 1:
+                (((next_row, terminal), (_, reward)),) = outcomes.items()
+                target = reward if terminal else reward + gamma * q[next_row].max()
+            else:
+                total = weighted = 0.0
+                for (next_row, terminal), (count, reward) in outcomes.items():
+                    value = reward if terminal else reward + gamma * q[next_row].max()
+                    weighted += count * value
+                    total += count
+                target = weighted / total
             q[s, a] += alpha * (target - q[s, a])
 
     def to_arrays(self) -> dict[str, np.ndarray]:
+        """The table and the model, one row per (s, a, outcome)."""
         arrays = super().to_arrays()
-        arrays['model_s'] = np.asarray(self._model_s, dtype=np.int64)
-        arrays['model_a'] = np.asarray(self._model_a, dtype=np.int64)
-        arrays['model_reward'] = np.asarray(self._model_r, dtype=np.float64)
-        arrays['model_next'] = np.asarray(self._model_next, dtype=np.int64)
-        arrays['model_terminal'] = np.asarray(self._model_terminal, dtype=bool)
+        rows = [
+            (s, a, reward, next_row, terminal, count)
+            for s, a, outcomes in zip(
+                self._model_s, self._model_a, self._model_outcomes, strict=True
+            )
+            for (next_row, terminal), (count, reward) in outcomes.items()
+        ]
+        columns = list(zip(*rows, strict=True)) if rows else [()] * 6
+        arrays['model_s'] = np.asarray(columns[0], dtype=np.int64)
+        arrays['model_a'] = np.asarray(columns[1], dtype=np.int64)
+        arrays['model_reward'] = np.asarray(columns[2], dtype=np.float64)
+        arrays['model_next'] = np.asarray(columns[3], dtype=np.int64)
+        arrays['model_terminal'] = np.asarray(columns[4], dtype=bool)
+        arrays['model_count'] = np.asarray(columns[5], dtype=np.int64)
         return arrays
 
     def _load_extra(self, arrays, rows: int) -> None:
@@ -439,7 +458,9 @@ class DynaQ(QLearning):
             raise ValueError(f'Dyna-Q model arrays missing: {", ".join(missing)}')
         s, a, r, nxt, term = (np.asarray(arrays[n]) for n in names)
         size = s.shape[0]
-        if any(x.ndim != 1 or x.shape[0] != size for x in (s, a, r, nxt, term)):
+        # Files from before outcomes were counted hold one outcome per pair, seen once.
+        count = np.asarray(arrays['model_count']) if 'model_count' in arrays else np.ones(size)
+        if any(x.ndim != 1 or x.shape[0] != size for x in (s, a, r, nxt, term, count)):
             raise ValueError('Dyna-Q model arrays have inconsistent shapes')
         if size and (
             s.min() < 0
@@ -452,15 +473,21 @@ class DynaQ(QLearning):
             or np.any(term != (nxt == -1))
         ):
             raise ValueError('Dyna-Q model refers to rows or actions outside the table')
-        self._model_s = s.astype(int).tolist()
-        self._model_a = a.astype(int).tolist()
-        self._model_r = r.astype(float).tolist()
-        self._model_next = nxt.astype(int).tolist()
-        self._model_terminal = term.astype(bool).tolist()
-        pairs = zip(self._model_s, self._model_a, strict=True)
-        self._model_index = {pair: i for i, pair in enumerate(pairs)}
-        if len(self._model_index) != size:
-            raise ValueError('Dyna-Q model holds a state-action pair twice')
+        if size and count.min() < 1:
+            raise ValueError('Dyna-Q model holds an outcome seen fewer than once')
+        outcomes = list(zip(nxt.astype(int).tolist(), term.astype(bool).tolist(), strict=True))
+        if len(set(zip(s.tolist(), a.tolist(), outcomes, strict=True))) != size:
+            raise ValueError('Dyna-Q model holds an outcome of a state-action pair twice')
+        self._model_index, self._model_s, self._model_a, self._model_outcomes = {}, [], [], []
+        for row in zip(
+            s.astype(int).tolist(),
+            a.astype(int).tolist(),
+            outcomes,
+            r.astype(float).tolist(),
+            count.astype(int).tolist(),
+            strict=True,
+        ):
+            self._remember(*row)
 
 
 _LEARNER_CLASSES = {cls.name: cls for cls in (QLearning, Sarsa, DynaQ)}

@@ -202,3 +202,75 @@ def test_bad_updates_are_rejected_and_change_nothing(cls, args, message):
 def test_an_unusable_action_count_is_rejected(count):
     with pytest.raises(ValueError, match='action count'):
         QLearning(count)
+
+
+class LastSampleDyna(QLearning):
+    """The textbook Dyna-Q model (the last outcome of each pair), as the reference."""
+
+    def __init__(self, num_actions, config):
+        super().__init__(num_actions, config)
+        self.pairs, self.model = [], {}
+
+    def _after_update(self, s, a, r, s_next, terminated, rng) -> None:
+        if (s, a) not in self.model:
+            self.pairs.append((s, a))
+        self.model[(s, a)] = (r, None if terminated else s_next)
+        for i in rng.integers(len(self.pairs), size=self.config.n_planning).tolist():
+            s, a = self.pairs[i]
+            reward, next_row = self.model[(s, a)]
+            target = reward if next_row is None else reward + GAMMA * self._q[next_row].max()
+            self._q[s, a] += self._alpha * (target - self._q[s, a])
+
+
+def test_dyna_on_a_deterministic_task_is_the_textbook_model_bit_for_bit():
+    config = config_for('dyna', n_planning=10)
+    dyna = ProtocolAgent(DynaQ(4, config), StateIndex(), np.random.default_rng(7))
+    textbook = ProtocolAgent(LastSampleDyna(4, config), StateIndex(), np.random.default_rng(7))
+    for _ in range(15):
+        assert run_episode(dyna, STEALTH_GRID) == run_episode(textbook, STEALTH_GRID)
+    assert dyna.learner.q.tobytes() == textbook.learner.q.tobytes()
+
+
+def test_dyna_plans_on_the_expected_outcome_not_the_last_one():
+    """A pair that led 9 times to safety (reward 0) and once to a detection (-1000): planning
+    moves Q towards -100, where the last sample alone would say -1000 or 0."""
+    learner = DynaQ(1, LearnerConfig.constant(gamma=0.9, alpha=1.0, n_planning=0))
+    rng = np.random.default_rng(0)
+    for reward in [0.0] * 8 + [-1000.0, 0.0]:
+        learner.update(0, 0, reward, None, True, rng=rng)
+    assert learner.q[0, 0] == 0.0  # the last real update, alpha 1
+    learner.plan(1, rng)
+    assert learner.q[0, 0] == pytest.approx(-100.0)
+    # Different next states count apart, with their rewards averaged per outcome.
+    other = DynaQ(1, learner.config)
+    other.update(1, 0, 2.0, 2, False, rng=rng)
+    other.update(1, 0, 4.0, 2, False, rng=rng)
+    other.update(1, 0, -1.0, 3, False, rng=rng)
+    other.q[2, 0], other.q[3, 0] = 10.0, 20.0
+    other.plan(1, rng)
+    expected = (2 * (3.0 + 0.9 * 10.0) + 1 * (-1.0 + 0.9 * 20.0)) / 3
+    assert other.q[1, 0] == pytest.approx(expected)
+
+
+def test_the_counted_model_survives_saving_and_an_old_file_loads_as_seen_once():
+    learner = DynaQ(2, LearnerConfig.constant(gamma=0.9, alpha=0.5, n_planning=3))
+    rng = np.random.default_rng(1)
+    for reward, s_next in ((1.0, 1), (3.0, 1), (-5.0, 2), (0.5, 1)):
+        learner.update(0, 1, reward, s_next, False, rng=rng)
+    learner.update(2, 0, -1000.0, None, True, rng=rng)
+    arrays = learner.to_arrays()
+    assert sorted(arrays['model_count'].tolist()) == [1, 1, 3]
+    restored = DynaQ(2, learner.config)
+    restored.load_arrays(arrays, learner.episodes, learner.updates)
+    assert restored.to_arrays().keys() == arrays.keys()
+    for name, values in restored.to_arrays().items():
+        np.testing.assert_array_equal(values, arrays[name], err_msg=name)
+    old = {k: v for k, v in arrays.items() if k != 'model_count'}
+    single = {k: v[[0, 2]] if k.startswith('model_') else v for k, v in old.items()}
+    restored.load_arrays(single, 0, 0)
+    assert restored.to_arrays()['model_count'].tolist() == [1, 1]
+    twice = {k: np.concatenate([v, v]) if k.startswith('model_') else v for k, v in old.items()}
+    with pytest.raises(ValueError, match='twice'):
+        restored.load_arrays(twice, 0, 0)
+    with pytest.raises(ValueError, match='fewer than once'):
+        restored.load_arrays({**arrays, 'model_count': np.zeros(3, dtype=np.int64)}, 0, 0)
