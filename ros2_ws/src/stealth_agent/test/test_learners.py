@@ -129,13 +129,19 @@ def test_sarsa_target_uses_the_next_action():
         learner.update(0, 0, 1.0, 1, False)
 
 
+def learn_alike(learner, other, seed: int) -> ProtocolAgent:
+    """Train both on STEALTH_GRID with the same seed; assert equal episodes and tables."""
+    agent = ProtocolAgent(learner, StateIndex(), np.random.default_rng(seed))
+    reference = ProtocolAgent(other, StateIndex(), np.random.default_rng(seed))
+    for _ in range(15):
+        assert run_episode(agent, STEALTH_GRID) == run_episode(reference, STEALTH_GRID)
+    assert agent.learner.q.tobytes() == reference.learner.q.tobytes()
+    return agent
+
+
 def test_dyna_without_planning_is_qlearning_bit_for_bit():
     config = config_for('dyna', n_planning=0)
-    dyna = ProtocolAgent(DynaQ(4, config), StateIndex(), np.random.default_rng(5))
-    qlearning = ProtocolAgent(QLearning(4, config), StateIndex(), np.random.default_rng(5))
-    for _ in range(15):
-        assert run_episode(dyna, STEALTH_GRID) == run_episode(qlearning, STEALTH_GRID)
-    assert dyna.learner.q.tobytes() == qlearning.learner.q.tobytes()
+    dyna = learn_alike(DynaQ(4, config), QLearning(4, config), seed=5)
     assert dyna.learner.model_size > 0
 
 
@@ -224,11 +230,7 @@ class LastSampleDyna(QLearning):
 
 def test_dyna_on_a_deterministic_task_is_the_textbook_model_bit_for_bit():
     config = config_for('dyna', n_planning=10)
-    dyna = ProtocolAgent(DynaQ(4, config), StateIndex(), np.random.default_rng(7))
-    textbook = ProtocolAgent(LastSampleDyna(4, config), StateIndex(), np.random.default_rng(7))
-    for _ in range(15):
-        assert run_episode(dyna, STEALTH_GRID) == run_episode(textbook, STEALTH_GRID)
-    assert dyna.learner.q.tobytes() == textbook.learner.q.tobytes()
+    learn_alike(DynaQ(4, config), LastSampleDyna(4, config), seed=7)
 
 
 def test_dyna_plans_on_the_expected_outcome_not_the_last_one():
