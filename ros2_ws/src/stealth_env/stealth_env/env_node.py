@@ -116,6 +116,7 @@ from stealth_env.episode_flow import (
     agent_connected,
     is_finite_pose,
 )
+from stealth_env.exposure import heading_angle
 from stealth_env.log_throttle import Throttle
 from stealth_env.markers import (
     WallMap,
@@ -127,7 +128,7 @@ from stealth_env.markers import (
 from stealth_env.reward import Outcome
 from stealth_env.scenario import ScenarioError, load_scenario
 from stealth_env.task import WAIT, StealthTask
-from stealth_env.topic_moves import Limits, Pose, TopicConfig, go_to, hold, route_home
+from stealth_env.topic_moves import Limits, Move, Pose, TopicConfig, go_to, hold, route_home
 from stealth_env.topic_robot import TOPICS as ROBOT_TOPICS
 from stealth_env.topic_robot import MoveEnd, TopicRobot
 
@@ -857,11 +858,22 @@ class EnvironmentNode(StartupNode):
             return
         # Every action is a drive to a lattice node (StealthTask.move_target), over either
         # interface: the robot stays on the lattice the agent's states and the planners assume.
-        # A wait (where lights move) stands still for the rest of the step's time slot.
-        if self.flow.action == WAIT:
+        # A wait (where lights move) stands still for the rest of the step's time slot. Where
+        # lights are weighed by exposure, a turn (and a move the map blocks, which turns
+        # nothing on the lattice) turns in place to its lattice heading.
+        task, state, action = self.task, self.flow.state, self.flow.action
+        if action == WAIT and task.action_names[action] == 'wait':
             self._hold(self.flow.token, self.flow.step_time_left(self._sim_time))
             return
-        x, y = self.task.move_target(*self.flow.state[:2], self.flow.action)
+        x, y = task.move_target(*state[:2], action) if action < WAIT else state[:2]
+        blocked = task.lattice.point_to_node(x, y) == task.lattice.point_to_node(*state[:2])
+        if task.footprint is not None and blocked:
+            heading = heading_angle(task.heading_after(task.heading_in(state), action, False))
+            request = ExecuteMove.Request(
+                kind=ExecuteMove.Request.TURN_TO_HEADING, heading=heading
+            )
+            self._run(self.flow.token, Move(heading), request)
+            return
         request = ExecuteMove.Request(kind=ExecuteMove.Request.GO_TO, x=x, y=y)
         self._run(self.flow.token, go_to(x, y), request)
 

@@ -251,10 +251,10 @@ def _step_peaks(task: StealthTask, points, ends, t0, t1, yaw, after) -> np.ndarr
     peak = np.max([see.many(x, y, time, yaw1) for x, y, time in zip(xs, ys, ts, strict=True)], 0)
     _, _, _, yaws = task.turn_samples_of(points[:, None, 0], points[:, None, 1], t0, yaw, yaw1)
     if len(yaws):  # the turns at the departures, all at t0: the lights traced once
-        xs, ys = np.broadcast_to(points[:, None, 0], yaw1.shape), points[:, None, 1]
-        peak = np.maximum(
-            peak, np.max(see.turning(xs, np.broadcast_to(ys, yaw1.shape), t0, yaws), 0)
-        )
+        xs, ys = (np.broadcast_to(points[:, None, k], yaw1.shape) for k in (0, 1))
+        turning = np.max(see.turning(xs, ys, t0, yaws), 0)
+        turned = exposure.wrap(yaw1 - yaw) != 0.0  # a step without a turn has no turn samples
+        peak = np.maximum(peak, np.where(turned, turning, 0.0))
     return peak
 
 

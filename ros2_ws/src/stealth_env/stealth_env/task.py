@@ -210,6 +210,10 @@ class StealthTask:
         """Quarter turns (counter-clockwise) of a turn action; 0 for any other action."""
         return TURNS.get(self.action_names[action], 0) if 0 <= action < self.num_actions else 0
 
+    def heading_in(self, state) -> int:
+        """The lattice heading of a state (0 without headings)."""
+        return int(state[len(self.state_features) - 1]) if self.footprint is not None else 0
+
     def heading_after(self, heading: int, action: int, moved: bool = True) -> int:
         """The lattice heading after ``action`` from ``heading``: a move's direction (when it
         moved: a blocked move turns nothing), a turn's quarter, else unchanged."""
@@ -338,18 +342,20 @@ class StealthTask:
 
     def turn_samples_of(self, x0, y0, t0, yaw0, yaw1):
         """(xs, ys, ts, yaws): the samples of the turn in place at (x0, y0) from yaw0 to yaw1
-        (rad, the shorter way; a half turn either way shows the same) a step starts with, one
-        every ``exposure.TURN_SAMPLE`` at most, the final heading included, the first not (it
-        is the previous step's arrival), all at t0; (0, ...) arrays when nothing turns. Works
-        on arrays of steps too (then (k, ...))."""
+        (rad, the shorter way; a half turn either way shows the same) a step starts with: every
+        ``exposure.TURN_SAMPLE`` from yaw0 and the final heading, yaw0 itself not (it is the
+        previous step's arrival), all at t0; (0, ...) arrays when nothing turns. Works on arrays
+        of steps too (then (k, ...), shorter turns repeating their final heading)."""
         yaw0 = np.asarray(yaw0, dtype=np.float64)
         turn = exposure.wrap(np.asarray(yaw1, dtype=np.float64) - yaw0)
-        count = math.ceil(float(np.max(np.abs(turn), initial=0.0)) / exposure.TURN_SAMPLE - 1e-9)
-        fractions = (np.arange(1, count + 1) / max(count, 1)).reshape((-1,) + (1,) * turn.ndim)
+        size = np.abs(turn)
+        count = math.ceil(float(np.max(size, initial=0.0)) / exposure.TURN_SAMPLE - 1e-9)
+        steps = np.arange(1, count + 1).reshape((-1,) + (1,) * turn.ndim) * exposure.TURN_SAMPLE
+        yaws = yaw0 + np.sign(turn) * np.minimum(steps, size)
         shape = (count, *np.broadcast_shapes(np.shape(x0), np.shape(y0), turn.shape))
         xs = np.broadcast_to(np.asarray(x0, dtype=np.float64), shape)
         ys = np.broadcast_to(np.asarray(y0, dtype=np.float64), shape)
-        return xs, ys, np.full(count, float(t0)), np.broadcast_to(yaw0 + turn * fractions, shape)
+        return xs, ys, np.full(count, float(t0)), np.broadcast_to(yaws, shape)
 
     def step_visibility(self, x0, y0, t0: float, x1, y1, t1: float, yaw0=None, yaw1=None) -> float:
         """The most light on the robot during a step from (x0, y0) at t0 s to (x1, y1) at t1 s
