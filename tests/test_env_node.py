@@ -427,20 +427,27 @@ def test_moving_lights_are_judged_at_the_end_of_each_move_and_redrawn(
     assert list(agent.received['grid'][0].data) != levels
 
 
-def test_a_moving_variant_has_the_phase_in_the_state_and_a_wait(agent, node_processes):
-    """simple-maze-moving: RLEnvDescription grows by the phase and the wait action; a wait
-    keeps the robot at its node while simulated time passes; states carry the phase of the
-    move's end time and steps are judged along the way."""
-    name = 'simple-maze-moving'
+def start_variant(agent, node_processes, name: str):
+    """Simulator and environment on scenario `name`: (scenario, task, RLEnvDescription), the
+    description's state ranges checked against the task's."""
     scenario = load_scenario(name)
     task = StealthTask(scenario)
     start_sim(node_processes, scenario)
     start_env(node_processes, scenario=name)
     assert agent.spin_until(lambda: agent.received['description'], 20.0)
     description = agent.received['description'][-1]
-    assert description.num_actions == 5
+    assert description.num_actions == task.num_actions
     assert list(description.min_state_range) == pytest.approx(task.state_bounds()[0])
     assert list(description.max_state_range) == pytest.approx(task.state_bounds()[1])
+    return scenario, task, description
+
+
+def test_a_moving_variant_has_the_phase_in_the_state_and_a_wait(agent, node_processes):
+    """simple-maze-moving: RLEnvDescription grows by the phase and the wait action; a wait
+    keeps the robot at its node while simulated time passes; states carry the phase of the
+    move's end time and steps are judged along the way."""
+    scenario, task, description = start_variant(agent, node_processes, 'simple-maze-moving')
+    assert description.num_actions == 5
     assert description.max_state_range[2] == scenario.timing.phase_bins - 1
     first = agent.next_state()
     assert list(first.state) == [*scenario.start[:2], 0.0]
@@ -465,16 +472,8 @@ def test_an_exposure_variant_has_the_heading_in_the_state_and_turns(agent, node_
     turn turns the robot in place (TURN_TO_HEADING), a move leaves it facing the move's
     direction, a move the map blocks keeps its heading; steps are judged with the true pose's
     yaw, the turn at the departure included."""
-    name = 'simple-maze-exposure'
-    scenario = load_scenario(name)
-    task = StealthTask(scenario)
-    start_sim(node_processes, scenario)
-    start_env(node_processes, scenario=name)
-    assert agent.spin_until(lambda: agent.received['description'], 20.0)
-    description = agent.received['description'][-1]
+    scenario, task, description = start_variant(agent, node_processes, 'simple-maze-exposure')
     assert description.num_actions == 6
-    assert list(description.min_state_range) == pytest.approx(task.state_bounds()[0])
-    assert list(description.max_state_range) == pytest.approx(task.state_bounds()[1])
     assert (description.min_state_range[2], description.max_state_range[2]) == (0.0, 3.0)
     first = agent.next_state()
     assert list(first.state) == [*scenario.start[:2], 2.0]  # yaw 180: west
