@@ -257,3 +257,35 @@ def test_the_gym_env_has_the_heading_and_the_turns():
     check_env(
         gym.make('StealthNav-v0', scenario='map1-exposure').unwrapped, skip_render_check=True
     )
+
+
+def test_exposure_combines_with_moving_lights():
+    """places = node x phase x heading: a turn or a move takes a step's slot, and every step of
+    the model is the task's, judged in space, time and heading."""
+    moving = load_scenario('simple-maze-moving')
+    scenario = dataclasses.replace(moving, exposure=Footprint(0.6, 0.15, True))
+    task = StealthTask(scenario)
+    assert task.action_names[4:] == ('wait', 'turn_left', 'turn_right')
+    assert task.state_features == ('x', 'y', 'phase', 'heading')
+    model = LatticeModel.build(task)
+    timing = scenario.timing
+    n = len(model.nodes)
+    assert model.size == n * timing.phase_bins * 4
+    rng = np.random.default_rng(1)
+    for i in rng.choice(model.size, 12, replace=False):
+        phase = (i // n) % timing.phase_bins
+        heading = int(model.heading_of(i))
+        t0 = phase * timing.bin_seconds
+        for action in range(task.num_actions):
+            j = int(model.successors[i, action])
+            assert (j // n) % timing.phase_bins == (
+                phase + timing.bins_per_step
+            ) % timing.phase_bins
+            expected = task.step_visibility(
+                *model.points[i], t0, *model.points[j], t0 + timing.step_seconds,
+                exposure.heading_angle(heading), exposure.heading_angle(int(model.heading_of(j))),
+            )  # fmt: skip
+            assert model.step_visibility[i, action] == pytest.approx(expected, abs=1e-12)
+    best = value_iteration(model)
+    result = walk(model, follow(model, lambda i: int(best.policy[i])))
+    assert result.outcome is Outcome.SUCCESS
