@@ -29,16 +29,17 @@ step may be dropped silently):
 Episode flow: the description goes out at once; the first episode starts when both simulator
 services answer and an agent is connected (its rl_state_reward reader matched, so the volatile
 first state is not lost), after ``start_delay``. Each action is a move of the scenario's step
-distance; the new state is the localisation estimate in the answer, rounded to the state grid
-(cells centred on the move lattice's nodes); reward and terminal come from the core, judged on
-the true pose at the move's end time (``judge_on: estimate`` for the original's estimate-only
-way). Goal, detection or the step limit end an episode; the agent's RLExperimentInfo starts the
-next one. Actions that arrive out of turn or out of range are dropped with a warning. A move
-the simulator rejects, fails or does not answer within ``move_timeout`` ends the episode as
-ABORTED (a terminal state with reward 0 keeps the agent in step). An agent that goes away ends
-its episode as ABORTED, and the next agent to come gets a fresh one. Totals of actions and
-states are logged at shutdown. The decisions are ``stealth_env.episode_flow``'s; the marker
-geometry ``stealth_env.markers``'.
+distance (``ExecuteMove.GO_TO`` the lattice node), a wait where lights move (``HOLD``), or a turn
+in place where the scenario weighs lights by exposure (``TURN_TO_HEADING``); the new state is the
+localisation estimate in the answer, rounded to the state grid (cells centred on the move lattice's
+nodes); reward and terminal come from the core, judged on the true pose at the move's end time
+(``judge_on: estimate`` for the original's estimate-only way). Goal, detection or the step limit
+end an episode; the agent's RLExperimentInfo starts the next one. Actions that arrive out of turn
+or out of range are dropped with a warning. A move the simulator rejects, fails or does not answer
+within ``move_timeout`` ends the episode as ABORTED (a terminal state with reward 0 keeps the agent
+in step). An agent that goes away ends its episode as ABORTED, and the next agent to come gets a
+fresh one. Totals of actions and states are logged at shutdown. The decisions are
+``stealth_env.episode_flow``'s; the marker geometry ``stealth_env.markers``'.
 
 Robot interface (``robot_interface``, ``reset_mode``): ``service`` (the default) is the above.
 ``topics`` plugs into any ROS robot (Stage, Gazebo, a TurtleBot with nav2's AMCL; or
