@@ -289,3 +289,24 @@ def test_exposure_combines_with_moving_lights():
     best = value_iteration(model)
     result = walk(model, follow(model, lambda i: int(best.policy[i])))
     assert result.outcome is Outcome.SUCCESS
+
+
+def test_the_episode_flow_states_the_heading_and_judges_with_the_judged_yaw():
+    """EpisodeFlow (the ROS environment's core): the state's heading is the estimate's yaw, a
+    step is judged turning from the last judged yaw to the true pose's, turns are actions."""
+    from stealth_env.episode_flow import EpisodeFlow, PlanarPose
+
+    task = StealthTask(load_scenario('simple-maze-exposure'))
+    flow = EpisodeFlow(task)
+    token, _ = flow.begin_reset()
+    assert flow.reset_done(token) == (3.0, 1.5, 2.0)
+    assert 'turn_right' in flow.accept_action(6) and flow.accept_action(5) is None  # 5: right
+    # In the beam facing the lamp, the truth turned from west to south on the spot: the turn
+    # is judged, and the state's heading follows the estimate.
+    truth = PlanarPose(1.5, 6.0, -math.pi / 2)
+    flow._judged_at = (1.5, 6.0, 0.0, math.pi)
+    report = flow.finish_move(flow.token, PlanarPose(1.52, 6.01, -1.5), truth, 3.0)
+    assert report.state == (1.5, 6.0, 3.0)
+    expected = task.step_visibility(1.5, 6.0, 0.0, 1.5, 6.0, 3.0, math.pi, -math.pi / 2)
+    assert report.judgement.visibility == pytest.approx(expected)
+    assert report.judgement.detected  # a quarter turn in the beam shows a corner
