@@ -45,7 +45,8 @@ the map, that the start has ``robot_radius`` of clearance, that every goal is re
 start on the robot's move lattice (:mod:`stealth_env.move_lattice`) and that every light and
 patrol waypoint lies inside the map (a lamp may sit on a wall, as ``stealth_env.lighting``
 allows), and that moving lights' periods and the step fit the phase bins
-(:mod:`stealth_env.timing`). A scenario whose lights move without ``phase_bins`` loads with a
+(:mod:`stealth_env.timing`), and that an ``exposure`` footprint has a length and a width > 0 (m)
+(:mod:`stealth_env.exposure`). A scenario whose lights move without ``phase_bins`` loads with a
 warning: the state does not say where the lights are, so the task is not Markov. Whether the
 goals can be reached unseen is a property of the shipped scenarios, proved
 by their tests, not a load-time check.
