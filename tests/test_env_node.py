@@ -15,6 +15,7 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from ros_support import REPO_ROOT, SpinningNode
+from stealth_env import exposure
 from stealth_env.gym_env import lattice_model
 from stealth_env.markers import visibility_levels
 from stealth_env.move_lattice import ACTIONS
@@ -217,23 +218,24 @@ def totals(log: str) -> dict:
     return dict(zip(keys, map(int, match.groups()), strict=True))
 
 
-_JUDGED: dict[int, tuple[float, float, float]] = {}  # per task: the last judged x, y, t
+_JUDGED: dict[int, tuple[float, ...]] = {}  # per task: the last judged x, y, t, yaw
 
 
 def check_step(task, state: RLStateReward, info: StepInfo, judged: str = 'true'):
-    """The state is the estimate's cell (and phase); reward and visibility the core's for the
-    step from the pose judged before (the start at the first step) to the judged pose."""
+    """The state is the estimate's cell (and phase, and heading); reward and visibility the
+    core's for the step from the pose judged before (the start at the first step) to the judged
+    pose (turning from its yaw to the judged one where lights are weighed by exposure)."""
     assert list(info.state) == list(state.state)
     estimate = info.estimated_pose
     t = info.header.stamp.sec + info.header.stamp.nanosec * 1e-9
-    expected_state = task.state_of(estimate.x, estimate.y, t)
+    expected_state = task.state_of(estimate.x, estimate.y, t, estimate.theta)
     assert tuple(state.state) == pytest.approx(expected_state, abs=1e-6)
     pose = info.true_pose if judged == 'true' else estimate
-    x0, y0, t0 = _JUDGED.get(id(task), (*task.scenario.start[:2], 0.0))
+    x0, y0, t0, yaw0 = _JUDGED.get(id(task), (*task.scenario.start[:2], 0.0, 0.0))
     if info.step == 1:  # from the start, at the reset: the previous episode's end
-        x0, y0 = task.scenario.start[:2]
-    _JUDGED[id(task)] = (pose.x, pose.y, t)
-    visibility = task.step_visibility(x0, y0, min(t0, t), pose.x, pose.y, t)
+        x0, y0, yaw0 = task.scenario.start
+    _JUDGED[id(task)] = (pose.x, pose.y, t, pose.theta)
+    visibility = task.step_visibility(x0, y0, min(t0, t), pose.x, pose.y, t, yaw0, pose.theta)
     judgement = task.judge(pose.x, pose.y, t, info.step, visibility=visibility)
     assert info.visibility == pytest.approx(judgement.visibility, rel=1e-6, abs=1e-7)
     assert state.reward == pytest.approx(judgement.reward, rel=1e-6)
@@ -425,20 +427,27 @@ def test_moving_lights_are_judged_at_the_end_of_each_move_and_redrawn(
     assert list(agent.received['grid'][0].data) != levels
 
 
-def test_a_moving_variant_has_the_phase_in_the_state_and_a_wait(agent, node_processes):
-    """simple-maze-moving: RLEnvDescription grows by the phase and the wait action; a wait
-    keeps the robot at its node while simulated time passes; states carry the phase of the
-    move's end time and steps are judged along the way."""
-    name = 'simple-maze-moving'
+def start_variant(agent, node_processes, name: str):
+    """Simulator and environment on scenario `name`: (scenario, task, RLEnvDescription), the
+    description's state ranges checked against the task's."""
     scenario = load_scenario(name)
     task = StealthTask(scenario)
     start_sim(node_processes, scenario)
     start_env(node_processes, scenario=name)
     assert agent.spin_until(lambda: agent.received['description'], 20.0)
     description = agent.received['description'][-1]
-    assert description.num_actions == 5
+    assert description.num_actions == task.num_actions
     assert list(description.min_state_range) == pytest.approx(task.state_bounds()[0])
     assert list(description.max_state_range) == pytest.approx(task.state_bounds()[1])
+    return scenario, task, description
+
+
+def test_a_moving_variant_has_the_phase_in_the_state_and_a_wait(agent, node_processes):
+    """simple-maze-moving: RLEnvDescription grows by the phase and the wait action; a wait
+    keeps the robot at its node while simulated time passes; states carry the phase of the
+    move's end time and steps are judged along the way."""
+    scenario, task, description = start_variant(agent, node_processes, 'simple-maze-moving')
+    assert description.num_actions == 5
     assert description.max_state_range[2] == scenario.timing.phase_bins - 1
     first = agent.next_state()
     assert list(first.state) == [*scenario.start[:2], 0.0]
@@ -456,6 +465,33 @@ def test_a_moving_variant_has_the_phase_in_the_state_and_a_wait(agent, node_proc
     moved = info.header.stamp.sec + info.header.stamp.nanosec * 1e-9
     assert 2 * slot - 1e-6 <= moved < 2 * slot + scenario.timing.bin_seconds
     assert state.state[2] == scenario.timing.phase_of(2 * slot)
+
+
+def test_an_exposure_variant_has_the_heading_in_the_state_and_turns(agent, node_processes):
+    """simple-maze-exposure: RLEnvDescription grows by the heading and the two turn actions; a
+    turn turns the robot in place (TURN_TO_HEADING), a move leaves it facing the move's
+    direction, a move the map blocks keeps its heading; steps are judged with the true pose's
+    yaw, the turn at the departure included."""
+    scenario, task, description = start_variant(agent, node_processes, 'simple-maze-exposure')
+    assert description.num_actions == 6
+    assert (description.min_state_range[2], description.max_state_range[2]) == (0.0, 3.0)
+    first = agent.next_state()
+    assert list(first.state) == [*scenario.start[:2], 2.0]  # yaw 180: west
+    turn_left = task.action_names.index('turn_left')
+    expected = [
+        (turn_left, (3.0, 1.5, 3.0)),  # a quarter left in place: south
+        (DOWN, (3.0, 1.0, 3.0)),
+        (RIGHT, (3.5, 1.0, 0.0)),  # a move faces its direction
+        (DOWN, (3.5, 1.0, 0.0)),  # the outer wall blocks it: nothing turns
+    ]
+    for action, state_wanted in expected:
+        state, info = agent.act(action)
+        check_step(task, state, info)
+        assert tuple(state.state) == pytest.approx(state_wanted)
+        assert not state.terminal
+        yaw = exposure.heading_angle(int(state_wanted[2]))
+        # the true yaw: the estimate's aim at the node, off by the localisation error
+        assert abs(exposure.wrap(info.true_pose.theta - yaw)) < 0.3
 
 
 def test_a_simulator_on_another_map_is_reported(agent, node_processes):

@@ -58,6 +58,8 @@ DEFAULT_SCENARIOS = (
     'map1-moving',
     'lgfloor-moving',
     'floorplan-moving',
+    'simple-maze-exposure',
+    'map1-exposure',
 )
 DEFAULT_SEEDS = (0, 1, 2)
 DEFAULT_OUT = Path('runs/eval')

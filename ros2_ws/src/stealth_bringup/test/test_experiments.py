@@ -140,3 +140,16 @@ def test_the_moving_variants_are_in_the_grid_with_their_optimum_and_time_aware_d
     assert by_method['Dark Path']['greedy_over_optimum'] > 0.95
     assert by_method['value iteration']['greedy_outcome'] == 'SUCCESS'
     assert '| simple-maze-moving | Dark Path | success |' in (tmp_path / 'results.md').read_text()
+
+
+def test_the_exposure_variants_are_in_the_grid_at_the_static_budgets(tmp_path):
+    """make eval measures the exposure variants (README: all six runs per variant within 5 %
+    at these budgets); a learner takes the heading and the turns from the environment."""
+    assert {'simple-maze-exposure', 'map1-exposure'} <= set(experiments.DEFAULT_SCENARIOS)
+    assert default_budget('dyna', 'map1-exposure') == DEFAULT_EPISODES['dyna']
+    assert default_budget('qlearning', 'simple-maze-exposure') == DEFAULT_EPISODES['qlearning']
+    result = run(RunSpec('map1-exposure', 'dyna', 0, episodes=5, eval_every=5))
+    assert result.optimum == pytest.approx(
+        value_iteration(lattice_model('map1-exposure')).optimal_return
+    )
+    assert len(result.final['points']) == result.final['steps'] + 1

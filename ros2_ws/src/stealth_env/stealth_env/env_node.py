@@ -29,16 +29,17 @@ step may be dropped silently):
 Episode flow: the description goes out at once; the first episode starts when both simulator
 services answer and an agent is connected (its rl_state_reward reader matched, so the volatile
 first state is not lost), after ``start_delay``. Each action is a move of the scenario's step
-distance; the new state is the localisation estimate in the answer, rounded to the state grid
-(cells centred on the move lattice's nodes); reward and terminal come from the core, judged on
-the true pose at the move's end time (``judge_on: estimate`` for the original's estimate-only
-way). Goal, detection or the step limit end an episode; the agent's RLExperimentInfo starts the
-next one. Actions that arrive out of turn or out of range are dropped with a warning. A move
-the simulator rejects, fails or does not answer within ``move_timeout`` ends the episode as
-ABORTED (a terminal state with reward 0 keeps the agent in step). An agent that goes away ends
-its episode as ABORTED, and the next agent to come gets a fresh one. Totals of actions and
-states are logged at shutdown. The decisions are ``stealth_env.episode_flow``'s; the marker
-geometry ``stealth_env.markers``'.
+distance (``ExecuteMove.GO_TO`` the lattice node), a wait where lights move (``HOLD``), or a turn
+in place where the scenario weighs lights by exposure (``TURN_TO_HEADING``); the new state is the
+localisation estimate in the answer, rounded to the state grid (cells centred on the move lattice's
+nodes); reward and terminal come from the core, judged on the true pose at the move's end time
+(``judge_on: estimate`` for the original's estimate-only way). Goal, detection or the step limit
+end an episode; the agent's RLExperimentInfo starts the next one. Actions that arrive out of turn
+or out of range are dropped with a warning. A move the simulator rejects, fails or does not answer
+within ``move_timeout`` ends the episode as ABORTED (a terminal state with reward 0 keeps the agent
+in step). An agent that goes away ends its episode as ABORTED, and the next agent to come gets a
+fresh one. Totals of actions and states are logged at shutdown. The decisions are
+``stealth_env.episode_flow``'s; the marker geometry ``stealth_env.markers``'.
 
 Robot interface (``robot_interface``, ``reset_mode``): ``service`` (the default) is the above.
 ``topics`` plugs into any ROS robot (Stage, Gazebo, a TurtleBot with nav2's AMCL; or
@@ -116,6 +117,7 @@ from stealth_env.episode_flow import (
     agent_connected,
     is_finite_pose,
 )
+from stealth_env.exposure import heading_angle
 from stealth_env.log_throttle import Throttle
 from stealth_env.markers import (
     WallMap,
@@ -127,7 +129,7 @@ from stealth_env.markers import (
 from stealth_env.reward import Outcome
 from stealth_env.scenario import ScenarioError, load_scenario
 from stealth_env.task import WAIT, StealthTask
-from stealth_env.topic_moves import Limits, Pose, TopicConfig, go_to, hold, route_home
+from stealth_env.topic_moves import Limits, Move, Pose, TopicConfig, go_to, hold, route_home
 from stealth_env.topic_robot import TOPICS as ROBOT_TOPICS
 from stealth_env.topic_robot import MoveEnd, TopicRobot
 
@@ -857,11 +859,22 @@ class EnvironmentNode(StartupNode):
             return
         # Every action is a drive to a lattice node (StealthTask.move_target), over either
         # interface: the robot stays on the lattice the agent's states and the planners assume.
-        # A wait (where lights move) stands still for the rest of the step's time slot.
-        if self.flow.action == WAIT:
+        # A wait (where lights move) stands still for the rest of the step's time slot. Where
+        # lights are weighed by exposure, a turn (and a move the map blocks, which turns
+        # nothing on the lattice) turns in place to its lattice heading.
+        task, state, action = self.task, self.flow.state, self.flow.action
+        if action == WAIT and task.action_names[action] == 'wait':
             self._hold(self.flow.token, self.flow.step_time_left(self._sim_time))
             return
-        x, y = self.task.move_target(*self.flow.state[:2], self.flow.action)
+        x, y = task.move_target(*state[:2], action) if action < WAIT else state[:2]
+        blocked = task.lattice.point_to_node(x, y) == task.lattice.point_to_node(*state[:2])
+        if task.footprint is not None and blocked:
+            heading = heading_angle(task.heading_after(task.heading_in(state), action, False))
+            request = ExecuteMove.Request(
+                kind=ExecuteMove.Request.TURN_TO_HEADING, heading=heading
+            )
+            self._run(self.flow.token, Move(heading), request)
+            return
         request = ExecuteMove.Request(kind=ExecuteMove.Request.GO_TO, x=x, y=y)
         self._run(self.flow.token, go_to(x, y), request)
 

@@ -20,7 +20,8 @@ by the agent leaving) is stale and changes nothing.
 Decisions:
 
 - **States**: ``task.state_of`` of the localisation estimate after the move, at the move's end
-  time (the phase, where lights move). The first state of an episode is that of the reset pose
+  time (the phase, where lights move) and with its yaw (the heading, where lights are weighed
+  by exposure). The first state of an episode is that of the reset pose
   at the reset's time (the simulator re-initialises localisation there, as AMCL does on
   /initialpose), with reward 0 and terminal false.
 - **The episode's clock** (where lights move): the lights' time is the simulated time since the
@@ -34,14 +35,17 @@ Decisions:
 - **Steps** are judged on ``task.step_visibility``: the straight way from the pose the previous
   step was judged at (the start, after a reset) to the judged pose, sampled in space and in
   the simulator's time from the previous step's end to this one's, so a beam crossed on the way
-  or one sweeping over a waiting robot is seen.
+  or one sweeping over a waiting robot is seen. Where lights are weighed by exposure, the
+  robot's heading is the judged pose's yaw: it turns from the previous judged yaw to the new one
+  at the departure, then drives facing the new one (``StealthTask.step_visibility``).
 - **Judging**: ``judge_on='true'`` judges visibility, detection and the goal on the true pose
   (the lights see the real robot); ``'estimate'`` on the estimate, as the original did. An
   estimate off the map (possible only with very poor localisation) is judged at the nearest
   point of the map. Episode statistics follow EpisodeSummary: path length and final distance
   to the goal are always the true pose's.
 - **Actions** are accepted only while the flow waits for one (RUNNING) and only when they are
-  0-3, or 4 (wait) where lights move (``task.num_actions``); anything else is dropped with a
+  those of ``task.action_names`` (0-3 the moves, then 4 wait where lights move, then turn left
+  and turn right where the scenario has turn actions); anything else is dropped with a
   reason for the log, never queued: an action that arrives during a move or after a terminal
   state would otherwise be applied to a state the agent never saw.
 - **Aborts**: a move the simulator rejects, fails or does not answer in time ends the episode
@@ -66,7 +70,6 @@ from typing import NamedTuple
 
 from stealth_env.reward import Outcome
 from stealth_env.task import (
-    ACTION_NAMES,
     EpisodeStats,
     EpisodeSummaryFields,
     StealthTask,
@@ -178,7 +181,7 @@ class EpisodeFlow:
         self.state: tuple[float, ...] | None = None  # the last state sent
         self.stats: EpisodeStats | None = None
         self.estimate: PlanarPose | None = None  # the robot's last pose estimate
-        self._judged_at: tuple[float, float, float] | None = None  # x, y, t of the last judging
+        self._judged_at: tuple[float, ...] | None = None  # x, y, t, yaw of the last judging
         self.origin = 0.0  # simulated time of the episode's reset: its clock's zero (s)
 
     # --- episodes -------------------------------------------------------------------------------
@@ -209,9 +212,9 @@ class EpisodeFlow:
         self.steps = 0
         self.origin = float(t)
         self.stats = self.task.start_episode(x, y, self.episode)
-        self.state = self.task.state_of(x, y, 0.0)
+        self.state = self.task.state_of(x, y, 0.0, yaw)
         self.estimate = PlanarPose(x, y, yaw)
-        self._judged_at = (x, y, 0.0)
+        self._judged_at = (x, y, 0.0, yaw)
         self.phase = Phase.RUNNING
         self.counts.episodes_started += 1
         self.counts.states_sent += 1
@@ -274,9 +277,7 @@ class EpisodeFlow:
             or not isinstance(action, int)
             or not (0 <= action < self.task.num_actions)
         ):
-            names = ', '.join(
-                f'{i} {name}' for i, name in enumerate(ACTION_NAMES[: self.task.num_actions])
-            )
+            names = ', '.join(f'{i} {name}' for i, name in enumerate(self.task.action_names))
             return f'action {action!r} dropped: expected one of {names}'
         if self.phase is not Phase.RUNNING:
             return f'action {action} dropped: the environment is {self._now}'
@@ -309,11 +310,11 @@ class EpisodeFlow:
                 f'{task.scenario.name!r} ({task.scenario.map_path})'
             )
         x, y = self._on_map(judged.x, judged.y)
-        x0, y0, t0 = self._judged_at
+        x0, y0, t0, yaw0 = self._judged_at
         te = self.episode_time(t)
-        visibility = task.step_visibility(x0, y0, min(t0, te), x, y, te)
+        visibility = task.step_visibility(x0, y0, min(t0, te), x, y, te, yaw0, judged.yaw)
         judgement = task.judge(x, y, te, self.steps + 1, visibility=visibility)
-        self._judged_at = (x, y, te)
+        self._judged_at = (x, y, te, judged.yaw)
         if task.timing is not None:
             slot_end = (self.steps + 1) * task.step_seconds
             if task.timing.phase_of(te) != task.timing.phase_of(slot_end):
@@ -325,7 +326,7 @@ class EpisodeFlow:
             distance = task.distance_to_goal(truth.x, truth.y)
             counted = judgement._replace(distance_to_goal=distance)
         self.stats.add(truth.x, truth.y, counted)
-        self.state = task.state_of(estimate.x, estimate.y, te)
+        self.state = task.state_of(estimate.x, estimate.y, te, estimate.yaw)
         self.counts.states_sent += 1
         summary = None
         if judgement.terminal:

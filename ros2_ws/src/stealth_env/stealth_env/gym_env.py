@@ -59,7 +59,9 @@ class StealthNavEnv(gym.Env):
     would touch a wall leaves the robot in place; it still counts as a step and pays the step
     reward. With ``slip`` > 0 the robot moves at right angles to the chosen direction with that
     probability (each side half of it). Scenarios with moving lights add ``4`` wait (stay at the
-    node for one step; it never slips): ``Discrete(5)``.
+    node for one step; it never slips): ``Discrete(5)``. Scenarios with ``exposure.turn_actions``
+    add turn left and turn right (a quarter turn in place, one step; never slips) after those
+    (``task.action_names``).
 
     ## Observation Space
 
@@ -67,7 +69,9 @@ class StealthNavEnv(gym.Env):
     state grid ``start + k*state_cell`` (cells centred on the move lattice's nodes), exactly the
     state the ROS environment sends (``StealthTask.state_of``); low and high span the map.
     Scenarios with ``phase_bins`` add the phase of the lights' cycle (0 .. phase_bins - 1):
-    ``(3,)``. Each step takes the scenario's ``step_seconds``; an episode starts at phase 0.
+    ``(3,)``; scenarios with ``exposure`` add the heading (0 east, 1 north, 2 west, 3 south),
+    each light then weighed by how much of the robot it sees (``stealth_env.exposure``). Each
+    step takes the scenario's ``step_seconds``; an episode starts at phase 0.
 
     ## Rewards
 

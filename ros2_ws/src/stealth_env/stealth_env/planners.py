@@ -40,6 +40,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from stealth_env import exposure
 from stealth_env.move_lattice import ACTIONS, Node
 from stealth_env.reward import (
     Outcome,
@@ -50,9 +51,9 @@ from stealth_env.reward import (
 )
 from stealth_env.task import StealthTask
 
-# The two moves at right angles to each action (0 up, 1 down, 2 left, 3 right); wait (4) never
-# slips.
-PERPENDICULAR = ((2, 3), (2, 3), (0, 1), (0, 1), ())
+# The two moves at right angles to each action (0 up, 1 down, 2 left, 3 right); a wait or a
+# turn (4 and up) never slips.
+PERPENDICULAR = ((2, 3), (2, 3), (0, 1), (0, 1), (), (), ())
 DEFAULT_DARK_PATH_WEIGHT = 10.0  # m per unit of visibility: a 0.3 glimpse costs 3 m of detour
 
 
@@ -73,13 +74,17 @@ def action_distribution(slip: float, num_actions: int = len(ACTIONS)) -> np.ndar
 @dataclasses.dataclass(frozen=True, eq=False)
 class LatticeModel:
     """The task on its time-expanded move lattice, as arrays over *places*: a place is a valid
-    node at a phase of the lights' cycle, index ``phase * len(nodes) + node`` (node in the order
-    of ``MoveLattice.valid_nodes``); one phase when the lights do not move or the state has no
-    phase (moving lights are then frozen at time ``t``, and the model is not the task).
+    node at a phase of the lights' cycle and, where lights are weighed by exposure, facing one
+    of four headings (``stealth_env.exposure``), index ``(heading * phases + phase) *
+    len(nodes) + node`` (node in the order of ``MoveLattice.valid_nodes``); one phase when the
+    lights do not move or the state has no phase (moving lights are then frozen at time ``t``,
+    and the model is not the task), one heading without exposure.
 
-    successors[i, b]: the place a step in direction b (0-3 the moves, 4 a wait where lights
-    move) from place i reaches: the target node (i's own when the move is blocked) at the phase
-    ``bins_per_step`` later. step_visibility[i, b]: that step's visibility
+    successors[i, b]: the place a step in direction b (0-3 the moves, then a wait where lights
+    move, then the turns where the scenario has them: ``task.action_names``) from place i
+    reaches: the target node (i's own when the move is blocked or a turn) at the phase
+    ``bins_per_step`` later, facing the step's heading (``StealthTask.heading_after``).
+    step_visibility[i, b]: that step's visibility
     (``StealthTask.step_visibility``: the most light along the move, sampled in space and
     time, the arrival included), what the step is judged on. visibility[i]: the light at the
     place itself (its node at its phase's start); states[i]: the agent's float32 state there.
@@ -97,6 +102,7 @@ class LatticeModel:
     goal: np.ndarray  # (places,) bool: within the goal's radius
     start: int
     phases: int = 1
+    headings: int = 1  # 4 where lights are weighed by exposure (stealth_env.exposure)
 
     @classmethod
     def build(cls, task: StealthTask, t: float = 0.0) -> LatticeModel:
@@ -112,34 +118,54 @@ class LatticeModel:
                 target = lattice.successor(node, action) if action < len(ACTIONS) else None
                 moves[i, action] = i if target is None else index[target]
         timing = task.timing
-        phases = task.phase_bins
+        phases, headings = task.phase_bins, task.headings
         advance = 0 if timing is None else timing.bins_per_step
         bin_seconds = 0.0 if timing is None else timing.bin_seconds
         step_seconds = 0.0 if timing is None else timing.step_seconds
-        see = task._point_visibility
-        places = np.arange(n * phases)
-        phase_of_place = places // n
+        places = np.arange(n * phases * headings)
         node_of_place = places % n
-        successors = ((phase_of_place[:, None] + advance) % phases) * n + moves[node_of_place]
-        step_visibility = np.empty((n * phases, directions))
-        visibility = np.empty(n * phases)
+        phase_of_place = (places // n) % phases
+        heading_of_place = places // (n * phases)
+        # The heading after each step: (headings, n, directions).
+        moved = moves != np.arange(n)[:, None]
+        after = np.array(
+            [
+                [[task.heading_after(h, a, m) for a, m in enumerate(row)] for row in moved]
+                for h in range(headings)
+            ]
+        ) if headings > 1 else np.zeros((1, n, directions), dtype=np.int64)  # fmt: skip
+        successors = (
+            after[heading_of_place, node_of_place] * phases
+            + (phase_of_place[:, None] + advance) % phases
+        ) * n + moves[node_of_place]
+        step_visibility = np.empty((places.size, directions))
+        visibility = np.empty(places.size)
         ends = node_points[moves]  # (n, directions, 2)
-        for phase in range(phases):
+        for layer in range(phases * headings):
+            heading, phase = divmod(layer, phases)
             t0 = t + phase * bin_seconds
-            xs, ys, ts = task.step_samples_of(
-                node_points[:, None, 0], node_points[:, None, 1], t0,
-                ends[..., 0], ends[..., 1], t0 + step_seconds,
-            )  # fmt: skip
-            peak = np.max([see.many(x, y, time) for x, y, time in zip(xs, ys, ts, strict=True)], 0)
-            step_visibility[phase * n : (phase + 1) * n] = peak
-            visibility[phase * n : (phase + 1) * n] = see.many(*node_points.T, t0)
+            rows = slice(layer * n, (layer + 1) * n)
+            yaw = exposure.heading_angle(heading) if task.footprint is not None else None
+            step_visibility[rows] = _step_peaks(
+                task, node_points, ends, t0, t0 + step_seconds, yaw, after[heading]
+            )
+            visibility[rows] = task._point_visibility.many(
+                *node_points.T, t0, None if yaw is None else np.full(n, yaw)
+            )
         points = node_points[node_of_place]
         goal = task.goal
         distance = np.hypot(points[:, 0] - goal.x, points[:, 1] - goal.y)
-        start = index[lattice.point_to_node(*task.scenario.start[:2])]
+        start_x, start_y, start_yaw = task.scenario.start
+        start = index[lattice.point_to_node(start_x, start_y)]
+        if headings > 1:
+            start += exposure.heading_of(start_yaw) * phases * n
         phase_times = t + phase_of_place * bin_seconds
+        yaws = heading_of_place * (math.pi / 2)
         states = np.array(
-            [task.state_of(x, y, time) for (x, y), time in zip(points, phase_times, strict=True)],
+            [
+                task.state_of(x, y, time, yaw)
+                for (x, y), time, yaw in zip(points, phase_times, yaws, strict=True)
+            ],
             dtype=np.float32,
         )
         return cls(
@@ -155,12 +181,22 @@ class LatticeModel:
             goal=distance <= goal.radius,
             start=start,
             phases=phases,
+            headings=headings,
         )
 
     @property
     def size(self) -> int:
         """The number of places (nodes x phases)."""
         return len(self.points)
+
+    @property
+    def layers(self) -> int:
+        """Places per node: phases x headings."""
+        return self.phases * self.headings
+
+    def heading_of(self, place) -> np.ndarray:
+        """The lattice heading (quarter turns from +x) of places; 0 without headings."""
+        return np.asarray(place) // (len(self.nodes) * self.phases)
 
     @property
     def num_actions(self) -> int:
@@ -198,6 +234,28 @@ class LatticeModel:
             visibility = self.step_visibility[previous, direction]
         t = self.t + step_index * self.task.step_seconds
         return self.task.judge(x, y, t, step_index, visibility=visibility)
+
+
+def _step_peaks(task: StealthTask, points, ends, t0, t1, yaw, after) -> np.ndarray:
+    """(n, directions): the most light of each step from each node at t0 (judged as
+    ``StealthTask.step_visibility``): the drive sampled in space and time, and, where lights are
+    weighed by exposure (``yaw`` the heading at the departure, ``after`` (n, directions) the
+    heading after each step), the turn before it."""
+    see = task._point_visibility
+    xs, ys, ts = task.step_samples_of(
+        points[:, None, 0], points[:, None, 1], t0, ends[..., 0], ends[..., 1], t1
+    )
+    if yaw is None:
+        return np.max([see.many(x, y, time) for x, y, time in zip(xs, ys, ts, strict=True)], 0)
+    yaw1 = after * (math.pi / 2)
+    peak = np.max([see.many(x, y, time, yaw1) for x, y, time in zip(xs, ys, ts, strict=True)], 0)
+    _, _, _, yaws = task.turn_samples_of(points[:, None, 0], points[:, None, 1], t0, yaw, yaw1)
+    if len(yaws):  # the turns at the departures, all at t0: the lights traced once
+        xs, ys = (np.broadcast_to(points[:, None, k], yaw1.shape) for k in (0, 1))
+        turning = np.max(see.turning(xs, ys, t0, yaws), 0)
+        turned = exposure.wrap(yaw1 - yaw) != 0.0  # a step without a turn has no turn samples
+        peak = np.maximum(peak, np.where(turned, turning, 0.0))
+    return peak
 
 
 # --- judging paths ------------------------------------------------------------------------------
@@ -292,7 +350,7 @@ def _moves_to_goal(model: LatticeModel) -> np.ndarray:
     if targets.size == 0:
         return np.zeros(model.size)
     gaps = np.abs(nodes[:, None, :] - targets[None, :, :]).sum(axis=2)
-    return np.tile(gaps.min(axis=1).astype(np.float64), model.phases)
+    return np.tile(gaps.min(axis=1).astype(np.float64), model.layers)
 
 
 def _is_move(model: LatticeModel) -> np.ndarray:
@@ -322,7 +380,7 @@ def dark_path(model: LatticeModel, weight: float = DEFAULT_DARK_PATH_WEIGHT) -> 
         raise ValueError(f'weight: expected a number >= 0 (m per unit visibility), got {weight!r}')
     step = model.task.scenario.step_distance
     moves = _is_move(model)
-    if model.phases > 1:  # a wait goes somewhere new: the same node at another phase
+    if model.layers > 1:  # a wait or a turn goes somewhere new: the node at another layer
         moves |= model.successors != np.arange(model.size)[:, None]
     return _cheapest_path(
         model,

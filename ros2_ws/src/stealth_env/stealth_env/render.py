@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Iterable, Sequence
 import csv
+import dataclasses
 import math
 import os
 from pathlib import Path
@@ -181,6 +182,26 @@ def _label(ax, x, y, text, colour):
     )
 
 
+def _draw_footprint(ax, footprint, x: float, y: float, yaw: float, colour) -> None:
+    """The robot's rectangle (exposure.Footprint) at (x, y) facing yaw (rad)."""
+    cos, sin = np.cos(yaw), np.sin(yaw)
+    corner = (
+        x - (footprint.length * cos - footprint.width * sin) / 2,
+        y - (footprint.length * sin + footprint.width * cos) / 2,
+    )
+    ax.add_patch(
+        patches.Rectangle(
+            corner,
+            footprint.length,
+            footprint.width,
+            angle=float(np.degrees(yaw)),
+            facecolor='none',
+            edgecolor=colour,
+            linewidth=0.8,
+        )
+    )
+
+
 def render_scenario(scenario, out_png: str | os.PathLike, **drawing) -> Path:
     """Draw the scenario (``scenario_figure``'s keyword arguments: paths, field, t, goal,
     path_labels, title, cache_dir) and write it to out_png; returns the path written."""
@@ -230,12 +251,18 @@ def scenario_figure(
     for light in scenario.lights:
         _draw_light(ax, light, t)
 
+    footprint = getattr(scenario, 'exposure', None)
     for number, points in enumerate(paths):
-        points = np.asarray(points, dtype=float).reshape(-1, 2)
+        points = np.asarray(points, dtype=float)
+        poses = points if points.ndim == 2 and points.shape[1] == 3 else None
+        points = points.reshape(-1, 2) if poses is None else poses[:, :2]
         label = path_labels[number] if path_labels else f'path {number + 1}'
         colour = PATH_COLOURS[number % len(PATH_COLOURS)]
         ax.plot(points[:, 0], points[:, 1], '-', color=colour, linewidth=1.8, label=label)
         ax.plot(points[-1, 0], points[-1, 1], 'o', color=colour, markersize=4)
+        if poses is not None and footprint is not None:
+            for x, y, yaw in poses:
+                _draw_footprint(ax, footprint, x, y, yaw, colour)
 
     for mark in goal_marks(scenario):
         pursued = goal is None or mark.name == goal
@@ -453,7 +480,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser.error(f'--goal {args.goal!r}: the scenario has no such goal')
         paths = [read_path_csv(path) for path in args.path]
         labels = [Path(path).stem for path in args.path]
-        if args.optimum:
+        if args.optimum and scenario.exposure is not None and not args.animate:
+            # the optimum with the robot's footprint at each pose, and the one without exposure
+            paths.append(optimal_points(scenario, args.goal, poses=True))
+            labels.append('optimum (value iteration), footprint at each step')
+            plain = dataclasses.replace(scenario, exposure=None)
+            paths.append(optimal_points(plain, args.goal))
+            labels.append('optimum without exposure')
+        elif args.optimum:
             paths.append(optimal_points(scenario, args.goal))
             labels.append('optimum (value iteration)')
         if args.animate:
@@ -492,14 +526,20 @@ def _show_progress(done: int, total: int) -> None:
     print(f'\rrender: frame {done}/{total}', end='\n' if done == total else '', file=sys.stderr)
 
 
-def optimal_points(scenario, goal: str | None = None) -> np.ndarray:
-    """(steps + 1, 2): the poses of the value-iteration optimum from the start."""
+def optimal_points(scenario, goal: str | None = None, poses: bool = False) -> np.ndarray:
+    """(steps + 1, 2): the positions of the value-iteration optimum from the start; with
+    ``poses``, (steps + 1, 3) with the yaw (rad) of each place's heading."""
     from stealth_env.planners import LatticeModel, follow, value_iteration, walk
     from stealth_env.task import StealthTask
 
     model = LatticeModel.build(StealthTask(scenario, goal))
     optimum = value_iteration(model)
-    return walk(model, follow(model, lambda i: int(optimum.policy[i]))).points
+    path = follow(model, lambda i: int(optimum.policy[i]))
+    points = walk(model, path).points
+    if not poses:
+        return points
+    yaws = model.heading_of(path[: len(points)]) * (np.pi / 2)
+    return np.column_stack([points, yaws])
 
 
 if __name__ == '__main__':

@@ -35,13 +35,18 @@ from +x) and radians in the :class:`Scenario`. Example, every field::
         motion: {type: sweep, min_direction: 150, max_direction: 210, angular_speed: 10}
         # or {type: patrol, waypoints: [[13, 8.5], [13, 10]], speed: 0.3}
     rewards: {goal_reward: 1000.0}  # any RewardWeights field; the rest keep their defaults
+    exposure:                       # optional: each light weighed by how much of the robot it
+      length: 0.6                   # sees (stealth_env.exposure); footprint in m, > 0, default
+      width: 0.3                    # 2 * robot_radius (the simulator's robot is a disc)
+      turn_actions: true            # add turn left / turn right in place (default false)
 
 Validation checks the fields' types and ranges, that the start and goals lie in free cells of
 the map, that the start has ``robot_radius`` of clearance, that every goal is reachable from the
 start on the robot's move lattice (:mod:`stealth_env.move_lattice`) and that every light and
 patrol waypoint lies inside the map (a lamp may sit on a wall, as ``stealth_env.lighting``
 allows), and that moving lights' periods and the step fit the phase bins
-(:mod:`stealth_env.timing`). A scenario whose lights move without ``phase_bins`` loads with a
+(:mod:`stealth_env.timing`), and that an ``exposure`` footprint has a length and a width > 0 (m)
+(:mod:`stealth_env.exposure`). A scenario whose lights move without ``phase_bins`` loads with a
 warning: the state does not say where the lights are, so the task is not Markov. Whether the
 goals can be reached unseen is a property of the shipped scenarios, proved
 by their tests, not a load-time check.
@@ -62,6 +67,7 @@ from stealth_sim.occupancy_map import (
     read_yaml_mapping,
 )
 
+from stealth_env.exposure import Footprint, valid_length
 from stealth_env.move_lattice import MoveLattice
 from stealth_env.reward import (
     DETECTION_MODES,
@@ -92,6 +98,7 @@ FIELDS = (
     'step_seconds',
     'lights',
     'rewards',
+    'exposure',
 )
 LIGHT_FIELDS = ('name', 'x', 'y', 'direction', 'fov', 'range', 'delta', 'soft_edge', 'motion')
 POSITIVE = 'a number > 0'
@@ -135,6 +142,7 @@ class Scenario:
     step_limit: int
     rewards: RewardWeights
     timing: Timing | None = None  # moving lights with phase_bins: the phase state feature
+    exposure: Footprint | None = None  # exposure by orientation: the heading state feature
 
     @property
     def has_moving_lights(self) -> bool:
@@ -222,8 +230,28 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
         lights=lights,
         rewards=rewards,
         timing=timing,
+        exposure=_exposure(fields, numbers['robot_radius']),
         **numbers,
     )
+
+
+def _exposure(fields: FieldReader, robot_radius: float) -> Footprint | None:
+    """The robot's footprint where lights are weighed by exposure (stealth_env.exposure)."""
+    if not fields.has('exposure'):
+        return None
+    expected = 'a mapping {length, width (m), turn_actions (true or false)}'
+    exposure = fields.mapping('exposure', expected)
+    exposure.reject_unknown(('length', 'width', 'turn_actions'))
+    size = {}
+    for key in ('length', 'width'):
+        size[key] = exposure.raw(key, 'a number > 0 (m)', 2.0 * robot_radius)
+        if not valid_length(size[key]):
+            default = '' if exposure.has(key) else ' (the default, 2 * robot_radius)'
+            exposure.fail(key, f'a number > 0 (m){default}', size[key])
+    turns = exposure.raw('turn_actions', 'true or false', False)
+    if not isinstance(turns, bool):
+        exposure.fail('turn_actions', 'true or false', turns)
+    return Footprint(float(size['length']), float(size['width']), turns)
 
 
 class NotMarkovWarning(UserWarning):

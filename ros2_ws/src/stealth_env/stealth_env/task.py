@@ -28,6 +28,15 @@ Decisions:
   action, ``wait`` (4), keeps the robot at its node for one step; it exists only where lights
   move (``num_actions``). A step takes ``step_seconds`` of simulated time in-process; in ROS
   the simulator's reported time.
+- **Heading** (scenarios with ``exposure``, ``stealth_env.exposure``): each light is weighed by
+  how much of the robot it sees, which depends on the way the robot faces, so the state grows
+  by ``heading``, the quarter turn nearest the pose's yaw (0 east, 1 north, 2 west, 3 south; a
+  move leaves the robot facing its direction, a blocked move leaves the heading as it was).
+  Where the scenario sets ``exposure.turn_actions``, two more actions turn a quarter left or
+  right in place, each taking a step (``action_names``: the actions are numbered moves, then
+  wait where lights move, then the turns). A step's samples then carry the robot's heading:
+  the turn at the departure from the previous heading to the step's, then the drive facing
+  the step's heading.
 - **A step's visibility** is the most light the robot gets during it (``step_visibility``):
   the move (or the wait) is sampled at the map's resolution, each sample at its own time
   (the move's time shared out evenly along it), up to and including the arrival, so a robot
@@ -57,6 +66,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from stealth_env import exposure
 from stealth_env.move_lattice import ACTIONS, MoveLattice
 from stealth_env.reward import Outcome, detection_reward, step_outcome, success_reward
 from stealth_env.scenario import Goal, Scenario
@@ -65,6 +75,7 @@ from stealth_env.visibility import PointVisibility, scenario_point_visibility
 NUM_ACTIONS = len(ACTIONS)  # 0 up (+y), 1 down (-y), 2 left (-x), 3 right (+x)
 WAIT = NUM_ACTIONS  # 4: stay one step (scenarios with moving lights only)
 ACTION_NAMES = (*(name for name, _ in ACTIONS), 'wait')
+TURNS = {'turn_left': 1, 'turn_right': -1}  # turn actions: quarter turns counter-clockwise
 DEFAULT_STEP_SECONDS = 1.0  # s per step when the scenario does not say (no phase_bins)
 _CELL_TOLERANCE = 1e-9  # in cells: a map edge this close to a cell boundary counts as on it
 
@@ -158,11 +169,18 @@ class StealthTask:
         self.step_seconds = (
             self.timing.step_seconds if self.timing is not None else DEFAULT_STEP_SECONDS
         )
-        self.num_actions = NUM_ACTIONS + 1 if scenario.has_moving_lights else NUM_ACTIONS
-        # Features beyond (x, y), in order: (name, low, high) each. Issue 18 adds heading here.
+        self.footprint = scenario.exposure
+        names = ACTION_NAMES if scenario.has_moving_lights else ACTION_NAMES[:NUM_ACTIONS]
+        if self.footprint is not None and self.footprint.turn_actions:
+            names += tuple(TURNS)
+        self.action_names: tuple[str, ...] = names
+        self.num_actions = len(names)
+        # Features beyond (x, y), in order: (name, low, high) each.
         self.extra_features: tuple[tuple[str, float, float], ...] = ()
         if self.timing is not None:
             self.extra_features += (('phase', 0.0, float(self.timing.phase_bins - 1)),)
+        if self.footprint is not None:
+            self.extra_features += (('heading', 0.0, float(exposure.HEADINGS - 1)),)
         samples = math.ceil(scenario.step_distance / scenario.map.resolution - 1e-9)
         self.step_samples = max(samples, 1)  # samples of a step, the arrival included
 
@@ -184,22 +202,46 @@ class StealthTask:
         return ('x', 'y', *(name for name, _, _ in self.extra_features))
 
     @property
+    def headings(self) -> int:
+        """Headings of the state (1 when the state has no heading)."""
+        return 1 if self.footprint is None else exposure.HEADINGS
+
+    def turn_of(self, action: int) -> int:
+        """Quarter turns (counter-clockwise) of a turn action; 0 for any other action."""
+        return TURNS.get(self.action_names[action], 0) if 0 <= action < self.num_actions else 0
+
+    def heading_in(self, state) -> int:
+        """The lattice heading of a state (0 without headings)."""
+        return int(state[len(self.state_features) - 1]) if self.footprint is not None else 0
+
+    def heading_after(self, heading: int, action: int, moved: bool = True) -> int:
+        """The lattice heading after ``action`` from ``heading``: a move's direction (when it
+        moved: a blocked move turns nothing), a turn's quarter, else unchanged."""
+        if action < NUM_ACTIONS:
+            return exposure.MOVE_HEADINGS[action] if moved else heading
+        return (heading + self.turn_of(action)) % exposure.HEADINGS
+
+    @property
     def phase_bins(self) -> int:
         """Phases of the state (1 when the state has no phase)."""
         return 1 if self.timing is None else self.timing.phase_bins
 
-    def state_of(self, x: float, y: float, t: float = 0.0) -> tuple[float, ...]:
-        """The agent's state for a pose at time t (s): (x, y) rounded to the nearest point of
-        the state grid ``start + k*state_cell`` (see "State" in the module docstring), then the
-        extra features (the phase of t)."""
+    def state_of(self, x: float, y: float, t: float = 0.0, yaw: float = 0.0) -> tuple[float, ...]:
+        """The agent's state for a pose (x, y, yaw) at time t (s): (x, y) rounded to the nearest
+        point of the state grid ``start + k*state_cell`` (see "State" in the module docstring),
+        then the extra features (the phase of t, the heading of yaw)."""
         position = (self._centre(x, self._anchor[0]), self._centre(y, self._anchor[1]))
-        return position + self.features_at(t)
+        return position + self.features_at(t, yaw)
 
-    def features_at(self, t: float) -> tuple[float, ...]:
-        """The extra state features at time t (s): () or (phase,)."""
-        if self.timing is None:
-            return ()
-        return (float(self.timing.phase_of(t)),)
+    def features_at(self, t: float, yaw: float = 0.0) -> tuple[float, ...]:
+        """The extra state features at time t (s) and yaw (rad): (), (phase,), (heading,) or
+        (phase, heading)."""
+        features = ()
+        if self.timing is not None:
+            features += (float(self.timing.phase_of(t)),)
+        if self.footprint is not None:
+            features += (float(exposure.heading_of(yaw)),)
+        return features
 
     def _centre(self, value: float, anchor: float) -> float:
         return anchor + math.floor((float(value) - anchor) / self.cell + 0.5) * self.cell
@@ -264,7 +306,7 @@ class StealthTask:
         states = {self.state_of(*lattice.node_to_point(n)) for n in lattice.valid_nodes()}
         return {
             'num_actions': self.num_actions,
-            'num_states': len(states) * self.phase_bins,
+            'num_states': len(states) * self.phase_bins * self.headings,
             'min_state_range': list(low),
             'max_state_range': list(high),
             'max_reward': max_reward,
@@ -276,10 +318,13 @@ class StealthTask:
 
     # --- judging --------------------------------------------------------------------------------
 
-    def visibility(self, x: float, y: float, t: float = 0.0) -> float:
+    def visibility(self, x: float, y: float, t: float = 0.0, yaw: float | None = None) -> float:
         """Total visibility at (x, y) m at time t s, by the per-point model (ValueError off the
-        map)."""
-        return self._point_visibility(x, y, t)
+        map); weighed by exposure for a robot facing yaw (rad) where the scenario says so."""
+        return self._point_visibility(x, y, t, self._heading(yaw))
+
+    def _heading(self, yaw):
+        return None if self.footprint is None else yaw
 
     def step_samples_of(self, x0, y0, t0, x1, y1, t1):
         """(xs, ys, ts): the samples a step from (x0, y0) at t0 to (x1, y1) at t1 is judged on,
@@ -295,13 +340,44 @@ class StealthTask:
         xs[-1], ys[-1] = x1, y1  # exactly the arrival
         return xs, ys, ts
 
-    def step_visibility(self, x0, y0, t0: float, x1, y1, t1: float) -> float:
+    def turn_samples_of(self, x0, y0, t0, yaw0, yaw1):
+        """(xs, ys, ts, yaws): the samples of the turn in place at (x0, y0) from yaw0 to yaw1
+        (rad, the shorter way; a half turn either way shows the same) a step starts with: every
+        ``exposure.TURN_SAMPLE`` from yaw0 and the final heading, yaw0 itself not (it is the
+        previous step's arrival), all at t0; (0, ...) arrays when nothing turns. Works on arrays
+        of steps too (then (k, ...), shorter turns repeating their final heading)."""
+        yaw0 = np.asarray(yaw0, dtype=np.float64)
+        turn = exposure.wrap(np.asarray(yaw1, dtype=np.float64) - yaw0)
+        size = np.abs(turn)
+        count = math.ceil(float(np.max(size, initial=0.0)) / exposure.TURN_SAMPLE - 1e-9)
+        steps = np.arange(1, count + 1).reshape((-1,) + (1,) * turn.ndim) * exposure.TURN_SAMPLE
+        yaws = yaw0 + np.sign(turn) * np.minimum(steps, size)
+        shape = (count, *np.broadcast_shapes(np.shape(x0), np.shape(y0), turn.shape))
+        xs = np.broadcast_to(np.asarray(x0, dtype=np.float64), shape)
+        ys = np.broadcast_to(np.asarray(y0, dtype=np.float64), shape)
+        return xs, ys, np.full(count, float(t0)), np.broadcast_to(yaws, shape)
+
+    def step_visibility(self, x0, y0, t0: float, x1, y1, t1: float, yaw0=None, yaw1=None) -> float:
         """The most light on the robot during a step from (x0, y0) at t0 s to (x1, y1) at t1 s
-        (see "A step's visibility"): what ``judge`` is given."""
+        (see "A step's visibility"): what ``judge`` is given. Where lights are weighed by
+        exposure, the robot turns from yaw0 to yaw1 (rad) at the departure and drives facing
+        yaw1."""
+        see = self._point_visibility
         xs, ys, ts = self.step_samples_of(x0, y0, t0, x1, y1, t1)
+        if self.footprint is None or yaw1 is None:
+            if not self.scenario.has_moving_lights:
+                return float(see.many(xs, ys, t1).max())
+            return max(see(x, y, t) for x, y, t in zip(xs, ys, ts, strict=True))
+        yaws = np.full(xs.shape, float(yaw1))
+        turn = self.turn_samples_of(x0, y0, t0, yaw1 if yaw0 is None else yaw0, yaw1)
         if not self.scenario.has_moving_lights:
-            return float(self._point_visibility.many(xs, ys, t1).max())
-        return max(self._point_visibility(x, y, t) for x, y, t in zip(xs, ys, ts, strict=True))
+            drive = see.many(xs, ys, t1, yaws)
+            turning = see.turning(np.asarray(x0, float), np.asarray(y0, float), t1, turn[3])
+            return float(max([drive.max(), *turning]))
+        samples = zip(
+            (*turn[0], *xs), (*turn[1], *ys), (*turn[2], *ts), (*turn[3], *yaws), strict=True
+        )
+        return max(see(x, y, t, yaw) for x, y, t, yaw in samples)
 
     @cached_property
     def _point_visibility(self) -> PointVisibility:
@@ -317,18 +393,20 @@ class StealthTask:
         t: float,
         step_index: int,
         visibility: float | None = None,
+        yaw: float | None = None,
     ) -> StepJudgement:
-        """Judge the true pose (x, y) reached at time t by action number ``step_index`` (from 1).
+        """Judge the true pose (x, y, yaw) reached at time t by action number ``step_index``
+        (from 1).
 
         visibility: the pose's visibility at t when the caller already has it (it must be
-        ``self.visibility(x, y, t)``); computed otherwise.
+        ``self.visibility(x, y, t, yaw)``, or the step's); computed otherwise.
         """
         if isinstance(step_index, bool) or not isinstance(step_index, int | np.integer):
             raise ValueError(f'step_index: expected an integer >= 1, got {step_index!r}')
         if step_index < 1:
             raise ValueError(f'step_index: expected an integer >= 1, got {step_index}')
         if visibility is None:
-            visibility = self.visibility(x, y, t)
+            visibility = self.visibility(x, y, t, yaw)
         distance = self.distance_to_goal(x, y)
         scenario = self.scenario
         result = step_outcome(

@@ -21,6 +21,7 @@ import zipfile
 
 import numpy as np
 
+from stealth_env import exposure
 from stealth_env.lighting import GridFrame, light_intensity, lights_at
 from stealth_env.searchlight import Searchlight
 
@@ -167,6 +168,10 @@ class PointVisibility:
     kind of light: static and sweeping lights (only the direction changes) reuse the blocks of
     their one cell, patrolling lights those of the cells they pass; the least recently used
     blocks beyond ``max_tiles`` are dropped. ``blocked`` must not change afterwards.
+
+    With a ``footprint`` (``exposure.Footprint``), a point asked for with the robot's heading
+    has each light's value multiplied by the exposure factor before the lights are added
+    (``stealth_env.exposure``); without a heading, the light at the point is the whole of it.
     """
 
     TILE = 16  # cells along each side of a block of targets
@@ -178,16 +183,21 @@ class PointVisibility:
         origin: Sequence[float],
         lights: Iterable[Searchlight],
         max_tiles: int = 4096,
+        footprint: exposure.Footprint | None = None,
     ):
         self.frame = GridFrame.of(blocked, resolution, origin)
+        self.footprint = footprint
         self.blocked = blocked
         self.lights = tuple(lights)
         self.max_tiles = max_tiles
         self._corners: np.ndarray | None = None
         self._tiles: OrderedDict[tuple[int, int, int, int], np.ndarray] = OrderedDict()
 
-    def light_visibilities(self, x: float, y: float, t: float = 0.0) -> list[float]:
-        """Each light's visibility at (x, y) m at time t s (``point_light_visibilities``)."""
+    def light_visibilities(
+        self, x: float, y: float, t: float = 0.0, heading: float | None = None
+    ) -> list[float]:
+        """Each light's visibility at (x, y) m at time t s (``point_light_visibilities``),
+        weighed by exposure when the robot's heading (rad) is given and the footprint known."""
         frame = self.frame
         target = frame.cell_of(x, y)
         values = []
@@ -200,20 +210,46 @@ class PointVisibility:
             value = float(light_intensity(light, dx, dy))
             if value > 0.0 and not self.line_of_sight(lamp, target):
                 value = 0.0
+            if value > 0.0 and self._weighs(heading):
+                value *= float(exposure.factor(self.footprint, heading, dx, dy))
             values.append(value)
         return values
 
-    def __call__(self, x: float, y: float, t: float = 0.0) -> float:
-        """Total visibility at (x, y) at time t, added in the lights' order."""
+    def _weighs(self, heading) -> bool:
+        return heading is not None and self.footprint is not None
+
+    def __call__(self, x: float, y: float, t: float = 0.0, heading: float | None = None) -> float:
+        """Total visibility at (x, y) at time t (with a heading: weighed by exposure), added in
+        the lights' order."""
         total = 0.0
-        for value in self.light_visibilities(x, y, t):
+        for value in self.light_visibilities(x, y, t, heading):
             total += value
         return total
 
-    def many(self, xs, ys, t: float = 0.0) -> np.ndarray:
+    def many(self, xs, ys, t: float = 0.0, headings=None) -> np.ndarray:
         """Total visibility at many points (arrays of x and y, m) at one time t (s): the same
-        model as ``__call__`` point by point (the lines of sight traced for all points at once).
-        ValueError when a point is off the map or not finite."""
+        model as ``__call__`` point by point (the lines of sight traced for all points at once;
+        headings, rad, an array like xs or None). ValueError when a point is off the map or not
+        finite."""
+        return self.turning(xs, ys, t, [headings])[0]
+
+    def turning(self, xs, ys, t: float, headings) -> list[np.ndarray]:
+        """``many`` at the same points for each array (or None) of ``headings`` in turn: a robot
+        turning in place, its lights traced once."""
+        per_light = self._light_values(xs, ys, t)
+        totals = []
+        for heading in headings:
+            total = np.zeros(np.shape(xs))
+            for value, dx, dy in per_light:
+                if self._weighs(heading):
+                    value = value * exposure.factor(self.footprint, heading, dx, dy)
+                total += value  # in the lights' order, as the reference adds them
+            totals.append(total)
+        return totals
+
+    def _light_values(self, xs, ys, t: float) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """(value, dx, dy) of each light at the points: its unweighted visibility and the
+        offsets from its lamp."""
         xs = np.asarray(xs, dtype=np.float64)
         ys = np.asarray(ys, dtype=np.float64)
         frame = self.frame
@@ -227,7 +263,7 @@ class PointVisibility:
             frame.cell_of(xs.ravel()[k], ys.ravel()[k])  # raises, naming the point
         if self._corners is None:
             self._corners = corner_maps(self.blocked)
-        total = np.zeros(xs.shape)
+        per_light = []
         for light in lights_at(self.lights, t):
             lamp = frame.cell_of(light.x, light.y, what=f'searchlight {light.name!r}')
             dx, dy = xs - light.x, ys - light.y
@@ -242,8 +278,8 @@ class PointVisibility:
                 )
                 dark = np.isin(rows * frame.width + cols, cells[occluded])
                 value = np.where(lit & dark, 0.0, value)
-            total += value  # in the lights' order, as the reference adds them
-        return total
+            per_light.append((value, dx, dy))
+        return per_light
 
     def line_of_sight(self, lamp: tuple[int, int], target: tuple[int, int]) -> bool:
         """``lighting.line_of_sight(blocked, lamp, target)``, from the block cache."""
@@ -279,7 +315,11 @@ def scenario_point_visibility(scenario) -> PointVisibility:
     """The ``PointVisibility`` of a ``stealth_env.scenario.Scenario``."""
     occupancy = scenario.map
     return PointVisibility(
-        occupancy.blocked, occupancy.resolution, occupancy.origin, scenario.lights
+        occupancy.blocked,
+        occupancy.resolution,
+        occupancy.origin,
+        scenario.lights,
+        footprint=getattr(scenario, 'exposure', None),
     )
 
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from stealth_env import render
 from stealth_env.render import goal_marks, read_path_csv, render_scenario
+from stealth_env.scenario import load_scenario
 from stealth_env.searchlight import PatrolMotion, Searchlight, SweepMotion
 from stealth_sim.occupancy_map import OccupancyMap
 
@@ -122,7 +123,32 @@ def test_cli_renders_every_scenario(tmp_path, capsys):
     assert render.main(['--all', '--out-dir', str(tmp_path), '--cache-dir', str(tmp_path)]) == 0
     written = sorted(path.name for path in tmp_path.glob('*.png'))
     maps = ['floorplan', 'lgfloor', 'map1', 'simple-maze']
-    assert written == sorted(f'{name}{kind}.png' for name in maps for kind in ('', '-moving'))
+    expected = [f'{name}{kind}.png' for name in maps for kind in ('', '-moving')]
+    expected += ['map1-exposure.png', 'simple-maze-exposure.png']
+    assert written == sorted(expected)
+
+
+def test_an_exposure_optimum_is_drawn_with_the_robots_footprint_at_each_pose(tmp_path):
+    scenario = load_scenario('simple-maze-exposure')
+    poses = render.optimal_points(scenario, poses=True)
+    assert poses.shape[1] == 3 and set(np.round(poses[:, 2] / (np.pi / 2)) % 4) <= {0, 1, 2, 3}
+    assert np.array_equal(poses[:, :2], render.optimal_points(scenario))
+    figure = render.scenario_figure(scenario, [poses], cache_dir=tmp_path)
+    rectangles = [p for p in figure.axes[0].patches if type(p).__name__ == 'Rectangle']
+    assert len(rectangles) == len(poses)
+    # facing north up the column: the rectangle's long side is along y
+    north = [
+        r for r, yaw in zip(rectangles, poses[:, 2], strict=True) if np.isclose(yaw, np.pi / 2)
+    ]
+    assert north and all(r.get_angle() == pytest.approx(90.0) for r in north)
+    out = tmp_path / 'exposure.png'
+    assert (
+        render.main(
+            ['simple-maze-exposure', '--optimum', '-o', str(out), '--cache-dir', str(tmp_path)]
+        )
+        == 0
+    )
+    assert out.stat().st_size > 0
 
 
 def test_cli_reports_bad_input(tmp_path, capsys):

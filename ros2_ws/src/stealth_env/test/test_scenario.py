@@ -23,13 +23,14 @@ import yaml
 REPO = Path(__file__).resolve().parents[4]
 SHIPPED = ['floorplan', 'lgfloor', 'map1', 'simple-maze']
 MOVING = [f'{name}-moving' for name in SHIPPED]
+EXPOSURE = ['map1-exposure', 'simple-maze-exposure']
 
 
 # --- the shipped scenarios ----------------------------------------------------------------------
 
 
 def test_the_four_scenarios_and_their_moving_variants_are_found_by_name():
-    assert [path.stem for path in scenario_paths()] == sorted(SHIPPED + MOVING)
+    assert [path.stem for path in scenario_paths()] == sorted(SHIPPED + MOVING + EXPOSURE)
     assert find_scenario('lgfloor') == REPO / 'scenarios' / 'lgfloor.yaml'
 
 

@@ -31,8 +31,10 @@ from stealth_env.visibility import visibility_field
 scenario_module = pytest.importorskip('stealth_env.scenario')
 
 REPO = Path(__file__).resolve().parents[4]
-SCENARIO_FILES = sorted(
-    path for path in (REPO / 'scenarios').glob('*.yaml') if not path.stem.endswith('-moving')
+SCENARIO_FILES = sorted(  # the variants' own tests: test_moving_scenarios, test_exposure
+    path
+    for path in (REPO / 'scenarios').glob('*.yaml')
+    if not path.stem.endswith(('-moving', '-exposure'))
 )
 TIME_SAMPLES = 24  # instants per cycle at which moving lights are judged
 
