@@ -6,6 +6,13 @@ How it is fast: for each light only the cells within its range's bounding box an
 lines at a time, with exactly the reference's integer error-term arithmetic. The lines are
 sorted longest first, so at step k the lines still running are a prefix of the arrays: slicing,
 no compaction.
+
+One-bounce light (``stealth_env.bounce``, when a ``Bounce`` is given) is added on top of the
+direct field: ``bounce_field`` traces, for every wall cell that receives light, the lines to the
+cells within the bounce range in front of it, all emitters' lines in one lockstep run (the same
+``_occluded`` with one start cell per line), and adds the visible contributions up per cell in
+emitter order, as the reference does, so the two agree to the last bit. ``PointVisibility``
+adds the same sum at any point.
 """
 
 from __future__ import annotations
@@ -20,12 +27,15 @@ import warnings
 import zipfile
 
 import numpy as np
+from stealth_sim import compiled_move
 
+from stealth_env.bounce import Bounce, Emitters, check_static, contribution, wall_emitters
 from stealth_env.lighting import GridFrame, light_intensity, lights_at
 from stealth_env.searchlight import Searchlight
 
 # Bump whenever the model or the field's output changes: it is part of every cache key.
 CODE_VERSION = 'visibility-1'
+BOUNCE_VERSION = 'bounce-1'  # part of the key of fields with a bounce only
 CACHE_ENV = 'STEALTH_NAV_CACHE'
 DEFAULT_CACHE_DIR = Path('~/.cache/stealth_nav/visibility')
 
@@ -133,17 +143,131 @@ def light_field(
     return field
 
 
+_contribution = compiled_move.jit(contribution)
+
+
+@compiled_move.jit
+def _line_blocked(blocked, col0, row0, col1, row1):
+    """``lighting.line_of_sight``'s answer negated, walking the line and stopping at the first
+    block (compiled: the bounce traces millions of short lines)."""
+    d_col, d_row = abs(col1 - col0), -abs(row1 - row0)
+    step_col = 1 if col1 > col0 else -1
+    step_row = 1 if row1 > row0 else -1
+    error = d_col + d_row
+    col, row = col0, row0
+    while col != col1 or row != row1:
+        if (col != col0 or row != row0) and blocked[row, col]:
+            return True
+        doubled = 2 * error
+        next_col, next_row = col, row
+        if doubled >= d_row:
+            error += d_row
+            next_col += step_col
+        if doubled <= d_col:
+            error += d_col
+            next_row += step_row
+        diagonal = next_col != col and next_row != row
+        if diagonal and blocked[row, next_col] and blocked[next_row, col]:
+            return True
+        col, row = next_col, next_row
+    return False
+
+
+@compiled_move.jit
+def _bounce_kernel(blocked, emitters, received, x_of_col, y_of_row, reach, parameters):
+    """The bounce field: emitter after emitter (in order), every cell of its window."""
+    height, width = blocked.shape
+    weight, range_squared, beta = parameters
+    field = np.zeros((height, width))
+    for e in range(received.size):
+        if received[e] <= 0.0:
+            continue
+        col, row = int(emitters[0, e]), int(emitters[1, e])
+        normal_x, normal_y = emitters[2, e], emitters[3, e]
+        centre_x, centre_y = x_of_col[col], y_of_row[row]
+        for r in range(max(row - reach, 0), min(row + reach + 1, height)):
+            dy = y_of_row[r] - centre_y
+            for c in range(max(col - reach, 0), min(col + reach + 1, width)):
+                value = _contribution(
+                    weight, received[e], normal_x, normal_y, x_of_col[c] - centre_x, dy,
+                    range_squared, beta,
+                )  # fmt: skip
+                if value > 0.0 and not _line_blocked(blocked, col, row, c, r):
+                    field[r, c] += value
+    return field
+
+
+@compiled_move.jit
+def _bounce_at_points(blocked, xs, ys, cols, rows, emitters, received, centres, parameters):
+    """The bounce at points (xs, ys) in cells (cols, rows): emitters added up in order."""
+    weight, range_squared, beta = parameters
+    totals = np.zeros(xs.size)
+    for p in range(xs.size):
+        total = 0.0
+        for e in range(received.size):
+            value = _contribution(
+                weight, received[e], emitters[2, e], emitters[3, e],
+                xs[p] - centres[0, e], ys[p] - centres[1, e], range_squared, beta,
+            )  # fmt: skip
+            col, row = int(emitters[0, e]), int(emitters[1, e])
+            if value > 0.0 and not _line_blocked(blocked, col, row, cols[p], rows[p]):
+                total += value
+        totals[p] = total
+    return totals
+
+
+def _emitter_table(emitters: Emitters) -> np.ndarray:
+    """(4, n) float64: cols, rows, normal_x, normal_y (one array for the kernels)."""
+    return np.stack([emitters.cols, emitters.rows, emitters.normal_x, emitters.normal_y]).astype(
+        np.float64
+    )
+
+
+def _parameters(bounce: Bounce, resolution: float) -> np.ndarray:
+    return np.array([bounce.weight(resolution), bounce.range * bounce.range, bounce.beta])
+
+
+def bounce_field(frame: GridFrame, blocked: np.ndarray, direct: np.ndarray, bounce: Bounce):
+    """The bounced light on every cell, (height, width): ``bounce.point_bounce`` at each cell
+    centre, with each emitter's received light read from ``direct``, the direct total field."""
+    emitters = wall_emitters(blocked)
+    received = np.ascontiguousarray(direct[emitters.rows, emitters.cols])
+    x_of_col, _ = frame.cell_centre(np.arange(frame.width), 0)
+    _, y_of_row = frame.cell_centre(0, np.arange(frame.height))
+    reach = int(np.ceil(bounce.range / frame.resolution)) + 1
+    return _bounce_kernel(
+        np.ascontiguousarray(blocked),
+        _emitter_table(emitters),
+        received,
+        x_of_col,
+        y_of_row,
+        reach,
+        _parameters(bounce, frame.resolution),
+    )
+
+
+def _active(bounce: Bounce | None) -> Bounce | None:
+    return bounce if bounce is not None and bounce.albedo > 0.0 else None
+
+
 def visibility_field(
     blocked: np.ndarray,
     resolution: float,
     origin: Sequence[float],
     lights: Iterable[Searchlight],
     t: float = 0.0,
+    bounce: Bounce | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(total (height, width), per_light (n_lights, height, width)) at time t (s).
 
-    Cell (row, col) holds ``lighting.point_visibility`` at that cell's centre, exactly.
+    Cell (row, col) holds ``lighting.point_visibility`` at that cell's centre, exactly, plus
+    with a bounce (albedo > 0) ``bounce.point_bounce`` there; per_light is the direct light
+    only (the bounce is not split by light). A bounce with moving lights is refused.
     """
+    lights = tuple(lights)
+    bounce = _active(bounce)
+    if bounce is not None:
+        check_static(lights)
     frame = GridFrame.of(blocked, resolution, origin)
     static = lights_at(lights, t)
     per_light = np.zeros((len(static), frame.height, frame.width))
@@ -152,6 +276,8 @@ def visibility_field(
     for i, light in enumerate(static):
         per_light[i] = light_field(blocked, corners, frame, light)
         total += per_light[i]  # in the lights' order, as the reference adds them
+    if bounce is not None:
+        total = total + bounce_field(frame, blocked, total, bounce)
     return total, per_light
 
 
@@ -178,13 +304,18 @@ class PointVisibility:
         origin: Sequence[float],
         lights: Iterable[Searchlight],
         max_tiles: int = 4096,
+        bounce: Bounce | None = None,
     ):
         self.frame = GridFrame.of(blocked, resolution, origin)
         self.blocked = blocked
         self.lights = tuple(lights)
         self.max_tiles = max_tiles
+        self.bounce = _active(bounce)
+        if self.bounce is not None:
+            check_static(self.lights)
         self._corners: np.ndarray | None = None
         self._tiles: OrderedDict[tuple[int, int, int, int], np.ndarray] = OrderedDict()
+        self._sources: _BounceSources | None = None
 
     def light_visibilities(self, x: float, y: float, t: float = 0.0) -> list[float]:
         """Each light's visibility at (x, y) m at time t s (``point_light_visibilities``)."""
@@ -204,10 +335,14 @@ class PointVisibility:
         return values
 
     def __call__(self, x: float, y: float, t: float = 0.0) -> float:
-        """Total visibility at (x, y) at time t, added in the lights' order."""
+        """Total visibility at (x, y) at time t, added in the lights' order (plus the bounce)."""
         total = 0.0
         for value in self.light_visibilities(x, y, t):
             total += value
+        if self.bounce is not None:
+            col, row = self.frame.cell_of(x, y)
+            point = (np.array([float(x)]), np.array([float(y)]))
+            total += float(self._bounce(*point, np.array([col]), np.array([row]))[0])
         return total
 
     def many(self, xs, ys, t: float = 0.0) -> np.ndarray:
@@ -216,6 +351,15 @@ class PointVisibility:
         ValueError when a point is off the map or not finite."""
         xs = np.asarray(xs, dtype=np.float64)
         ys = np.asarray(ys, dtype=np.float64)
+        cols, rows = self._cells(xs, ys)
+        total = self._direct_many(xs, ys, cols, rows, t)
+        if self.bounce is not None:
+            bounced = self._bounce(xs.ravel(), ys.ravel(), cols.ravel(), rows.ravel())
+            total = total + bounced.reshape(xs.shape)
+        return total
+
+    def _cells(self, xs: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(cols, rows) of points; ValueError naming the first one off the map or not finite."""
         frame = self.frame
         if not (np.all(np.isfinite(xs)) and np.all(np.isfinite(ys))):
             raise ValueError('points: coordinates must be finite numbers')
@@ -225,6 +369,11 @@ class PointVisibility:
         if np.any(off):
             k = int(np.flatnonzero(off.ravel())[0])
             frame.cell_of(xs.ravel()[k], ys.ravel()[k])  # raises, naming the point
+        return cols, rows
+
+    def _direct_many(self, xs, ys, cols, rows, t: float) -> np.ndarray:
+        """The direct light at many points (``many`` without the bounce)."""
+        frame = self.frame
         if self._corners is None:
             self._corners = corner_maps(self.blocked)
         total = np.zeros(xs.shape)
@@ -244,6 +393,13 @@ class PointVisibility:
                 value = np.where(lit & dark, 0.0, value)
             total += value  # in the lights' order, as the reference adds them
         return total
+
+    def _bounce(self, xs, ys, cols, rows) -> np.ndarray:
+        """The bounced light at points (1-D arrays) in cells (cols, rows): for each point, the
+        contributions of the emitters in sight of its cell, added up in emitter order."""
+        if self._sources is None:
+            self._sources = _BounceSources(self)
+        return self._sources.at(xs, ys, cols, rows)
 
     def line_of_sight(self, lamp: tuple[int, int], target: tuple[int, int]) -> bool:
         """``lighting.line_of_sight(blocked, lamp, target)``, from the block cache."""
@@ -275,11 +431,38 @@ class PointVisibility:
         return block
 
 
+class _BounceSources:
+    """The emitters of a ``PointVisibility`` that receive light, ready for the kernel."""
+
+    def __init__(self, points: PointVisibility):
+        frame, emitters = points.frame, wall_emitters(points.blocked)
+        x, y = frame.cell_centre(emitters.cols, emitters.rows)
+        received = points._direct_many(x, y, emitters.cols, emitters.rows, 0.0)
+        keep = received > 0.0  # the others add nothing; emitter order is kept
+        self.blocked = np.ascontiguousarray(points.blocked)
+        self.emitters = np.ascontiguousarray(_emitter_table(emitters)[:, keep])
+        self.received = received[keep]
+        self.centres = np.stack([x[keep], y[keep]])
+        self.parameters = _parameters(points.bounce, frame.resolution)
+
+    def at(self, xs, ys, cols, rows) -> np.ndarray:
+        as_float = [np.ascontiguousarray(v, dtype=np.float64) for v in (xs, ys)]
+        as_int = [np.ascontiguousarray(v, dtype=np.int64) for v in (cols, rows)]
+        return _bounce_at_points(
+            self.blocked, *as_float, *as_int, self.emitters, self.received, self.centres,
+            self.parameters,
+        )  # fmt: skip
+
+
 def scenario_point_visibility(scenario) -> PointVisibility:
-    """The ``PointVisibility`` of a ``stealth_env.scenario.Scenario``."""
+    """The ``PointVisibility`` of a ``stealth_env.scenario.Scenario`` (its bounce included)."""
     occupancy = scenario.map
     return PointVisibility(
-        occupancy.blocked, occupancy.resolution, occupancy.origin, scenario.lights
+        occupancy.blocked,
+        occupancy.resolution,
+        occupancy.origin,
+        scenario.lights,
+        bounce=getattr(scenario, 'bounce', None),
     )
 
 
@@ -289,14 +472,19 @@ def cache_key(
     origin: Sequence[float],
     lights: Iterable[Searchlight],
     t: float = 0.0,
+    bounce: Bounce | None = None,
 ) -> str:
-    """Hash of everything the field depends on, including CODE_VERSION."""
+    """Hash of everything the field depends on, including CODE_VERSION (and, with a bounce,
+    BOUNCE_VERSION and the bounce: without one the key is what it was before bounces)."""
     digest = hashlib.sha256()
     digest.update(CODE_VERSION.encode())
     digest.update(repr((blocked.shape, str(blocked.dtype))).encode())
     digest.update(np.ascontiguousarray(blocked).tobytes())
     parameters = (float(resolution), tuple(float(v) for v in origin), tuple(lights), float(t))
     digest.update(repr(parameters).encode())
+    bounce = _active(bounce)
+    if bounce is not None:
+        digest.update(repr((BOUNCE_VERSION, bounce)).encode())
     return digest.hexdigest()
 
 
@@ -340,15 +528,16 @@ def cached_visibility_field(
     lights: Iterable[Searchlight],
     t: float = 0.0,
     cache_dir: str | os.PathLike | None = None,
+    bounce: Bounce | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``visibility_field`` through the disk cache; a corrupt cache file is recomputed."""
     lights = tuple(lights)
-    key = cache_key(blocked, resolution, origin, lights, t)
+    key = cache_key(blocked, resolution, origin, lights, t, bounce)
     path = cache_directory(cache_dir) / f'{key}.npz'
     cached = _load(path, len(lights), blocked.shape)
     if cached is not None:
         return cached
-    total, per_light = visibility_field(blocked, resolution, origin, lights, t)
+    total, per_light = visibility_field(blocked, resolution, origin, lights, t, bounce)
     try:
         _save(path, total, per_light)
     except OSError as error:  # a read-only cache must not stop the robot; the field is right
@@ -357,8 +546,15 @@ def cached_visibility_field(
 
 
 def scenario_visibility(scenario, t: float = 0.0, cache_dir=None):
-    """(total, per_light) of a ``stealth_env.scenario.Scenario`` at time t, cached."""
+    """(total, per_light) of a ``stealth_env.scenario.Scenario`` at time t, cached; total
+    includes the scenario's bounce, if it has one."""
     occupancy = scenario.map
     return cached_visibility_field(
-        occupancy.blocked, occupancy.resolution, occupancy.origin, scenario.lights, t, cache_dir
+        occupancy.blocked,
+        occupancy.resolution,
+        occupancy.origin,
+        scenario.lights,
+        t,
+        cache_dir,
+        bounce=getattr(scenario, 'bounce', None),
     )
