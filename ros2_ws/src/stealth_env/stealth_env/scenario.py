@@ -35,6 +35,9 @@ from +x) and radians in the :class:`Scenario`. Example, every field::
         motion: {type: sweep, min_direction: 150, max_direction: 210, angular_speed: 10}
         # or {type: patrol, waypoints: [[13, 8.5], [13, 10]], speed: 0.3}
     rewards: {goal_reward: 1000.0}  # any RewardWeights field; the rest keep their defaults
+    bounce: {albedo: 0.3, range: 3.0}  # one-bounce light off the walls (stealth_env.bounce):
+                                    # albedo in [0, 1) (default 0: none), range m (default 3);
+                                    # static lights only
 
 Validation checks the fields' types and ranges, that the start and goals lie in free cells of
 the map, that the start has ``robot_radius`` of clearance, that every goal is reachable from the
@@ -62,6 +65,7 @@ from stealth_sim.occupancy_map import (
     read_yaml_mapping,
 )
 
+from stealth_env.bounce import DEFAULT_RANGE, Bounce, bounce_bound
 from stealth_env.move_lattice import MoveLattice
 from stealth_env.reward import (
     DETECTION_MODES,
@@ -92,6 +96,7 @@ FIELDS = (
     'step_seconds',
     'lights',
     'rewards',
+    'bounce',
 )
 LIGHT_FIELDS = ('name', 'x', 'y', 'direction', 'fov', 'range', 'delta', 'soft_edge', 'motion')
 POSITIVE = 'a number > 0'
@@ -135,6 +140,7 @@ class Scenario:
     step_limit: int
     rewards: RewardWeights
     timing: Timing | None = None  # moving lights with phase_bins: the phase state feature
+    bounce: Bounce | None = None  # one-bounce light; None: direct light only (albedo 0)
 
     @property
     def has_moving_lights(self) -> bool:
@@ -210,7 +216,8 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
         fields.fail('default_goal', f'one of the goals given ({", ".join(goals)})', default_goal)
     lights = _lights(fields, occupancy)
     timing = _timing(fields, lights, path)
-    rewards = _rewards(fields, occupancy, numbers, len(lights))
+    bounce = _bounce(fields, lights)
+    rewards = _rewards(fields, occupancy, numbers, len(lights), bounce)
     return Scenario(
         name=name,
         path=path,
@@ -222,6 +229,7 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
         lights=lights,
         rewards=rewards,
         timing=timing,
+        bounce=bounce,
         **numbers,
     )
 
@@ -256,6 +264,27 @@ def _timing(fields: FieldReader, lights, path: Path) -> Timing | None:
     if timing is None:
         fields.fail('phase_bins', 'phase_bins only in a scenario whose lights move', bins)
     return timing
+
+
+def _bounce(fields: FieldReader, lights) -> Bounce | None:
+    """The one-bounce light, or None when there is none (no field, or albedo 0)."""
+    if not fields.has('bounce'):
+        return None
+    bounce = fields.mapping('bounce', 'a mapping {albedo, range}')
+    bounce.reject_unknown(('albedo', 'range'))
+    albedo = bounce.number('albedo', 'a number in [0, 1)', lambda v: 0 <= v < 1)
+    reach = bounce.number('range', f'{POSITIVE} (m)', lambda v: v > 0, DEFAULT_RANGE)
+    if albedo == 0.0:
+        return None
+    moving = [f'lights[{i}] ({light.name})' for i, light in enumerate(lights) if light.is_moving]
+    if moving:
+        fields.fail_with(
+            'bounce',
+            'no bounce in a scenario whose lights move (the bounce is computed for static '
+            'lights only; remove bounce or the motion)',
+            f'{", ".join(moving)} moving',
+        )
+    return Bounce(albedo, reach)
 
 
 def _load_map(fields: FieldReader, path: Path) -> tuple[Path, OccupancyMap]:
@@ -416,7 +445,7 @@ def _motion(light: FieldReader, occupancy, direction: float) -> SweepMotion | Pa
     motion.fail('type', 'sweep or patrol', kind)
 
 
-def _rewards(fields: FieldReader, occupancy, numbers, n_lights: int) -> RewardWeights:
+def _rewards(fields: FieldReader, occupancy, numbers, n_lights: int, bounce) -> RewardWeights:
     """The weights, checked to make getting caught never pay (reward.check_well_posed)."""
     known = tuple(f.name for f in dataclasses.fields(RewardWeights))
     rewards = fields.mapping('rewards', 'a mapping of reward weights', default={})
@@ -429,7 +458,10 @@ def _rewards(fields: FieldReader, occupancy, numbers, n_lights: int) -> RewardWe
             weights,
             max_distance=math.hypot(x_max - x_min, y_max - y_min),
             max_visibility=undetected_visibility_bound(
-                numbers['detection_mode'], numbers['detection_threshold'], n_lights
+                numbers['detection_mode'],
+                numbers['detection_threshold'],
+                n_lights,
+                bounce_bound(bounce, occupancy.resolution, n_lights),
             ),
             max_steps=numbers['step_limit'],
         )
