@@ -27,9 +27,8 @@ import warnings
 import zipfile
 
 import numpy as np
-from stealth_sim import compiled_move
 
-from stealth_env.bounce import Bounce, Emitters, check_static, contribution, wall_emitters
+from stealth_env.bounce import Bounce, check_static, wall_emitters
 from stealth_env.lighting import GridFrame, light_intensity, lights_at
 from stealth_env.searchlight import Searchlight
 
@@ -143,106 +142,24 @@ def light_field(
     return field
 
 
-_contribution = compiled_move.jit(contribution)
-
-
-@compiled_move.jit
-def _line_blocked(blocked, col0, row0, col1, row1):
-    """``lighting.line_of_sight``'s answer negated, walking the line and stopping at the first
-    block (compiled: the bounce traces millions of short lines)."""
-    d_col, d_row = abs(col1 - col0), -abs(row1 - row0)
-    step_col = 1 if col1 > col0 else -1
-    step_row = 1 if row1 > row0 else -1
-    error = d_col + d_row
-    col, row = col0, row0
-    while col != col1 or row != row1:
-        if (col != col0 or row != row0) and blocked[row, col]:
-            return True
-        doubled = 2 * error
-        next_col, next_row = col, row
-        if doubled >= d_row:
-            error += d_row
-            next_col += step_col
-        if doubled <= d_col:
-            error += d_col
-            next_row += step_row
-        diagonal = next_col != col and next_row != row
-        if diagonal and blocked[row, next_col] and blocked[next_row, col]:
-            return True
-        col, row = next_col, next_row
-    return False
-
-
-@compiled_move.jit
-def _bounce_kernel(blocked, emitters, received, x_of_col, y_of_row, reach, parameters):
-    """The bounce field: emitter after emitter (in order), every cell of its window."""
-    height, width = blocked.shape
-    weight, range_squared, beta = parameters
-    field = np.zeros((height, width))
-    for e in range(received.size):
-        if received[e] <= 0.0:
-            continue
-        col, row = int(emitters[0, e]), int(emitters[1, e])
-        normal_x, normal_y = emitters[2, e], emitters[3, e]
-        centre_x, centre_y = x_of_col[col], y_of_row[row]
-        for r in range(max(row - reach, 0), min(row + reach + 1, height)):
-            dy = y_of_row[r] - centre_y
-            for c in range(max(col - reach, 0), min(col + reach + 1, width)):
-                value = _contribution(
-                    weight, received[e], normal_x, normal_y, x_of_col[c] - centre_x, dy,
-                    range_squared, beta,
-                )  # fmt: skip
-                if value > 0.0 and not _line_blocked(blocked, col, row, c, r):
-                    field[r, c] += value
-    return field
-
-
-@compiled_move.jit
-def _bounce_at_points(blocked, xs, ys, cols, rows, emitters, received, centres, parameters):
-    """The bounce at points (xs, ys) in cells (cols, rows): emitters added up in order."""
-    weight, range_squared, beta = parameters
-    totals = np.zeros(xs.size)
-    for p in range(xs.size):
-        total = 0.0
-        for e in range(received.size):
-            value = _contribution(
-                weight, received[e], emitters[2, e], emitters[3, e],
-                xs[p] - centres[0, e], ys[p] - centres[1, e], range_squared, beta,
-            )  # fmt: skip
-            col, row = int(emitters[0, e]), int(emitters[1, e])
-            if value > 0.0 and not _line_blocked(blocked, col, row, cols[p], rows[p]):
-                total += value
-        totals[p] = total
-    return totals
-
-
-def _emitter_table(emitters: Emitters) -> np.ndarray:
-    """(4, n) float64: cols, rows, normal_x, normal_y (one array for the kernels)."""
-    return np.stack([emitters.cols, emitters.rows, emitters.normal_x, emitters.normal_y]).astype(
-        np.float64
-    )
-
-
-def _parameters(bounce: Bounce, resolution: float) -> np.ndarray:
-    return np.array([bounce.weight(resolution), bounce.range * bounce.range, bounce.beta])
-
-
 def bounce_field(frame: GridFrame, blocked: np.ndarray, direct: np.ndarray, bounce: Bounce):
     """The bounced light on every cell, (height, width): ``bounce.point_bounce`` at each cell
     centre, with each emitter's received light read from ``direct``, the direct total field."""
+    from stealth_env import bounce_kernels  # numba is imported only where bounces are made
+
     emitters = wall_emitters(blocked)
     received = np.ascontiguousarray(direct[emitters.rows, emitters.cols])
     x_of_col, _ = frame.cell_centre(np.arange(frame.width), 0)
     _, y_of_row = frame.cell_centre(0, np.arange(frame.height))
     reach = int(np.ceil(bounce.range / frame.resolution)) + 1
-    return _bounce_kernel(
+    return bounce_kernels.field(
         np.ascontiguousarray(blocked),
-        _emitter_table(emitters),
+        bounce_kernels.emitter_table(emitters),
         received,
         x_of_col,
         y_of_row,
         reach,
-        _parameters(bounce, frame.resolution),
+        bounce_kernels.parameters(bounce, frame.resolution),
     )
 
 
@@ -435,20 +352,23 @@ class _BounceSources:
     """The emitters of a ``PointVisibility`` that receive light, ready for the kernel."""
 
     def __init__(self, points: PointVisibility):
+        from stealth_env import bounce_kernels  # numba only where bounces are made
+
+        self.kernels = bounce_kernels
         frame, emitters = points.frame, wall_emitters(points.blocked)
         x, y = frame.cell_centre(emitters.cols, emitters.rows)
         received = points._direct_many(x, y, emitters.cols, emitters.rows, 0.0)
         keep = received > 0.0  # the others add nothing; emitter order is kept
         self.blocked = np.ascontiguousarray(points.blocked)
-        self.emitters = np.ascontiguousarray(_emitter_table(emitters)[:, keep])
+        self.emitters = np.ascontiguousarray(bounce_kernels.emitter_table(emitters)[:, keep])
         self.received = received[keep]
         self.centres = np.stack([x[keep], y[keep]])
-        self.parameters = _parameters(points.bounce, frame.resolution)
+        self.parameters = bounce_kernels.parameters(points.bounce, frame.resolution)
 
     def at(self, xs, ys, cols, rows) -> np.ndarray:
         as_float = [np.ascontiguousarray(v, dtype=np.float64) for v in (xs, ys)]
         as_int = [np.ascontiguousarray(v, dtype=np.int64) for v in (cols, rows)]
-        return _bounce_at_points(
+        return self.kernels.at_points(
             self.blocked, *as_float, *as_int, self.emitters, self.received, self.centres,
             self.parameters,
         )  # fmt: skip

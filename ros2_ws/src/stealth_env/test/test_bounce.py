@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from stealth_env import visibility
+from stealth_env import bounce_kernels
 from stealth_env.bounce import (
     Bounce,
     bounce_bound,
@@ -169,14 +169,14 @@ def test_point_visibility_with_bounce_equals_the_reference_on_random_and_corner_
 @pytest.mark.parametrize('seed', range(6))
 def test_the_kernels_as_plain_python_equal_the_compiled_ones(seed, monkeypatch):
     """Without numba the kernels run as Python: the same numbers."""
-    kernels = ('_bounce_kernel', '_bounce_at_points', '_line_blocked', '_contribution')
-    if not hasattr(visibility._bounce_kernel, 'py_func'):
+    kernels = ('field', 'at_points', '_line_blocked', '_contribution')
+    if not hasattr(bounce_kernels.field, 'py_func'):
         pytest.skip('numba is not installed: the kernels already run as Python')
     blocked, resolution, origin, lights = random_case(seed)
     bounce = random_bounce(seed, resolution, blocked)
     compiled, _ = visibility_field(blocked, resolution, origin, lights, bounce=bounce)
     for name in kernels:  # the Python functions call each other through the module
-        monkeypatch.setattr(visibility, name, getattr(visibility, name).py_func)
+        monkeypatch.setattr(bounce_kernels, name, getattr(bounce_kernels, name).py_func)
     plain, _ = visibility_field(blocked, resolution, origin, lights, bounce=bounce)
     np.testing.assert_array_equal(plain, compiled)
     frame = GridFrame.of(blocked, resolution, origin)
