@@ -23,13 +23,14 @@ import yaml
 REPO = Path(__file__).resolve().parents[4]
 SHIPPED = ['floorplan', 'lgfloor', 'map1', 'simple-maze']
 MOVING = [f'{name}-moving' for name in SHIPPED]
+BOUNCE = ['lgfloor-bounce', 'map1-bounce']  # one-bounce light (test_bounce_scenarios.py)
 
 
 # --- the shipped scenarios ----------------------------------------------------------------------
 
 
-def test_the_four_scenarios_and_their_moving_variants_are_found_by_name():
-    assert [path.stem for path in scenario_paths()] == sorted(SHIPPED + MOVING)
+def test_the_four_scenarios_and_their_moving_and_bounce_variants_are_found_by_name():
+    assert [path.stem for path in scenario_paths()] == sorted(SHIPPED + MOVING + BOUNCE)
     assert find_scenario('lgfloor') == REPO / 'scenarios' / 'lgfloor.yaml'
 
 
@@ -570,3 +571,61 @@ def test_ill_posed_rewards(write):
         values['step_limit'] = 1000
 
     assert_scenario_error(write(change), "field 'rewards'", 'ill-posed')
+
+
+# --- one-bounce light ---------------------------------------------------------------------------
+
+
+def test_bounce_is_off_by_default_and_in_the_shipped_scenarios(write):
+    assert load_scenario(write()).bounce is None
+    for name in SHIPPED + MOVING:
+        assert load_scenario(name).bounce is None
+    assert load_scenario(write(setter('bounce', {'albedo': 0}))).bounce is None
+
+
+def test_a_bounce_loads_with_its_default_range(write):
+    scenario = load_scenario(write(setter('bounce', {'albedo': 0.25})))
+    assert (scenario.bounce.albedo, scenario.bounce.range) == (0.25, 3.0)
+    scenario = load_scenario(write(setter('bounce', {'albedo': 0.5, 'range': 2})))
+    assert (scenario.bounce.albedo, scenario.bounce.range) == (0.5, 2.0)
+
+
+@pytest.mark.parametrize('value', [math.nan, 1, 1.5, -0.1, math.inf, 'bright', None])
+def test_bounce_albedo_outside_0_1(write, value):
+    assert_scenario_error(
+        write(setter('bounce', {'albedo': value})),
+        "field 'bounce.albedo'",
+        'expected a number in [0, 1)',
+    )
+
+
+@pytest.mark.parametrize('value', [0, -1, math.nan])
+def test_bounce_range_not_positive(write, value):
+    assert_scenario_error(
+        write(setter('bounce', {'albedo': 0.3, 'range': value})),
+        "field 'bounce.range'",
+        'a number > 0 (m)',
+    )
+
+
+def test_bounce_fields_are_checked(write):
+    assert_scenario_error(write(setter('bounce', 0.3)), "field 'bounce'", 'a mapping {albedo')
+    assert_scenario_error(
+        write(setter('bounce', {'albedo': 0.3, 'colour': 'white'})),
+        "field 'bounce.colour'",
+        'unknown field',
+    )
+    assert_scenario_error(write(setter('bounce', {'range': 2.0})), "'bounce.albedo'", 'missing')
+
+
+def test_bounce_with_moving_lights_is_refused(write):
+    def change(values):
+        moving(phase_bins=4)(values)
+        values['bounce'] = {'albedo': 0.3}
+
+    assert_scenario_error(
+        write(change),
+        "field 'bounce'",
+        'no bounce in a scenario whose lights move',
+        'lights[0] (',
+    )
