@@ -58,6 +58,8 @@ DEFAULT_SCENARIOS = (
     'map1-moving',
     'lgfloor-moving',
     'floorplan-moving',
+    'map1-bounce',
+    'lgfloor-bounce',
 )
 DEFAULT_SEEDS = (0, 1, 2)
 DEFAULT_OUT = Path('runs/eval')
