@@ -2,8 +2,9 @@
 ``visibility.bounce_field`` and ``PointVisibility`` call them; imported only when a scenario
 has a bounce, so that direct-light users never import numba.
 
-They are ``stealth_env.bounce``'s reference, loop for loop: ``bounce.contribution`` itself
-compiled, and ``lighting.line_of_sight``'s Bresenham walk, stopping at the first block. The
+They are ``stealth_env.bounce``'s reference, loop for loop: ``bounce.contribution`` and
+``lighting``'s Bresenham start and step themselves compiled, walked as ``line_of_sight`` walks
+a line, stopping at the first block. The
 sums run per cell (per point) in emitter order, as the reference adds them, so the results are
 equal to the last bit. Without numba ``jit`` leaves them plain Python: the same numbers, slowly
 (``test_bounce`` runs them both ways).
@@ -13,30 +14,25 @@ import numpy as np
 from stealth_sim import compiled_move
 
 from stealth_env.bounce import Bounce, Emitters, contribution
+from stealth_env.lighting import bresenham_start, bresenham_step
 
 _contribution = compiled_move.jit(contribution)
 
 
+_start = compiled_move.jit(bresenham_start)
+_step = compiled_move.jit(bresenham_step)
+
+
 @compiled_move.jit
 def _line_blocked(blocked, col0, row0, col1, row1):
-    """``lighting.line_of_sight``'s answer negated, walking the line and stopping at the first
-    block (compiled: the bounce traces millions of short lines)."""
-    d_col, d_row = abs(col1 - col0), -abs(row1 - row0)
-    step_col = 1 if col1 > col0 else -1
-    step_row = 1 if row1 > row0 else -1
-    error = d_col + d_row
+    """``lighting.line_of_sight``'s answer negated, walking the same Bresenham steps and
+    stopping at the first block (compiled: the bounce traces millions of short lines)."""
+    line = _start(col0, row0, col1, row1)
     col, row = col0, row0
     while col != col1 or row != row1:
         if (col != col0 or row != row0) and blocked[row, col]:
             return True
-        doubled = 2 * error
-        next_col, next_row = col, row
-        if doubled >= d_row:
-            error += d_row
-            next_col += step_col
-        if doubled <= d_col:
-            error += d_col
-            next_row += step_row
+        next_col, next_row, line = _step(col, row, line)
         diagonal = next_col != col and next_row != row
         if diagonal and blocked[row, next_col] and blocked[next_row, col]:
             return True
