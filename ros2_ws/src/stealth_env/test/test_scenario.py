@@ -629,3 +629,18 @@ def test_bounce_with_moving_lights_is_refused(write):
         'no bounce in a scenario whose lights move',
         'lights[0] (',
     )
+
+
+def test_probabilistic_mode_counts_the_bounce_in_the_reward_check(write):
+    """Undetected steps may be brighter by the bounce's bound (bounce.bounce_bound)."""
+
+    def change(penalty):
+        def apply(values):
+            values['detection_mode'] = 'probabilistic'
+            values['bounce'] = {'albedo': 0.9, 'range': 3.0}
+            values['rewards'] = {'detection_penalty': penalty}
+
+        return apply
+
+    assert_scenario_error(write(change(1000)), "field 'rewards'", 'Raise detection_penalty')
+    assert load_scenario(write(change(30000))).bounce.albedo == 0.9
