@@ -122,7 +122,23 @@ def test_cli_renders_every_scenario(tmp_path, capsys):
     assert render.main(['--all', '--out-dir', str(tmp_path), '--cache-dir', str(tmp_path)]) == 0
     written = sorted(path.name for path in tmp_path.glob('*.png'))
     maps = ['floorplan', 'lgfloor', 'map1', 'simple-maze']
-    assert written == sorted(f'{name}{kind}.png' for name in maps for kind in ('', '-moving'))
+    expected = [f'{name}{kind}.png' for name in maps for kind in ('', '-moving')]
+    assert written == sorted([*expected, 'lgfloor-bounce.png', 'map1-bounce.png'])
+
+
+def test_cli_draws_direct_light_beside_direct_and_bounce(tmp_path, capsys):
+    out = tmp_path / 'compare.png'
+    arguments = ['map1-bounce', '--bounce-compare', '--optimum', '-o', str(out)]
+    assert render.main([*arguments, '--cache-dir', str(tmp_path)]) == 0
+    assert capsys.readouterr().out.strip() == str(out)
+    pair = read_png(out)
+    render.main(['map1-bounce', '-o', str(tmp_path / 'one.png'), '--cache-dir', str(tmp_path)])
+    one = read_png(tmp_path / 'one.png')
+    assert pair.shape[1] >= 1.9 * one.shape[1]
+    left, right = pair[:, : pair.shape[1] // 2], pair[:, pair.shape[1] // 2 :]
+    assert not np.array_equal(left[: right.shape[0], : right.shape[1]], right[:, : left.shape[1]])
+    assert render.main(['map1', '--bounce-compare', '--cache-dir', str(tmp_path)]) == 1
+    assert 'no one-bounce light to compare' in capsys.readouterr().err
 
 
 def test_cli_reports_bad_input(tmp_path, capsys):
