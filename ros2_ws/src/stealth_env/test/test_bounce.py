@@ -110,7 +110,7 @@ def test_the_bounce_does_not_depend_much_on_the_map_resolution():
         assert point_visibility(blocked, resolution, (0, 0), lights, *point) == 0.0
         values.append(field(*point))
     assert values[0] > 0.02
-    assert max(values) / min(values) < 1.15, values
+    assert max(values) / min(values) < 1.06, values  # measured: 0.0510, 0.0528, 0.0535
 
 
 def test_no_bounce_is_the_direct_light():
