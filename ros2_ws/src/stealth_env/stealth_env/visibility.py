@@ -8,11 +8,11 @@ sorted longest first, so at step k the lines still running are a prefix of the a
 no compaction.
 
 One-bounce light (``stealth_env.bounce``, when a ``Bounce`` is given) is added on top of the
-direct field: ``bounce_field`` traces, for every wall cell that receives light, the lines to the
-cells within the bounce range in front of it, all emitters' lines in one lockstep run (the same
-``_occluded`` with one start cell per line), and adds the visible contributions up per cell in
-emitter order, as the reference does, so the two agree to the last bit. ``PointVisibility``
-adds the same sum at any point.
+direct field: ``bounce_field`` walks, for every wall cell that receives light, the line to each
+cell within the bounce range in front of it, in compiled loops (``bounce_kernels``), and adds
+the visible contributions up per cell in emitter order, as the reference does, so the two agree
+to the last bit. ``PointVisibility`` adds the same sum at any point. A bounce with moving
+lights is refused (``bounce.check_static``).
 """
 
 from __future__ import annotations
@@ -210,6 +210,9 @@ class PointVisibility:
     kind of light: static and sweeping lights (only the direction changes) reuse the blocks of
     their one cell, patrolling lights those of the cells they pass; the least recently used
     blocks beyond ``max_tiles`` are dropped. ``blocked`` must not change afterwards.
+
+    With a ``bounce`` (static lights only), ``__call__`` and ``many`` add the bounced light at
+    the point (``bounce.point_bounce``, to the last bit); ``light_visibilities`` stays direct.
     """
 
     TILE = 16  # cells along each side of a block of targets
