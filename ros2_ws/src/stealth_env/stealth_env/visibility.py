@@ -23,6 +23,7 @@ import hashlib
 import os
 from pathlib import Path
 import tempfile
+import time
 import warnings
 import zipfile
 
@@ -375,6 +376,23 @@ class _BounceSources:
             self.blocked, *as_float, *as_int, self.emitters, self.received, self.centres,
             self.parameters,
         )  # fmt: skip
+
+
+def warm_up_bounce() -> float | None:
+    """Compile the bounce kernels (or load them from numba's cache) on a throwaway map, so that
+    no scenario load pays for it (``make setup`` calls this): the seconds, None without numba."""
+    from stealth_sim import compiled_move
+
+    if compiled_move.import_problem() is not None:
+        return None
+    blocked = np.zeros((8, 8), dtype=bool)
+    blocked[0] = True
+    lights = [Searchlight('warm-up', 0.35, 0.35, 1.5, 1.0, 1.0)]
+    bounce = Bounce(0.5, 0.5)
+    started = time.perf_counter()
+    visibility_field(blocked, 0.1, (0.0, 0.0), lights, bounce=bounce)
+    PointVisibility(blocked, 0.1, (0.0, 0.0), lights, bounce=bounce)(0.45, 0.45)
+    return time.perf_counter() - started
 
 
 def scenario_point_visibility(scenario) -> PointVisibility:

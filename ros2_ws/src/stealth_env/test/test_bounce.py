@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from stealth_env import bounce_kernels
+from stealth_env import bounce_kernels, visibility
 from stealth_env.bounce import (
     Bounce,
     bounce_bound,
@@ -234,3 +234,12 @@ def test_the_bound_holds_for_a_wall_lit_all_round():
     assert bounced.max() > 0.1
     assert bounced.max() <= bounce_bound(bounce, 0.1, len(lights))
     assert bounce_bound(None, 0.1, 3) == bounce_bound(Bounce(0.0), 0.1, 3) == 0.0
+
+
+def test_warm_up_compiles_the_kernels():
+    seconds = visibility.warm_up_bounce()
+    if not hasattr(bounce_kernels.field, 'signatures'):
+        assert seconds is None  # no numba: nothing to compile
+        return
+    assert seconds >= 0.0
+    assert bounce_kernels.field.signatures and bounce_kernels.at_points.signatures
