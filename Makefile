@@ -70,6 +70,9 @@ $(BUILD_STAMP): $(VENV_STAMP)
 	@# rather than in the first simulator a run or a test starts (tens of seconds).
 	@$(ROS_ENV) && python -c 'from stealth_sim.move_executor import warm_up; \
 		s = warm_up(); print("setup: simulator kernels " + ("ready in %.0f s" % s if s is not None else "not compiled (no numba): the Python path runs"))'
+	@# Likewise the one-bounce light's kernels (stealth_env.bounce_kernels, a few seconds).
+	@$(ROS_ENV) && python -c 'from stealth_env.visibility import warm_up_bounce; \
+		s = warm_up_bounce(); print("setup: one-bounce light kernels " + ("ready in %.0f s" % s if s is not None else "not compiled (no numba): the Python loops run"))'
 	@rm -f $(STAMPS)/build-* && echo "$@" > $@
 
 test: setup ## Build if needed, run every package's tests (colcon test) and the system tests

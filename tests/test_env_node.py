@@ -427,6 +427,27 @@ def test_moving_lights_are_judged_at_the_end_of_each_move_and_redrawn(
     assert list(agent.received['grid'][0].data) != levels
 
 
+def test_a_bounce_variant_is_judged_and_drawn_with_its_bounce(agent, node_processes):
+    """map1-bounce: the node judges steps with direct + bounce light (the task's model) and
+    its visibility grid is the field with the bounce, not the direct light alone."""
+    scenario = load_scenario('map1-bounce')
+    task = StealthTask(scenario)
+    start_sim(node_processes, scenario)
+    start_env(node_processes, scenario='map1-bounce', marker_period=0.2)
+    assert agent.spin_until(lambda: all(agent.received.values()), 60.0)
+    agent.next_state()
+    for action in (RIGHT, RIGHT, UP):
+        state, info = agent.act(action)
+        check_step(task, state, info)
+    grid = agent.received['grid'][-1]
+    occupancy, threshold = scenario.map, scenario.detection_threshold
+    grid_args = (occupancy.blocked, occupancy.resolution, occupancy.origin, scenario.lights)
+    total, _ = visibility_field(*grid_args, bounce=scenario.bounce)
+    direct, _ = visibility_field(*grid_args)
+    assert list(grid.data) == visibility_levels(total, threshold).ravel().tolist()
+    assert list(grid.data) != visibility_levels(direct, threshold).ravel().tolist()
+
+
 def start_variant(agent, node_processes, name: str):
     """Simulator and environment on scenario `name`: (scenario, task, RLEnvDescription), the
     description's state ranges checked against the task's."""

@@ -60,6 +60,8 @@ DEFAULT_SCENARIOS = (
     'floorplan-moving',
     'simple-maze-exposure',
     'map1-exposure',
+    'map1-bounce',
+    'lgfloor-bounce',
 )
 DEFAULT_SEEDS = (0, 1, 2)
 DEFAULT_OUT = Path('runs/eval')

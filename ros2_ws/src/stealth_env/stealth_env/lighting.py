@@ -146,22 +146,35 @@ def bresenham_line(col0: int, row0: int, col1: int, row1: int) -> list[tuple[int
     The all-octant form with one error term: each step moves along the major axis and,
     when the error says so, along the minor one too (a diagonal step).
     """
-    d_col, d_row = abs(col1 - col0), -abs(row1 - row0)
-    step_col = 1 if col1 > col0 else -1
-    step_row = 1 if row1 > row0 else -1
-    error = d_col + d_row
+    line = bresenham_start(col0, row0, col1, row1)
     col, row = col0, row0
     cells = [(col, row)]
     while (col, row) != (col1, row1):
-        doubled = 2 * error
-        if doubled >= d_row:
-            error += d_row
-            col += step_col
-        if doubled <= d_col:
-            error += d_col
-            row += step_row
+        col, row, line = bresenham_step(col, row, line)
         cells.append((col, row))
     return cells
+
+
+def bresenham_start(col0: int, row0: int, col1: int, row1: int):
+    """The line's constants and first error term: (d_col, d_row, step_col, step_row, error)."""
+    d_col, d_row = abs(col1 - col0), -abs(row1 - row0)
+    step_col = 1 if col1 > col0 else -1
+    step_row = 1 if row1 > row0 else -1
+    return (d_col, d_row, step_col, step_row, d_col + d_row)
+
+
+def bresenham_step(col: int, row: int, line):
+    """One step of the line from (col, row): the next cell and the line's new state (the
+    compiled bounce kernels run this very function)."""
+    d_col, d_row, step_col, step_row, error = line
+    doubled = 2 * error
+    if doubled >= d_row:
+        error += d_row
+        col += step_col
+    if doubled <= d_col:
+        error += d_col
+        row += step_row
+    return col, row, (d_col, d_row, step_col, step_row, error)
 
 
 def line_of_sight(blocked: np.ndarray, lamp_cell, target_cell) -> bool:

@@ -7,7 +7,11 @@ optionally paths, to PNG (for the README and for every run).
 
 ``--animate`` writes an animated GIF: the lights moving (one frame per step of the scenario's
 ``step_seconds``) and each path walked one point per frame; ``--optimum`` adds the value-iteration
-optimum on the (time-expanded) lattice.
+optimum on the (time-expanded) lattice. ``--bounce-compare`` draws a scenario with one-bounce
+light twice, side by side on one colour scale: the direct light alone, then direct + bounce
+(each with its own optimum when ``--optimum`` is given).
+
+    render map1-bounce --bounce-compare --optimum -o docs/images/map1-bounce-compare.png
 """
 
 from __future__ import annotations
@@ -83,12 +87,15 @@ def read_path_csv(path: str | os.PathLike) -> np.ndarray:
     return np.array(points)
 
 
-def _draw_map(ax, occupancy, total: np.ndarray, threshold: float | None):
-    """Heatmap of total visibility on free cells, walls black, unknown grey; returns the image."""
+def _draw_map(ax, occupancy, total: np.ndarray, threshold: float | None, vmax=None):
+    """Heatmap of total visibility on free cells, walls black, unknown grey; returns the image.
+    vmax: the top of the colour scale (default: the field's largest value on free cells)."""
     x0, y0, x1, y1 = occupancy.bounds
     extent = (x0, x1, y0, y1)
     blocked = occupancy.blocked
-    vmax = max(float(total[~blocked].max(initial=0.0)), threshold or 0.0, 1e-9)
+    if vmax is None:
+        vmax = float(total[~blocked].max(initial=0.0))
+    vmax = max(vmax, threshold or 0.0, 1e-9)
     heat = np.ma.masked_where(blocked | (total <= 0.0), total)  # dark cells show the background
     image = ax.imshow(
         heat,
@@ -222,12 +229,14 @@ def scenario_figure(
     title: str | None = None,
     cache_dir: str | os.PathLike | None = None,
     dpi: int = 110,
+    vmax: float | None = None,
 ) -> Figure:
     """The scenario at time t (s) as a Figure: walls, the visibility heatmap, cones, start,
     goals and paths.
 
     field: total visibility (height, width) to show instead of computing (cached) the
-    scenario's; paths: sequences of (x, y) in metres; goal: the goal pursued, highlighted.
+    scenario's; paths: sequences of (x, y) in metres; goal: the goal pursued, highlighted;
+    vmax: the top of the colour scale (default: the field's largest value).
     """
     occupancy = scenario.map
     if field is None:
@@ -241,7 +250,7 @@ def scenario_figure(
     fig = Figure(figsize=(width_in + 1.4, width_in * aspect + 1.6), dpi=dpi)
     ax = fig.add_subplot()
     ax.set_facecolor(DARK_COLOUR)
-    image = _draw_map(ax, occupancy, np.asarray(field, dtype=float), threshold)
+    image = _draw_map(ax, occupancy, np.asarray(field, dtype=float), threshold, vmax)
     bar_axes = make_axes_locatable(ax).append_axes('right', size='3%', pad=0.12)
     colourbar = fig.colorbar(image, cax=bar_axes)
     colourbar.set_label('total visibility (sum of light intensities)')
@@ -389,10 +398,7 @@ def animate_scenario(
             cache_dir=cache_dir,
             dpi=60,
         )
-        canvas = FigureCanvasAgg(fig)
-        canvas.draw()
-        rgba = np.asarray(canvas.buffer_rgba())
-        images.append(Image.fromarray(rgba[..., :3]).convert('P', palette=Image.ADAPTIVE))
+        images.append(Image.fromarray(_pixels(fig)).convert('P', palette=Image.ADAPTIVE))
         if progress is not None:
             progress(k + 1, frames)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -405,6 +411,57 @@ def animate_scenario(
         optimize=False,
     )
     return out
+
+
+def _pixels(fig: Figure) -> np.ndarray:
+    """The figure drawn, (height, width, 3) uint8 RGB."""
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    return np.asarray(canvas.buffer_rgba())[..., :3]
+
+
+def render_bounce_comparison(
+    scenario,
+    out_png: str | os.PathLike,
+    goal: str | None = None,
+    optimum: bool = False,
+    cache_dir: str | os.PathLike | None = None,
+) -> Path:
+    """A PNG of the scenario's direct light beside its direct + bounce light, on one colour
+    scale; with optimum, each panel shows the value-iteration optimum of its own lighting.
+    ValueError when the scenario has no bounce."""
+    from PIL import Image
+
+    bounce = getattr(scenario, 'bounce', None)
+    if bounce is None:
+        raise ValueError(
+            f'{getattr(scenario, "name", "scenario")}: no one-bounce light to compare (its'
+            " albedo is 0); give a scenario with a 'bounce' field, e.g. map1-bounce"
+        )
+    direct = dataclasses.replace(scenario, bounce=None)
+    fields = [scenario_visibility(s, cache_dir=cache_dir)[0] for s in (direct, scenario)]
+    free = ~scenario.map.blocked
+    vmax = max(float(field[free].max(initial=0.0)) for field in fields)
+    titles = (
+        f'{scenario.name}: direct light only',
+        f'{scenario.name}: direct + one bounce (albedo {bounce.albedo:g}, {bounce.range:g} m)',
+    )
+    panels = []
+    for variant, field, title in zip((direct, scenario), fields, titles, strict=True):
+        paths = [optimal_points(variant, goal)] if optimum else []
+        figure = scenario_figure(
+            variant, paths, field=field, goal=goal, title=title, vmax=vmax,
+            path_labels=['optimum (value iteration)'],
+        )  # fmt: skip
+        panels.append(_pixels(figure))
+    height = max(panel.shape[0] for panel in panels)
+    padded = [
+        np.pad(p, ((0, height - p.shape[0]), (0, 0), (0, 0)), constant_values=255) for p in panels
+    ]
+    out_png = Path(out_png)
+    out_png.parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray(np.concatenate(padded, axis=1)).save(out_png)
+    return out_png
 
 
 def shipped_scenarios() -> list[Path]:
@@ -461,6 +518,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         help='also draw the value-iteration optimum on the lattice (time-expanded where lights'
         ' move)',
     )
+    parser.add_argument(
+        '--bounce-compare',
+        action='store_true',
+        help='a scenario with one-bounce light: its direct light beside direct + bounce, on one'
+        ' colour scale (with --optimum, each with its own optimum)',
+    )
     parser.add_argument('--frames', type=int, help='--animate: frames (default: longest path)')
     parser.add_argument('--fps', type=float, default=4.0, help='--animate: frames per second')
     parser.add_argument('--cache-dir', help='visibility cache (default $STEALTH_NAV_CACHE)')
@@ -478,6 +541,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         scenario = load_scenario(find_scenario(args.scenario))
         if args.goal is not None and args.goal not in [m.name for m in goal_marks(scenario)]:
             parser.error(f'--goal {args.goal!r}: the scenario has no such goal')
+        if args.bounce_compare:
+            out = args.output or f'{scenario.name}-bounce-compare.png'
+            print(render_bounce_comparison(scenario, out, args.goal, args.optimum, args.cache_dir))
+            return 0
         paths = [read_path_csv(path) for path in args.path]
         labels = [Path(path).stem for path in args.path]
         if args.optimum and scenario.exposure is not None and not args.animate:

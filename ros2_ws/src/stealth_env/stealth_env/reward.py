@@ -157,17 +157,18 @@ def step_outcome(
 
 
 def undetected_visibility_bound(
-    detection_mode: str, detection_threshold: float, n_lights: int
+    detection_mode: str, detection_threshold: float, n_lights: int, bounced: float = 0.0
 ) -> float:
     """Largest total visibility an undetected step can have.
 
     Below the threshold in 'threshold' mode; in 'probabilistic' mode anything a robot can meet,
-    and every light gives at most 1, so the number of lights.
+    and every light gives at most 1, so the number of lights, plus ``bounced``, a bound of the
+    light bounced off walls (``bounce.bounce_bound``).
     """
     if detection_mode == 'threshold':
         return float(detection_threshold)
     if detection_mode == 'probabilistic':
-        return float(n_lights)
+        return float(n_lights) + float(bounced)
     raise RewardError(f'detection_mode: expected one of {DETECTION_MODES}, got {detection_mode!r}')
 
 

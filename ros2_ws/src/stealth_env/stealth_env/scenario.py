@@ -39,6 +39,9 @@ from +x) and radians in the :class:`Scenario`. Example, every field::
       length: 0.6                   # sees (stealth_env.exposure); footprint in m, > 0, default
       width: 0.3                    # 2 * robot_radius (the simulator's robot is a disc)
       turn_actions: true            # add turn left / turn right in place (default false)
+    bounce: {albedo: 0.3, range: 3.0}  # one-bounce light off the walls (stealth_env.bounce):
+                                    # albedo in [0, 1) (default 0: none), range m (default 3);
+                                    # static lights only
 
 Validation checks the fields' types and ranges, that the start and goals lie in free cells of
 the map, that the start has ``robot_radius`` of clearance, that every goal is reachable from the
@@ -67,6 +70,7 @@ from stealth_sim.occupancy_map import (
     read_yaml_mapping,
 )
 
+from stealth_env.bounce import DEFAULT_RANGE, Bounce, bounce_bound
 from stealth_env.exposure import Footprint, valid_length
 from stealth_env.move_lattice import MoveLattice
 from stealth_env.reward import (
@@ -99,6 +103,7 @@ FIELDS = (
     'lights',
     'rewards',
     'exposure',
+    'bounce',
 )
 LIGHT_FIELDS = ('name', 'x', 'y', 'direction', 'fov', 'range', 'delta', 'soft_edge', 'motion')
 POSITIVE = 'a number > 0'
@@ -143,6 +148,7 @@ class Scenario:
     rewards: RewardWeights
     timing: Timing | None = None  # moving lights with phase_bins: the phase state feature
     exposure: Footprint | None = None  # exposure by orientation: the heading state feature
+    bounce: Bounce | None = None  # one-bounce light; None: direct light only (albedo 0)
 
     @property
     def has_moving_lights(self) -> bool:
@@ -218,7 +224,15 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
         fields.fail('default_goal', f'one of the goals given ({", ".join(goals)})', default_goal)
     lights = _lights(fields, occupancy)
     timing = _timing(fields, lights, path)
-    rewards = _rewards(fields, occupancy, numbers, len(lights))
+    bounce = _bounce(fields, lights)
+    if bounce is not None and fields.has('exposure'):
+        fields.fail_with(
+            'bounce',
+            'no bounce together with exposure (the bounced light comes from many walls, and '
+            'exposure weighs one direction per light; remove one of the two)',
+            'an exposure field too',
+        )
+    rewards = _rewards(fields, occupancy, numbers, len(lights), bounce)
     return Scenario(
         name=name,
         path=path,
@@ -231,6 +245,7 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
         rewards=rewards,
         timing=timing,
         exposure=_exposure(fields, numbers['robot_radius']),
+        bounce=bounce,
         **numbers,
     )
 
@@ -284,6 +299,27 @@ def _timing(fields: FieldReader, lights, path: Path) -> Timing | None:
     if timing is None:
         fields.fail('phase_bins', 'phase_bins only in a scenario whose lights move', bins)
     return timing
+
+
+def _bounce(fields: FieldReader, lights) -> Bounce | None:
+    """The one-bounce light, or None when there is none (no field, or albedo 0)."""
+    if not fields.has('bounce'):
+        return None
+    bounce = fields.mapping('bounce', 'a mapping {albedo, range}')
+    bounce.reject_unknown(('albedo', 'range'))
+    albedo = bounce.number('albedo', 'a number in [0, 1)', lambda v: 0 <= v < 1)
+    reach = bounce.number('range', f'{POSITIVE} (m)', lambda v: v > 0, DEFAULT_RANGE)
+    if albedo == 0.0:
+        return None
+    moving = [f'lights[{i}] ({light.name})' for i, light in enumerate(lights) if light.is_moving]
+    if moving:
+        fields.fail_with(
+            'bounce',
+            'no bounce in a scenario whose lights move (the bounce is computed for static '
+            'lights only; remove bounce or the motion)',
+            f'{", ".join(moving)} moving',
+        )
+    return Bounce(albedo, reach)
 
 
 def _load_map(fields: FieldReader, path: Path) -> tuple[Path, OccupancyMap]:
@@ -444,7 +480,7 @@ def _motion(light: FieldReader, occupancy, direction: float) -> SweepMotion | Pa
     motion.fail('type', 'sweep or patrol', kind)
 
 
-def _rewards(fields: FieldReader, occupancy, numbers, n_lights: int) -> RewardWeights:
+def _rewards(fields: FieldReader, occupancy, numbers, n_lights: int, bounce) -> RewardWeights:
     """The weights, checked to make getting caught never pay (reward.check_well_posed)."""
     known = tuple(f.name for f in dataclasses.fields(RewardWeights))
     rewards = fields.mapping('rewards', 'a mapping of reward weights', default={})
@@ -457,7 +493,10 @@ def _rewards(fields: FieldReader, occupancy, numbers, n_lights: int) -> RewardWe
             weights,
             max_distance=math.hypot(x_max - x_min, y_max - y_min),
             max_visibility=undetected_visibility_bound(
-                numbers['detection_mode'], numbers['detection_threshold'], n_lights
+                numbers['detection_mode'],
+                numbers['detection_threshold'],
+                n_lights,
+                bounce_bound(bounce, occupancy.resolution, n_lights),
             ),
             max_steps=numbers['step_limit'],
         )

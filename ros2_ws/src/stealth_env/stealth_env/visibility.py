@@ -6,6 +6,13 @@ How it is fast: for each light only the cells within its range's bounding box an
 lines at a time, with exactly the reference's integer error-term arithmetic. The lines are
 sorted longest first, so at step k the lines still running are a prefix of the arrays: slicing,
 no compaction.
+
+One-bounce light (``stealth_env.bounce``, when a ``Bounce`` is given) is added on top of the
+direct field: ``bounce_field`` walks, for every wall cell that receives light, the line to each
+cell within the bounce range in front of it, in compiled loops (``bounce_kernels``), and adds
+the visible contributions up per cell in emitter order, as the reference does, so the two agree
+to the last bit. ``PointVisibility`` adds the same sum at any point. A bounce with moving
+lights is refused (``bounce.check_static``).
 """
 
 from __future__ import annotations
@@ -16,17 +23,20 @@ import hashlib
 import os
 from pathlib import Path
 import tempfile
+import time
 import warnings
 import zipfile
 
 import numpy as np
 
 from stealth_env import exposure
+from stealth_env.bounce import Bounce, check_static, wall_emitters
 from stealth_env.lighting import GridFrame, light_intensity, lights_at
 from stealth_env.searchlight import Searchlight
 
 # Bump whenever the model or the field's output changes: it is part of every cache key.
 CODE_VERSION = 'visibility-1'
+BOUNCE_VERSION = 'bounce-1'  # part of the key of fields with a bounce only
 CACHE_ENV = 'STEALTH_NAV_CACHE'
 DEFAULT_CACHE_DIR = Path('~/.cache/stealth_nav/visibility')
 
@@ -134,17 +144,49 @@ def light_field(
     return field
 
 
+def bounce_field(frame: GridFrame, blocked: np.ndarray, direct: np.ndarray, bounce: Bounce):
+    """The bounced light on every cell, (height, width): ``bounce.point_bounce`` at each cell
+    centre, with each emitter's received light read from ``direct``, the direct total field."""
+    from stealth_env import bounce_kernels  # numba is imported only where bounces are made
+
+    emitters = wall_emitters(blocked)
+    received = np.ascontiguousarray(direct[emitters.rows, emitters.cols])
+    x_of_col, _ = frame.cell_centre(np.arange(frame.width), 0)
+    _, y_of_row = frame.cell_centre(0, np.arange(frame.height))
+    reach = int(np.ceil(bounce.range / frame.resolution)) + 1
+    return bounce_kernels.field(
+        np.ascontiguousarray(blocked),
+        bounce_kernels.emitter_table(emitters),
+        received,
+        x_of_col,
+        y_of_row,
+        reach,
+        bounce_kernels.parameters(bounce, frame.resolution),
+    )
+
+
+def _active(bounce: Bounce | None) -> Bounce | None:
+    return bounce if bounce is not None and bounce.albedo > 0.0 else None
+
+
 def visibility_field(
     blocked: np.ndarray,
     resolution: float,
     origin: Sequence[float],
     lights: Iterable[Searchlight],
     t: float = 0.0,
+    bounce: Bounce | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(total (height, width), per_light (n_lights, height, width)) at time t (s).
 
-    Cell (row, col) holds ``lighting.point_visibility`` at that cell's centre, exactly.
+    Cell (row, col) holds ``lighting.point_visibility`` at that cell's centre, exactly, plus
+    with a bounce (albedo > 0) ``bounce.point_bounce`` there; per_light is the direct light
+    only (the bounce is not split by light). A bounce with moving lights is refused.
     """
+    lights = tuple(lights)
+    bounce = _active(bounce)
+    if bounce is not None:
+        check_static(lights)
     frame = GridFrame.of(blocked, resolution, origin)
     static = lights_at(lights, t)
     per_light = np.zeros((len(static), frame.height, frame.width))
@@ -153,6 +195,8 @@ def visibility_field(
     for i, light in enumerate(static):
         per_light[i] = light_field(blocked, corners, frame, light)
         total += per_light[i]  # in the lights' order, as the reference adds them
+    if bounce is not None:
+        total = total + bounce_field(frame, blocked, total, bounce)
     return total, per_light
 
 
@@ -172,6 +216,8 @@ class PointVisibility:
     With a ``footprint`` (``exposure.Footprint``), a point asked for with the robot's heading
     has each light's value multiplied by the exposure factor before the lights are added
     (``stealth_env.exposure``); without a heading, the light at the point is the whole of it.
+    With a ``bounce`` (static lights only), ``__call__`` and ``many`` add the bounced light at
+    the point (``bounce.point_bounce``, to the last bit); ``light_visibilities`` stays direct.
     """
 
     TILE = 16  # cells along each side of a block of targets
@@ -184,14 +230,19 @@ class PointVisibility:
         lights: Iterable[Searchlight],
         max_tiles: int = 4096,
         footprint: exposure.Footprint | None = None,
+        bounce: Bounce | None = None,
     ):
         self.frame = GridFrame.of(blocked, resolution, origin)
         self.footprint = footprint
         self.blocked = blocked
         self.lights = tuple(lights)
         self.max_tiles = max_tiles
+        self.bounce = _active(bounce)
+        if self.bounce is not None:
+            check_static(self.lights)
         self._corners: np.ndarray | None = None
         self._tiles: OrderedDict[tuple[int, int, int, int], np.ndarray] = OrderedDict()
+        self._sources: _BounceSources | None = None
 
     def light_visibilities(
         self, x: float, y: float, t: float = 0.0, heading: float | None = None
@@ -220,10 +271,14 @@ class PointVisibility:
 
     def __call__(self, x: float, y: float, t: float = 0.0, heading: float | None = None) -> float:
         """Total visibility at (x, y) at time t (with a heading: weighed by exposure), added in
-        the lights' order."""
+        the lights' order (plus the bounce)."""
         total = 0.0
         for value in self.light_visibilities(x, y, t, heading):
             total += value
+        if self.bounce is not None:
+            col, row = self.frame.cell_of(x, y)
+            point = (np.array([float(x)]), np.array([float(y)]))
+            total += float(self._bounce(*point, np.array([col]), np.array([row]))[0])
         return total
 
     def many(self, xs, ys, t: float = 0.0, headings=None) -> np.ndarray:
@@ -236,7 +291,13 @@ class PointVisibility:
     def turning(self, xs, ys, t: float, headings) -> list[np.ndarray]:
         """``many`` at the same points for each array (or None) of ``headings`` in turn: a robot
         turning in place, its lights traced once."""
-        per_light = self._light_values(xs, ys, t)
+        xs = np.asarray(xs, dtype=np.float64)
+        ys = np.asarray(ys, dtype=np.float64)
+        cols, rows = self._cells(xs, ys)
+        per_light = self._direct_many(xs, ys, cols, rows, t)
+        bounced = None
+        if self.bounce is not None:  # not weighed by exposure: the scenario refuses both
+            bounced = self._bounce(xs.ravel(), ys.ravel(), cols.ravel(), rows.ravel())
         totals = []
         for heading in headings:
             total = np.zeros(np.shape(xs))
@@ -244,14 +305,13 @@ class PointVisibility:
                 if self._weighs(heading):
                     value = value * exposure.factor(self.footprint, heading, dx, dy)
                 total += value  # in the lights' order, as the reference adds them
+            if bounced is not None:
+                total = total + bounced.reshape(xs.shape)
             totals.append(total)
         return totals
 
-    def _light_values(self, xs, ys, t: float) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-        """(value, dx, dy) of each light at the points: its unweighted visibility and the
-        offsets from its lamp."""
-        xs = np.asarray(xs, dtype=np.float64)
-        ys = np.asarray(ys, dtype=np.float64)
+    def _cells(self, xs: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(cols, rows) of points; ValueError naming the first one off the map or not finite."""
         frame = self.frame
         if not (np.all(np.isfinite(xs)) and np.all(np.isfinite(ys))):
             raise ValueError('points: coordinates must be finite numbers')
@@ -261,6 +321,12 @@ class PointVisibility:
         if np.any(off):
             k = int(np.flatnonzero(off.ravel())[0])
             frame.cell_of(xs.ravel()[k], ys.ravel()[k])  # raises, naming the point
+        return cols, rows
+
+    def _direct_many(self, xs, ys, cols, rows, t: float) -> list:
+        """(value, dx, dy) of each light at many points: its direct light, unweighted, and the
+        offsets from its lamp (``many`` without exposure and bounce)."""
+        frame = self.frame
         if self._corners is None:
             self._corners = corner_maps(self.blocked)
         per_light = []
@@ -280,6 +346,13 @@ class PointVisibility:
                 value = np.where(lit & dark, 0.0, value)
             per_light.append((value, dx, dy))
         return per_light
+
+    def _bounce(self, xs, ys, cols, rows) -> np.ndarray:
+        """The bounced light at points (1-D arrays) in cells (cols, rows): for each point, the
+        contributions of the emitters in sight of its cell, added up in emitter order."""
+        if self._sources is None:
+            self._sources = _BounceSources(self)
+        return self._sources.at(xs, ys, cols, rows)
 
     def line_of_sight(self, lamp: tuple[int, int], target: tuple[int, int]) -> bool:
         """``lighting.line_of_sight(blocked, lamp, target)``, from the block cache."""
@@ -311,8 +384,53 @@ class PointVisibility:
         return block
 
 
+class _BounceSources:
+    """The emitters of a ``PointVisibility`` that receive light, ready for the kernel."""
+
+    def __init__(self, points: PointVisibility):
+        from stealth_env import bounce_kernels  # numba only where bounces are made
+
+        self.kernels = bounce_kernels
+        frame, emitters = points.frame, wall_emitters(points.blocked)
+        x, y = frame.cell_centre(emitters.cols, emitters.rows)
+        received = np.zeros(np.shape(x))
+        for value, _, _ in points._direct_many(x, y, emitters.cols, emitters.rows, 0.0):
+            received += value  # in the lights' order, as the reference adds them
+        keep = received > 0.0  # the others add nothing; emitter order is kept
+        self.blocked = np.ascontiguousarray(points.blocked)
+        self.emitters = np.ascontiguousarray(bounce_kernels.emitter_table(emitters)[:, keep])
+        self.received = received[keep]
+        self.centres = np.stack([x[keep], y[keep]])
+        self.parameters = bounce_kernels.parameters(points.bounce, frame.resolution)
+
+    def at(self, xs, ys, cols, rows) -> np.ndarray:
+        as_float = [np.ascontiguousarray(v, dtype=np.float64) for v in (xs, ys)]
+        as_int = [np.ascontiguousarray(v, dtype=np.int64) for v in (cols, rows)]
+        return self.kernels.at_points(
+            self.blocked, *as_float, *as_int, self.emitters, self.received, self.centres,
+            self.parameters,
+        )  # fmt: skip
+
+
+def warm_up_bounce() -> float | None:
+    """Compile the bounce kernels (or load them from numba's cache) on a throwaway map, so that
+    no scenario load pays for it (``make setup`` calls this): the seconds, None without numba."""
+    from stealth_sim import compiled_move
+
+    if compiled_move.import_problem() is not None:
+        return None
+    blocked = np.zeros((8, 8), dtype=bool)
+    blocked[0] = True
+    lights = [Searchlight('warm-up', 0.35, 0.35, 1.5, 1.0, 1.0)]
+    bounce = Bounce(0.5, 0.5)
+    started = time.perf_counter()
+    visibility_field(blocked, 0.1, (0.0, 0.0), lights, bounce=bounce)
+    PointVisibility(blocked, 0.1, (0.0, 0.0), lights, bounce=bounce)(0.45, 0.45)
+    return time.perf_counter() - started
+
+
 def scenario_point_visibility(scenario) -> PointVisibility:
-    """The ``PointVisibility`` of a ``stealth_env.scenario.Scenario``."""
+    """The ``PointVisibility`` of a ``stealth_env.scenario.Scenario`` (its bounce included)."""
     occupancy = scenario.map
     return PointVisibility(
         occupancy.blocked,
@@ -320,6 +438,7 @@ def scenario_point_visibility(scenario) -> PointVisibility:
         occupancy.origin,
         scenario.lights,
         footprint=getattr(scenario, 'exposure', None),
+        bounce=getattr(scenario, 'bounce', None),
     )
 
 
@@ -329,14 +448,19 @@ def cache_key(
     origin: Sequence[float],
     lights: Iterable[Searchlight],
     t: float = 0.0,
+    bounce: Bounce | None = None,
 ) -> str:
-    """Hash of everything the field depends on, including CODE_VERSION."""
+    """Hash of everything the field depends on, including CODE_VERSION (and, with a bounce,
+    BOUNCE_VERSION and the bounce: without one the key is what it was before bounces)."""
     digest = hashlib.sha256()
     digest.update(CODE_VERSION.encode())
     digest.update(repr((blocked.shape, str(blocked.dtype))).encode())
     digest.update(np.ascontiguousarray(blocked).tobytes())
     parameters = (float(resolution), tuple(float(v) for v in origin), tuple(lights), float(t))
     digest.update(repr(parameters).encode())
+    bounce = _active(bounce)
+    if bounce is not None:
+        digest.update(repr((BOUNCE_VERSION, bounce)).encode())
     return digest.hexdigest()
 
 
@@ -380,15 +504,16 @@ def cached_visibility_field(
     lights: Iterable[Searchlight],
     t: float = 0.0,
     cache_dir: str | os.PathLike | None = None,
+    bounce: Bounce | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``visibility_field`` through the disk cache; a corrupt cache file is recomputed."""
     lights = tuple(lights)
-    key = cache_key(blocked, resolution, origin, lights, t)
+    key = cache_key(blocked, resolution, origin, lights, t, bounce)
     path = cache_directory(cache_dir) / f'{key}.npz'
     cached = _load(path, len(lights), blocked.shape)
     if cached is not None:
         return cached
-    total, per_light = visibility_field(blocked, resolution, origin, lights, t)
+    total, per_light = visibility_field(blocked, resolution, origin, lights, t, bounce)
     try:
         _save(path, total, per_light)
     except OSError as error:  # a read-only cache must not stop the robot; the field is right
@@ -397,8 +522,15 @@ def cached_visibility_field(
 
 
 def scenario_visibility(scenario, t: float = 0.0, cache_dir=None):
-    """(total, per_light) of a ``stealth_env.scenario.Scenario`` at time t, cached."""
+    """(total, per_light) of a ``stealth_env.scenario.Scenario`` at time t, cached; total
+    includes the scenario's bounce, if it has one."""
     occupancy = scenario.map
     return cached_visibility_field(
-        occupancy.blocked, occupancy.resolution, occupancy.origin, scenario.lights, t, cache_dir
+        occupancy.blocked,
+        occupancy.resolution,
+        occupancy.origin,
+        scenario.lights,
+        t,
+        cache_dir,
+        bounce=getattr(scenario, 'bounce', None),
     )

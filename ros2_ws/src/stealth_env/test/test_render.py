@@ -125,7 +125,7 @@ def test_cli_renders_every_scenario(tmp_path, capsys):
     maps = ['floorplan', 'lgfloor', 'map1', 'simple-maze']
     expected = [f'{name}{kind}.png' for name in maps for kind in ('', '-moving')]
     expected += ['map1-exposure.png', 'simple-maze-exposure.png']
-    assert written == sorted(expected)
+    assert written == sorted([*expected, 'lgfloor-bounce.png', 'map1-bounce.png'])
 
 
 def test_an_exposure_optimum_is_drawn_with_the_robots_footprint_at_each_pose(tmp_path):
@@ -149,6 +149,21 @@ def test_an_exposure_optimum_is_drawn_with_the_robots_footprint_at_each_pose(tmp
         == 0
     )
     assert out.stat().st_size > 0
+
+
+def test_cli_draws_direct_light_beside_direct_and_bounce(tmp_path, capsys):
+    out = tmp_path / 'compare.png'
+    arguments = ['map1-bounce', '--bounce-compare', '--optimum', '-o', str(out)]
+    assert render.main([*arguments, '--cache-dir', str(tmp_path)]) == 0
+    assert capsys.readouterr().out.strip() == str(out)
+    pair = read_png(out)
+    render.main(['map1-bounce', '-o', str(tmp_path / 'one.png'), '--cache-dir', str(tmp_path)])
+    one = read_png(tmp_path / 'one.png')
+    assert pair.shape[1] >= 1.9 * one.shape[1]
+    left, right = pair[:, : pair.shape[1] // 2], pair[:, pair.shape[1] // 2 :]
+    assert not np.array_equal(left[: right.shape[0], : right.shape[1]], right[:, : left.shape[1]])
+    assert render.main(['map1', '--bounce-compare', '--cache-dir', str(tmp_path)]) == 1
+    assert 'no one-bounce light to compare' in capsys.readouterr().err
 
 
 def test_cli_reports_bad_input(tmp_path, capsys):

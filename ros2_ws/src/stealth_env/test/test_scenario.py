@@ -24,13 +24,14 @@ REPO = Path(__file__).resolve().parents[4]
 SHIPPED = ['floorplan', 'lgfloor', 'map1', 'simple-maze']
 MOVING = [f'{name}-moving' for name in SHIPPED]
 EXPOSURE = ['map1-exposure', 'simple-maze-exposure']
+BOUNCE = ['lgfloor-bounce', 'map1-bounce']  # one-bounce light (test_bounce_scenarios.py)
 
 
 # --- the shipped scenarios ----------------------------------------------------------------------
 
 
-def test_the_four_scenarios_and_their_moving_variants_are_found_by_name():
-    assert [path.stem for path in scenario_paths()] == sorted(SHIPPED + MOVING + EXPOSURE)
+def test_the_four_scenarios_and_their_variants_are_found_by_name():
+    assert [path.stem for path in scenario_paths()] == sorted(SHIPPED + MOVING + EXPOSURE + BOUNCE)
     assert find_scenario('lgfloor') == REPO / 'scenarios' / 'lgfloor.yaml'
 
 
@@ -571,3 +572,76 @@ def test_ill_posed_rewards(write):
         values['step_limit'] = 1000
 
     assert_scenario_error(write(change), "field 'rewards'", 'ill-posed')
+
+
+# --- one-bounce light ---------------------------------------------------------------------------
+
+
+def test_bounce_is_off_by_default_and_in_the_shipped_scenarios(write):
+    assert load_scenario(write()).bounce is None
+    for name in SHIPPED + MOVING:
+        assert load_scenario(name).bounce is None
+    assert load_scenario(write(setter('bounce', {'albedo': 0}))).bounce is None
+
+
+def test_a_bounce_loads_with_its_default_range(write):
+    scenario = load_scenario(write(setter('bounce', {'albedo': 0.25})))
+    assert (scenario.bounce.albedo, scenario.bounce.range) == (0.25, 3.0)
+    scenario = load_scenario(write(setter('bounce', {'albedo': 0.5, 'range': 2})))
+    assert (scenario.bounce.albedo, scenario.bounce.range) == (0.5, 2.0)
+
+
+@pytest.mark.parametrize('value', [math.nan, 1, 1.5, -0.1, math.inf, 'bright', None])
+def test_bounce_albedo_outside_0_1(write, value):
+    assert_scenario_error(
+        write(setter('bounce', {'albedo': value})),
+        "field 'bounce.albedo'",
+        'expected a number in [0, 1)',
+    )
+
+
+@pytest.mark.parametrize('value', [0, -1, math.nan])
+def test_bounce_range_not_positive(write, value):
+    assert_scenario_error(
+        write(setter('bounce', {'albedo': 0.3, 'range': value})),
+        "field 'bounce.range'",
+        'a number > 0 (m)',
+    )
+
+
+def test_bounce_fields_are_checked(write):
+    assert_scenario_error(write(setter('bounce', 0.3)), "field 'bounce'", 'a mapping {albedo')
+    assert_scenario_error(
+        write(setter('bounce', {'albedo': 0.3, 'colour': 'white'})),
+        "field 'bounce.colour'",
+        'unknown field',
+    )
+    assert_scenario_error(write(setter('bounce', {'range': 2.0})), "'bounce.albedo'", 'missing')
+
+
+def test_bounce_with_moving_lights_is_refused(write):
+    def change(values):
+        moving(phase_bins=4)(values)
+        values['bounce'] = {'albedo': 0.3}
+
+    assert_scenario_error(
+        write(change),
+        "field 'bounce'",
+        'no bounce in a scenario whose lights move',
+        'lights[0] (',
+    )
+
+
+def test_probabilistic_mode_counts_the_bounce_in_the_reward_check(write):
+    """Undetected steps may be brighter by the bounce's bound (bounce.bounce_bound)."""
+
+    def change(penalty):
+        def apply(values):
+            values['detection_mode'] = 'probabilistic'
+            values['bounce'] = {'albedo': 0.9, 'range': 3.0}
+            values['rewards'] = {'detection_penalty': penalty}
+
+        return apply
+
+    assert_scenario_error(write(change(1000)), "field 'rewards'", 'Raise detection_penalty')
+    assert load_scenario(write(change(30000))).bounce.albedo == 0.9

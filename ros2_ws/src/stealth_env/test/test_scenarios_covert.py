@@ -14,7 +14,9 @@ the per-point reference. Moving lights are judged at their worst over one cycle.
 
 The moving-light variants (``scenarios/*-moving.yaml``) are the opposite by design: no route is
 dark at every time, and their goals are reached unseen only by timing the passage, which
-``test_moving_scenarios`` proves on the time-expanded lattice. They are left out here.
+``test_moving_scenarios`` proves on the time-expanded lattice. They are left out here. The
+one-bounce variants (``scenarios/*-bounce.yaml``) are in, judged with their bounce (the field
+and the per-point reference, ``stealth_env.bounce``).
 """
 
 import math
@@ -22,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from stealth_env.bounce import point_bounce, received_light, wall_emitters
 from stealth_env.lighting import GridFrame, point_visibility
 from stealth_env.move_lattice import ACTIONS, MoveLattice
 from stealth_env.render import goal_marks
@@ -67,24 +70,25 @@ class Judge:
         self.lattice = MoveLattice.from_scenario(scenario)
         self.frame = GridFrame.of(occupancy.blocked, occupancy.resolution, occupancy.origin)
         self.times = cycle_times(scenario.lights)
+        self.grid = (occupancy.blocked, occupancy.resolution, occupancy.origin)
         fields = [
-            visibility_field(
-                occupancy.blocked, occupancy.resolution, occupancy.origin, scenario.lights, t
-            )[0]
+            visibility_field(*self.grid, scenario.lights, t, bounce=scenario.bounce)[0]
             for t in self.times
         ]
         self.field = np.max(fields, axis=0)
+        if scenario.bounce is not None:  # static lights only: the emitters' light, once
+            self.emitters = wall_emitters(occupancy.blocked)
+            self.received = received_light(*self.grid, scenario.lights, self.emitters)
 
     def visibility(self, x: float, y: float) -> float:
-        """Per-point reference, worst over the cycle."""
-        occupancy = self.scenario.map
-        return max(
-            point_visibility(
-                occupancy.blocked, occupancy.resolution, occupancy.origin,
-                self.scenario.lights, x, y, t,
-            )
-            for t in self.times
-        )  # fmt: skip
+        """Per-point reference, worst over the cycle (plus the bounce, if any)."""
+        direct = max(
+            point_visibility(*self.grid, self.scenario.lights, x, y, t) for t in self.times
+        )
+        if self.scenario.bounce is None:
+            return direct
+        bounce = self.scenario.bounce
+        return direct + point_bounce(*self.grid, self.emitters, self.received, bounce, x, y)
 
     def segment_points(self, node, other, spacing, fraction=1.0):
         """Points from node towards other, every ``spacing`` m, over ``fraction`` of the way."""
@@ -136,7 +140,7 @@ def judges():
 
 
 def test_the_four_scenarios_are_shipped():
-    assert len(SCENARIO_FILES) == 4
+    assert len([path for path in SCENARIO_FILES if not path.stem.endswith('-bounce')]) == 4
 
 
 def _reach(judge, goal_name, passable):
