@@ -632,6 +632,16 @@ def test_bounce_with_moving_lights_is_refused(write):
     )
 
 
+def test_bounce_with_exposure_is_refused(write):
+    def change(values):
+        values['bounce'] = {'albedo': 0.3}
+        values['exposure'] = {'length': 0.6, 'width': 0.3}
+
+    assert_scenario_error(
+        write(change), "field 'bounce'", 'no bounce together with exposure', 'an exposure field'
+    )
+
+
 def test_probabilistic_mode_counts_the_bounce_in_the_reward_check(write):
     """Undetected steps may be brighter by the bounce's bound (bounce.bounce_bound)."""
 
