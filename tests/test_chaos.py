@@ -46,9 +46,10 @@ def recorded_steps(run: Path) -> dict[tuple[int, int], int]:
 
 
 def test_every_node_killed_in_turn_and_the_run_still_reaches_its_goal(system, tmp_path):
-    # A longer streak than the default keeps the run going through all four kills.
+    # A longer streak than the default keeps the run going through all four kills (with 8 a
+    # learner that settled by episode 34 met it at episode 69, before the fourth kill).
     train = system.start(
-        'train', '--success-streak', '8', '--episodes', '400', '--name', 'chaos',
+        'train', '--success-streak', '30', '--episodes', '400', '--name', 'chaos',
         '--runs-dir', str(system.runs),
     )  # fmt: skip
     run = system.runs / 'chaos'
