@@ -10,23 +10,13 @@ Run: PYTHONPATH=ros2_ws/src/stealth_sim:ros2_ws/src/stealth_env python bench/ben
 from __future__ import annotations
 
 import dataclasses
-import time
 
+from bench_visibility import REPEATS, best_of
 from stealth_env.planners import LatticeModel, value_iteration
 from stealth_env.scenario import load_scenario
 from stealth_env.task import StealthTask
 
 SCENARIOS = ('map1-exposure', 'simple-maze-exposure')
-REPEATS = 3  # the best of each is kept
-
-
-def _best_seconds(work, repeats: int = REPEATS) -> tuple[float, object]:
-    best, result = float('inf'), None
-    for _ in range(repeats):
-        started = time.perf_counter()
-        result = work()
-        best = min(best, time.perf_counter() - started)
-    return best, result
 
 
 def run(report=print) -> dict:
@@ -40,8 +30,8 @@ def run(report=print) -> dict:
         ):
             task = StealthTask(variant)
             task._point_visibility  # noqa: B018  (the per-point model, built outside the timing)
-            build, model = _best_seconds(lambda task=task: LatticeModel.build(task))
-            solve, _ = _best_seconds(lambda model=model: value_iteration(model))
+            build, model = best_of(lambda task=task: LatticeModel.build(task))
+            solve, _ = best_of(lambda model=model: value_iteration(model))
             report(
                 f'  {name} ({label}): {model.size} places x {model.num_actions} actions, '
                 f'build {build:.2f} s, value iteration {solve:.2f} s'
