@@ -790,12 +790,13 @@ class EnvironmentNode(StartupNode):
         t = seconds(stamp)
         self._sim_time = max(self._sim_time, t)
         padded, self._padding = self._padding, None
+        left = self.flow.step_time_left(t) if token == self.flow.token else 0.0
         if padded is not None and padded[0] == token:  # the hold after the move: judge it now
             if outcome == ExecuteMove.Response.DONE:
                 outcome, message = padded[1:]
-        elif token == self.flow.token and self.flow.step_time_left(t) >= SLOT_TOLERANCE:
+        elif left >= SLOT_TOLERANCE:
             self._padding = (token, outcome, message)  # early: stand still to the slot's end
-            self._hold(token, self.flow.step_time_left(t))
+            self._hold(token, left)
             return
         try:
             report = self.flow.finish_move(token, estimate, truth, t)
