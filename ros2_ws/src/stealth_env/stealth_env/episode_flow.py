@@ -315,10 +315,9 @@ class EpisodeFlow:
         visibility = task.step_visibility(x0, y0, min(t0, te), x, y, te, yaw0, judged.yaw)
         judgement = task.judge(x, y, te, self.steps + 1, visibility=visibility)
         self._judged_at = (x, y, te, judged.yaw)
-        if task.timing is not None:
-            slot_end = (self.steps + 1) * task.step_seconds
-            if task.timing.phase_of(te) != task.timing.phase_of(slot_end):
-                self.counts.off_schedule += 1
+        timing = task.timing
+        if timing is not None and timing.phase_of(te) != timing.phase_of(self._slot_end()):
+            self.counts.off_schedule += 1
         self.estimate = PlanarPose(*estimate)
         self.steps += 1
         counted = judgement
@@ -355,8 +354,11 @@ class EpisodeFlow:
         that ended at t is to be padded with (0 without moving lights, or when it is late)."""
         if self.task.timing is None or self.phase is not Phase.MOVING:
             return 0.0
-        slot_end = self.origin + (self.steps + 1) * self.task.step_seconds
-        return max(0.0, slot_end - float(t))
+        return max(0.0, self._slot_end() - self.episode_time(t))
+
+    def _slot_end(self) -> float:
+        """The episode's clock at the end of the running step's slot (s)."""
+        return (self.steps + 1) * self.task.step_seconds
 
     def abort(self, token: int, reason: str) -> Aborted | None:
         """The move in flight failed (rejected, no answer, ...): end the episode as ABORTED.
