@@ -13,6 +13,7 @@ import time
 
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
+import numpy as np
 import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
@@ -120,13 +121,18 @@ def read_back(path):
 
 
 @pytest.mark.parametrize(
-    ('stop_signal', 'clock'), [(signal.SIGINT, 'wall'), (signal.SIGTERM, 'sim')]
+    ('stop_signal', 'clock', 'batch_period'),
+    [(signal.SIGINT, 'wall', 0.3), (signal.SIGINT, 'wall', 0.0), (signal.SIGTERM, 'sim', None)],
 )
-def test_recording_stopped_by_a_signal_is_complete(node_processes, tmp_path, stop_signal, clock):
+def test_recording_stopped_by_a_signal_is_complete(
+    node_processes, tmp_path, stop_signal, clock, batch_period
+):
     started_ns = time.time_ns()
     traffic = node_processes.start_python(TRAFFIC, 'traffic', str(COUNT), str(RATE), clock)
     output = tmp_path / 'run.mcap'
     sim_args = ['-p', 'use_sim_time:=true'] if clock == 'sim' else []
+    if batch_period is not None:  # None: the default
+        sim_args += ['-p', f'batch_period:={batch_period}']
     recorder = node_processes.start(
         [RECORDER, '--ros-args', '-p', f'output:={output}', *sim_args], 'recorder'
     )
@@ -162,6 +168,11 @@ def test_recording_stopped_by_a_signal_is_complete(node_processes, tmp_path, sto
     if clock == 'wall':
         assert started_ns <= min(log_times) and max(log_times) <= stopped_ns
         assert all(m.publish_time <= m.log_time for m, _ in by_topic['/chatter'])
+        # Each message's reception time, also when taken in batches of ~12 per topic: a log
+        # time taken at the batch would put most of a topic's gaps near 0, not near 1/RATE.
+        for topic in ('/chatter', '/odom', '/rl_env/step_info'):
+            gaps = np.diff([m.log_time for m, _ in by_topic[topic]]) / 1e9
+            assert (gaps > 0).all() and np.median(gaps) > 0.5 / RATE, (topic, gaps)
     else:
         assert min(log_times) >= SIM_START * 10**9
         assert max(log_times) <= (SIM_START + COUNT / RATE + 1) * 10**9

@@ -9,5 +9,6 @@ SETTINGS = (
     'chunk_size',
     'compression',
     'include_hidden_topics',
+    'batch_period',
 )
 PARAMETERS = frozenset({'topics', *SETTINGS})
