@@ -670,6 +670,31 @@ def _score_table(score: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return index.reshape(score.shape).astype(np.uint16), scores
 
 
+def cast(caster, x: float, y: float, yaw: float, bearings: np.ndarray) -> np.ndarray:
+    """``caster.cast`` (a ``RayCaster``) on the kernel: the same ranges (noise-free, m; +inf =
+    no return). The kernel traces from a free start, as the robot's always is; from anywhere
+    else (only a caller's pose could be) the caster's own march runs."""
+    if not caster._starts_free(x, y):
+        return caster.cast(x, y, yaw, bearings)
+    arrays = getattr(caster, '_compiled_arrays', None)
+    if arrays is None:
+        params = np.zeros(PARAMS_SIZE)
+        params[[CASTER_RES, CASTER_X, CASTER_Y, RANGE_MAX]] = (
+            caster.resolution,
+            caster.origin_x,
+            caster.origin_y,
+            caster.range_max,
+        )
+        arrays = caster._compiled_arrays = (
+            params,
+            np.frombuffer(caster._free_samples, dtype=np.uint8),
+            caster.blocked.shape[1] * 4,
+            np.asarray(caster._steps, dtype=np.float64),
+        )
+    bearings = np.ascontiguousarray(bearings, dtype=np.float64)
+    return _cast(*arrays, float(x), float(y), float(yaw), bearings)
+
+
 def import_problem() -> str | None:
     """Why the kernels cannot run at all (numba missing), or None."""
     return _IMPORT_PROBLEM

@@ -9,6 +9,7 @@ result (outcome, steps, bumps, filter updates, rejection messages) exactly and i
 odometry, estimate and covariance within 1e-9, step hooks included.
 """
 
+import copy
 import dataclasses
 import logging
 import math
@@ -18,6 +19,7 @@ import pytest
 from sim_test_maps import maze_map
 from stealth_sim import compiled_move, move_executor
 from stealth_sim.kinematics import Limits, Pose
+from stealth_sim.laser import noisy_ranges
 from stealth_sim.localisation import FilterConfig
 from stealth_sim.move_executor import (
     ControllerConfig,
@@ -289,3 +291,19 @@ def test_whoever_listens_the_walk_is_the_same_bit_for_bit():
     alone = walk(TRAINING, False)
     for publisher in ({'period': 0.1}, {'period': 0.5, 'on_update': False}):
         assert hooked_walk(False, **publisher)[0] == alone
+
+
+def test_the_published_scan_is_the_references_bit_for_bit():
+    """The scan a simulator publishes is cast by the kernel; the caster's numpy march gives the
+    same ranges, so the same noisy readings from the same random stream, pose after pose."""
+    config = dataclasses.replace(TRAINING, laser=dataclasses.replace(TRAINING.laser, beams=180))
+    sim = Simulator(maze_map(), config, START)
+    for move in KERNEL_MOVES[:8]:
+        execute_move(sim, move, None, ControllerConfig())
+        stream = copy.deepcopy(sim._published_scan_rng)
+        reference = noisy_ranges(
+            sim.caster.cast(*sim.state.pose, config.laser.bearings()), config.laser, stream
+        )
+        published = sim.scan()
+        assert np.isfinite(published).any()
+        assert np.array_equal(published, reference)

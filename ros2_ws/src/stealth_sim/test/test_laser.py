@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 from sim_test_maps import PROJECT_MAPS, as_map, maze_map, project_map_and_start, room
+from stealth_sim import compiled_move
 from stealth_sim.laser import LaserConfig, RayCaster, noisy_ranges, ray_entry
 from stealth_sim.occupancy_map import OCCUPIED, UNKNOWN
 
@@ -106,8 +107,10 @@ def reference_cast(occupancy_map, range_max, x, y, yaw, bearings) -> np.ndarray:
 
 
 @pytest.mark.parametrize('name', ['maze', *PROJECT_MAPS])
-@pytest.mark.parametrize('beams', [1, 8, 24, 60])
+@pytest.mark.parametrize('beams', [1, 8, 24, 60, 180])
 def test_casting_is_exactly_the_reference_march(name, beams):
+    """The caster's traced and marched paths, and the compiled kernel (the published scan's and
+    the filter's cast), all give the reference's ranges bit for bit."""
     loaded = (maze_map(), None) if name == 'maze' else project_map_and_start(name)
     if loaded is None:
         pytest.skip(f'map {name} is not built')
@@ -127,3 +130,4 @@ def test_casting_is_exactly_the_reference_march(name, beams):
             yaw = 0.0 if trial % 2 else float(rng.uniform(-4.0, 4.0))
             expected = reference_cast(occupancy_map, range_max, x, y, yaw, bearings)
             assert np.array_equal(caster.cast(x, y, yaw, bearings), expected)
+            assert np.array_equal(compiled_move.cast(caster, x, y, yaw, bearings), expected)
