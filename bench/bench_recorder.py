@@ -6,7 +6,9 @@ one; the recorder (default settings: zstd chunks closed every 0.5 s or 256 KiB) 
 in a private ROS domain. Reported per compression: publish rate, recording rate (messages over
 the span of their log times), messages missing, file size. Then SIGKILL trials: the recorder
 is killed during 100 Hz traffic and `bag recover` salvages the file; reported is the span of
-messages lost before the kill.
+messages lost before the kill. And the recorder's CPU per message when messages trickle in one
+at a time, as in training (TRICKLE at 1 kHz), taking each as it arrives (batch_period 0) and in
+batches (the default): the ratio is what batching saves.
 Run: source scripts/ros_env.sh && python bench/bench_recorder.py
 """
 
@@ -33,9 +35,10 @@ from ros_support import (  # noqa: E402
 
 COUNT = 20000
 KILL_TRIALS = 3
+TRICKLE = 5000  # messages, one every millisecond
 BIN = REPO_ROOT / 'ros2_ws' / 'install' / 'stealth_tools' / 'lib' / 'stealth_tools'
 
-# argv: count (0: endless at 100 Hz)
+# argv: count (0: endless at 100 Hz), optionally seconds between messages (default: none)
 PUBLISHER = """
 import sys, time
 import rclpy
@@ -44,6 +47,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from stealth_interfaces.msg import StepInfo
 
 count = int(sys.argv[1])
+period = float(sys.argv[2]) if len(sys.argv) > 2 else (0.01 if count == 0 else 0.0)
 rclpy.init()
 node = rclpy.create_node('bench_publisher')
 publisher = node.create_publisher(
@@ -60,8 +64,8 @@ try:
         message.step = i
         publisher.publish(message)
         i += 1
-        if count == 0:
-            time.sleep(0.01)
+        if period:
+            time.sleep(period)
     print(f'published {count} in {time.monotonic() - started:.3f} s', flush=True)
     rclpy.spin(node)
 except (KeyboardInterrupt, ExternalShutdownException):
@@ -126,6 +130,38 @@ def throughput(processes: NodeProcesses, work: Path, compression: str, report) -
     }
 
 
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU time of a process so far (/proc/<pid>/stat)."""
+    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def trickle_cpu(processes: NodeProcesses, work: Path, batch_period: float) -> float:
+    """The recorder's CPU seconds per message over TRICKLE messages arriving one at a time."""
+    output = work / f'trickle_{batch_period:g}.mcap'
+    recorder = processes.start(
+        [str(BIN / 'recorder'), '--ros-args', '-p', f'output:={output}', '-p', 'topics:=[/bench]',
+         '-p', f'batch_period:={batch_period}'],
+        f'trickle_recorder_{batch_period:g}',
+    )  # fmt: skip
+    publisher = processes.start_python(
+        PUBLISHER, f'trickle_{batch_period:g}', str(TRICKLE), '0.001'
+    )
+    wait_for(recorder, "Subscribed to topic '/bench'")
+    before = cpu_seconds(recorder.pid)
+    wait_for(publisher, 'published')
+    time.sleep(1.0)  # the last batch is taken
+    used = cpu_seconds(recorder.pid) - before
+    os.killpg(recorder.pid, signal.SIGINT)
+    recorder.wait(60)
+    os.killpg(publisher.pid, signal.SIGINT)
+    publisher.wait(30)
+    recorded = len(bench_log_times(output))
+    if recorded != TRICKLE:
+        raise RuntimeError(f'batch_period {batch_period}: recorded {recorded} of {TRICKLE}')
+    return used / TRICKLE
+
+
 def kill_trial(processes: NodeProcesses, work: Path, trial: int) -> float:
     output = work / f'killed_{trial}.mcap'
     recorder = processes.start(
@@ -161,6 +197,17 @@ def run(report=print) -> dict:
             report(f'recorder throughput, {COUNT} StepInfo messages in a burst:')
             for compression in ('zstd', 'none'):
                 figures.update(throughput(processes, work, compression, report))
+            each, batched = (trickle_cpu(processes, work, period) for period in (0.0, 0.05))
+            report(
+                f'{TRICKLE} messages at 1 kHz, recorder CPU per message: {each * 1e6:.0f} us '
+                f'taking each, {batched * 1e6:.0f} us in 0.05 s batches (ratio '
+                f'{each / batched:.1f})'
+            )
+            figures.update(
+                recorder_trickle_us_per_msg_each=round(each * 1e6, 1),
+                recorder_trickle_us_per_msg_batched=round(batched * 1e6, 1),
+                recorder_trickle_batching_ratio=round(each / batched, 2),
+            )
             losses = [kill_trial(processes, work, trial) for trial in range(KILL_TRIALS)]
             figures['recorder_sigkill_lost_ms'] = [round(loss) for loss in losses]
             report(

@@ -220,6 +220,21 @@ def test_sigkill_loses_at_most_a_second_and_recover_restores_an_indexed_file(
     assert lost_ns < 1e9
 
 
+def test_a_batch_period_out_of_range_is_one_line_naming_it(node_processes, tmp_path):
+    output = tmp_path / 'never.mcap'
+    result = subprocess.run(
+        [RECORDER, '--ros-args', '-p', f'output:={output}', '-p', 'batch_period:=-0.5'],
+        env=node_processes.env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 1
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith('recorder: ') and 'batch_period' in line and 'between 0 and 1' in line
+    assert not output.exists()
+
+
 def _replay_bag(path):
     """10 chatter messages 0.2 s apart, 5 on another topic, a latched description first."""
     from std_msgs.msg import String

@@ -209,26 +209,32 @@ class Recorder(Node):
 
     def _take_batch(self, topic: str, data: bytes, info: dict) -> None:
         """A message woke the recorder: let batch_period pass since the last batch, then take
-        what every queue holds (at most DRAIN_BATCH each) and write it all in log-time order."""
+        what every queue holds and write it all in log-time order."""
         pause = self._last_batch + self._batch_period - time.monotonic()
         if pause > 0.0:
             time.sleep(pause)
-        batch = [(*self._times(info), topic, data)]
-        for subscription, msg_type, queued_topic in self._queues:
+        self._write_batch([(*self._times(info), topic, data)])
+
+    def _write_batch(self, batch: list) -> None:
+        """Add what every queue holds (at most DRAIN_BATCH each) to ``batch`` (log time,
+        publish time, topic, CDR bytes) and write it all in log-time order."""
+        for subscription, msg_type, topic in self._queues:
             handle = subscription.handle
             with handle:
                 for _ in range(DRAIN_BATCH):
                     taken = handle.take_message(msg_type, True)
                     if taken is None:
                         break
-                    batch.append((*self._times(taken[1]), queued_topic, taken[0]))
+                    batch.append((*self._times(taken[1]), topic, taken[0]))
         batch.sort(key=lambda item: item[0])
-        for log_time, publish_time, message_topic, message in batch:
-            self.bag.write(message_topic, message, log_time, publish_time)
+        for log_time, publish_time, topic, data in batch:
+            self.bag.write(topic, data, log_time, publish_time)
         self._last_batch = time.monotonic()
 
     def close(self) -> str:
-        """Finish the bag; a line saying what was recorded."""
+        """Take what is still queued (a stop can come between batches), finish the bag; a line
+        saying what was recorded."""
+        self._write_batch([])
         self.bag.close()
         return (
             f'Recorded {self.bag.message_count} messages on {len(self.bag.topics)} topics '
