@@ -220,6 +220,38 @@ def test_sigkill_loses_at_most_a_second_and_recover_restores_an_indexed_file(
     assert lost_ns < 1e9
 
 
+def test_a_burst_beyond_one_batch_is_all_written_without_more_traffic(node_processes, tmp_path):
+    """DDS wakes a subscription for new data, not for data left over: what a burst leaves
+    queued beyond one batch's take must still reach the file, with nothing more arriving and
+    before any stop (a SIGKILL, then recover, shows what was written)."""
+    burst = 3000
+    segments_before = shm_segments()
+    traffic = node_processes.start_python(TRAFFIC, 'traffic', str(burst), '1e9', 'wall')
+    output = tmp_path / 'burst.mcap'
+    recorder = node_processes.start(
+        [RECORDER, '--ros-args', '-p', f'output:={output}', '-p', 'batch_period:=0.2'],
+        'recorder',
+    )
+    wait_for_output(traffic, 'done')
+    time.sleep(3.0)  # a few batch periods and chunk closings, and no new message
+    os.killpg(recorder.pid, signal.SIGKILL)
+    recorder.wait(10)
+    recovered = tmp_path / 'recovered.mcap'
+    result = subprocess.run(
+        [STEALTH, 'bag', 'recover', str(output), '-o', str(recovered)],
+        env=node_processes.env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 0, result.stderr
+    node_processes.stop_all()
+    remove_orphaned_shm(segments_before)
+    _, by_topic, _, _ = read_back(recovered)
+    for topic in ('/chatter', '/odom', '/rl_env/step_info'):
+        assert len(by_topic[topic]) == burst, topic
+
+
 def test_a_batch_period_out_of_range_is_one_line_naming_it(node_processes, tmp_path):
     output = tmp_path / 'never.mcap'
     result = subprocess.run(

@@ -13,10 +13,11 @@ file with summary and indexes; after a SIGKILL at most ~max_chunk_duration * 1.5
 is missing and `stealth bag recover` restores an indexed file.
 
 Messages are taken in batches: the recorder wakes at most once per `batch_period` and then takes
-what every topic's queue holds (KEEP_ALL, so nothing is lost while it waits), writing the batch
-in log-time order. rclpy's executor costs about a quarter of a millisecond per wake-up, several
-times the cost of writing a message, and a training run's ~1,200 messages/s arrive one at a
-time, so waking for each made the recorder the run's second-largest CPU user. The log time is
+what every topic's queue holds (KEEP_ALL), writing the batch in log-time order; while messages
+pour in (a batch took BUSY_TAKE from one queue) it takes them without pausing. rclpy's executor
+costs about a quarter of a millisecond per wake-up, several times the cost of writing a message,
+and a training run's ~1,200 messages/s arrive one at a time, so waking for each made the
+recorder the run's second-largest CPU user. The log time is
 still each message's reception time, so batching does not move it; under use_sim_time the log
 time is the clock when the message is taken, so there the recorder takes each at once.
 """
@@ -54,6 +55,11 @@ from stealth_tools.ros_session import (
 
 NODE_NAME = 'recorder'
 MAX_BATCH_PERIOD = 1.0  # s: a longer wait would only hold more in DDS's queues
+# A batch that took this many from one queue means messages pour in: the next is taken without
+# a pause, so that a queue never nears DDS's limit of a KEEP_ALL reader (5,000 samples; beyond
+# it a best-effort sample is dropped and a reliable one waits for the writer's repair).
+BUSY_TAKE = 100
+CLOSING_TAKE = 2.0  # s: the longest a stop spends taking what is still queued
 
 
 def default_output() -> str:
@@ -109,6 +115,7 @@ class Recorder(Node):
         self._queues: list[tuple[object, object, str]] = []
         self._batch_period = 0.0 if self.use_sim_time else self.settings.batch_period
         self._last_batch = 0.0  # time.monotonic() when the last batch was taken
+        self._largest_take = 0  # the most messages the last batch took from one queue
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(self.settings.discovery_period, self.discover, clock=steady)
         flush_period = self.settings.max_chunk_duration / 2
@@ -192,7 +199,9 @@ class Recorder(Node):
             def record_batch(data: bytes, info: dict) -> None:
                 self._take_batch(topic, data, info)
 
-            subscription = raw_subscription(self, topic, msg_type, qos, record_batch, report_loss)
+            subscription = raw_subscription(
+                self, topic, msg_type, qos, record_batch, report_loss, drain=False
+            )
             self._queues.append((subscription, msg_type, topic))
             return subscription
 
@@ -208,33 +217,42 @@ class Recorder(Node):
         return log_time, info.get('source_timestamp', 0)
 
     def _take_batch(self, topic: str, data: bytes, info: dict) -> None:
-        """A message woke the recorder: let batch_period pass since the last batch, then take
-        what every queue holds and write it all in log-time order."""
+        """A message woke the recorder: unless messages are pouring in, let batch_period pass
+        since the last batch; then take what every queue holds and write it in log-time order.
+        """
         pause = self._last_batch + self._batch_period - time.monotonic()
-        if pause > 0.0:
+        if pause > 0.0 and self._largest_take < BUSY_TAKE:
             time.sleep(pause)
         self._write_batch([(*self._times(info), topic, data)])
 
     def _write_batch(self, batch: list) -> None:
-        """Add what every queue holds (at most DRAIN_BATCH each) to ``batch`` (log time,
-        publish time, topic, CDR bytes) and write it all in log-time order."""
+        """Add what every queue holds (at most DRAIN_BATCH each, so timers get a turn; what is
+        left wakes the recorder again) to ``batch`` (log time, publish time, topic, CDR bytes)
+        and write it all in log-time order."""
+        largest = 0
         for subscription, msg_type, topic in self._queues:
-            handle = subscription.handle
+            handle, taken_here = subscription.handle, 0
             with handle:
-                for _ in range(DRAIN_BATCH):
+                while taken_here < DRAIN_BATCH:
                     taken = handle.take_message(msg_type, True)
                     if taken is None:
                         break
                     batch.append((*self._times(taken[1]), topic, taken[0]))
+                    taken_here += 1
+            largest = max(largest, taken_here)
         batch.sort(key=lambda item: item[0])
         for log_time, publish_time, topic, data in batch:
             self.bag.write(topic, data, log_time, publish_time)
-        self._last_batch = time.monotonic()
+        self._last_batch, self._largest_take = time.monotonic(), largest
 
     def close(self) -> str:
-        """Take what is still queued (a stop can come between batches), finish the bag; a line
+        """Take what is still queued (a stop can come between batches; for at most
+        CLOSING_TAKE seconds, should publishers outpace the takes), finish the bag; a line
         saying what was recorded."""
+        deadline = time.monotonic() + CLOSING_TAKE
         self._write_batch([])
+        while self._largest_take == DRAIN_BATCH and time.monotonic() < deadline:
+            self._write_batch([])
         self.bag.close()
         return (
             f'Recorded {self.bag.message_count} messages on {len(self.bag.topics)} topics '

@@ -154,16 +154,18 @@ def discovered_topics(node, include_hidden: bool, wanted, skip):
 DRAIN_BATCH = 200  # messages taken per callback; bounded so timers and signals get a turn
 
 
-def raw_subscription(node, topic: str, msg_type, qos, handle_one, on_loss=None):
+def raw_subscription(node, topic: str, msg_type, qos, handle_one, on_loss=None, drain=True):
     """A subscription delivering (CDR bytes, message info) to handle_one, draining its queue.
 
     After the message it is called with, the callback takes what else is queued on the
     subscription (up to DRAIN_BATCH), because the executor's cost per callback is several times
     that of handling a message: it lifts the recorder's rate from ~3,000 to ~30,000 msg/s.
-    Event callbacks: only the loss report `on_loss(status)`, if given. rclpy's default handlers
-    (incompatible QoS and type) cannot fire on a subscription that copies the publishers' QoS
-    and type, yet each is one more entity in every executor wait. Measured in `make run` (19
-    topics): the recorder's CPU time went from 48 s to 35 s of a 65 s run.
+    With ``drain`` false, handle_one gets only the message it was called with (a caller that
+    takes the queues itself). Event callbacks: only the loss report `on_loss(status)`, if
+    given. rclpy's default handlers (incompatible QoS and type) cannot fire on a subscription
+    that copies the publishers' QoS and type, yet each is one more entity in every executor
+    wait. Measured in `make run` (19 topics): the recorder's CPU time went from 48 s to 35 s
+    of a 65 s run.
     """
     from rclpy.event_handler import SubscriptionEventCallbacks, UnsupportedEventTypeError
 
@@ -171,6 +173,8 @@ def raw_subscription(node, topic: str, msg_type, qos, handle_one, on_loss=None):
 
     def on_message(data: bytes, info: dict) -> None:
         handle_one(data, info)
+        if not drain:
+            return
         handle = created[0].handle
         with handle:
             for _ in range(DRAIN_BATCH):
