@@ -1,8 +1,8 @@
 """Fault tolerance of `stealth train` (respawn): every node SIGKILLed in turn during one training,
 and a node that keeps crashing.
 
-The chaos run kills the agent, the environment, the simulator and the recorder, one every
-KILL_PERIOD seconds; the run must still reach its stop criterion with contiguous episode numbers
+The chaos run kills the agent, the environment, the simulator and the recorder, one at each of
+KILL_AT's episodes; the run must still reach its stop criterion with contiguous episode numbers
 (none counted twice), a recording that holds every step of every episode (the killed recorder's
 file recovered, the respawned recorder's file beside it), and nothing left running or in
 /dev/shm (the `system` fixture checks those two).
@@ -12,6 +12,7 @@ import csv
 import json
 import os
 from pathlib import Path
+import re
 import signal
 import stat
 import time
@@ -20,8 +21,14 @@ from test_system import processes_naming, read_bag, wait_for_text
 from test_system import system as system  # noqa: F401, PLC0414 - the fixture, used by name
 
 KILL_ORDER = ('agent', 'environment', 'simulator', 'recorder')
-KILL_PERIOD = 20.0  # s between kills
+# The episodes the kills come at, in KILL_ORDER. Paced by episodes, not seconds: the stop
+# criterion (STREAK greedy successes in a row, one every 5 episodes) cannot be met before
+# episode 4 + 5 * (STREAK - 1) = 149, however fast the machine learns, so every kill lands
+# during the run (paced by 20 s, a faster loop met the criterion before the third kill).
+KILL_AT = (10, 40, 70, 100)
+STREAK = 30
 RESPAWN_TIMEOUT = 120.0  # s for a killed node to be back (a loaded 2-core machine)
+EPISODE_LINE = re.compile(r'^episode (\d+) ', re.MULTILINE)
 
 
 def kill_node(run: Path, name: str) -> int:
@@ -30,6 +37,18 @@ def kill_node(run: Path, name: str) -> int:
     assert len(pids) == 1, f'{name}: expected one live process, found {pids}'
     os.kill(pids[0], signal.SIGKILL)
     return pids[0]
+
+
+def wait_for_episode(train, episode: int, timeout: float = 300.0) -> None:
+    """Wait until the run's progress lines have reached `episode` (the run still going)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        stderr = train.stderr_path.read_text()
+        if max(map(int, EPISODE_LINE.findall(stderr)), default=-1) >= episode:
+            return
+        assert train.poll() is None, f'the run ended before episode {episode}:\n{stderr}'
+        assert time.monotonic() < deadline, f'no episode {episode} in {timeout:g} s:\n{stderr}'
+        time.sleep(0.1)
 
 
 def recorded_steps(run: Path) -> dict[tuple[int, int], int]:
@@ -46,17 +65,14 @@ def recorded_steps(run: Path) -> dict[tuple[int, int], int]:
 
 
 def test_every_node_killed_in_turn_and_the_run_still_reaches_its_goal(system, tmp_path):
-    # A longer streak than the default keeps the run going through all four kills (with 8 a
-    # learner that settled by episode 34 met it at episode 69, before the fourth kill).
     train = system.start(
-        'train', '--success-streak', '30', '--episodes', '400', '--name', 'chaos',
-        '--runs-dir', str(system.runs),
+        'train', '--success-streak', str(STREAK), '--eval-every', '5', '--episodes', '400',
+        '--name', 'chaos', '--runs-dir', str(system.runs),
     )  # fmt: skip
     run = system.runs / 'chaos'
     wait_for_text(train, 'all nodes up', timeout=180)
-    for name in KILL_ORDER:
-        time.sleep(KILL_PERIOD)
-        assert train.poll() is None, f'the run ended before {name} was killed'
+    for name, episode in zip(KILL_ORDER, KILL_AT, strict=True):
+        wait_for_episode(train, episode)
         kill_node(run, name)
         wait_for_text(train, f'{name} is back after', timeout=RESPAWN_TIMEOUT)
     assert train.wait(900) == 0, train.stderr_path.read_text()
