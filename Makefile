@@ -117,7 +117,7 @@ distclean: clean ## Also remove .venv and the JS tools' node_modules
 -include maps/maps.mk
 
 .PHONY: run eval bench
-# The default scenario: simple-maze's easy goal trains to a greedy covert path in about 2 minutes.
+# The default scenario: simple-maze's easy goal trains to a greedy covert path in about 30 s.
 RUN_ARGS ?= --scenario simple-maze --goal easy
 run: setup ## The main job: train the agent on the default scenario (runs/<name>/)
 	@$(ROS_ENV) && stealth train $(RUN_ARGS)
