@@ -48,6 +48,9 @@ STEPS = {'sim_node': 2000, 'stub': 3000}
 WARMUP = 200  # steps or round trips before the clock starts
 REPEATS = 2  # each measurement; the best counts (other load on the machine only slows down)
 TARGET_RATIO = 0.3
+# A random walker's episodes on simple-maze last ~250 steps; far fewer means the environment
+# aborts them (a simulator stand-in that rejects its moves did, unnoticed, for a while).
+MIN_EPISODE_STEPS = 5
 TIMEOUT = 600.0  # s for any one measurement
 BIN = REPO_ROOT / 'ros2_ws' / 'install'
 SIM_NODE = BIN / 'stealth_sim' / 'lib' / 'stealth_sim' / 'sim_node'
@@ -172,7 +175,8 @@ finally:
 
 # argv: scenario. sim_node's two services, answered at once on the move lattice: a move the
 # lattice forbids leaves the robot where it is (as a bump would), the estimate is the truth,
-# and each move takes 1 s of simulated time.
+# and each move takes 1 s of simulated time (a hold its seconds). It serves the kinds the
+# environment sends (GO_TO a lattice node, TURN_TO_HEADING, HOLD) besides the grid moves.
 STUB_SIM = """
 import math, sys
 import rclpy
@@ -195,20 +199,32 @@ def set_pose(field):
     field.orientation.w = math.cos(state['heading'] / 2)
 
 def execute_move(request, response):
-    if request.kind > 3:
-        response.outcome, response.message = ExecuteMove.Response.REJECTED, 'grid moves only'
+    seconds = 1.0
+    if request.kind <= ExecuteMove.Request.RIGHT:
+        target = lattice.successor(state['node'], request.kind)
+        state['heading'] = HEADINGS[request.kind]
+    elif request.kind == ExecuteMove.Request.GO_TO:  # what the environment sends: a lattice node
+        target = lattice.point_to_node(request.x, request.y)
+        if target != state['node']:
+            x, y = lattice.node_to_point(state['node'])
+            state['heading'] = math.atan2(request.y - y, request.x - x)
+    elif request.kind == ExecuteMove.Request.TURN_TO_HEADING:
+        target, state['heading'] = state['node'], request.heading
+    elif request.kind == ExecuteMove.Request.HOLD:
+        target, seconds = state['node'], request.seconds
+    else:
+        response.outcome, response.message = ExecuteMove.Response.REJECTED, 'not simulated'
         return response
-    target = lattice.successor(state['node'], request.kind)
     if target is None:
         response.outcome = ExecuteMove.Response.BUMPED
     else:
         state['node'] = target
-    state['heading'] = HEADINGS[request.kind]
-    state['time'] += 1.0
+    state['time'] += seconds
     set_pose(response.true_pose)
     set_pose(response.estimate.pose)
-    response.duration = 1.0
+    response.duration = seconds
     response.stamp.sec = int(state['time'])
+    response.stamp.nanosec = int(state['time'] % 1.0 * 1e9)
     return response
 
 def reset(request, response):
@@ -296,6 +312,12 @@ def rl_loop(simulator: str) -> tuple[float, float]:
         steps = STEPS[simulator]
         agent = processes.start_python(AGENT, 'agent', str(WARMUP), str(steps), '7')
         steps, seconds, episodes = _result(agent, f'RL loop with {simulator}')
+        if episodes > steps / MIN_EPISODE_STEPS:  # a loop of aborts measures nothing
+            log = processes.log_dir / 'env_node.log'
+            raise RuntimeError(
+                f'RL loop with {simulator}: {episodes:.0f} episodes in {steps:.0f} steps, the '
+                f'environment ends them at once; its log ends:\n{log.read_text()[-2000:]}'
+            )
     return steps / seconds, episodes / seconds
 
 
