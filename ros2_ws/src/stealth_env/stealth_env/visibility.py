@@ -208,10 +208,12 @@ class PointVisibility:
     range^2 in the same float arithmetic, skips them: its value is 0). The occlusion test is
     what is faster: the line of sight from a lamp's cell is computed for a whole TILE x TILE
     block of target cells at once (``_occluded``, the same integer Bresenham and corner rule)
-    and kept, keyed by the lamp's cell and the block. Keying by the lamp's cell serves every
-    kind of light: static and sweeping lights (only the direction changes) reuse the blocks of
-    their one cell, patrolling lights those of the cells they pass; the least recently used
-    blocks beyond ``max_tiles`` are dropped. ``blocked`` must not change afterwards.
+    and kept, keyed by the lamp's cell and the block (``many`` uses the blocks too when a light
+    lights few cells, and traces many cells in one ``_occluded`` call). Keying by the lamp's
+    cell serves every kind of light: static and sweeping lights (only the direction changes)
+    reuse the blocks of their one cell, patrolling lights those of the cells they pass; the
+    least recently used blocks beyond ``max_tiles`` are dropped. ``blocked`` must not change
+    afterwards.
 
     With a ``footprint`` (``exposure.Footprint``), a point asked for with the robot's heading
     has each light's value multiplied by the exposure factor before the lights are added
@@ -221,6 +223,10 @@ class PointVisibility:
     """
 
     TILE = 16  # cells along each side of a block of targets
+    # ``many`` at up to this many lit cells per light (a move's samples, judged every step)
+    # asks the block cache cell by cell: tracing them afresh cost ~1 ms a light, a Python step
+    # of _occluded per cell along the longest line, however few the targets.
+    FEW_CELLS = 64
 
     def __init__(
         self,
@@ -339,9 +345,18 @@ class PointVisibility:
             lit = value > 0.0
             if np.any(lit):
                 cells = np.unique(rows[lit] * frame.width + cols[lit])
-                occluded = _occluded(
-                    self.blocked, self._corners, lamp, cells % frame.width, cells // frame.width
-                )
+                if len(cells) <= self.FEW_CELLS:  # a move's samples: the block cache
+                    width = frame.width
+                    occluded = np.array(
+                        [not self.line_of_sight(lamp, (c % width, c // width))
+                         for c in cells.tolist()],
+                        dtype=bool,
+                    )  # fmt: skip
+                else:
+                    occluded = _occluded(
+                        self.blocked, self._corners, lamp, cells % frame.width,
+                        cells // frame.width,
+                    )  # fmt: skip
                 dark = np.isin(rows * frame.width + cols, cells[occluded])
                 value = np.where(lit & dark, 0.0, value)
             per_light.append((value, dx, dy))

@@ -272,6 +272,27 @@ def test_point_visibility_equals_the_reference_on_random_and_corner_points(seed)
         assert fast(x, y) == point_visibility(blocked, resolution, origin, lights, x, y)
 
 
+@pytest.mark.parametrize('seed', range(20))
+def test_many_equals_the_reference_through_the_cache_and_in_one_trace(seed):
+    """A few points (a move's samples: the block cache, cell by cell) and many points (one
+    vectorised trace per light) both give the per-point reference's totals to the last bit."""
+    blocked, resolution, origin, lights = random_case(seed)
+    rng = np.random.default_rng(2000 + seed)
+    frame = GridFrame.of(blocked, resolution, origin)
+    fast = visibility.PointVisibility(blocked, resolution, origin, lights, max_tiles=3)
+    fast.TILE = int(rng.integers(1, 9))  # blocks straddle the map; a tiny cache evicts often
+    x0, y0 = frame.origin_x, frame.origin_y
+    x1, y1 = x0 + frame.width * resolution, y0 + frame.height * resolution
+    for count in (1, 10, fast.FEW_CELLS, 400):
+        xs = rng.uniform(x0, x1 - 1e-9, count)
+        ys = rng.uniform(y0, y1 - 1e-9, count)
+        expected = [
+            point_visibility(blocked, resolution, origin, lights, x, y)
+            for x, y in zip(xs, ys, strict=True)
+        ]
+        np.testing.assert_array_equal(fast.many(xs, ys), expected)
+
+
 @pytest.mark.parametrize('seed', range(10))
 def test_point_visibility_line_of_sight_equals_bresenham_on_every_cell(seed):
     blocked, resolution, origin, lights = random_case(seed)
