@@ -252,15 +252,23 @@ def corner_case_points(frame: GridFrame, blocked: np.ndarray, rng) -> list[tuple
     return points
 
 
+def evicting_case(seed: int, rng: np.random.Generator, max_tiles: int):
+    """random_case(seed) and a PointVisibility on it whose blocks (of a random TILE) straddle
+    the map and whose tiny cache evicts often: (case, frame, fast, (x0, y0, x1, y1) in m)."""
+    blocked, resolution, origin, lights = case = random_case(seed)
+    frame = GridFrame.of(blocked, resolution, origin)
+    fast = visibility.PointVisibility(blocked, resolution, origin, lights, max_tiles=max_tiles)
+    fast.TILE = int(rng.integers(1, 9))
+    x0, y0 = frame.origin_x, frame.origin_y
+    bounds = (x0, y0, x0 + frame.width * resolution, y0 + frame.height * resolution)
+    return case, frame, fast, bounds
+
+
 @pytest.mark.parametrize('seed', range(40))
 def test_point_visibility_equals_the_reference_on_random_and_corner_points(seed):
-    blocked, resolution, origin, lights = random_case(seed)
     rng = np.random.default_rng(1000 + seed)
-    frame = GridFrame.of(blocked, resolution, origin)
-    fast = visibility.PointVisibility(blocked, resolution, origin, lights, max_tiles=5)
-    fast.TILE = int(rng.integers(1, 9))  # blocks straddle the map; a tiny cache evicts often
-    x0, y0 = frame.origin_x, frame.origin_y
-    x1, y1 = x0 + frame.width * resolution, y0 + frame.height * resolution
+    case, frame, fast, (x0, y0, x1, y1) = evicting_case(seed, rng, max_tiles=5)
+    blocked, resolution, origin, lights = case
     points = [(float(rng.uniform(x0, x1)), float(rng.uniform(y0, y1))) for _ in range(300)]
     points += corner_case_points(frame, blocked, rng)
     points += [(light.x, light.y) for light in lights]
@@ -276,13 +284,9 @@ def test_point_visibility_equals_the_reference_on_random_and_corner_points(seed)
 def test_many_equals_the_reference_through_the_cache_and_in_one_trace(seed):
     """A few points (a move's samples: the block cache, cell by cell) and many points (one
     vectorised trace per light) both give the per-point reference's totals to the last bit."""
-    blocked, resolution, origin, lights = random_case(seed)
     rng = np.random.default_rng(2000 + seed)
-    frame = GridFrame.of(blocked, resolution, origin)
-    fast = visibility.PointVisibility(blocked, resolution, origin, lights, max_tiles=3)
-    fast.TILE = int(rng.integers(1, 9))  # blocks straddle the map; a tiny cache evicts often
-    x0, y0 = frame.origin_x, frame.origin_y
-    x1, y1 = x0 + frame.width * resolution, y0 + frame.height * resolution
+    case, _, fast, (x0, y0, x1, y1) = evicting_case(seed, rng, max_tiles=3)
+    blocked, resolution, origin, lights = case
     for count in (1, 10, fast.FEW_CELLS, 400):
         xs = rng.uniform(x0, x1 - 1e-9, count)
         ys = rng.uniform(y0, y1 - 1e-9, count)
