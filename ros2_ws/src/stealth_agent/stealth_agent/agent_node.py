@@ -141,6 +141,7 @@ class AgentNode(Node):
         self._states_received = 0  # for the shutdown totals, as the environment logs its own
         # The DDS sequence number of the last state (None where the middleware gives none).
         self._last_state_sequence: int | None = None
+        self._early_state: RLStateReward | None = None  # the latest before any description
         self._actions_sent = 0
         self._declared = False
         self._endings = EpisodeEndMatcher()
@@ -311,6 +312,10 @@ class AgentNode(Node):
             return
         self._description = description
         self._setup(description)
+        early, self._early_state = self._early_state, None
+        if early is not None and self._core is not None:
+            log.info('answering the state that came before the description')
+            self._handle_state(early)
 
     def _description_again(self, description: EnvDescription) -> None:
         log = self.get_logger()
@@ -442,15 +447,21 @@ class AgentNode(Node):
                 log.warning(f'a new environment is sending states (restarted){note}')
         if self._core is None:
             if self._description is None:
+                # Its writer may be matched before the latched description's (a restarted
+                # agent): held, not dropped, or the environment would wait for its answer.
+                self._early_state = msg
                 log.warning(
                     'rl_state_reward received before any environment description '
-                    '(rl_env/rl_env_description); skipped'
+                    '(rl_env/rl_env_description); held until the description arrives'
                 )
             else:
                 log.error(
                     f'rl_state_reward skipped: the agent is not usable ({self._setup_error})'
                 )
             return
+        self._handle_state(msg)
+
+    def _handle_state(self, msg: RLStateReward) -> None:
         if not self._core.in_episode:
             self._endings.new_episode()
             if self._learning_run:
