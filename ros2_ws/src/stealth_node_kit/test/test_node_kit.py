@@ -93,3 +93,35 @@ def test_a_node_whose_set_up_fails_destroys_itself(error, monkeypatch):
         assert destroyed == ['refusing']
     finally:
         context.try_shutdown()
+
+
+@pytest.mark.parametrize('context_down', [True, False])
+def test_an_error_while_spinning_is_the_stop_only_once_the_context_is_down(
+    context_down, monkeypatch
+):
+    """rclpy's SIGINT handler shuts the context down from another thread; a message being
+    taken meanwhile fails with a plain RuntimeError. That is the stop (exit 0); the same error
+    while the context is up is a real failure."""
+    import rclpy
+
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')  # this machine only
+    monkeypatch.delenv('ROS_LOCALHOST_ONLY', raising=False)
+    finished = []
+
+    def failing_spin(node):
+        if context_down:
+            rclpy.try_shutdown()
+        raise RuntimeError("Unable to convert call argument '0' to Python object")
+
+    monkeypatch.setattr(rclpy, 'spin', failing_spin)
+
+    def make():
+        return rclpy.create_node('kit_spin_test')
+
+    if context_down:
+        assert run_node(make, 'kit_test', args=[], on_exit=finished.append) == 0
+    else:
+        with pytest.raises(RuntimeError, match='Unable to convert'):
+            run_node(make, 'kit_test', args=[], on_exit=finished.append)
+        rclpy.try_shutdown()
+    assert len(finished) == 1  # on_exit ran either way (the policy is saved, totals logged)
