@@ -139,8 +139,6 @@ class AgentNode(Node):
         self._named_outcomes = Counter()
         self._out_of_range = 0
         self._states_received = 0  # for the shutdown totals, as the environment logs its own
-        # The DDS sequence number of the last state (None where the middleware gives none).
-        self._last_state_sequence: int | None = None
         self._early_state: RLStateReward | None = None  # the latest before any description
         self._actions_sent = 0
         self._declared = False
@@ -333,28 +331,14 @@ class AgentNode(Node):
                 'to switch environments'
             )
             return
-        if self._last_state_sequence is not None:
-            # The states' sequence numbers tell when a new environment's states begin (below),
-            # and this latched description may come after them, on a writer DDS matched later:
-            # an episode in progress now may be the new environment's.
-            log.warning(
-                'environment description received again (environment restarted?); keeping the '
-                "table; the new environment's first state ends the old episode, if one is open"
-            )
-            return
-        note = self._drop_episode()
+        aborted = self._core.abort()
+        self._endings.new_episode()
+        self._stop_waiting()
+        note = f'; dropped the episode in progress ({aborted.actions} actions)' if aborted else ''
         log.warning(
             f'environment description received again (environment restarted?); '
             f'keeping the table{note}'
         )
-
-    def _drop_episode(self) -> str:
-        """The environment restarted: the episode in progress (if any) is void; a note saying
-        what was dropped."""
-        aborted = self._core.abort()
-        self._endings.new_episode()
-        self._stop_waiting()
-        return f'; dropped the episode in progress ({aborted.actions} actions)' if aborted else ''
 
     def _setup(self, description: EnvDescription) -> None:
         """Build (or load) the learner for this environment; on failure stay idle, alive."""
@@ -428,23 +412,9 @@ class AgentNode(Node):
             f'from {source}; ' + ('evaluating (no learning)' if evaluate else 'learning')
         )
 
-    def _on_state(self, msg: RLStateReward, info: dict) -> None:
+    def _on_state(self, msg: RLStateReward) -> None:
         log = self.get_logger()
         self._states_received += 1
-        # A writer numbers its messages from 1: a number that does not grow is a new writer, a
-        # restarted environment (its episode's states must not continue the old one's).
-        sequence = info.get('publication_sequence_number')
-        restarted = (
-            sequence is not None
-            and self._last_state_sequence is not None
-            and sequence <= self._last_state_sequence
-        )
-        if sequence is not None:
-            self._last_state_sequence = sequence
-        if restarted and self._core is not None:
-            note = self._drop_episode()
-            if note:
-                log.warning(f'a new environment is sending states (restarted){note}')
         if self._core is None:
             if self._description is None:
                 # Its writer may be matched before the latched description's (a restarted
