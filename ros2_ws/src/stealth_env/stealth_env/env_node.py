@@ -116,7 +116,6 @@ from stealth_env.episode_flow import (
     PlanarPose,
     agent_connected,
     is_finite_pose,
-    readers_matched,
 )
 from stealth_env.exposure import heading_angle
 from stealth_env.log_throttle import Throttle
@@ -547,21 +546,7 @@ class EnvironmentNode(StartupNode):
             )
             for info in self.get_subscriptions_info_by_topic(self._state_pub.topic_name)
         ]
-        if not agent_connected(writers, readers, self._state_pub.get_subscription_count()):
-            return False
-        # The latched description and the episode summaries reach the agent on writers of
-        # their own, matched apart from the states' one: a respawned environment that started
-        # before they matched ran a whole episode before the agent had its description, and
-        # the agent, taking the late description for a restart, dropped the episode's
-        # terminal state while the environment waited for the next episode's request.
-        return all(
-            readers_matched(
-                [Endpoint(_node_of(info)) for info in self.get_subscriptions_info_by_topic(
-                    publisher.topic_name)],
-                publisher.get_subscription_count(),
-            )
-            for publisher in (self._description_pub, self._summary_pub)
-        )  # fmt: skip
+        return agent_connected(writers, readers, self._state_pub.get_subscription_count())
 
     def _on_tick(self) -> None:
         now = time.monotonic()
