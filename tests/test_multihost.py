@@ -26,10 +26,10 @@ from test_env_node import totals
 import test_system
 from test_system import (
     STEALTH,
+    assert_nodes_exited_cleanly,
     one_line_error,
     read_bag,
     short_scenario,
-    unclean_exits,
     wait_for_text,
 )
 
@@ -143,7 +143,7 @@ def test_a_remote_node_that_never_joins_is_a_timeout_naming_it_and_its_command(s
         'never joined'
     )
     assert set(summary['nodes']) == {'recorder', 'simulator', 'environment'}
-    assert not unclean_exits(run, summary), unclean_exits(run, summary)
+    assert_nodes_exited_cleanly(run, summary)
     assert read_bag(run / 'recording.mcap')[0] is not None  # closed and indexed
 
 
@@ -166,7 +166,7 @@ def test_an_agent_joins_with_the_printed_command_and_leaving_ends_the_run(
     run = system.runs / 'joined'
     summary = json.loads((run / 'summary.json').read_text())
     assert summary['status'] == 'failed' and summary['remote_nodes']['agent']['state'] == 'left'
-    assert not unclean_exits(run, summary), unclean_exits(run, summary)
+    assert_nodes_exited_cleanly(run, summary)
     bag_summary, messages, _ = read_bag(run / 'recording.mcap')
     assert bag_summary is not None and messages[ACTION]
     assert len(messages['/rl_env/episode_summary']) >= summary['episodes']
@@ -190,7 +190,7 @@ def test_a_second_agent_joining_stops_the_run_naming_the_topic(system, remote, t
     run = system.runs / 'crowded'
     summary = json.loads((run / 'summary.json').read_text())
     assert summary['status'] == 'failed'
-    assert not unclean_exits(run, summary), unclean_exits(run, summary)
+    assert_nodes_exited_cleanly(run, summary)
     bag_summary, messages, _ = read_bag(run / 'recording.mcap')
     assert bag_summary is not None
     assert len(messages['/rl_env/episode_summary']) >= summary['episodes']

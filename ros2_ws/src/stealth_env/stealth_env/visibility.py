@@ -344,9 +344,9 @@ class PointVisibility:
             )
             lit = value > 0.0
             if np.any(lit):
-                cells = np.unique(rows[lit] * frame.width + cols[lit])
+                width = frame.width
+                cells = np.unique(rows[lit] * width + cols[lit])
                 if len(cells) <= self.FEW_CELLS:  # a move's samples: the block cache
-                    width = frame.width
                     occluded = np.array(
                         [not self.line_of_sight(lamp, (c % width, c // width))
                          for c in cells.tolist()],
@@ -354,10 +354,9 @@ class PointVisibility:
                     )  # fmt: skip
                 else:
                     occluded = _occluded(
-                        self.blocked, self._corners, lamp, cells % frame.width,
-                        cells // frame.width,
-                    )  # fmt: skip
-                dark = np.isin(rows * frame.width + cols, cells[occluded])
+                        self.blocked, self._corners, lamp, cells % width, cells // width
+                    )
+                dark = np.isin(rows * width + cols, cells[occluded])
                 value = np.where(lit & dark, 0.0, value)
             per_light.append((value, dx, dy))
         return per_light
