@@ -25,6 +25,12 @@ AGENT = REPO_ROOT / 'ros2_ws/install/stealth_agent/lib/stealth_agent/agent_node'
 RL_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE
 )
+REPORT_QOS = QoSProfile(  # as stealth_env offers its EpisodeSummary
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1000,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
 DESCRIPTION_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=1,
@@ -89,7 +95,7 @@ class FakeCorridorEnv(SpinningNode):
     def report_outcomes(self):
         """Publish EpisodeSummary at every episode end, as stealth_env's environment does."""
         self.summary_pub = self.node.create_publisher(
-            EpisodeSummary, 'rl_env/episode_summary', RL_QOS
+            EpisodeSummary, 'rl_env/episode_summary', REPORT_QOS
         )
         assert self.spin_until(lambda: self.summary_pub.get_subscription_count() >= 1, 10.0)
 
@@ -480,3 +486,49 @@ def test_a_timeout_is_learned_as_a_truncation_not_as_a_terminal_state(
         assert policy.learner.q[row, action] == pytest.approx(expected_q)
     if aborted_action not in taken:
         assert policy.learner.q[row, aborted_action] == 10.0
+
+
+def test_restarts_of_either_side_keep_the_agent_in_step_with_the_environment(env, node_processes):
+    """A restarted environment is told by its states' DDS sequence numbers starting again (its
+    latched description may come after its first states, on a writer DDS matched later), and an
+    episode the environment ends ABORTED before the agent saw its first state is closed, not
+    learned."""
+    reports: list[AgentEpisodeInfo] = []
+    env.node.create_subscription(AgentEpisodeInfo, 'rl_agent/episode_info', reports.append, RL_QOS)
+    env.describe()
+    agent = start_agent(node_processes, 'agent_restarts', epsilon=0.0)
+    wait_for_log(agent, f"environment '{TITLE}'")
+    env.wait_for_agent()
+    env.report_outcomes()
+    env.send([0.0], FIRST_REWARD)
+    assert env.answer() is not None
+    env.send([1.0], -1.0)
+    assert env.answer() is not None
+    # The environment restarts mid-episode: a new writer of the states, numbering from 1.
+    env.node.destroy_publisher(env.state_pub)
+    env.state_pub = env.node.create_publisher(RLStateReward, 'rl_env/rl_state_reward', RL_QOS)
+    env.wait_for_agent()
+    env.send([0.0], FIRST_REWARD)
+    assert env.answer() is not None
+    wait_for_log(agent, 'a new environment is sending states (restarted); dropped the episode')
+    # Its description comes late: the new environment's episode goes on.
+    env.describe()
+    wait_for_log(agent, "the new environment's first state ends the old episode")
+    env.send([5.0], 10.0, terminal=True)
+    env.summarise(1, EpisodeSummary.SUCCESS, 1)
+    info = env.experiment_info()
+    assert (info.episode_number, info.number_actions) == (1, 1)
+    # An episode ended ABORTED before its first state reached the agent (its report first).
+    env.summarise(2, EpisodeSummary.ABORTED, 0)
+    env.send([0.0], 0.0, terminal=True)
+    info = env.experiment_info()
+    assert (info.episode_number, info.number_actions) == (2, 0)
+    assert env.spin_until(lambda: len(reports) == 2, 5.0)
+    assert [r.ending for r in reports] == [
+        AgentEpisodeInfo.END_TERMINAL,
+        AgentEpisodeInfo.END_ABORTED,
+    ]
+    assert reports[1].learner_episodes == reports[0].learner_episodes  # nothing learned
+    env.send([0.0], FIRST_REWARD)  # and the next episode starts as usual
+    assert env.answer() is not None
+    stop(agent)

@@ -573,6 +573,30 @@ def test_simulator_failure_and_agent_loss_abort_and_recover(agent, node_processe
     assert (counts['states'], counts['episodes']) == (len(agent.states), 3)
 
 
+def test_a_first_state_left_unanswered_ends_the_episode_aborted(agent, node_processes):
+    """After an agent restarts, DDS may deliver the volatile first state to the dead agent's
+    reader alone: without an answer in first_action_timeout the episode ends ABORTED before its
+    first step (terminal state and summary), so both sides are in step again."""
+    scenario = load_scenario(SCENARIO)
+    start_sim(node_processes, scenario)
+    env = start_env(node_processes, scenario=SCENARIO, first_action_timeout=1.0)
+    first = agent.next_state()
+    aborted = agent.next_state(timeout=10.0)
+    assert aborted.terminal and aborted.reward == 0.0 and list(aborted.state) == list(first.state)
+    assert agent.spin_until(lambda: agent.summaries, 5.0)
+    summary = agent.summaries[0]
+    assert (summary.episode, summary.outcome, summary.steps) == (0, EpisodeSummary.ABORTED, 0)
+    wait_for_log(env, 'no action for the first state within first_action_timeout 1 s')
+    agent.action_pub.publish(RLAction(action=UP))  # a late answer is dropped, not executed
+    wait_for_log(env, 'dropped')
+    agent.info_pub.publish(RLExperimentInfo(episode_number=0, number_actions=0))
+    assert not agent.next_state().terminal
+    state, info = agent.act(UP)  # answered in time: the episode runs as usual
+    assert (info.episode, info.step) == (1, 1) and not state.terminal
+    assert len(agent.summaries) == 1
+    stop(env)
+
+
 def test_a_restarted_simulator_or_agent_ends_the_episode_it_left(agent, node_processes):
     scenario = load_scenario(SCENARIO)
     start_sim(node_processes, scenario)

@@ -11,7 +11,8 @@ waits for its summary as long as the environment (a summary publisher) is there,
 every summary_wait seconds: a summary that is only late, on a loaded machine, never turns into a
 guess, so the same seed learns the same episodes whatever the load. Only when no publisher is
 left is the state learned as terminal. A plain rl_msgs environment, with no summary publisher,
-gets rl_agent's behaviour.
+gets rl_agent's behaviour. A restarted environment is told by its states' DDS sequence numbers
+starting again (the old episode is dropped there, whenever its latched description arrives).
 
 With eval_every M > 0, every M-th episode of a learning run is a greedy
 evaluation (epsilon 0, no updates, the schedules stand still), so an experiment can watch the
@@ -82,6 +83,15 @@ DESCRIPTION_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
+# The environment's episode reports and the agent's own keep their latest messages for a reader
+# that (re)joins late: after either side restarts, DDS may match the new pair of endpoints only
+# after the first reports went out, and a report lost there is an episode the run never closes.
+REPORT_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1000,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
 FLOAT32_MAX = float(np.finfo(np.float32).max)
 # s of wall time between checks, while a terminal state waits for its summary, that the
 # environment is still there (only its leaving ends the wait; see SummaryWait).
@@ -140,10 +150,13 @@ class AgentNode(Node):
         self._out_of_range = 0
         self._states_received = 0  # for the shutdown totals, as the environment logs its own
         self._early_state: RLStateReward | None = None  # the latest before any description
+        # The DDS sequence number of the last state (None where the middleware gives none).
+        self._last_state_sequence: int | None = None
         self._actions_sent = 0
         self._declared = False
         self._endings = EpisodeEndMatcher()
         self._summary_sub = None
+        self._summary_unmatched_told = False
 
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
@@ -167,7 +180,7 @@ class AgentNode(Node):
             event_callbacks=QUIET_PUBLISHER,
         )
         self._episode_info_pub = self.create_publisher(
-            AgentEpisodeInfo, 'rl_agent/episode_info', RL_QOS, event_callbacks=QUIET_PUBLISHER
+            AgentEpisodeInfo, 'rl_agent/episode_info', REPORT_QOS, event_callbacks=QUIET_PUBLISHER
         )
         self.create_subscription(
             RLEnvDescription,
@@ -189,7 +202,7 @@ class AgentNode(Node):
                 EpisodeSummary,
                 summary_topic,
                 self._on_summary,
-                RL_QOS,
+                REPORT_QOS,
                 event_callbacks=QUIET_SUBSCRIPTION,
             )
         self._summary_wait = SummaryWait(self._param('summary_wait'))
@@ -331,14 +344,28 @@ class AgentNode(Node):
                 'to switch environments'
             )
             return
-        aborted = self._core.abort()
-        self._endings.new_episode()
-        self._stop_waiting()
-        note = f'; dropped the episode in progress ({aborted.actions} actions)' if aborted else ''
+        if self._last_state_sequence is not None:
+            # The states' sequence numbers tell when a new environment's states begin (see
+            # _on_state), and this latched description may come after them, on a writer DDS
+            # matched later: an episode in progress now may be the new environment's.
+            log.warning(
+                'environment description received again (environment restarted?); keeping the '
+                "table; the new environment's first state ends the old episode, if one is open"
+            )
+            return
+        note = self._drop_episode()
         log.warning(
             f'environment description received again (environment restarted?); '
             f'keeping the table{note}'
         )
+
+    def _drop_episode(self) -> str:
+        """The environment restarted: the episode in progress (if any) is void; a note saying
+        what was dropped."""
+        aborted = self._core.abort()
+        self._endings.new_episode()
+        self._stop_waiting()
+        return f'; dropped the episode in progress ({aborted.actions} actions)' if aborted else ''
 
     def _setup(self, description: EnvDescription) -> None:
         """Build (or load) the learner for this environment; on failure stay idle, alive."""
@@ -412,9 +439,13 @@ class AgentNode(Node):
             f'from {source}; ' + ('evaluating (no learning)' if evaluate else 'learning')
         )
 
-    def _on_state(self, msg: RLStateReward) -> None:
+    def _on_state(self, msg: RLStateReward, info: dict) -> None:
         log = self.get_logger()
         self._states_received += 1
+        if self._new_state_writer(info.get('publication_sequence_number')):
+            note = self._drop_episode() if self._core is not None else ''
+            if note:
+                log.warning(f'a new environment is sending states (restarted){note}')
         if self._core is None:
             if self._description is None:
                 # Its writer may be matched before the latched description's (a restarted
@@ -431,13 +462,25 @@ class AgentNode(Node):
             return
         self._handle_state(msg)
 
+    def _new_state_writer(self, sequence: int | None) -> bool:
+        """Whether this state comes from another writer than the last one: a writer numbers its
+        messages from 1, so a number that does not grow is a restarted environment, whose
+        states must not continue the old one's episode."""
+        if sequence is None:
+            return False
+        last, self._last_state_sequence = self._last_state_sequence, sequence
+        return last is not None and sequence <= last
+
     def _handle_state(self, msg: RLStateReward) -> None:
         if not self._core.in_episode:
-            self._endings.new_episode()
+            if not msg.terminal:  # (a report may have come before a terminal first state)
+                self._endings.new_episode()
             if self._learning_run:
                 greedy = is_greedy_episode(self._core.episode, self._param('eval_every'))
                 self._core.set_learning(not greedy)
-        if msg.terminal and self._core.in_episode and self._environment_reports_endings():
+        if msg.terminal and self._environment_reports_endings():
+            # Before any action too: an environment ends an episode whose first state got no
+            # answer (lost to a restarted agent) ABORTED, and that is what is learned (nothing).
             self._wait_for_summary(msg)
             return
         self._process(msg.state, msg.reward, msg.terminal)
@@ -464,7 +507,19 @@ class AgentNode(Node):
     def _environment_reports_endings(self) -> bool:
         """Whether some environment publishes EpisodeSummary: then a terminal state waits for
         its summary to know whether it ended the task or only the time allowed."""
-        return self._summary_sub is not None and self._summary_sub.get_publisher_count() > 0
+        if self._summary_sub is None:
+            return False
+        if self._summary_sub.get_publisher_count() > 0:
+            return True
+        topic = self._summary_sub.topic_name
+        if not self._summary_unmatched_told and self.count_publishers(topic):
+            self._summary_unmatched_told = True
+            self.get_logger().warning(
+                f'{topic} has a publisher that is not matched with the '
+                'agent (its QoS must be reliable and transient local, or DDS is still matching '
+                'it): terminal states are learned as rl_msgs says, a timeout as terminal'
+            )
+        return False
 
     def _wait_for_summary(self, msg: RLStateReward) -> None:
         try:  # a bad terminal state is refused now, not after the wait
@@ -564,9 +619,9 @@ class AgentNode(Node):
             self.save(f'every {save_every} episodes')
 
     def _on_summary(self, msg: EpisodeSummary) -> None:
+        if self._core is None or msg.episode < self._param('first_episode'):
+            return  # from before this agent's first episode (the history a late reader gets)
         self._named_outcomes[OUTCOME_NAMES.get(msg.outcome, f'outcome {msg.outcome}')] += 1
-        if self._core is None or not self._core.in_episode:
-            return
         ending = OUTCOME_ENDINGS.get(msg.outcome, Ending.TERMINATED)
         resolved = self._endings.report(msg.steps, ending, int(msg.episode))
         if resolved is not None:

@@ -161,8 +161,9 @@ class ProtocolAgent:
         if self.index.mapping.out_of_range(vector):
             notes = (f'state {vector.tolist()} lies outside the description state ranges',)
         if not self.in_episode:
-            if terminal:
-                return Step(None, self._finish(0.0, terminal_reward=None), notes)
+            if terminal:  # an episode ended before its first action: nothing to learn
+                aborted = ending is Ending.ABORTED
+                return Step(None, self._finish(0.0, terminal_reward=None, aborted=aborted), notes)
             return Step(self.first_action(vector), None, notes)
         if not terminal:
             return Step(self.next_action(reward, vector), None, notes)

@@ -79,6 +79,16 @@ def test_a_terminal_first_state_is_an_empty_episode():
     assert agent.episode == 1 and not agent.learner.q.any()
 
 
+def test_an_episode_aborted_before_its_first_action_moves_no_schedule():
+    agent = make_agent()
+    step = agent.handle([0.0], 0.0, True, Ending.ABORTED)
+    assert step.result.aborted and step.result.actions == 0
+    assert (agent.episode, agent.learner.episodes) == (1, 0)
+    # The same state as an rl_msgs terminal one counts as a learning episode.
+    agent.handle([0.0], 0.0, True)
+    assert (agent.episode, agent.learner.episodes) == (2, 1)
+
+
 @pytest.mark.parametrize(
     ('state', 'reward', 'message'),
     [

@@ -105,10 +105,12 @@ class Monitor:
         self.frozen = False  # set when the run ends: later reports are not counted
         self.late: list[dict] = []  # summaries that arrived after that
         self._restart_client = None  # rl_env/restart_episode, once a node was respawned
+        # Transient local: the reports' writers keep their latest messages, and after a node
+        # restarts DDS may match its writer with this reader only after its first reports.
         qos = QoSProfile(
             history=HistoryPolicy.KEEP_ALL,
             reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.VOLATILE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL,
         )
         self.node.create_subscription(
             EpisodeSummary, 'rl_env/episode_summary', self._on_summary, qos

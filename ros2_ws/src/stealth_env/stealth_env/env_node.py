@@ -20,7 +20,8 @@ step may be dropped silently):
   does with its periodic topics;
 * serves ``rl_env/restart_episode`` (RestartEpisode): a restarted simulator's or agent's episode
   ends ABORTED (stealth train's respawn); ``step_info`` and ``episode_summary`` are transient
-  local with the last REPORT_HISTORY messages, for a recorder that (re)joins late;
+  local with the last REPORT_HISTORY messages, for a reader that (re)joins late (a recorder,
+  the orchestrator, an agent: DDS may match a restarted node's endpoints after the first ones);
 * calls ``sim/execute_move`` and ``sim/reset`` (stealth_interfaces) of the simulator node
   (``robot_interface`` service; ``topics``: see below),
   asynchronously: no callback ever blocks the executor; reads the simulator's latched ``map``
@@ -37,9 +38,10 @@ nodes); reward and terminal come from the core, judged on the true pose at the m
 end an episode; the agent's RLExperimentInfo starts the next one. Actions that arrive out of turn
 or out of range are dropped with a warning. A move the simulator rejects, fails or does not answer
 within ``move_timeout`` ends the episode as ABORTED (a terminal state with reward 0 keeps the agent
-in step). An agent that goes away ends its episode as ABORTED, and the next agent to come gets a
-fresh one. Totals of actions and states are logged at shutdown. The decisions are
-``stealth_env.episode_flow``'s; the marker geometry ``stealth_env.markers``'.
+in step), and so does a first state with no answer within ``first_action_timeout``. An agent that
+goes away ends its episode as ABORTED, and the next agent to come gets a fresh one. Totals of
+actions and states are logged at shutdown. The decisions are ``stealth_env.episode_flow``'s; the
+marker geometry ``stealth_env.markers``'.
 
 Robot interface (``robot_interface``, ``reset_mode``): ``service`` (the default) is the above.
 ``topics`` plugs into any ROS robot (Stage, Gazebo, a TurtleBot with nav2's AMCL; or
@@ -116,6 +118,7 @@ from stealth_env.episode_flow import (
     PlanarPose,
     agent_connected,
     is_finite_pose,
+    readers_matched,
 )
 from stealth_env.exposure import heading_angle
 from stealth_env.log_throttle import Throttle
@@ -137,6 +140,10 @@ NODE_NAME = 'environment'
 MAP_FRAME = 'map'
 TICK_PERIOD = 0.1  # s of wall time between housekeeping ticks (start, timeouts, agent presence)
 RESET_RETRY = 1.0  # s of wall time before a failed reset is tried again
+# s of wall time a teleport (sim/reset, answered in milliseconds) is waited for before it is sent
+# again: just after the simulator restarts the request or its answer can be lost (DDS still
+# matches the dead server's endpoints), and the run should not wait a whole move_timeout.
+RESET_ANSWER_TIMEOUT = 5.0
 SLOT_TOLERANCE = 1e-3  # s: a move ending this close to its step's slot end is not padded
 WAITING_LOG_PERIOD = 10.0  # s of wall time between 'still waiting' lines
 MOVE_NOTE_LOG_PERIOD = 5.0  # s of wall time between lines about bumped moves
@@ -330,6 +337,7 @@ class Pending(NamedTuple):
     client: Any
     deadline: float  # time.monotonic()
     what: str
+    timeout: str  # what the deadline is, for the message when it passes
 
 
 # --- the node -----------------------------------------------------------------------------------
@@ -356,6 +364,8 @@ class EnvironmentNode(StartupNode):
         self.flow = EpisodeFlow(self.task, values['judge_on'], values['first_episode'])
         self.move_timeout = values['move_timeout']
         self.start_delay = values['start_delay']
+        self.first_action_timeout = values['first_action_timeout']
+        self._first_state_at = 0.0  # time.monotonic() of the latest first state
         self.log_every = values['log_every']
         self.robot_interface, self.reset_mode = values['robot_interface'], values['reset_mode']
         if self.reset_mode == 'drive' and self.robot_interface != 'topics':
@@ -516,6 +526,8 @@ class EnvironmentNode(StartupNode):
                 self.move_timeout = change.value
             elif change.name == 'start_delay':
                 self.start_delay = change.value
+            elif change.name == 'first_action_timeout':
+                self.first_action_timeout = change.value
             elif change.name == 'log_every':
                 self.log_every = change.value
             elif change.name == 'marker_period':
@@ -548,6 +560,20 @@ class EnvironmentNode(StartupNode):
         ]
         return agent_connected(writers, readers, self._state_pub.get_subscription_count())
 
+    def _reports_matched(self) -> bool:
+        """Whether the description's, the summaries' and the steps' writers are matched with
+        every reader the graph shows. DDS matches each pair of endpoints on its own: a
+        respawned environment that started before then ran whole episodes whose StepInfo was
+        never built (nobody matched) and whose summaries and description came late."""
+        return all(
+            readers_matched(
+                [Endpoint(_node_of(info)) for info in self.get_subscriptions_info_by_topic(
+                    publisher.topic_name)],
+                publisher.get_subscription_count(),
+            )
+            for publisher in (self._description_pub, self._summary_pub, self._step_pub)
+        )  # fmt: skip
+
     def _on_tick(self) -> None:
         now = time.monotonic()
         pending = self._pending
@@ -555,8 +581,8 @@ class EnvironmentNode(StartupNode):
             self._pending = None
             pending.client.remove_pending_request(pending.future)
             self._request_failed(
-                pending, f'no answer from {pending.what} within move_timeout '
-                f'{self.move_timeout:g} s (is the simulator running?)'
+                pending, f'no answer from {pending.what} within {pending.timeout} '
+                '(is the simulator running?)'
             )  # fmt: skip
         if self._robot is not None:
             self._robot_watchdog()
@@ -565,6 +591,22 @@ class EnvironmentNode(StartupNode):
             self._maybe_start(now)
         elif self._action_sub.get_publisher_count() == 0:
             self._agent_gone()
+        elif (
+            self.first_action_timeout
+            and phase is Phase.RUNNING
+            and self.flow.steps == 0
+            and now - self._first_state_at > self.first_action_timeout
+        ):
+            self._first_action_overdue()
+
+    def _first_action_overdue(self) -> None:
+        aborted = self.flow.unanswered(
+            f'no action for the first state within first_action_timeout '
+            f'{self.first_action_timeout:g} s (the state or the action was lost: an agent that '
+            'restarted may not have been matched yet)'
+        )
+        if aborted is not None:
+            self._publish_aborted(aborted)
 
     def _robot_watchdog(self) -> None:
         """A robot that stops publishing odometry mid-move fails the move, as a simulator that
@@ -635,7 +677,8 @@ class EnvironmentNode(StartupNode):
 
     def _maybe_start(self, now: float) -> None:
         robot, agent = self._robot_ready(), self._agent_connected()
-        if not (robot and agent):
+        reports = agent and self._reports_matched()
+        if not (robot and agent and reports):
             self._ready_since = None
             if now - self._waiting_logged >= WAITING_LOG_PERIOD:
                 self._waiting_logged = now
@@ -647,6 +690,11 @@ class EnvironmentNode(StartupNode):
                             f'an agent (publishing {TOPICS["action"]}, subscribed to '
                             f'{TOPICS["state"]})',
                             agent,
+                        ),
+                        (
+                            f'DDS to match the readers of {TOPICS["description"]}, '
+                            f'{TOPICS["summary"]} and {TOPICS["step_info"]}',
+                            reports or not agent,
                         ),
                     )
                     if not there
@@ -665,7 +713,8 @@ class EnvironmentNode(StartupNode):
             self._drive_home(token, Pose(x, y, yaw))
             return
         request = ResetRobot.Request(x=x, y=y, yaw=yaw)  # zero covariance: the node's default
-        self._send(self._reset_client, request, token, self.reset_service, self._on_reset_answer)
+        self._send(self._reset_client, request, token, self.reset_service, self._on_reset_answer,
+                   min(self.move_timeout, RESET_ANSWER_TIMEOUT))  # fmt: skip
 
     def _drive_home(self, token: int, start: Pose) -> None:
         """reset_mode drive: back to the start over the lattice, then tell the localisation."""
@@ -685,9 +734,14 @@ class EnvironmentNode(StartupNode):
 
         self._robot.run(moves, arrived)
 
-    def _send(self, client, request, token: int, what: str, on_answer) -> None:
+    def _send(self, client, request, token: int, what: str, on_answer, timeout=None) -> None:
         future = client.call_async(request)
-        self._pending = Pending(token, future, client, time.monotonic() + self.move_timeout, what)
+        if timeout is None or timeout >= self.move_timeout:
+            timeout, name = self.move_timeout, f'move_timeout {self.move_timeout:g} s'
+        else:
+            name = f'{timeout:g} s'
+        deadline = time.monotonic() + timeout
+        self._pending = Pending(token, future, client, deadline, what, name)
         future.add_done_callback(functools.partial(on_answer, token))
 
     def _request_failed(self, pending: Pending, reason: str) -> None:
@@ -729,6 +783,7 @@ class EnvironmentNode(StartupNode):
         if state is None:
             return  # stale: the agent went away meanwhile
         self._state_pub.publish(RLStateReward(state=list(state), reward=0.0, terminal=False))
+        self._first_state_at = time.monotonic()
         self.get_logger().debug(f'episode {self.flow.episode} started at state {list(state)}')
 
     def _reset_failed(self, token: int, reason: str) -> None:

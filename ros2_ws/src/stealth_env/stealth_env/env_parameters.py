@@ -35,6 +35,13 @@ PARAMETERS = {
         "agent's side of the DDS match (a writer sees a reader before the reader sees the "
         'writer, and a volatile first state sent in between is lost).', (0.0, 3600.0)
     ),
+    'first_action_timeout': Param(
+        10.0, "Wall-clock seconds to wait for the agent's answer to an episode's first state; "
+        'without one the episode ends ABORTED before its first step (a terminal state and its '
+        'summary put both sides in step again): after an agent restarts, DDS may deliver that '
+        "volatile first state to the dead agent's reader alone until its lease ends. 0 = wait "
+        'for ever (the rl_msgs way).', (0.0, 3600.0)
+    ),
     'publish_plan': Param(
         False, 'Publish planned_path (nav_msgs/Path, latched): the optimum by value iteration '
         'on the move lattice, for viewers; it takes a few seconds at startup.', read_only=True,

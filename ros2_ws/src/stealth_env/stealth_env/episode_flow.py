@@ -382,6 +382,16 @@ class EpisodeFlow:
         self.counts.states_sent += 1
         return Aborted(self.state, self._end(Outcome.ABORTED), reason)
 
+    def unanswered(self, reason: str) -> Aborted | None:
+        """The first state got no action in time (it can be lost to an agent that DDS matched
+        late): the episode ends ABORTED before its first step. None unless the episode waits
+        for its first action."""
+        if self.phase is not Phase.RUNNING or self.steps != 0:
+            return None
+        self.token += 1
+        self.counts.states_sent += 1
+        return Aborted(self.state, self._end(Outcome.ABORTED), reason)
+
     def _end(self, outcome: Outcome) -> EpisodeSummaryFields:
         self.phase = Phase.ENDED
         self.action = None
@@ -427,6 +437,12 @@ def agent_connected(
     readers = list(state_readers)
     if not agents or not any(reader.node in agents for reader in readers):
         return False
+    return readers_matched(readers, matched)
+
+
+def readers_matched(readers: Iterable[Endpoint], matched: int) -> bool:
+    """Whether a writer is matched with every compatible reader the graph shows (``matched``
+    of them): before that, what it publishes may reach a reader late or, volatile, never."""
     return matched >= sum(1 for reader in readers if reader.compatible)
 
 

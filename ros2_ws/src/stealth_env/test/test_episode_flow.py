@@ -11,6 +11,7 @@ from stealth_env.episode_flow import (
     Phase,
     PlanarPose,
     agent_connected,
+    readers_matched,
 )
 from stealth_env.reward import Outcome
 from stealth_env.scenario import load_scenario
@@ -232,6 +233,16 @@ def test_agent_connected(writers, readers, matched, connected):
     assert agent_connected(writers, readers, matched) is connected
 
 
+def test_a_latched_writer_waits_for_every_reader_the_graph_shows():
+    """The description's and the summaries' writers: matched with each reader seen, whoever it
+    is (a plain rl_msgs agent that reads neither is not waited for)."""
+    readers = [Endpoint('/agent'), Endpoint('/recorder')]
+    assert not readers_matched(readers, 1)
+    assert readers_matched(readers, 2)
+    assert readers_matched([], 0)
+    assert readers_matched([Endpoint('/agent'), Endpoint('/viewer', False)], 1)
+
+
 def test_a_true_pose_off_the_map_is_refused_and_changes_nothing(map1):
     flow = started(StealthTask(map1))
     assert flow.accept_action(0) is None
@@ -335,3 +346,21 @@ def test_without_moving_lights_nothing_is_padded(map1):
     flow = started(StealthTask(map1))
     assert flow.accept_action(0) is None
     assert flow.step_time_left(0.0) == 0.0
+
+
+def test_a_first_state_left_unanswered_ends_aborted_before_its_first_step(map1):
+    flow = started(StealthTask(map1))
+    first, token = flow.state, flow.token
+    aborted = flow.unanswered('no first action')
+    assert aborted.state == first and aborted.reason == 'no first action'
+    assert (aborted.summary.outcome, aborted.summary.steps) == (Outcome.ABORTED, 0)
+    assert flow.phase is Phase.ENDED and flow.experiment_info() is None
+    assert flow.accept_action(0) is not None  # the late answer is dropped, not executed
+    assert flow.token != token and flow.counts.states_sent == 2
+    # Only an episode still waiting for its first action is ended that way.
+    assert flow.unanswered('again') is None
+    flow = started(StealthTask(map1))
+    step(flow, 0, PlanarPose(2.5, 3.0))
+    assert flow.unanswered('after a step') is None and flow.phase is Phase.RUNNING
+    assert flow.accept_action(0) is None
+    assert flow.unanswered('moving') is None and flow.phase is Phase.MOVING
