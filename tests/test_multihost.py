@@ -38,6 +38,7 @@ ACTION, STATE = '/rl_agent/rl_action', '/rl_env/rl_state_reward'
 JOIN_PREFIX = '  env -u ROS_LOCALHOST_ONLY ROS_DOMAIN_ID='
 PARTITION = 5.0  # s the link is down
 EPISODES = 20  # of the two-host run (and of the one-host run it is compared with)
+EPISODES_BEFORE_PARTITION = 3  # finished before the link goes down
 # Fast simulation (the namespaces' test is about the link, not the filter).
 FAST = ('--set', 'simulator.particles=100', '--set', 'simulator.laser_beams=60')
 # Only inside the namespaces the test creates.
@@ -113,6 +114,16 @@ def in_background(system, args, prefix=(), **extra_env) -> subprocess.Popen:
     process.stderr_path = system.tmp_path / 'stderr.txt'
     system.started.append(process)
     return process
+
+
+def wait_for_rows(path: Path, rows: int, timeout: float = 90.0) -> None:
+    """Until episodes.csv at `path` has `rows` episodes (a header line besides)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if path.is_file() and len(path.read_text().splitlines()) > rows:
+            return
+        time.sleep(0.02)
+    raise AssertionError(f'{path}: not {rows} episodes within {timeout:g} s')
 
 
 def run_args(tmp_path, name: str, episodes: int, *more: str) -> list[str]:
@@ -287,7 +298,9 @@ def test_an_agent_on_another_host_loses_nothing_over_a_partition(
     assert ' ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET stealth run stealth_agent agent_node ' in command
     agent = remote(command, 'agent', b.exec, **udp)
     wait_for_text(train, 'all nodes up', timeout=90)
-    time.sleep(3.0)
+    # Paced by the run's own progress, not a sleep: a fast loop had ended all its episodes
+    # before a link that went down 3 s after the start came back.
+    wait_for_rows(system.runs / 'two-hosts' / 'episodes.csv', EPISODES_BEFORE_PARTITION)
     down = time.time_ns()
     b.link('down')
     time.sleep(PARTITION)

@@ -295,7 +295,9 @@ class Run:
                 for record in self.tracker.add_summary(fields, wall_time):
                     self._on_record(record)
                 restart.aborted_episode = episode
-            return {'first_episode': monitor.next_episode()}
+            # Its first steps must reach the monitor and the recorder (see step_readers).
+            readers = 1 + bool(self.plan.record)
+            return {'first_episode': monitor.next_episode(), 'step_readers': readers}
         if name == 'agent' and self.plan.mode == 'train':
             # Its checkpoint (saved every episode) holds the table, the model, the schedules'
             # position and the random stream.

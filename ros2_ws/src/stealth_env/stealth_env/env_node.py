@@ -118,7 +118,6 @@ from stealth_env.episode_flow import (
     PlanarPose,
     agent_connected,
     is_finite_pose,
-    readers_matched,
 )
 from stealth_env.exposure import heading_angle
 from stealth_env.log_throttle import Throttle
@@ -365,6 +364,7 @@ class EnvironmentNode(StartupNode):
         self.move_timeout = values['move_timeout']
         self.start_delay = values['start_delay']
         self.first_action_timeout = values['first_action_timeout']
+        self.step_readers = values['step_readers']
         self._first_state_at = 0.0  # time.monotonic() of the latest first state
         self.log_every = values['log_every']
         self.robot_interface, self.reset_mode = values['robot_interface'], values['reset_mode']
@@ -528,6 +528,8 @@ class EnvironmentNode(StartupNode):
                 self.start_delay = change.value
             elif change.name == 'first_action_timeout':
                 self.first_action_timeout = change.value
+            elif change.name == 'step_readers':
+                self.step_readers = change.value
             elif change.name == 'log_every':
                 self.log_every = change.value
             elif change.name == 'marker_period':
@@ -559,20 +561,6 @@ class EnvironmentNode(StartupNode):
             for info in self.get_subscriptions_info_by_topic(self._state_pub.topic_name)
         ]
         return agent_connected(writers, readers, self._state_pub.get_subscription_count())
-
-    def _reports_matched(self) -> bool:
-        """Whether the description's, the summaries' and the steps' writers are matched with
-        every reader the graph shows. DDS matches each pair of endpoints on its own: a
-        respawned environment that started before then ran whole episodes whose StepInfo was
-        never built (nobody matched) and whose summaries and description came late."""
-        return all(
-            readers_matched(
-                [Endpoint(_node_of(info)) for info in self.get_subscriptions_info_by_topic(
-                    publisher.topic_name)],
-                publisher.get_subscription_count(),
-            )
-            for publisher in (self._description_pub, self._summary_pub, self._step_pub)
-        )  # fmt: skip
 
     def _on_tick(self) -> None:
         now = time.monotonic()
@@ -677,8 +665,8 @@ class EnvironmentNode(StartupNode):
 
     def _maybe_start(self, now: float) -> None:
         robot, agent = self._robot_ready(), self._agent_connected()
-        reports = agent and self._reports_matched()
-        if not (robot and agent and reports):
+        readers = self._step_pub.get_subscription_count() >= self.step_readers
+        if not (robot and agent and readers):
             self._ready_since = None
             if now - self._waiting_logged >= WAITING_LOG_PERIOD:
                 self._waiting_logged = now
@@ -691,11 +679,7 @@ class EnvironmentNode(StartupNode):
                             f'{TOPICS["state"]})',
                             agent,
                         ),
-                        (
-                            f'DDS to match the readers of {TOPICS["description"]}, '
-                            f'{TOPICS["summary"]} and {TOPICS["step_info"]}',
-                            reports or not agent,
-                        ),
+                        (f'{self.step_readers} readers of {TOPICS["step_info"]}', readers),
                     )
                     if not there
                 ]

@@ -42,6 +42,13 @@ PARAMETERS = {
         "volatile first state to the dead agent's reader alone until its lease ends. 0 = wait "
         'for ever (the rl_msgs way).', (0.0, 3600.0)
     ),
+    'step_readers': Param(
+        0, 'Episodes start only once rl_env/step_info is matched with at least this many '
+        'readers. StepInfo is built only while someone reads it, so a respawned environment '
+        "whose writer DDS matched late would leave its first steps out of the run's recording: "
+        'stealth train sets its own readers (its monitor, its recorder) for a respawn.',
+        (0, 1000)
+    ),
     'publish_plan': Param(
         False, 'Publish planned_path (nav_msgs/Path, latched): the optimum by value iteration '
         'on the move lattice, for viewers; it takes a few seconds at startup.', read_only=True,

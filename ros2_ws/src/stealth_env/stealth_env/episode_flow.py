@@ -437,12 +437,6 @@ def agent_connected(
     readers = list(state_readers)
     if not agents or not any(reader.node in agents for reader in readers):
         return False
-    return readers_matched(readers, matched)
-
-
-def readers_matched(readers: Iterable[Endpoint], matched: int) -> bool:
-    """Whether a writer is matched with every compatible reader the graph shows (``matched``
-    of them): before that, what it publishes may reach a reader late or, volatile, never."""
     return matched >= sum(1 for reader in readers if reader.compatible)
 
 

@@ -11,7 +11,6 @@ from stealth_env.episode_flow import (
     Phase,
     PlanarPose,
     agent_connected,
-    readers_matched,
 )
 from stealth_env.reward import Outcome
 from stealth_env.scenario import load_scenario
@@ -231,16 +230,6 @@ def test_judge_on_must_be_true_or_estimate(map1):
 )
 def test_agent_connected(writers, readers, matched, connected):
     assert agent_connected(writers, readers, matched) is connected
-
-
-def test_a_latched_writer_waits_for_every_reader_the_graph_shows():
-    """The description's and the summaries' writers: matched with each reader seen, whoever it
-    is (a plain rl_msgs agent that reads neither is not waited for)."""
-    readers = [Endpoint('/agent'), Endpoint('/recorder')]
-    assert not readers_matched(readers, 1)
-    assert readers_matched(readers, 2)
-    assert readers_matched([], 0)
-    assert readers_matched([Endpoint('/agent'), Endpoint('/viewer', False)], 1)
 
 
 def test_a_true_pose_off_the_map_is_refused_and_changes_nothing(map1):
