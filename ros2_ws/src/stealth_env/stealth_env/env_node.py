@@ -20,8 +20,9 @@ step may be dropped silently):
   does with its periodic topics;
 * serves ``rl_env/restart_episode`` (RestartEpisode): a restarted simulator's or agent's episode
   ends ABORTED (stealth train's respawn); ``step_info`` and ``episode_summary`` are transient
-  local with the last REPORT_HISTORY messages, for a reader that (re)joins late (a recorder,
-  the orchestrator, an agent: DDS may match a restarted node's endpoints after the first ones);
+  local with the last STEP_HISTORY and REPORT_HISTORY messages, for a reader that (re)joins
+  late (a recorder, the orchestrator, an agent: DDS may match a restarted node's endpoints after
+  the first ones);
 * calls ``sim/execute_move`` and ``sim/reset`` (stealth_interfaces) of the simulator node
   (``robot_interface`` service; ``topics``: see below),
   asynchronously: no callback ever blocks the executor; reads the simulator's latched ``map``
@@ -161,10 +162,19 @@ RL_QOS = QoSProfile(
 )
 # The reports of every step and episode also keep their latest messages for a recorder that
 # (re)joins late, as a respawned one does: it gets what was published while it was away.
-REPORT_HISTORY = 2000  # messages: minutes of steps at the rates the loop reaches
+REPORT_HISTORY = 2000  # episode summaries: hours of episodes
+# Steps: the 20 s a respawned recorder may take to start and be matched, at 1000 steps/s (a run
+# without its recorder goes faster). 2000 held 5 s of a chaos run, and its recorder took 6.
+STEP_HISTORY = 20_000
 REPORT_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=REPORT_HISTORY,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+STEP_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=STEP_HISTORY,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
@@ -405,7 +415,7 @@ class EnvironmentNode(StartupNode):
                 'offer ({policy}): it gets no states; the RL topics are reliable and volatile',
             ),
         )
-        self._step_pub = self._quiet_publisher(StepInfo, TOPICS['step_info'], REPORT_QOS)
+        self._step_pub = self._quiet_publisher(StepInfo, TOPICS['step_info'], STEP_QOS)
         self._summary_pub = self._quiet_publisher(EpisodeSummary, TOPICS['summary'], REPORT_QOS)
         self._lights_pub = self._quiet_publisher(
             SearchlightArray, TOPICS['searchlights'], LATCHED_QOS
