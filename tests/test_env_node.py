@@ -597,6 +597,23 @@ def test_a_first_state_left_unanswered_ends_the_episode_aborted(agent, node_proc
     stop(env)
 
 
+def test_episodes_wait_for_the_step_readers_a_respawn_is_given(agent, node_processes):
+    """StepInfo is built only while someone reads it: a respawned environment (step_readers
+    set by stealth train) starts no episode before that many readers are matched, so none of
+    its steps is missing from the recording."""
+    scenario = load_scenario(SCENARIO)
+    start_sim(node_processes, scenario)
+    env = start_env(node_processes, scenario=SCENARIO, step_readers=2)
+    wait_for_log(env, 'still waiting for 2 readers of rl_env/step_info')
+    assert agent.no_state_for(2.0)  # the agent is there, and one step reader (its own)
+    recorded: list[StepInfo] = []
+    agent.node.create_subscription(StepInfo, 'rl_env/step_info', recorded.append, RL_QOS)
+    agent.next_state()
+    agent.act(UP)
+    assert agent.spin_until(lambda: recorded, 5.0) and recorded[0].step == 1
+    stop(env)
+
+
 def test_a_restarted_simulator_or_agent_ends_the_episode_it_left(agent, node_processes):
     scenario = load_scenario(SCENARIO)
     start_sim(node_processes, scenario)
