@@ -23,6 +23,7 @@ import time
 from mcap.reader import make_reader
 import pytest
 from test_env_node import totals
+from test_resume import wait_for_episodes
 import test_system
 from test_system import (
     STEALTH,
@@ -114,16 +115,6 @@ def in_background(system, args, prefix=(), **extra_env) -> subprocess.Popen:
     process.stderr_path = system.tmp_path / 'stderr.txt'
     system.started.append(process)
     return process
-
-
-def wait_for_rows(path: Path, rows: int, timeout: float = 90.0) -> None:
-    """Until episodes.csv at `path` has `rows` episodes (a header line besides)."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if path.is_file() and len(path.read_text().splitlines()) > rows:
-            return
-        time.sleep(0.02)
-    raise AssertionError(f'{path}: not {rows} episodes within {timeout:g} s')
 
 
 def run_args(tmp_path, name: str, episodes: int, *more: str) -> list[str]:
@@ -300,7 +291,7 @@ def test_an_agent_on_another_host_loses_nothing_over_a_partition(
     wait_for_text(train, 'all nodes up', timeout=90)
     # Paced by the run's own progress, not a sleep: a fast loop had ended all its episodes
     # before a link that went down 3 s after the start came back.
-    wait_for_rows(system.runs / 'two-hosts' / 'episodes.csv', EPISODES_BEFORE_PARTITION)
+    wait_for_episodes(train, system.runs / 'two-hosts' / 'episodes.csv', EPISODES_BEFORE_PARTITION)
     down = time.time_ns()
     b.link('down')
     time.sleep(PARTITION)

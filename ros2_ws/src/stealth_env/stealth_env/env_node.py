@@ -166,24 +166,21 @@ REPORT_HISTORY = 2000  # episode summaries: hours of episodes
 # Steps: the 20 s a respawned recorder may take to start and be matched, at 1000 steps/s (a run
 # without its recorder goes faster). 2000 held 5 s of a chaos run, and its recorder took 6.
 STEP_HISTORY = 20_000
-REPORT_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=REPORT_HISTORY,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
-STEP_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=STEP_HISTORY,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
-LATCHED_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
+
+
+def _kept(depth: int) -> QoSProfile:
+    """Reliable and transient local with the last `depth` messages (1: latched)."""
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=depth,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    )
+
+
+REPORT_QOS = _kept(REPORT_HISTORY)
+STEP_QOS = _kept(STEP_HISTORY)
+LATCHED_QOS = _kept(1)
 TOPICS = {
     'description': 'rl_env/rl_env_description',
     'state': 'rl_env/rl_state_reward',

@@ -365,8 +365,7 @@ class EpisodeFlow:
         None when stale."""
         if token != self.token or self.phase is not Phase.MOVING:
             return None
-        self.counts.states_sent += 1
-        return Aborted(self.state, self._end(Outcome.ABORTED), reason)
+        return self._aborted(reason)
 
     def interrupt(self, reason: str) -> Aborted | None:
         """The robot was restarted under the episode (it is no longer where the episode left
@@ -379,8 +378,7 @@ class EpisodeFlow:
             return None
         if not self.in_episode:
             return None
-        self.counts.states_sent += 1
-        return Aborted(self.state, self._end(Outcome.ABORTED), reason)
+        return self._aborted(reason)
 
     def unanswered(self, reason: str) -> Aborted | None:
         """The first state got no action in time (it can be lost to an agent that DDS matched
@@ -389,6 +387,10 @@ class EpisodeFlow:
         if self.phase is not Phase.RUNNING or self.steps != 0:
             return None
         self.token += 1
+        return self._aborted(reason)
+
+    def _aborted(self, reason: str) -> Aborted:
+        """End the episode ABORTED: its terminal state (a copy of the last) counts as sent."""
         self.counts.states_sent += 1
         return Aborted(self.state, self._end(Outcome.ABORTED), reason)
 
