@@ -11,16 +11,21 @@ for the CPU):
    exchange between two Python processes costs at best;
 2. **RL loop, sim_node**: sim_node with its cheapest settings (0.1 s physics steps, a fast
    robot, 10 particles, 8 beams, one filter update per move), env_node and a minimal agent process;
-3. **RL loop, stub simulator**: the same, with a stand-in for sim_node that answers each move
-   at once on the move lattice (no physics, no localisation): what the ROS plumbing costs.
+3. **RL loop, composed**: the same two nodes in one process (``stealth_bringup sim_env``), where
+   the environment calls the simulator's services directly instead of over the middleware
+   (``stealth_node_kit.in_process``); also at sim_node's default settings (200 particles,
+   0.04 s physics steps, 60 beams), where the simulator's own work bounds the loop;
+4. **RL loop, stub simulator**: the same as 2, with a stand-in for sim_node that answers each
+   move at once on the move lattice (no physics, no localisation): what the ROS plumbing costs.
 
 Each is measured REPEATS times and the best counts: other processes on the machine can only
 slow a run down.
 
-A step of the loop is two lockstep exchanges (topic and service) plus the simulator's work, so
-its rate is at most half the ping-pong's; the target is at least 0.3 of it. Also reported: the
-simulator's own moves per second in-process at the same settings, the bound the loop can never
-beat. Needs the workspace built (``make setup``).
+A step of the separate-process loop is two lockstep exchanges (topic and service) plus the
+simulator's work, so its rate is at most half the ping-pong's; composed, one exchange plus the
+work. The target, at least 0.3 of the ping-pong, is judged on the composed loop at the cheapest
+settings. Also reported: the simulator's own moves per second in-process at the same settings,
+the bound the loop can never beat. Needs the workspace built (``make setup``).
 Run: ``source scripts/ros_env.sh && python bench/bench_ros_loop.py``.
 """
 
@@ -44,7 +49,7 @@ from ros_support import (  # noqa: E402
 
 SCENARIO = 'simple-maze'
 ROUND_TRIPS = 3000
-STEPS = {'sim_node': 2000, 'stub': 3000}
+STEPS = {'sim_node': 2000, 'composed': 3000, 'composed_defaults': 1000, 'stub': 3000}
 WARMUP = 200  # steps or round trips before the clock starts
 REPEATS = 2  # each measurement; the best counts (other load on the machine only slows down)
 TARGET_RATIO = 0.3
@@ -55,6 +60,7 @@ TIMEOUT = 600.0  # s for any one measurement
 BIN = REPO_ROOT / 'ros2_ws' / 'install'
 SIM_NODE = BIN / 'stealth_sim' / 'lib' / 'stealth_sim' / 'sim_node'
 ENV_NODE = BIN / 'stealth_env' / 'lib' / 'stealth_env' / 'env_node'
+SIM_ENV = BIN / 'stealth_bringup' / 'lib' / 'stealth_bringup' / 'sim_env'
 FAST_SIM = {
     'physics_dt': 0.1,
     'particles': 10,
@@ -295,25 +301,46 @@ def ping_pong() -> float:
     return count / seconds
 
 
+def _params_file(directory: Path, node: str, values: dict) -> Path:
+    import yaml
+
+    path = directory / f'{node}.yaml'
+    path.write_text(yaml.safe_dump({node: {'ros__parameters': values}}))
+    return path
+
+
 def rl_loop(simulator: str) -> tuple[float, float]:
-    """(RL steps per second, episodes per second) with 'sim_node' or the 'stub'."""
+    """(RL steps per second, episodes per second) with 'sim_node', 'composed' (sim_env at the
+    FAST_SIM settings), 'composed_defaults' (sim_env, sim_node's defaults) or the 'stub'."""
     from stealth_env.scenario import load_scenario
 
     scenario = load_scenario(SCENARIO)
     x, y, yaw = scenario.start
+    sim_params = {'map': str(scenario.map_path), 'initial_pose': [float(x), float(y), float(yaw)]}
+    if simulator != 'composed_defaults':
+        sim_params.update(FAST_SIM)
+    env_params = {'scenario': SCENARIO, 'marker_period': 0.0, 'log_every': 0}
     with _Run() as processes:
         if simulator == 'sim_node':
-            params = {'map': scenario.map_path, 'initial_pose': f'[{x}, {y}, {yaw}]', **FAST_SIM}
-            processes.start([str(SIM_NODE), *_ros_args(params)], 'sim_node')
-        else:
+            sim_file = _params_file(processes.log_dir, 'simulator', sim_params)
+            processes.start([str(SIM_NODE), '--ros-args', '--params-file', str(sim_file)],
+                            'sim_node')  # fmt: skip
+        elif simulator == 'stub':
             processes.start_python(STUB_SIM, 'stub_sim', SCENARIO)
-        env_params = {'scenario': SCENARIO, 'marker_period': 0.0, 'log_every': 0}
-        processes.start([str(ENV_NODE), *_ros_args(env_params)], 'env_node')
+        if simulator.startswith('composed'):
+            files = [
+                _params_file(processes.log_dir, 'simulator', sim_params),
+                _params_file(processes.log_dir, 'environment', env_params),
+            ]
+            args = [a for f in files for a in ('--params-file', str(f))]
+            processes.start([str(SIM_ENV), '--ros-args', *args], 'sim_env')
+        else:
+            processes.start([str(ENV_NODE), *_ros_args(env_params)], 'env_node')
         steps = STEPS[simulator]
         agent = processes.start_python(AGENT, 'agent', str(WARMUP), str(steps), '7')
         steps, seconds, episodes = _result(agent, f'RL loop with {simulator}')
         if episodes > steps / MIN_EPISODE_STEPS:  # a loop of aborts measures nothing
-            log = processes.log_dir / 'env_node.log'
+            log = sorted(processes.log_dir.glob('*env*.log'))[-1]
             raise RuntimeError(
                 f'RL loop with {simulator}: {episodes:.0f} episodes in {steps:.0f} steps, the '
                 f'environment ends them at once; its log ends:\n{log.read_text()[-2000:]}'
@@ -357,45 +384,49 @@ def simulator_in_process(moves: int = 300) -> float:
 
 
 def run(report=print) -> dict:
-    for path in (SIM_NODE, ENV_NODE):
+    for path in (SIM_NODE, ENV_NODE, SIM_ENV):
         if not path.exists():
             raise RuntimeError(f'{path} is missing: build the workspace first (make setup)')
     round_trips = max(ping_pong() for _ in range(REPEATS))
-    loop, episodes = max(rl_loop('sim_node') for _ in range(REPEATS))
-    stub, stub_episodes = max(rl_loop('stub') for _ in range(REPEATS))
+    loops = {kind: max(rl_loop(kind) for _ in range(REPEATS)) for kind in STEPS}
     core = simulator_in_process()
-    ratio, stub_ratio = loop / round_trips, stub / round_trips
+    ratios = {kind: steps / round_trips for kind, (steps, _) in loops.items()}
+    ratio = ratios['composed']
     verdict = 'met' if ratio >= TARGET_RATIO else 'NOT met'
     report(
         f'ROS loop, {SCENARIO}, a random agent answering at once (all in one run, best of '
         f'{REPEATS}):'
     )
     report(f'  bare rclpy ping-pong (two processes): {round_trips:.0f} round trips/s')
+    lines = {
+        'composed': 'simulator and environment composed (sim_env), cheapest settings',
+        'sim_node': 'sim_node and env_node, separate processes, cheapest settings',
+        'composed_defaults': "composed, sim_node's default settings",
+        'stub': 'a stub simulator (no physics), separate processes',
+    }
+    for kind, what in lines.items():
+        steps, episodes = loops[kind]
+        target = f' (target >= {TARGET_RATIO}: {verdict})' if kind == 'composed' else ''
+        report(
+            f'  RL loop, {what}: {steps:.0f} steps/s ({episodes:.1f} episodes/s), '
+            f'{ratios[kind]:.2f} of ping-pong{target}'
+        )
     report(
-        f'  RL loop through sim_node (cheapest settings): {loop:.0f} steps/s '
-        f'({episodes:.1f} episodes/s), {ratio:.2f} of ping-pong (target >= {TARGET_RATIO}: '
-        f'{verdict})'
+        f'  the simulator core alone at the cheapest settings: {core:.0f} moves/s in-process '
+        f'(a bound on the loop at those settings)'
     )
-    report(
-        f'  RL loop through a stub simulator (no physics): {stub:.0f} steps/s, '
-        f'{stub_ratio:.2f} of ping-pong'
-    )
-    report(
-        f'  the simulator core alone at the same settings: {core:.0f} moves/s in-process '
-        f'(a bound on the loop through sim_node)'
-    )
-    return {
+    results = {
         'ros_loop_ping_pong_round_trips_per_second': round(round_trips, 1),
-        'ros_loop_steps_per_second': round(loop, 1),
-        'ros_loop_ratio_to_ping_pong': round(ratio, 3),
         'ros_loop_target_ratio': TARGET_RATIO,
         'ros_loop_target_met': bool(ratio >= TARGET_RATIO),
-        'ros_loop_stub_steps_per_second': round(stub, 1),
-        'ros_loop_stub_ratio_to_ping_pong': round(stub_ratio, 3),
         'ros_loop_sim_core_moves_per_second': round(core, 1),
-        'ros_loop_episodes_per_second': round(episodes, 2),
-        'ros_loop_stub_episodes_per_second': round(stub_episodes, 2),
     }
+    for kind, (steps, episodes) in loops.items():
+        name = {'sim_node': 'ros_loop'}.get(kind, f'ros_loop_{kind}')
+        results[f'{name}_steps_per_second'] = round(steps, 1)
+        results[f'{name}_ratio_to_ping_pong'] = round(ratios[kind], 3)
+        results[f'{name}_episodes_per_second'] = round(episodes, 2)
+    return results
 
 
 def main() -> dict:

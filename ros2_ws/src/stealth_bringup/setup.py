@@ -30,6 +30,7 @@ setup(
     entry_points={
         'console_scripts': [
             'experiments = stealth_bringup.experiments:main',
+            'sim_env = stealth_bringup.sim_env:main',
         ],
         # `stealth train|eval|render|sweep`: stealth_tools' `stealth` reads this group.
         'stealth.commands': ['stealth_bringup = stealth_bringup.commands:COMMANDS'],

@@ -105,6 +105,7 @@ from stealth_node_kit.endpoints import (
     warn_publisher,
     warn_subscription,
 )
+from stealth_node_kit.in_process import InProcessClient, InProcessServices
 from stealth_node_kit.parameters import StartupError, declare_parameters, non_finite
 from stealth_node_kit.running import StartupNode, run_node
 from visualization_msgs.msg import Marker, MarkerArray
@@ -352,7 +353,8 @@ class Pending(NamedTuple):
 class EnvironmentNode(StartupNode):
     """stealth-nav's rl_env: scenario, judging and episodes over the simulator's moves."""
 
-    def __init__(self, **kwargs):
+    def __init__(self, services: InProcessServices | None = None, **kwargs):
+        self._in_process = services if services is not None else InProcessServices()
         super().__init__(NODE_NAME, **kwargs)
 
     def set_up(self) -> None:
@@ -444,11 +446,11 @@ class EnvironmentNode(StartupNode):
         )
         self._move_client = self._reset_client = self._robot = None
         if self.robot_interface == 'service':
-            self._move_client = self.create_client(ExecuteMove, MOVE_SERVICE)
+            self._move_client = self._in_process.client(self, ExecuteMove, MOVE_SERVICE)
         else:
             self._robot = TopicRobot(self, self._topic_config(values), MAP_FRAME)
         if self.reset_mode == 'teleport':
-            self._reset_client = self.create_client(ResetRobot, self.reset_service)
+            self._reset_client = self._in_process.client(self, ResetRobot, self.reset_service)
         self.create_service(RestartEpisode, TOPICS['restart'], self._on_restart_episode)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(TICK_PERIOD, self._on_tick, clock=self._steady)
@@ -487,6 +489,8 @@ class EnvironmentNode(StartupNode):
         """What the robot is reached over: services, or topics (and the reset's way)."""
         if self._robot is None:
             moves = f'the simulator ({MOVE_SERVICE}'
+            if isinstance(self._move_client, InProcessClient):
+                moves = f'the simulator in this process (called directly: {MOVE_SERVICE}'
         else:
             names = ', '.join(self.resolve_topic_name(t) for t in ROBOT_TOPICS.values())
             moves = f'topics ({names}'

@@ -12,7 +12,7 @@ from collections.abc import Callable
 import re
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 import rclpy.node
 
@@ -53,6 +53,24 @@ def run_node(
     `name` names the logger of the fatal line; `on_exit` runs after spinning, before the node
     is destroyed (save a policy, log totals); after Ctrl-C its logging goes to the console only.
     """
+    return run_nodes(
+        lambda: [make_node()],
+        name,
+        args=args,
+        on_exit=None if on_exit is None else (lambda nodes: on_exit(nodes[0])),
+    )
+
+
+def run_nodes(
+    make_nodes: Callable[[], list[rclpy.node.Node]],
+    name: str,
+    *,
+    args=None,
+    on_exit: Callable[[list[rclpy.node.Node]], None] | None = None,
+) -> int:
+    """:func:`run_node` for several nodes in one process, spun by one single-threaded executor
+    (their callbacks never run at the same time); `make_nodes` destroys what it built if it
+    fails part-way. They are destroyed in the reverse order."""
     logger = rclpy.logging.get_logger(name)
     try:
         rclpy.init(args=args)
@@ -60,7 +78,7 @@ def run_node(
         logger.fatal(f'not starting: bad arguments: {_without_source_locations(error)}')
         return EXIT_CANNOT_START
     try:
-        node = make_node()
+        nodes = make_nodes()
     except KeyboardInterrupt:  # stopped (Ctrl-C, the orchestrator) while it was starting
         rclpy.try_shutdown()
         return 0
@@ -68,8 +86,11 @@ def run_node(
         logger.fatal(f'not starting: {_without_source_locations(error)}')
         rclpy.try_shutdown()
         return EXIT_CANNOT_START
+    executor = SingleThreadedExecutor()
     try:
-        rclpy.spin(node)
+        for node in nodes[1:]:
+            executor.add_node(node)
+        rclpy.spin(nodes[0], executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (_rclpy.RCLError, RuntimeError):
@@ -81,7 +102,8 @@ def run_node(
             raise
     finally:
         if on_exit is not None:
-            on_exit(node)
-        node.destroy_node()
+            on_exit(nodes)
+        for node in reversed(nodes):
+            node.destroy_node()
         rclpy.try_shutdown()
     return 0

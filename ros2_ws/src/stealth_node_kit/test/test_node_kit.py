@@ -108,7 +108,7 @@ def test_an_error_while_spinning_is_the_stop_only_once_the_context_is_down(
     monkeypatch.delenv('ROS_LOCALHOST_ONLY', raising=False)
     finished = []
 
-    def failing_spin(node):
+    def failing_spin(node, executor=None):
         if context_down:
             rclpy.try_shutdown()
         raise RuntimeError("Unable to convert call argument '0' to Python object")
@@ -125,3 +125,93 @@ def test_an_error_while_spinning_is_the_stop_only_once_the_context_is_down(
             run_node(make, 'kit_test', args=[], on_exit=finished.append)
         rclpy.try_shutdown()
     assert len(finished) == 1  # on_exit ran either way (the policy is saved, totals logged)
+
+
+@pytest.fixture
+def ros_context(monkeypatch):
+    """A private rclpy context on this machine only (nothing else hears its nodes)."""
+    import rclpy
+
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    monkeypatch.delenv('ROS_LOCALHOST_ONLY', raising=False)
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=232)
+    nodes = []
+
+    def node(name, **kwargs):
+        nodes.append(rclpy.create_node(name, context=context, **kwargs))
+        return nodes[-1]
+
+    yield node
+    for made in nodes:
+        made.destroy_node()
+    context.try_shutdown()
+
+
+def test_a_service_of_this_process_is_called_directly_under_its_resolved_name(ros_context):
+    from std_srvs.srv import SetBool
+    from stealth_node_kit.in_process import InProcessClient, InProcessServices
+
+    services = InProcessServices()
+    calls = []
+
+    def switch(request, response):
+        calls.append(request.data)
+        response.success, response.message = True, f'set to {request.data}'
+        return response
+
+    server = ros_context('server', namespace='/robot')
+    services.serve(server, SetBool, 'sim/switch', switch)
+    assert services.names() == ['/robot/sim/switch']
+    caller = ros_context('caller', namespace='/robot')
+    client = services.client(caller, SetBool, 'sim/switch')
+    assert isinstance(client, InProcessClient) and client.service_is_ready()
+    future = client.call_async(SetBool.Request(data=True))
+    assert future.done() and future.result().message == 'set to True' and calls == [True]
+    answers = []
+    future.add_done_callback(lambda done: answers.append(done.result().success))
+    assert answers == [True]  # at once: no executor is needed for the answer
+    client.remove_pending_request(future)  # nothing pending: a no-op, as for a stale request
+    # Still a ROS service for everyone else.
+    names = dict(server.get_service_names_and_types_by_node('server', '/robot'))
+    assert names['/robot/sim/switch'] == ['std_srvs/srv/SetBool']
+
+
+@pytest.mark.parametrize(
+    'namespace, name, remap',
+    [
+        ('/', 'sim/switch', None),  # another namespace resolves to another service
+        ('/robot', 'sim/other', None),  # another name
+        ('/robot', 'sim/switch', 'sim/switch:=/elsewhere/switch'),  # remapped elsewhere
+    ],
+)
+def test_any_other_service_gets_a_ros_client(ros_context, namespace, name, remap):
+    from std_srvs.srv import SetBool
+    from rclpy.client import Client
+    from stealth_node_kit.in_process import InProcessServices
+
+    services = InProcessServices()
+    server = ros_context('server', namespace='/robot')
+    services.serve(server, SetBool, 'sim/switch', lambda request, response: response)
+    args = ['--ros-args', '-r', remap] if remap else None
+    caller = ros_context('caller', namespace=namespace, cli_args=args)
+    assert isinstance(services.client(caller, SetBool, name), Client)
+
+
+def test_a_service_of_another_type_under_the_name_gets_a_ros_client(ros_context):
+    import rclpy
+    from rclpy.client import Client
+    from std_srvs.srv import SetBool, Trigger
+    from stealth_node_kit.in_process import InProcessServices
+
+    services = InProcessServices()
+    services.serve(ros_context('server'), Trigger, 'sim/switch', lambda request, response: response)
+    # Fast DDS refuses two types on one service in one participant: the caller has its own.
+    other = rclpy.Context()
+    rclpy.init(context=other, domain_id=233)
+    caller = rclpy.create_node('caller', context=other)
+    try:
+        assert isinstance(services.client(caller, SetBool, 'sim/switch'), Client)
+    finally:
+        caller.destroy_node()
+        other.try_shutdown()

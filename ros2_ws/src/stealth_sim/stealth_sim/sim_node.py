@@ -55,6 +55,7 @@ from sensor_msgs.msg import LaserScan
 from stealth_interfaces.srv import ExecuteMove, ResetRobot
 from stealth_node_kit.conversions import quaternion_yaw, time_msg, yaw_quaternion
 from stealth_node_kit.endpoints import QUIET_PUBLISHER, warn_publisher, warn_subscription
+from stealth_node_kit.in_process import InProcessServices
 from stealth_node_kit.parameters import StartupError, declare_parameters
 from stealth_node_kit.running import StartupNode, run_node
 from tf2_msgs.msg import TFMessage
@@ -169,9 +170,14 @@ class RealTimePacer:
 
 
 class SimulatorNode(StartupNode):
-    """Parameters, topics, services and simulated time around one :class:`Simulator`."""
+    """Parameters, topics, services and simulated time around one :class:`Simulator`.
 
-    def __init__(self, **kwargs):
+    `services`: where its two services are also offered to nodes of this process (the
+    environment composed with it calls them directly); by default to none.
+    """
+
+    def __init__(self, services: InProcessServices | None = None, **kwargs):
+        self._in_process = services if services is not None else InProcessServices()
         super().__init__('simulator', **kwargs)
 
     def set_up(self) -> None:
@@ -198,6 +204,7 @@ class SimulatorNode(StartupNode):
         self._held = True  # left in place by a move or reset: time stands still (idle_time)
         self._next_publish = 0.0
         self._published_updates = self.sim.localisation_updates
+        self._estimate_due = False  # an estimate nobody subscribed to yet (latched: sent later)
         self._pacer = RealTimePacer(self.sim.time)
 
         latched = QoSProfile(
@@ -255,8 +262,8 @@ class SimulatorNode(StartupNode):
         seconds = warm_up()
         if seconds is not None:
             self.get_logger().info(f'compiled move kernels ready in {seconds:.1f} s')
-        self.create_service(ExecuteMove, 'sim/execute_move', self._on_execute_move)
-        self.create_service(ResetRobot, 'sim/reset', self._on_reset)
+        self._in_process.serve(self, ExecuteMove, 'sim/execute_move', self._on_execute_move)
+        self._in_process.serve(self, ResetRobot, 'sim/reset', self._on_reset)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(self.idle_period, self._on_idle_tick, clock=steady)
         self.add_on_set_parameters_callback(self._validate_parameters)
@@ -348,6 +355,8 @@ class SimulatorNode(StartupNode):
     def _on_idle_tick(self) -> None:
         """Between moves: simulated time runs at the real-time factor under /cmd_vel, and
         stands still in training (see stealth_sim.idle_time: never on wall time alone)."""
+        if self._estimate_due and self.pose_pub.get_subscription_count():
+            self._publish_estimate()
         tick = idle_tick(
             self.sim.time,
             self._pacer.due(self.real_time_factor or 1.0),
@@ -467,7 +476,7 @@ class SimulatorNode(StartupNode):
             tree = robot_transforms(sim.estimate, sim.odometry_pose)
             self.tf_pub.publish(TFMessage(transforms=[transform_msg(t, stamp) for t in tree]))
         if everything:
-            self._publish_estimate()
+            self._publish_estimate(only_if_subscribed=True)
 
     def _scan_message(self, stamp: Time) -> LaserScan:
         laser = self.sim.config.laser
@@ -484,9 +493,14 @@ class SimulatorNode(StartupNode):
         return scan
 
     def _publish_estimate(self, only_if_subscribed: bool = False) -> None:
-        self._published_updates = self.sim.localisation_updates
+        """amcl_pose; `only_if_subscribed`: with no subscriber it stays due, and the idle tick
+        sends it to the first one (latched, so a late subscriber still gets the latest estimate,
+        while training without one builds no message per move)."""
         if only_if_subscribed and not self.pose_pub.get_subscription_count():
+            self._estimate_due = True
             return
+        self._estimate_due = False
+        self._published_updates = self.sim.localisation_updates
         message = PoseWithCovarianceStamped()
         message.header.stamp, message.header.frame_id = time_msg(self.sim.time), MAP_FRAME
         message.pose = pose_with_covariance(self.sim.estimate, self.sim.estimate_covariance)
