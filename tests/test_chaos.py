@@ -31,12 +31,18 @@ RESPAWN_TIMEOUT = 120.0  # s for a killed node to be back (a loaded 2-core machi
 EPISODE_LINE = re.compile(r'^episode (\d+) ', re.MULTILINE)
 
 
-def kill_node(run: Path, name: str) -> int:
-    """SIGKILL the live process of node `name` of the run (its params file names it)."""
+def kill_node_pid(run: Path, name: str) -> int:
+    """The live process of node `name` of the run (its params file names it)."""
     pids = processes_naming(run / 'params' / f'{name}.yaml')
     assert len(pids) == 1, f'{name}: expected one live process, found {pids}'
-    os.kill(pids[0], signal.SIGKILL)
     return pids[0]
+
+
+def kill_node(run: Path, name: str) -> int:
+    """SIGKILL the live process of node `name` of the run; its pid."""
+    pid = kill_node_pid(run, name)
+    os.kill(pid, signal.SIGKILL)
+    return pid
 
 
 def wait_for_episode(train, episode: int, timeout: float = 300.0) -> None:
@@ -131,3 +137,33 @@ def test_a_node_that_keeps_crashing_is_given_up_after_its_retries(system, tmp_pa
     assert [r['node'] for r in summary['restarts']] == ['agent', 'agent']
     assert [r['delay'] for r in summary['restarts']] == [0.5, 1.0]
     assert (run / 'logs' / 'agent.log').read_text().count('cannot open') == 3
+
+
+def test_a_killed_composed_process_comes_back_with_both_nodes(system):
+    """--compose: the simulator and the environment die together and come back together as
+    the environment's process; the run goes on with contiguous episodes, every step recorded."""
+    train = system.start(
+        'train', '--compose', '--success-streak', '0', '--episodes', '30', '--seed', '2',
+        '--name', 'composed', '--runs-dir', str(system.runs),
+    )  # fmt: skip
+    run = system.runs / 'composed'
+    wait_for_text(train, 'all nodes up', timeout=180)
+    wait_for_episode(train, 10)
+    composed = kill_node_pid(run, 'environment')
+    assert kill_node(run, 'simulator') == composed  # one process
+    wait_for_text(train, 'environment is back after', timeout=RESPAWN_TIMEOUT)
+    assert train.wait(300) == 0, train.stderr_path.read_text()
+    summary = json.loads((run / 'summary.json').read_text())
+    assert summary['composed'] and [r['node'] for r in summary['restarts']] == ['environment']
+    with open(run / 'episodes.csv', newline='') as stream:
+        rows = list(csv.DictReader(stream))
+    assert [int(r['episode']) for r in rows] == list(range(30))
+    _, messages, _ = read_bag(run / 'recording.mcap')
+    seen = {(step.episode, step.step) for step in messages['/rl_env/step_info']}
+    missing = [
+        (int(r['episode']), step)
+        for r in rows
+        for step in range(1, int(r['steps']) + 1)
+        if (int(r['episode']), step) not in seen
+    ]
+    assert not missing, f'{len(missing)} steps not in the recording, first {missing[:5]}'

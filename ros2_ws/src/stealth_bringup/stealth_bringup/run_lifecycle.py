@@ -210,8 +210,7 @@ class Run:
         """Start a node with its parameters file and `values` on top (default: the values it
         is held with at the run's start), `env` on top of the run's environment."""
         plan = self.plan
-        params_file = plan.params_file(name).resolve()
-        command = plan.commands[name] + plan.parameters[name].ros_args(params_file)
+        command = plan.commands[name] + plan.ros_args(name)
         values = self._held_values(name) if values is None else values
         for key, value in values.items():
             command += ['-p', f'{key}:={ros_arg_value(value)}']
@@ -430,13 +429,15 @@ class Run:
         plan, monitor = self.plan, self.monitor
         deadline = time.monotonic() + plan.startup_timeout
         names = [n for n in plan.nodes if n in plan.commands]
-        self.say(f'starting {", ".join(names)} ...')
+        composed = ' (the simulator in its process)' if plan.composed else ''
+        self.say(f'starting {", ".join(names)}{composed} ...')
         for name in names:
             self._start(name)
         for name in plan.remote:
             self._announce_remote(name)
 
-        up = functools.partial(monitor.not_up, names)
+        local = [n for n in plan.nodes if n not in plan.remote]
+        up = functools.partial(monitor.not_up, local)
         self._wait(signals, 'the system', up, deadline, 'during startup')
         if self.remote and signals.first is None:
             join_deadline = max(node.since for node in self.remote.values()) + plan.join_timeout
@@ -483,8 +484,9 @@ class Run:
                 def alive(name=name) -> bool:
                     return name in self.monitor.node_names() and signals.first is None
             else:
+                process = self.supervisor.nodes[plan.process_of(name)]
 
-                def alive(node=self.supervisor.nodes[name]) -> bool:
+                def alive(node=process) -> bool:
                     return node.alive and signals.first is None
 
             declared = self.monitor.parameter_names(name, alive, PARAMETER_TIMEOUT)

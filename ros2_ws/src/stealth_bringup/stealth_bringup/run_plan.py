@@ -58,6 +58,10 @@ TOPICS_SIMULATOR = {'real_time_factor': 20.0, 'idle_period': 0.01, 'publish_rate
 JOIN_TIMEOUT = 300.0  # s for a --remote node to join: someone has to start it on another host
 # The recorder writes into the run directory, so it runs here.
 REMOTE_NODES = ('simulator', 'environment', 'agent')
+# --compose: these two nodes in one process, the second's (sim_env), under the second's name.
+COMPOSED = ('simulator', 'environment')
+COMPOSED_TEXT = 'the simulator and the environment'
+SIM_ENV = ('stealth_bringup', 'sim_env')
 
 # --- command line -------------------------------------------------------------------------------
 
@@ -131,6 +135,14 @@ def _common_options(parser: argparse.ArgumentParser, evaluating: bool = False) -
         'in -p name:=value)',
     )
     parser.add_argument('--no-record', action='store_true', help='do not start the recorder')
+    parser.add_argument(
+        '--compose',
+        action='store_true',
+        help='run the simulator and the environment in one process (stealth_bringup sim_env), '
+        "the environment calling the simulator directly: about twice the RL loop's steps per "
+        'second, the same episodes; the same topics and services for everyone else (not with '
+        '--watch, or with the simulator or the environment --remote or replaced by --executable)',
+    )
     parser.add_argument(
         '--watch',
         action='store_true',
@@ -309,6 +321,35 @@ def _check_goal(scenario, goal: str | None, default: str | None = None) -> str:
     return goal
 
 
+def _composed(commands: dict[str, list[str]], args) -> dict[str, list[str]]:
+    """--compose: the environment's process is sim_env, which runs the simulator too (and there
+    is no simulator process); RunConfigError where that cannot be."""
+    from stealth_tools.executables import ExecutableNotFoundError, find_executable
+
+    if args.watch:
+        raise RunConfigError(
+            '--compose with --watch: the simulator paced to real time would hold the '
+            "environment's searchlights for each move; watch without --compose"
+        )
+    for node in COMPOSED:
+        if node in args.remote:
+            raise RunConfigError(f'--compose with --remote {node}: {COMPOSED_TEXT} are one '
+                                 'process; drop one of the two')  # fmt: skip
+        if any(item.partition('=')[0] == node for item in args.executable):
+            raise RunConfigError(f'--compose with --executable {node}=...: {COMPOSED_TEXT} run '
+                                 'as the installed nodes; drop one of the two')  # fmt: skip
+    try:
+        container = str(find_executable(*SIM_ENV))
+    except ExecutableNotFoundError as error:
+        raise RunConfigError(
+            f'--compose: {error}; build the workspace (make setup) and source scripts/ros_env.sh'
+        ) from None
+    commands = dict(commands)
+    del commands['simulator']
+    commands['environment'] = [container]
+    return commands
+
+
 def _executables(
     nodes: list[str], replacements: list[str], remote: tuple[str, ...]
 ) -> dict[str, list[str]]:
@@ -388,6 +429,22 @@ class RunPlan:
     continued: Continuation | None = None  # stealth train --resume: the run's earlier part
     notes: list[str] = dataclasses.field(default_factory=list)  # to say before the run starts
     hashes: dict[str, str] = dataclasses.field(default_factory=dict)  # scenario and map SHA-256
+    composed: bool = False  # --compose: the simulator runs in the environment's process
+
+    def process_of(self, node: str) -> str:
+        """The name of the local process `node` runs in (its own, but for a composed
+        simulator: the environment's)."""
+        return COMPOSED[1] if self.composed and node == COMPOSED[0] else node
+
+    def ros_args(self, process: str) -> list[str]:
+        """--ros-args of a process: its node's params file (and --set values as -p, for a
+        process list to show), or, for the composed one, both nodes' files (a -p would reach
+        both nodes)."""
+        if self.composed and process == COMPOSED[1]:
+            files = [str(self.params_file(node).resolve()) for node in COMPOSED]
+            return ['--ros-args', *(arg for path in files for arg in ('--params-file', path))]
+        params_file = self.params_file(process).resolve()
+        return self.parameters[process].ros_args(params_file)
 
     @property
     def nodes(self) -> list[str]:
@@ -459,6 +516,8 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
     overrides = parse_set(args.overrides, nodes)
     remote = tuple(n for n in REMOTE_NODES if n in args.remote)
     commands = _executables(nodes, args.executable, remote)
+    if args.compose:
+        commands = _composed(commands, args)
     hashes = _hashes(scenario)
 
     # The run's own values, on top of the parameter files.
@@ -549,6 +608,7 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
         continued=continued,
         notes=notes,
         hashes=hashes,
+        composed=args.compose,
     )
 
 

@@ -278,6 +278,8 @@ class RunReport:
             'steps_per_s': round(steps_here / run_seconds, 2) if run_seconds > 0 else None,
             'ros_domain_id': facts.domain_id,
             'discovery': plan.discovery,
+            # --compose: the simulator ran in the environment's process (nodes.environment).
+            'composed': plan.composed,
             'policy': self._policy_check(),
             'nodes': {
                 name: {

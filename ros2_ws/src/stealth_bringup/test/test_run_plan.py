@@ -203,3 +203,34 @@ def test_watch_with_the_bridge_port_in_use_is_one_line_naming_port_and_option(tm
 def test_a_bridge_executable_without_watch_is_refused(tmp_path):
     with pytest.raises(RunConfigError, match='this run has no bridge node'):
         plan_of('--executable', 'bridge=/bin/true', runs_dir=tmp_path)
+
+
+def test_compose_runs_the_simulator_in_the_environments_process(tmp_path):
+    plan = plan_of('--compose', '--set', 'simulator.seed=5', runs_dir=tmp_path)
+    assert plan.composed and 'simulator' not in plan.commands
+    assert Path(plan.commands['environment'][0]).name == 'sim_env'
+    assert plan.nodes == ['recorder', 'simulator', 'environment', 'agent']  # all on the graph
+    assert plan.process_of('simulator') == 'environment' == plan.process_of('environment')
+    files = [str(plan.params_file(n).resolve()) for n in ('simulator', 'environment')]
+    # Both files, and no -p: `-p seed:=5` would set the environment's seed too.
+    assert plan.ros_args('environment') == [
+        '--ros-args', '--params-file', files[0], '--params-file', files[1]
+    ]  # fmt: skip
+    assert plan.parameters['simulator'].values['seed'] == 5  # in the simulator's file
+    separate = plan_of('--set', 'simulator.seed=5', runs_dir=tmp_path / 'separate')
+    assert not separate.composed and separate.process_of('simulator') == 'simulator'
+    assert separate.ros_args('simulator')[-2:] == ['-p', 'seed:=5']
+
+
+@pytest.mark.parametrize(
+    ('argv', 'message'),
+    [
+        (['--watch'], '--compose with --watch: the simulator paced to real time'),
+        (['--remote', 'simulator'], '--compose with --remote simulator: the simulator and'),
+        (['--executable', 'environment=/bin/true'], '--compose with --executable environment'),
+    ],
+)
+def test_compose_refuses_what_one_process_cannot_be(argv, message, tmp_path):
+    with pytest.raises(RunConfigError, match=message):
+        plan_of('--compose', *argv, runs_dir=tmp_path / 'runs')
+    assert not (tmp_path / 'runs').exists()

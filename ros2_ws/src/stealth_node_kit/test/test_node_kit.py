@@ -186,8 +186,8 @@ def test_a_service_of_this_process_is_called_directly_under_its_resolved_name(ro
     ],
 )
 def test_any_other_service_gets_a_ros_client(ros_context, namespace, name, remap):
-    from std_srvs.srv import SetBool
     from rclpy.client import Client
+    from std_srvs.srv import SetBool
     from stealth_node_kit.in_process import InProcessServices
 
     services = InProcessServices()
@@ -205,10 +205,10 @@ def test_a_service_of_another_type_under_the_name_gets_a_ros_client(ros_context)
     from stealth_node_kit.in_process import InProcessServices
 
     services = InProcessServices()
-    services.serve(ros_context('server'), Trigger, 'sim/switch', lambda request, response: response)
+    services.serve(ros_context('server'), Trigger, 'sim/switch', lambda request, answer: answer)
     # Fast DDS refuses two types on one service in one participant: the caller has its own.
     other = rclpy.Context()
-    rclpy.init(context=other, domain_id=233)
+    rclpy.init(context=other, domain_id=230)
     caller = rclpy.create_node('caller', context=other)
     try:
         assert isinstance(services.client(caller, SetBool, 'sim/switch'), Client)
