@@ -351,7 +351,11 @@ class Pending(NamedTuple):
 
 
 class EnvironmentNode(StartupNode):
-    """stealth-nav's rl_env: scenario, judging and episodes over the simulator's moves."""
+    """stealth-nav's rl_env: scenario, judging and episodes over the simulator's moves.
+
+    `services`: the service servers of this process (`stealth_bringup.sim_env` passes the
+    simulator's); a service it calls that one of them serves is called directly.
+    """
 
     def __init__(self, services: InProcessServices | None = None, **kwargs):
         self._in_process = services if services is not None else InProcessServices()
