@@ -70,6 +70,16 @@ def recorded_steps(run: Path) -> dict[tuple[int, int], int]:
     return seen
 
 
+def missing_steps(rows: list[dict], seen) -> list[tuple[int, int]]:
+    """(episode, step) of every step episodes.csv's `rows` count that is not in `seen`."""
+    return [
+        (int(r['episode']), step)
+        for r in rows
+        for step in range(1, int(r['steps']) + 1)
+        if (int(r['episode']), step) not in seen
+    ]
+
+
 def test_every_node_killed_in_turn_and_the_run_still_reaches_its_goal(system, tmp_path):
     train = system.start(
         'train', '--success-streak', str(STREAK), '--eval-every', '5', '--episodes', '400',
@@ -103,12 +113,7 @@ def test_every_node_killed_in_turn_and_the_run_still_reaches_its_goal(system, tm
             assert rows[restart['aborted_episode']]['outcome'] == 'ABORTED', restart
 
     seen = recorded_steps(run)
-    missing = [
-        (int(r['episode']), step)
-        for r in rows
-        for step in range(1, int(r['steps']) + 1)
-        if (int(r['episode']), step) not in seen
-    ]
+    missing = missing_steps(rows, seen)
     assert not missing, f'{len(missing)} steps not in the recording, first {missing[:5]}'
     # Beyond those, only the episode the stop cut short (after the end criterion, not counted).
     extra = {episode for episode, _ in seen} - set(episodes)
@@ -160,10 +165,5 @@ def test_a_killed_composed_process_comes_back_with_both_nodes(system):
     assert [int(r['episode']) for r in rows] == list(range(30))
     _, messages, _ = read_bag(run / 'recording.mcap')
     seen = {(step.episode, step.step) for step in messages['/rl_env/step_info']}
-    missing = [
-        (int(r['episode']), step)
-        for r in rows
-        for step in range(1, int(r['steps']) + 1)
-        if (int(r['episode']), step) not in seen
-    ]
+    missing = missing_steps(rows, seen)
     assert not missing, f'{len(missing)} steps not in the recording, first {missing[:5]}'

@@ -49,6 +49,7 @@ from stealth_node_kit.endpoints import (
     warn_subscription,
 )
 from stealth_node_kit.parameters import StartupError, declare_parameters, non_finite
+from stealth_node_kit.qos import kept_qos
 from stealth_node_kit.running import run_node
 
 from .agent_parameters import PARAMETERS
@@ -77,21 +78,11 @@ RL_QOS = QoSProfile(
     durability=DurabilityPolicy.VOLATILE,
 )
 # Published once by the environment; late agents still get it.
-DESCRIPTION_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
+DESCRIPTION_QOS = kept_qos(1)
 # The environment's episode reports and the agent's own keep their latest messages for a reader
 # that (re)joins late: after either side restarts, DDS may match the new pair of endpoints only
 # after the first reports went out, and a report lost there is an episode the run never closes.
-REPORT_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1000,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
-)
+REPORT_QOS = kept_qos(1000)
 FLOAT32_MAX = float(np.finfo(np.float32).max)
 # s of wall time between checks, while a terminal state waits for its summary, that the
 # environment is still there (only its leaving ends the wait; see SummaryWait).

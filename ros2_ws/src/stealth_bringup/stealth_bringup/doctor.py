@@ -134,22 +134,31 @@ def check_domains() -> tuple[str, bool]:
     return f'ROS domains held by runs and tests: {"; ".join(held)}', True
 
 
+def run_node_of(command_line: str) -> tuple[str, str] | None:
+    """(node, run directory) of a process started with a run's params/<node>.yaml, else None;
+    a --compose process names two files, and both nodes ('simulator and environment')."""
+    matches = [m for m in _PARAMS_FILE.finditer(command_line) if m['node'] in NODES]
+    if not matches:
+        return None
+    run = str(Path(matches[0]['file']).parent.parent)
+    return ' and '.join(m['node'] for m in matches), run
+
+
 def leftover_nodes() -> list[tuple[int, str, str]]:
     """(pid, node, run directory) of run nodes whose orchestrator is gone: started with a run's
     params/<node>.yaml and adopted by init (a run's nodes are its children until it ends)."""
     found = []
     for entry in Path('/proc').glob('[0-9]*'):
         pid = int(entry.name)
-        match = _PARAMS_FILE.search(_command_line(pid))
-        if match is None or match.group('node') not in NODES:
+        node = run_node_of(_command_line(pid))
+        if node is None:
             continue
         try:
             parent = int(Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[1])
         except (OSError, IndexError, ValueError):
             continue
         if parent == 1:
-            run = str(Path(match.group('file')).parent.parent)
-            found.append((pid, match.group('node'), run))
+            found.append((pid, *node))
     return sorted(found)
 
 

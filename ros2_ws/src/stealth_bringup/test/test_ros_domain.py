@@ -68,3 +68,17 @@ def test_files_of_dead_processes_are_removed_when_twice_unmapped(tmp_path, monke
         'other',
         'sem.fastrtps_live_mutex',
     ]
+
+
+def test_doctor_names_the_node_and_run_of_a_process_and_both_of_a_composed_one():
+    from stealth_bringup.doctor import run_node_of
+
+    params = '/work/runs/r1/params'
+    single = f'/ws/lib/stealth_agent/agent_node --ros-args --params-file {params}/agent.yaml'
+    assert run_node_of(single) == ('agent', '/work/runs/r1')
+    composed = (
+        f'/ws/lib/stealth_bringup/sim_env --ros-args --params-file {params}/simulator.yaml '
+        f'--params-file {params}/environment.yaml -p start_delay:=0.5'
+    )
+    assert run_node_of(composed) == ('simulator and environment', '/work/runs/r1')
+    assert run_node_of('python other.py --params-file /tmp/params/mine.yaml') is None

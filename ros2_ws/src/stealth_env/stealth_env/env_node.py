@@ -107,6 +107,7 @@ from stealth_node_kit.endpoints import (
 )
 from stealth_node_kit.in_process import InProcessClient, InProcessServices
 from stealth_node_kit.parameters import StartupError, declare_parameters, non_finite
+from stealth_node_kit.qos import kept_qos
 from stealth_node_kit.running import StartupNode, run_node
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -169,19 +170,9 @@ REPORT_HISTORY = 2000  # episode summaries: hours of episodes
 STEP_HISTORY = 20_000
 
 
-def _kept(depth: int) -> QoSProfile:
-    """Reliable and transient local with the last `depth` messages (1: latched)."""
-    return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST,
-        depth=depth,
-        reliability=ReliabilityPolicy.RELIABLE,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL,
-    )
-
-
-REPORT_QOS = _kept(REPORT_HISTORY)
-STEP_QOS = _kept(STEP_HISTORY)
-LATCHED_QOS = _kept(1)
+REPORT_QOS = kept_qos(REPORT_HISTORY)
+STEP_QOS = kept_qos(STEP_HISTORY)
+LATCHED_QOS = kept_qos(1)
 TOPICS = {
     'description': 'rl_env/rl_env_description',
     'state': 'rl_env/rl_state_reward',

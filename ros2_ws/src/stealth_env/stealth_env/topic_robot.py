@@ -21,14 +21,12 @@ from geometry_msgs.msg import PoseWithCovarianceStamped, Twist
 from nav_msgs.msg import Odometry
 import numpy as np
 from rclpy.qos import (
-    DurabilityPolicy,
-    QoSProfile,
-    ReliabilityPolicy,
     qos_profile_sensor_data,
 )
 from sensor_msgs.msg import LaserScan
 from stealth_node_kit.conversions import quaternion_yaw, seconds, yaw_quaternion
 from stealth_node_kit.endpoints import QUIET_PUBLISHER, QUIET_SUBSCRIPTION
+from stealth_node_kit.qos import kept_qos
 
 from stealth_env.log_throttle import Throttle
 from stealth_env.topic_moves import (
@@ -56,9 +54,7 @@ TOPICS = {
 BAD_MESSAGE_LOG_PERIOD = 5.0  # s of wall time between lines about one topic's bad messages
 TRUTH_WAIT = 1.0  # s of wall time a finished move waits for the ground truth of its end
 # nav2's AMCL publishes amcl_pose reliable and transient local (the last one to late joiners).
-ESTIMATE_QOS = QoSProfile(
-    depth=5, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
-)
+ESTIMATE_QOS = kept_qos(5)
 
 
 class MoveEnd(NamedTuple):

@@ -215,3 +215,13 @@ def test_a_service_of_another_type_under_the_name_gets_a_ros_client(ros_context)
     finally:
         caller.destroy_node()
         other.try_shutdown()
+
+
+def test_kept_qos_keeps_the_last_messages_for_late_readers():
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
+    from stealth_node_kit.qos import kept_qos
+
+    qos = kept_qos(7)
+    assert (qos.history, qos.depth) == (HistoryPolicy.KEEP_LAST, 7)
+    assert qos.reliability == ReliabilityPolicy.RELIABLE
+    assert qos.durability == DurabilityPolicy.TRANSIENT_LOCAL

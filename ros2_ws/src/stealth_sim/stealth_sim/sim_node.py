@@ -57,6 +57,7 @@ from stealth_node_kit.conversions import quaternion_yaw, time_msg, yaw_quaternio
 from stealth_node_kit.endpoints import QUIET_PUBLISHER, warn_publisher, warn_subscription
 from stealth_node_kit.in_process import InProcessServices
 from stealth_node_kit.parameters import StartupError, declare_parameters
+from stealth_node_kit.qos import kept_qos
 from stealth_node_kit.running import StartupNode, run_node
 from tf2_msgs.msg import TFMessage
 
@@ -207,11 +208,7 @@ class SimulatorNode(StartupNode):
         self._estimate_due = False  # an estimate nobody subscribed to yet (latched: sent later)
         self._pacer = RealTimePacer(self.sim.time)
 
-        latched = QoSProfile(
-            depth=1,
-            reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL,
-        )
+        latched = kept_qos(1)
         # rclpy gives every endpoint default QoS event handlers, each an entity the executor
         # waits on: ~19 here, a third of this node's time per move (measured). The volatile
         # reliable publishers match what readers ask by default, so they go without; the latched
