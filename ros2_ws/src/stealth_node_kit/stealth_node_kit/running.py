@@ -12,7 +12,7 @@ from collections.abc import Callable
 import re
 
 import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 import rclpy.node
 
@@ -68,9 +68,9 @@ def run_nodes(
     args=None,
     on_exit: Callable[[list[rclpy.node.Node]], None] | None = None,
 ) -> int:
-    """:func:`run_node` for several nodes in one process, spun by one single-threaded executor
-    (their callbacks never run at the same time); `make_nodes` destroys what it built if it
-    fails part-way. They are destroyed in the reverse order."""
+    """:func:`run_node` for several nodes in one process, spun by rclpy's global executor
+    (single-threaded: their callbacks never run at the same time); `make_nodes` destroys what
+    it built if it fails part-way. They are destroyed in the reverse order."""
     logger = rclpy.logging.get_logger(name)
     try:
         rclpy.init(args=args)
@@ -86,11 +86,13 @@ def run_nodes(
         logger.fatal(f'not starting: {_without_source_locations(error)}')
         rclpy.try_shutdown()
         return EXIT_CANNOT_START
-    executor = SingleThreadedExecutor()
     try:
+        # rclpy's global executor, which is shut down with the context on SIGINT: one of our
+        # own was only woken, and went on to take messages from endpoints being torn down (a
+        # pybind11 RuntimeError while the context still looked up, exit code 1 at a run's end).
         for node in nodes[1:]:
-            executor.add_node(node)
-        rclpy.spin(nodes[0], executor)
+            rclpy.get_global_executor().add_node(node)
+        rclpy.spin(nodes[0])
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (_rclpy.RCLError, RuntimeError):
