@@ -17,6 +17,7 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 import rclpy.node
 
 EXIT_CANNOT_START = 2
+SPIN_WAKE = 1.0  # s: the longest the executor waits before it looks at the context again
 
 
 class StartupNode(rclpy.node.Node):
@@ -34,6 +35,26 @@ class StartupNode(rclpy.node.Node):
 
     def set_up(self) -> None:
         raise NotImplementedError
+
+
+def spin_until_shutdown(nodes: list[rclpy.node.Node]) -> None:
+    """``rclpy.spin`` for several nodes, the executor waking at least every SPIN_WAKE s.
+
+    rclpy's global executor, which is shut down with the context on SIGINT (one of our own was
+    only woken, and went on to take messages from endpoints being torn down: a pybind11
+    RuntimeError while the context still looked up, exit code 1 at a run's end). The wake-ups
+    bound a missed one: twice in one session an agent (a node with no timer, whose executor
+    waits without a timeout) sat out a SIGINT until the test's 15 s were up.
+    """
+    executor = rclpy.get_global_executor()
+    for node in nodes:
+        executor.add_node(node)
+    try:
+        while executor.context.ok():
+            executor.spin_once(timeout_sec=SPIN_WAKE)
+    finally:
+        for node in nodes:
+            executor.remove_node(node)
 
 
 def _without_source_locations(error: Exception) -> str:
@@ -87,12 +108,7 @@ def run_nodes(
         rclpy.try_shutdown()
         return EXIT_CANNOT_START
     try:
-        # rclpy's global executor, which is shut down with the context on SIGINT: one of our
-        # own was only woken, and went on to take messages from endpoints being torn down (a
-        # pybind11 RuntimeError while the context still looked up, exit code 1 at a run's end).
-        for node in nodes[1:]:
-            rclpy.get_global_executor().add_node(node)
-        rclpy.spin(nodes[0])
+        spin_until_shutdown(nodes)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (_rclpy.RCLError, RuntimeError):

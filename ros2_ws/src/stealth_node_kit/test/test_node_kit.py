@@ -5,6 +5,7 @@ import math
 from builtin_interfaces.msg import Time
 import pytest
 from rclpy.parameter import Parameter
+from stealth_node_kit import running
 from stealth_node_kit.conversions import quaternion_yaw, seconds, time_msg, yaw_quaternion
 from stealth_node_kit.parameters import Param, StartupError, descriptor, non_finite
 from stealth_node_kit.running import EXIT_CANNOT_START, run_node
@@ -108,12 +109,12 @@ def test_an_error_while_spinning_is_the_stop_only_once_the_context_is_down(
     monkeypatch.delenv('ROS_LOCALHOST_ONLY', raising=False)
     finished = []
 
-    def failing_spin(node, executor=None):
+    def failing_spin(nodes):
         if context_down:
             rclpy.try_shutdown()
         raise RuntimeError("Unable to convert call argument '0' to Python object")
 
-    monkeypatch.setattr(rclpy, 'spin', failing_spin)
+    monkeypatch.setattr(running, 'spin_until_shutdown', failing_spin)
 
     def make():
         return rclpy.create_node('kit_spin_test')
