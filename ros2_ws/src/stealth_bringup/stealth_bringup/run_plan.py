@@ -139,8 +139,9 @@ def _common_options(parser: argparse.ArgumentParser, evaluating: bool = False) -
         '--compose',
         action='store_true',
         help='run the simulator and the environment in one process (stealth_bringup sim_env), '
-        "the environment calling the simulator directly: about twice the RL loop's steps per "
-        'second, the same episodes; the same topics and services for everyone else (not with '
+        'the environment calling the simulator directly: the same episodes, about 1.6x the '
+        "steps per second of a training run (2x the bare RL loop's); the same topics and "
+        'services for everyone else (not with '
         '--watch, or with the simulator or the environment --remote or replaced by --executable)',
     )
     parser.add_argument(
@@ -211,7 +212,8 @@ def train_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog='stealth train',
         description='Train the agent on a scenario: start simulator, environment, agent and '
-        'recorder as separate processes in a private ROS domain, show progress, stop on the '
+        "recorder as separate processes (--compose: the simulator in the environment's) in a "
+        'private ROS domain, show progress, stop on the '
         'episode budget or when the greedy policy reached the goal K evaluations in a row, '
         'and leave runs/<name>/ with the recording, parameters, policy, summary and plots.',
     )
