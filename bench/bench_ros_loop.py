@@ -49,6 +49,7 @@ from ros_support import (  # noqa: E402
 
 SCENARIO = 'simple-maze'
 ROUND_TRIPS = 3000
+RESULT_NAMES = {'sim_node': 'separate'}  # in results.json: ros_loop_<name>_...
 STEPS = {'sim_node': 2000, 'composed': 3000, 'composed_defaults': 1000, 'stub': 3000}
 WARMUP = 200  # steps or round trips before the clock starts
 REPEATS = 2  # each measurement; the best counts (other load on the machine only slows down)
@@ -422,7 +423,7 @@ def run(report=print) -> dict:
         'ros_loop_sim_core_moves_per_second': round(core, 1),
     }
     for kind, (steps, episodes) in loops.items():
-        name = {'sim_node': 'ros_loop'}.get(kind, f'ros_loop_{kind}')
+        name = 'ros_loop_' + RESULT_NAMES.get(kind, kind)
         results[f'{name}_steps_per_second'] = round(steps, 1)
         results[f'{name}_ratio_to_ping_pong'] = round(ratios[kind], 3)
         results[f'{name}_episodes_per_second'] = round(episodes, 2)
