@@ -139,7 +139,7 @@ def _common_options(parser: argparse.ArgumentParser, evaluating: bool = False) -
         '--compose',
         action='store_true',
         help='run the simulator and the environment in one process (stealth_bringup sim_env), '
-        'the environment calling the simulator directly: the same episodes, about 1.6x the '
+        'the environment calling the simulator directly: the same episodes, 1.2-1.6x the '
         "steps per second of a training run (2x the bare RL loop's); the same topics and "
         'services for everyone else (not with '
         '--watch, or with the simulator or the environment --remote or replaced by --executable)',
