@@ -168,8 +168,6 @@ REPORT_HISTORY = 2000  # episode summaries: hours of episodes
 # Steps: the 20 s a respawned recorder may take to start and be matched, at 1000 steps/s (a run
 # without its recorder goes faster). 2000 held 5 s of a chaos run, and its recorder took 6.
 STEP_HISTORY = 20_000
-
-
 REPORT_QOS = kept_qos(REPORT_HISTORY)
 STEP_QOS = kept_qos(STEP_HISTORY)
 LATCHED_QOS = kept_qos(1)
@@ -482,10 +480,10 @@ class EnvironmentNode(StartupNode):
 
     def _robot_description(self) -> str:
         """What the robot is reached over: services, or topics (and the reset's way)."""
-        if self._robot is None:
+        if isinstance(self._move_client, InProcessClient):
+            moves = f'the simulator in this process (called directly: {MOVE_SERVICE}'
+        elif self._robot is None:
             moves = f'the simulator ({MOVE_SERVICE}'
-            if isinstance(self._move_client, InProcessClient):
-                moves = f'the simulator in this process (called directly: {MOVE_SERVICE}'
         else:
             names = ', '.join(self.resolve_topic_name(t) for t in ROBOT_TOPICS.values())
             moves = f'topics ({names}'

@@ -33,18 +33,13 @@ class InProcessClient:
         self.srv_type = srv_type
         self.service_name = service_name
         self._handler = handler
-        self.calls = 0
 
     def call_async(self, request) -> Future:
         future = Future()
         future.set_result(self._handler(request, self.srv_type.Response()))
-        self.calls += 1
         return future
 
     def service_is_ready(self) -> bool:
-        return True
-
-    def wait_for_service(self, timeout_sec: float | None = None) -> bool:
         return True
 
     def remove_pending_request(self, future: Future) -> None:
