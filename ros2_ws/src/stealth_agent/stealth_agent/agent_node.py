@@ -32,8 +32,6 @@ import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
-from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from stealth_interfaces.msg import (
     AgentEpisodeInfo,
     EpisodeSummary,
@@ -42,6 +40,7 @@ from stealth_interfaces.msg import (
     RLExperimentInfo,
     RLStateReward,
 )
+from stealth_node_kit import rl_contract
 from stealth_node_kit.endpoints import (
     QUIET_PUBLISHER,
     QUIET_SUBSCRIPTION,
@@ -49,8 +48,7 @@ from stealth_node_kit.endpoints import (
     warn_subscription,
 )
 from stealth_node_kit.parameters import StartupError, declare_parameters, non_finite
-from stealth_node_kit.qos import kept_qos
-from stealth_node_kit.running import run_node
+from stealth_node_kit.running import StartupNode, run_node
 
 from .agent_parameters import PARAMETERS
 from .learners import LearnerConfig, canonical_learner_name, make_learner
@@ -70,19 +68,6 @@ from .protocol import (
 from .schedules import SCHEDULE_KINDS, Schedule
 from .state_index import StateIndex, mapping_from_description
 
-# Lockstep protocol: one message in flight, but a reliable queue that never drops a step anyway.
-RL_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1000,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
-# Published once by the environment; late agents still get it.
-DESCRIPTION_QOS = kept_qos(1)
-# The environment's episode reports and the agent's own keep their latest messages for a reader
-# that (re)joins late: after either side restarts, DDS may match the new pair of endpoints only
-# after the first reports went out, and a report lost there is an episode the run never closes.
-REPORT_QOS = kept_qos(1000)
 FLOAT32_MAX = float(np.finfo(np.float32).max)
 # s of wall time between checks, while a terminal state waits for its summary, that the
 # environment is still there (only its leaving ends the wait; see SummaryWait).
@@ -128,11 +113,13 @@ STRING_CHOICES = {
 }
 
 
-class AgentNode(Node):
+class AgentNode(StartupNode):
     """rl_agent for rl_msgs environments, with Q-learning, SARSA and Dyna-Q."""
 
     def __init__(self):
         super().__init__('agent')
+
+    def set_up(self) -> None:
         self._core: ProtocolAgent | None = None
         self._description: EnvDescription | None = None
         self._setup_error = ''
@@ -160,31 +147,34 @@ class AgentNode(Node):
         # two endpoints of the step keep one, the incompatible-QoS warning of a silent loop.
         self._action_pub = self.create_publisher(
             RLAction,
-            'rl_agent/rl_action',
-            RL_QOS,
+            rl_contract.ACTION,
+            rl_contract.LOCKSTEP_QOS,
             event_callbacks=warn_publisher(self.get_logger, INCOMPATIBLE_QOS),
         )
         self._info_pub = self.create_publisher(
             RLExperimentInfo,
-            'rl_agent/rl_experiment_info',
-            RL_QOS,
+            rl_contract.EXPERIMENT_INFO,
+            rl_contract.LOCKSTEP_QOS,
             event_callbacks=QUIET_PUBLISHER,
         )
         self._episode_info_pub = self.create_publisher(
-            AgentEpisodeInfo, 'rl_agent/episode_info', REPORT_QOS, event_callbacks=QUIET_PUBLISHER
+            AgentEpisodeInfo,
+            rl_contract.AGENT_EPISODE_INFO,
+            rl_contract.AGENT_EPISODE_INFO_QOS,
+            event_callbacks=QUIET_PUBLISHER,
         )
         self.create_subscription(
             RLEnvDescription,
-            'rl_env/rl_env_description',
+            rl_contract.ENV_DESCRIPTION,
             self._on_description,
-            DESCRIPTION_QOS,
+            rl_contract.DESCRIPTION_QOS,
             event_callbacks=QUIET_SUBSCRIPTION,
         )
         self.create_subscription(
             RLStateReward,
-            'rl_env/rl_state_reward',
+            rl_contract.STATE,
             self._on_state,
-            RL_QOS,
+            rl_contract.LOCKSTEP_QOS,
             event_callbacks=warn_subscription(self.get_logger, INCOMPATIBLE_QOS),
         )
         summary_topic = self._param('episode_summary_topic')
@@ -193,7 +183,7 @@ class AgentNode(Node):
                 EpisodeSummary,
                 summary_topic,
                 self._on_summary,
-                REPORT_QOS,
+                rl_contract.REPORT_READER_QOS,
                 event_callbacks=QUIET_SUBSCRIPTION,
             )
         self._summary_wait = SummaryWait(self._param('summary_wait'))

@@ -1,6 +1,7 @@
 """The agent node's parameters (agent_node declares them), importable without rclpy: an
 orchestrator checks parameter names against them before it starts the node."""
 
+from stealth_node_kit import rl_contract
 from stealth_node_kit.param_table import Param
 
 PARAMETERS = {
@@ -81,7 +82,7 @@ PARAMETERS = {
         bounds=(0, 2**31 - 1),
     ),
     'episode_summary_topic': Param(
-        'rl_env/episode_summary',
+        rl_contract.EPISODE_SUMMARY,
         'stealth_interfaces/EpisodeSummary topic: how each episode ended (a TIMEOUT is '
         'learned as a truncation, an ABORTED episode not at all) and named outcomes in the '
         'progress log; optional, an rl_msgs environment without it gets terminal states '

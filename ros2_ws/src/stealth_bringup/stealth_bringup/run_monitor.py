@@ -13,15 +13,19 @@ import os
 import signal
 import time
 
+from stealth_node_kit import rl_contract
+
 from stealth_bringup.episode_tracker import EpisodeRecord, Tracker, agent_fields, summary_fields
 
 SPIN_PERIOD = 0.1  # s: how long a signal or a dead node can go unnoticed
 EXIT_SIGNAL = {signal.SIGINT: 130, signal.SIGTERM: 143, signal.SIGHUP: 129}
 GRAPH_TOPICS_IGNORED = {'/rosout', '/parameter_events'}
-SIMULATOR_SERVICES = ('/sim/execute_move', '/sim/reset')  # the system is up once they are there
-ACTION_TOPIC = '/rl_agent/rl_action'  # one publisher: the run's agent
+# The system is up once they are there.
+SIMULATOR_SERVICES = tuple(rl_contract.absolute(name) for name in rl_contract.SIMULATOR_SERVICES)
+ACTION_TOPIC = rl_contract.absolute(rl_contract.ACTION)  # one publisher: the run's agent
 UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'  # rmw's name of a node whose endpoints came first
-RESTART_SERVICE = '/rl_env/restart_episode'  # the environment's, for a respawned node
+# The environment's, for a respawned node.
+RESTART_SERVICE = rl_contract.absolute(rl_contract.RESTART_EPISODE)
 
 
 class Signals:
@@ -86,7 +90,6 @@ class Monitor:
     def __init__(self, context, tracker: Tracker, started: float, on_record):
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
-        from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
         from stealth_interfaces.msg import AgentEpisodeInfo, EpisodeSummary, StepInfo
 
         self.node = rclpy.create_node(
@@ -107,18 +110,14 @@ class Monitor:
         self._restart_client = None  # rl_env/restart_episode, once a node was respawned
         # Transient local: the reports' writers keep their latest messages, and after a node
         # restarts DDS may match its writer with this reader only after its first reports.
-        qos = QoSProfile(
-            history=HistoryPolicy.KEEP_ALL,
-            reliability=ReliabilityPolicy.RELIABLE,
-            durability=DurabilityPolicy.TRANSIENT_LOCAL,
+        qos = rl_contract.REPORT_READER_QOS
+        self.node.create_subscription(
+            EpisodeSummary, rl_contract.EPISODE_SUMMARY, self._on_summary, qos
         )
         self.node.create_subscription(
-            EpisodeSummary, 'rl_env/episode_summary', self._on_summary, qos
+            AgentEpisodeInfo, rl_contract.AGENT_EPISODE_INFO, self._on_agent_info, qos
         )
-        self.node.create_subscription(
-            AgentEpisodeInfo, 'rl_agent/episode_info', self._on_agent_info, qos
-        )
-        self.node.create_subscription(StepInfo, 'rl_env/step_info', self._on_step, qos)
+        self.node.create_subscription(StepInfo, rl_contract.STEP_INFO, self._on_step, qos)
 
     def close(self) -> None:
         self.executor.remove_node(self.node)

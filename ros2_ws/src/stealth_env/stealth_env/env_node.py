@@ -84,7 +84,7 @@ import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy
 from rclpy.task import Future
 from std_msgs.msg import ColorRGBA
 from stealth_interfaces.msg import (
@@ -98,6 +98,7 @@ from stealth_interfaces.msg import (
     StepInfo,
 )
 from stealth_interfaces.srv import ExecuteMove, ResetRobot, RestartEpisode
+from stealth_node_kit import rl_contract
 from stealth_node_kit.conversions import quaternion_yaw, seconds, time_msg, yaw_quaternion
 from stealth_node_kit.endpoints import (
     QUIET_PUBLISHER,
@@ -156,35 +157,23 @@ ROBOT_INTERFACES = ('service', 'topics')
 RESET_MODES = ('teleport', 'drive')
 CHOICES = {'judge_on': JUDGE_ON, 'robot_interface': ROBOT_INTERFACES, 'reset_mode': RESET_MODES}
 
-# Lockstep protocol: at most one message in flight, and a reliable KEEP_ALL queue anyway.
-RL_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_ALL,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
-# The reports of every step and episode also keep their latest messages for a recorder that
-# (re)joins late, as a respawned one does: it gets what was published while it was away.
-REPORT_HISTORY = 2000  # episode summaries: hours of episodes
-# Steps: the 20 s a respawned recorder may take to start and be matched, at 1000 steps/s (a run
-# without its recorder goes faster). 2000 held 5 s of a chaos run, and its recorder took 6.
-STEP_HISTORY = 20_000
-REPORT_QOS = kept_qos(REPORT_HISTORY)
-STEP_QOS = kept_qos(STEP_HISTORY)
 LATCHED_QOS = kept_qos(1)
+# The RL loop's names come from the contract (stealth_node_kit.rl_contract); the scene's are
+# this node's own.
 TOPICS = {
-    'description': 'rl_env/rl_env_description',
-    'state': 'rl_env/rl_state_reward',
-    'step_info': 'rl_env/step_info',
-    'summary': 'rl_env/episode_summary',
-    'action': 'rl_agent/rl_action',
-    'experiment_info': 'rl_agent/rl_experiment_info',
-    'restart': 'rl_env/restart_episode',
+    'description': rl_contract.ENV_DESCRIPTION,
+    'state': rl_contract.STATE,
+    'step_info': rl_contract.STEP_INFO,
+    'summary': rl_contract.EPISODE_SUMMARY,
+    'action': rl_contract.ACTION,
+    'experiment_info': rl_contract.EXPERIMENT_INFO,
+    'restart': rl_contract.RESTART_EPISODE,
     'searchlights': 'searchlights',
     'markers': 'searchlight_markers',
     'visibility_grid': 'visibility_grid',
     'planned_path': 'planned_path',
 }
-MOVE_SERVICE = 'sim/execute_move'
+MOVE_SERVICE = rl_contract.EXECUTE_MOVE
 MARKER_KINDS = {
     'triangle_list': Marker.TRIANGLE_LIST,
     'line_strip': Marker.LINE_STRIP,
@@ -395,20 +384,24 @@ class EnvironmentNode(StartupNode):
         self._reset_failed_log = Throttle(RESET_FAILED_LOG_PERIOD)
 
         self._description_pub = self.create_publisher(
-            RLEnvDescription, TOPICS['description'], LATCHED_QOS
+            RLEnvDescription, TOPICS['description'], rl_contract.DESCRIPTION_QOS
         )
         self._state_pub = self.create_publisher(
             RLStateReward,
             TOPICS['state'],
-            RL_QOS,
+            rl_contract.LOCKSTEP_QOS,
             event_callbacks=warn_publisher(
                 self.get_logger,
                 f'a subscription to {TOPICS["state"]} requests QoS this environment cannot '
                 'offer ({policy}): it gets no states; the RL topics are reliable and volatile',
             ),
         )
-        self._step_pub = self._quiet_publisher(StepInfo, TOPICS['step_info'], STEP_QOS)
-        self._summary_pub = self._quiet_publisher(EpisodeSummary, TOPICS['summary'], REPORT_QOS)
+        self._step_pub = self._quiet_publisher(
+            StepInfo, TOPICS['step_info'], rl_contract.STEP_INFO_QOS
+        )
+        self._summary_pub = self._quiet_publisher(
+            EpisodeSummary, TOPICS['summary'], rl_contract.SUMMARY_QOS
+        )
         self._lights_pub = self._quiet_publisher(
             SearchlightArray, TOPICS['searchlights'], LATCHED_QOS
         )
@@ -420,7 +413,7 @@ class EnvironmentNode(StartupNode):
             RLAction,
             TOPICS['action'],
             self._on_action,
-            RL_QOS,
+            rl_contract.LOCKSTEP_QOS,
             event_callbacks=warn_subscription(
                 self.get_logger,
                 f'a publisher of {TOPICS["action"]} offers QoS this environment cannot accept '
@@ -431,7 +424,7 @@ class EnvironmentNode(StartupNode):
             RLExperimentInfo,
             TOPICS['experiment_info'],
             self._on_experiment_info,
-            RL_QOS,
+            rl_contract.LOCKSTEP_QOS,
             event_callbacks=QUIET_SUBSCRIPTION,
         )
         self.create_subscription(
@@ -491,7 +484,7 @@ class EnvironmentNode(StartupNode):
             return f'{moves}, {self.resolve_service_name(self.reset_service)})'
         return f'{moves}; reset by driving to the start)'
 
-    def _quiet_publisher(self, message_type, topic: str, qos: QoSProfile):
+    def _quiet_publisher(self, message_type, topic: str, qos):
         return self.create_publisher(message_type, topic, qos, event_callbacks=QUIET_PUBLISHER)
 
     # --- parameters -----------------------------------------------------------------------------

@@ -1,6 +1,7 @@
 """The environment node's parameters (env_node declares them), importable without rclpy: an
 orchestrator checks parameter names against them before it starts the node."""
 
+from stealth_node_kit import rl_contract
 from stealth_node_kit.param_table import Param
 
 from stealth_env.topic_moves import Limits
@@ -70,7 +71,8 @@ PARAMETERS = {
         'move lattice, lights ignored, then publish initialpose).', read_only=True,
     ),
     'reset_service': Param(
-        'sim/reset', 'The teleport of reset_mode teleport: a stealth_interfaces/ResetRobot '
+        rl_contract.RESET_ROBOT,
+        'The teleport of reset_mode teleport: a stealth_interfaces/ResetRobot '
         'service.', read_only=True,
     ),
     'unresponsive_moves': Param(

@@ -53,6 +53,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import LaserScan
 from stealth_interfaces.srv import ExecuteMove, ResetRobot
+from stealth_node_kit import rl_contract
 from stealth_node_kit.conversions import quaternion_yaw, time_msg, yaw_quaternion
 from stealth_node_kit.endpoints import QUIET_PUBLISHER, warn_publisher, warn_subscription
 from stealth_node_kit.in_process import InProcessServices
@@ -259,8 +260,8 @@ class SimulatorNode(StartupNode):
         seconds = warm_up()
         if seconds is not None:
             self.get_logger().info(f'compiled move kernels ready in {seconds:.1f} s')
-        self._in_process.serve(self, ExecuteMove, 'sim/execute_move', self._on_execute_move)
-        self._in_process.serve(self, ResetRobot, 'sim/reset', self._on_reset)
+        self._in_process.serve(self, ExecuteMove, rl_contract.EXECUTE_MOVE, self._on_execute_move)
+        self._in_process.serve(self, ResetRobot, rl_contract.RESET_ROBOT, self._on_reset)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(self.idle_period, self._on_idle_tick, clock=steady)
         self.add_on_set_parameters_callback(self._validate_parameters)

@@ -31,9 +31,9 @@ import time
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidParameterValueException, ParameterException
 from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from stealth_node_kit.running import StartupNode
 
 from stealth_tools.bag_format import (
     DEFAULT_CHUNK_SIZE,
@@ -94,11 +94,13 @@ class RecorderSettings:
         ]
 
 
-class Recorder(Node):
+class Recorder(StartupNode):
     """Subscribes to topics as they appear and writes what arrives to a BagWriter."""
 
     def __init__(self, **node_kwargs):
         super().__init__(NODE_NAME, **node_kwargs)
+
+    def set_up(self) -> None:
         self.settings = self._declare_settings()
         self.bag = BagWriter(
             self.settings.output or default_output(),

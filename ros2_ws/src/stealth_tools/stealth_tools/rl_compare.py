@@ -25,16 +25,14 @@ import numbers
 import os
 from typing import Any
 
+from stealth_node_kit import rl_contract
+
 from stealth_tools.bag_format import BagError, resolve_bag_file
 
-STATE = '/rl_env/rl_state_reward'
-ACTION = '/rl_agent/rl_action'
-STEP_INFO = '/rl_env/step_info'
-SUMMARY = '/rl_env/episode_summary'
-EXPERIMENT_INFO = '/rl_agent/rl_experiment_info'
-EPISODE_INFO = '/rl_agent/episode_info'
-# In the order the loop produces them within a step: a difference is named in the first.
-RL_TOPICS = (STATE, ACTION, STEP_INFO, SUMMARY, EXPERIMENT_INFO, EPISODE_INFO)
+# As a recording names them, in the order the loop produces them within a step: a difference
+# is named in the first.
+RL_TOPICS = tuple(rl_contract.absolute(name) for name in rl_contract.RL_TOPICS)
+STATE, ACTION, STEP_INFO, SUMMARY, EXPERIMENT_INFO, EPISODE_INFO = RL_TOPICS
 # The fields that place a report in the episode sequence, by topic: (episode, step).
 PLACE_FIELDS = {
     STEP_INFO: ('episode', 'step'),
