@@ -5,8 +5,9 @@ import shlex
 
 import pytest
 from stealth_bringup.remote_nodes import RemoteNode, join_command
+from stealth_bringup.run_arguments import train_parser
 from stealth_bringup.run_config import RunConfigError, parse_value
-from stealth_bringup.run_plan import _executables, train_parser
+from stealth_bringup.run_plan import _executables
 
 
 def test_the_join_command_names_domain_range_and_every_parameter_inline():

@@ -6,9 +6,10 @@ import socket
 
 import pytest
 from stealth_bringup.episode_tracker import EpisodeRecord, Tracker
+from stealth_bringup.run_arguments import train_parser
 from stealth_bringup.run_config import RunConfigError
 from stealth_bringup.run_outputs import append_episode
-from stealth_bringup.run_plan import make_plan, train_parser
+from stealth_bringup.run_plan import make_plan
 from stealth_bringup.run_report import RunFacts, RunReport
 
 SCENARIOS = Path(__file__).resolve().parents[4] / 'scenarios'
@@ -150,7 +151,7 @@ def test_what_cannot_be_continued_says_why(tmp_path):
     run = finished_run(tmp_path)
     summary = json.loads((run / 'summary.json').read_text())
     (run / 'summary.json').write_text(json.dumps({**summary, 'mode': 'eval'}))
-    with pytest.raises(RunConfigError, match='a run of stealth eval, not a training run'):
+    with pytest.raises(RunConfigError, match='a run of stealth rollout, not a training run'):
         resume(run, '--episodes', '9')
 
 
