@@ -1,10 +1,10 @@
 """A run's processes from start to stop: the private domain, the nodes started in order and
 waited for, their parameters checked, the episodes followed until an end criterion, a signal, a
-dead node or a stall, then the nodes stopped in order. A --remote node has no process here:
-its command for the other host is printed, the run waits for it to join, and its leaving the
-ROS graph ends the run as a local node's exit would (remote_nodes). What it finds out goes into
-RunFacts, from which run_report writes the outputs; run_monitor watches (see orchestrate for the
-whole).
+dead node or a stall, then the nodes stopped in order. A node that dies may be started again
+(respawn). A --remote node has no process here: its command for the other host is printed, the
+run waits for it to join, and its leaving the ROS graph ends the run as a local node's exit
+would (remote_nodes). What it finds out goes into RunFacts, from which run_report writes the
+outputs; run_monitor watches (see orchestrate for the whole).
 """
 
 from __future__ import annotations
