@@ -1,5 +1,7 @@
-"""What a run is made of, before anything starts: the nodes, their parameter files, the
-scenario-derived and run-specific parameters, `--set` overrides, the run directory. No rclpy.
+"""What a run is made of, before anything starts: the nodes, their parameter files, the scenario
+and goal and the parameters derived from them, the run-specific parameters, `--set` overrides,
+the run directory; and the errors of a run, before it starts (RunConfigError) and after
+(RunError). No rclpy.
 
 Parameter files are ROS 2 params files, one per node::
 
