@@ -7,7 +7,7 @@ seeds of those episodes, its final greedy return over the optimum, and its episo
 Q-learning's.
 
 Run: PYTHONPATH=ros2_ws/src/stealth_sim:ros2_ws/src/stealth_env:ros2_ws/src/stealth_agent:\
-ros2_ws/src/stealth_bringup python bench/bench_learners.py
+ros2_ws/src/stealth_experiments python bench/bench_learners.py
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import os
 
 import numpy as np
 from stealth_agent.learners import LEARNER_NAMES
-from stealth_bringup.sweep_engine import run_grid
+from stealth_experiments.sweep_engine import run_grid
 
 SCENARIO = 'map1'
 SEEDS = (0, 1, 2)

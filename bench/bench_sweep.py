@@ -1,5 +1,5 @@
 """Benchmark: a sweep's throughput (trials per minute) on a local Ray over every core
-(sweep_engine, what `stealth sweep` and `make eval` run on) against the same trials run one
+(sweep_engine, what `stealth sweep` and `make compare` run on) against the same trials run one
 after another in this process (sweep_trials.run_trial), in one run.
 
 The engine's figure is given twice: the trials alone (from the first trial submitted to the last
@@ -17,12 +17,12 @@ from pathlib import Path
 import tempfile
 import time
 
-from stealth_bringup.sweep_engine import Engine
-from stealth_bringup.sweep_plan import make_trial
-from stealth_bringup.sweep_trials import run_trial
+from stealth_experiments.sweep_engine import Engine
+from stealth_experiments.sweep_plan import make_trial
+from stealth_experiments.sweep_trials import run_trial
 
 SCENARIO = 'simple-maze'
-LEARNERS = {'qlearning': 400, 'dyna': 150}  # episodes: tens of seconds per trial, as make eval's
+LEARNERS = {'qlearning': 400, 'dyna': 150}  # episodes: tens of s per trial, as make compare's
 SEEDS = (0, 1, 2, 3)
 
 

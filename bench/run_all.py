@@ -27,8 +27,15 @@ import traceback
 
 BENCH_DIR = Path(__file__).resolve().parent
 REPOSITORY = BENCH_DIR.parent
-# The pure-Python cores the benches use (stealth_bringup: the experiment harness).
-PACKAGES = ('stealth_sim', 'stealth_env', 'stealth_agent', 'stealth_bringup')
+# The pure-Python cores the benches use (stealth_experiments: the experiment harness, which
+# writes its reports with stealth_bringup's run outputs).
+PACKAGES = (
+    'stealth_sim',
+    'stealth_env',
+    'stealth_agent',
+    'stealth_bringup',
+    'stealth_experiments',
+)
 DEFAULT_OUT = BENCH_DIR / 'results.json'
 RATIO_WORDS = ('ratio', 'speedup', 'per_optimum', 'relative')
 

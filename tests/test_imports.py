@@ -13,7 +13,10 @@ import xml.etree.ElementTree as ElementTree
 SRC = Path(__file__).resolve().parents[1] / 'ros2_ws' / 'src'  # no ROS needed to read it
 # The layers, lowest first, and what each package may import of the others: anything below
 # it, except that the agent and the tools stand alone on the messages (the agent works with
-# any environment that speaks rl_msgs; the tools record and replay any graph).
+# any environment that speaks rl_msgs; the tools record and replay any graph), and that the
+# experiments, on top, use no ROS of their own: they train the agent's learners on the
+# environment in-process, write with bringup's run outputs, and run ROS trials as bringup's
+# `stealth train`.
 LAYERS = (
     'stealth_interfaces',
     'stealth_node_kit',
@@ -22,6 +25,7 @@ LAYERS = (
     'stealth_agent',
     'stealth_tools',
     'stealth_bringup',
+    'stealth_experiments',
 )
 MAY_IMPORT = {
     'stealth_interfaces': set(),
@@ -30,7 +34,8 @@ MAY_IMPORT = {
     'stealth_env': {'stealth_interfaces', 'stealth_node_kit', 'stealth_sim'},
     'stealth_agent': {'stealth_interfaces', 'stealth_node_kit'},
     'stealth_tools': {'stealth_interfaces', 'stealth_node_kit'},
-    'stealth_bringup': set(LAYERS) - {'stealth_bringup'},
+    'stealth_bringup': set(LAYERS) - {'stealth_bringup', 'stealth_experiments'},
+    'stealth_experiments': {'stealth_env', 'stealth_agent', 'stealth_tools', 'stealth_bringup'},
 }
 # Tests that reach up on purpose, each with why; any other test import is held to the rules.
 TEST_EXCEPTIONS = {

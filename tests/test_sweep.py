@@ -21,7 +21,7 @@ import time
 
 import pytest
 from ros_support import _sourced_environment
-from stealth_bringup.sweep_engine import RAY_ENVIRONMENT
+from stealth_experiments.sweep_engine import RAY_ENVIRONMENT
 
 RAY = str(Path(sys.executable).parent / 'ray')
 START_TIMEOUT = 240.0  # s: a Ray node on two loaded cores
@@ -100,7 +100,7 @@ def _trial_workers(temp_dirs) -> list[int]:
 
 def _sweep(args: list[str], env: dict, log) -> subprocess.Popen:
     return subprocess.Popen(
-        [sys.executable, '-m', 'stealth_bringup.sweep', *args],
+        [sys.executable, '-m', 'stealth_experiments.sweep', *args],
         env=env,
         stdout=log,
         stderr=subprocess.STDOUT,

@@ -1,4 +1,4 @@
-"""The whole system as a user runs it: `stealth train` / `stealth eval` start the simulator, the
+"""The whole system as a user runs it: `stealth train` / `stealth rollout` start the simulator, the
 environment, the agent and the recorder as separate processes in a private ROS domain (the
 orchestrator picks it), run episodes over DDS and leave runs/<name>/ behind.
 
@@ -189,7 +189,7 @@ def test_train_runs_episodes_over_dds_and_leaves_a_complete_run(system, tmp_path
     assert 'Traceback' not in result.stderr
     run = system.runs / 'sys'
     assert 'Replay:    stealth bag play runs/sys/recording.mcap' in result.stdout
-    assert 'Evaluate:  stealth eval --run runs/sys' in result.stdout
+    assert 'Evaluate:  stealth rollout --run runs/sys' in result.stdout
 
     # The run directory is complete.
     for name in ('recording.mcap', 'policy.npz', 'summary.json', 'episodes.csv',
@@ -253,8 +253,8 @@ def test_train_runs_episodes_over_dds_and_leaves_a_complete_run(system, tmp_path
     first_states = [m for m in messages['/rl_env/step_info'] if (m.episode, m.step) == (0, 1)]
     assert len(first_states) == 1
 
-    # The saved policy evaluates (greedy, no learning) on the same scenario.
-    result = system.run('eval', '--run', str(run), '--episodes', '2')
+    # The saved policy rolls out (greedy, no learning) on the same scenario.
+    result = system.run('rollout', '--run', str(run), '--episodes', '2')
     assert result.returncode == 0, result.stderr + result.stdout
     (evaluation,) = sorted(run.glob('eval-*'))
     evaluated = json.loads((evaluation / 'summary.json').read_text())

@@ -189,7 +189,8 @@ def test_steps_per_second_topics_against_service(agent, node_processes):
 def test_a_topics_run_lets_simulated_time_flow_for_the_control_loop(tmp_path):
     """stealth train --set environment.robot_interface=topics: the simulator at 20x in 10 ms
     ticks with one odom per tick; --set still wins, and --watch stays real time."""
-    from stealth_bringup.run_plan import TOPICS_SIMULATOR, make_plan, train_parser
+    from stealth_bringup.run_arguments import train_parser
+    from stealth_bringup.run_plan import TOPICS_SIMULATOR, make_plan
 
     def simulator(*options: str) -> dict:
         argv = ['--runs-dir', str(tmp_path), '--no-record', *options]

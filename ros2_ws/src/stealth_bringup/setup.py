@@ -25,14 +25,13 @@ setup(
     zip_safe=True,
     maintainer='stealth-nav developers',
     maintainer_email='dev@stealth-nav.org',
-    description='Orchestrated runs (stealth train/eval), the experiment harness, node parameters.',
+    description="Orchestrated runs (stealth train/rollout) and the nodes' parameter files.",
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'experiments = stealth_bringup.experiments:main',
             'sim_env = stealth_bringup.sim_env:main',
         ],
-        # `stealth train|eval|render|sweep`: stealth_tools' `stealth` reads this group.
+        # `stealth train|rollout|eval|render|doctor`: stealth_tools' `stealth` reads this group.
         'stealth.commands': ['stealth_bringup = stealth_bringup.commands:COMMANDS'],
     },
 )

@@ -12,20 +12,20 @@ COMMANDS = {
         'train_main',
         'Train the agent on a scenario: start the system, record it, save the policy.',
     ),
+    'rollout': (
+        'stealth_bringup.orchestrate',
+        'rollout_main',
+        "Run a saved policy's greedy episodes through ROS, without learning.",
+    ),
     'eval': (
         'stealth_bringup.orchestrate',
         'eval_main',
-        'Evaluate a saved policy on a scenario without learning.',
+        'The old name of `stealth rollout` (says so on stderr, then runs it).',
     ),
     'render': (
         'stealth_env.render',
         'main',
         'Render a scenario (walls, visibility heatmap, cones, goals, paths) to PNG.',
-    ),
-    'sweep': (
-        'stealth_bringup.sweep',
-        'main',
-        'Sweep learners x scenarios x seeds x hyperparameters on Ray (local or a cluster).',
     ),
     'doctor': (
         'stealth_bringup.doctor',

@@ -1,8 +1,11 @@
-"""`stealth train` and `stealth eval`: the whole system as separate OS processes, without launch.
+"""`stealth train` and `stealth rollout`: the whole system as separate OS processes, without
+launch.
 
     stealth train [--scenario NAME|PATH] [--goal G] [--episodes N] [--eval-every M]
                   [--success-streak K] [--seed S] [--set node.param=value ...] [--watch]
-    stealth eval --run runs/<name> | --policy FILE [--episodes N]
+    stealth rollout --run runs/<name> | --policy FILE [--episodes N]
+
+(`stealth eval`, rollout's old name, says so on stderr and runs it.)
 
 A run starts the recorder, the simulator, the environment and the agent from the install space
 (found through the ament index, as `ros2 run` finds them), each in its own process group with
@@ -21,9 +24,10 @@ node that dies: everything else stopped, one line naming the node, how it ended 
 log line, exit 1. Bad input (scenario, goal, parameter file, --set, a missing executable) is
 one line and exit 1 before anything starts.
 
-Here: the two commands. The run itself: run_lifecycle (the processes, from start to stop),
-run_monitor (signals, the orchestrator's rclpy node, the progress bar) and run_report (the
-outputs and the closing lines, through run_outputs).
+Here: the two commands; their command lines are run_arguments', what they are asked to do is
+checked and laid out by run_plan. The run itself: run_lifecycle (the processes, from start to
+stop), run_monitor (signals, the orchestrator's rclpy node, the progress bar) and run_report
+(the outputs and the closing lines, through run_outputs).
 """
 
 from __future__ import annotations
@@ -32,17 +36,18 @@ from collections.abc import Sequence
 import sys
 import time
 
+from stealth_bringup.run_arguments import COMMAND_OF_MODE, rollout_parser, train_parser
 from stealth_bringup.run_config import RunConfigError
 from stealth_bringup.run_lifecycle import Run
-from stealth_bringup.run_plan import eval_parser, make_plan, train_parser
+from stealth_bringup.run_plan import make_plan
 
 
 def _main(mode: str, argv: Sequence[str] | None) -> int:
     started = time.monotonic()
     argv = list(sys.argv[1:] if argv is None else argv)
-    parser = train_parser() if mode == 'train' else eval_parser()
+    parser = train_parser() if mode == 'train' else rollout_parser()
     args = parser.parse_args(argv)
-    prog = f'stealth {mode}'
+    prog = f'stealth {COMMAND_OF_MODE[mode]}'
     try:
         plan = make_plan(args, mode, argv)
     except RunConfigError as error:
@@ -60,9 +65,15 @@ def train_main(argv: Sequence[str] | None = None) -> int:
     return _main('train', argv)
 
 
-def eval_main(argv: Sequence[str] | None = None) -> int:
-    """`stealth eval`: see the module docstring and --help."""
+def rollout_main(argv: Sequence[str] | None = None) -> int:
+    """`stealth rollout`: see the module docstring and --help."""
     return _main('eval', argv)
+
+
+def eval_main(argv: Sequence[str] | None = None) -> int:
+    """`stealth eval`, the old name of `stealth rollout`: one line saying so, then rollout."""
+    print('stealth eval is now stealth rollout', file=sys.stderr)
+    return rollout_main(argv)
 
 
 if __name__ == '__main__':

@@ -1,5 +1,7 @@
-"""What a run is made of, before anything starts: the nodes, their parameter files, the
-scenario-derived and run-specific parameters, `--set` overrides, the run directory. No rclpy.
+"""What a run is made of, before anything starts: the nodes, their parameter files, the scenario
+and goal and the parameters derived from them, the run-specific parameters, `--set` overrides,
+the run directory; and the errors of a run, before it starts (RunConfigError) and after
+(RunError). No rclpy.
 
 Parameter files are ROS 2 params files, one per node::
 
@@ -68,9 +70,9 @@ MANAGED = {
     'simulator.robot_radius': '--scenario',
     'environment.scenario': '--scenario',
     'environment.goal': '--goal',
-    'agent.policy_file': '--name/--runs-dir (train) or --run/--policy (eval)',
-    'agent.evaluate': 'stealth eval',
-    'agent.load_policy': 'stealth train --resume or stealth eval',
+    'agent.policy_file': '--name/--runs-dir (train) or --run/--policy (rollout)',
+    'agent.evaluate': 'stealth rollout',
+    'agent.load_policy': 'stealth train --resume or stealth rollout',
     'agent.eval_every': '--eval-every',
     'agent.first_episode': 'stealth train --resume',
     'environment.first_episode': 'stealth train --resume',
@@ -88,6 +90,10 @@ _NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
 
 class RunConfigError(ValueError):
     """Input that cannot make a run; the message is one line saying which and why."""
+
+
+class RunError(RuntimeError):
+    """The run failed after it started; the message is the one line to print."""
 
 
 # --- parameter files ----------------------------------------------------------------------------
@@ -267,6 +273,41 @@ def check_parameter_names(parameters: NodeParameters, declared: frozenset[str]) 
 def file_sha256(path: Path) -> str:
     """The SHA-256 of a file's bytes (a scenario or map a run used), hex."""
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def scenario_hashes(scenario) -> dict[str, str]:
+    """SHA-256 of the scenario file and of its map, for a continued run to compare."""
+    hashes = {}
+    for key, path in (('sha256', scenario.path), ('map_sha256', scenario.map_path)):
+        try:
+            hashes[key] = file_sha256(Path(path))
+        except OSError as error:
+            raise RunConfigError(f'{path}: cannot read it ({error.strerror})') from None
+    return hashes
+
+
+def load_run_scenario(name: str):
+    """The scenario a run is asked for (name or path); RunConfigError where it cannot be read."""
+    from stealth_env.scenario import ScenarioError, load_scenario
+
+    try:
+        return load_scenario(name)
+    except ScenarioError as error:
+        raise RunConfigError(str(error)) from None
+    except OSError as error:
+        raise RunConfigError(f'scenario {name!r}: {error}') from None
+
+
+def check_goal(scenario, goal: str | None, default: str | None = None) -> str:
+    """The goal given, else `default`, else the scenario's own; RunConfigError if it has none
+    of that name."""
+    goal = goal or default or scenario.default_goal
+    if goal not in scenario.goals:
+        raise RunConfigError(
+            f'--goal {goal!r}: scenario {scenario.name!r} has no such goal '
+            f'(it has: {", ".join(scenario.goals)})'
+        )
+    return goal
 
 
 def coerce_like(value: Any, default: Any) -> Any:

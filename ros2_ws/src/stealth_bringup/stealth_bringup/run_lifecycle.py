@@ -1,10 +1,10 @@
 """A run's processes from start to stop: the private domain, the nodes started in order and
 waited for, their parameters checked, the episodes followed until an end criterion, a signal, a
-dead node or a stall, then the nodes stopped in order. A --remote node has no process here:
-its command for the other host is printed, the run waits for it to join, and its leaving the
-ROS graph ends the run as a local node's exit would (remote_nodes). What it finds out goes into
-RunFacts, from which run_report writes the outputs; run_monitor watches (see orchestrate for the
-whole).
+dead node or a stall, then the nodes stopped in order. A node that dies may be started again
+(respawn). A --remote node has no process here: its command for the other host is printed, the
+run waits for it to join, and its leaving the ROS graph ends the run as a local node's exit
+would (remote_nodes). What it finds out goes into RunFacts, from which run_report writes the
+outputs; run_monitor watches (see orchestrate for the whole).
 """
 
 from __future__ import annotations
@@ -16,14 +16,14 @@ import signal
 import sys
 import time
 
-from stealth_tools.bag_files import next_recording_file
-
-from stealth_bringup.episode_tracker import Tracker, unfinished_fields
-from stealth_bringup.remote_nodes import STATIC_PEERS_HINT, RemoteNode, join_command
-from stealth_bringup.respawn import RespawnPolicy, Restart
+from stealth_bringup.episode_tracker import Tracker
+from stealth_bringup.remote_nodes import RemoteNodes
+from stealth_bringup.respawn import Respawner, RespawnPolicy
+from stealth_bringup.run_arguments import COMMAND_OF_MODE
 from stealth_bringup.run_config import (
     ROS_OWN_PARAMETERS,
     STOP_ORDER,
+    RunError,
     relative_to_cwd,
     ros_arg_value,
 )
@@ -47,15 +47,6 @@ PARAMETER_TIMEOUT = 10.0  # s for a node's parameter services to answer
 HOLD_START_DELAY = 3600.0
 DRAIN_TIME = 0.1  # s of taking in late reports before each node is stopped
 NAMING_TIME = 2.0  # s for the graph to name the node of a second action publisher
-LINGER_TIME = 30.0  # s a killed node's endpoints may stay on the graph (its DDS lease)
-# A restarted node talks UDP only: the killed process's Fast DDS shared-memory port stays mapped
-# by its peers (so it cannot be removed), and a new participant that takes over its port number
-# was seen to receive nothing.
-RESTARTED_ENVIRONMENT = {'FASTDDS_BUILTIN_TRANSPORTS': 'UDPv4'}
-
-
-class RunError(RuntimeError):
-    """The run failed after it started; the message is the one line to print."""
 
 
 class Run:
@@ -65,7 +56,7 @@ class Run:
     def __init__(self, plan: RunPlan, started: float | None = None, out=None, err=None):
         self.plan = plan
         self.out = out or sys.stdout
-        self.prog = f'stealth {plan.mode}'
+        self.prog = f'stealth {COMMAND_OF_MODE[plan.mode]}'
         self.tracker = Tracker(plan.episodes, plan.streak or None)
         self.facts = RunFacts(time.monotonic() if started is None else started)  # command start
         self.progress = Progress(self.tracker, err or sys.stderr)
@@ -76,9 +67,10 @@ class Run:
         self.supervisor = None
         self.monitor: Monitor | None = None
         self.crashed: set[str] = set()  # nodes that died on their own (reported already)
-        self.remote: dict[str, RemoteNode] = {}  # --remote nodes, once their command is out
+        self.remote = RemoteNodes(self.say, self.prog)  # --remote nodes, once their command is out
         self.crowded_since: float | None = None  # when a second action publisher showed up
         self.respawns = RespawnPolicy(plan.respawn, never=plan.remote)
+        self.respawner = Respawner(self, PARAMETER_TIMEOUT)
         self.signals: Signals | None = None
         # One file per recorder process: this command's first, then one per restart.
         recorder = plan.parameters.get('recorder')
@@ -132,7 +124,7 @@ class Run:
         except OSError as error:
             self.say(f'{self.prog}: could not write summary.json: {error}')
 
-    def _on_record(self, record) -> None:
+    def on_record(self, record) -> None:
         """An episode is complete: the progress bar, its row of episodes.csv at once, and after
         a greedy evaluation summary.json, so a killed orchestrator leaves them."""
         from stealth_bringup.run_outputs import append_episode
@@ -173,7 +165,7 @@ class Run:
                 # A continued run's episode times go on from where its earlier part stopped.
                 offset = max((r.wall_time for r in self.tracker.records), default=0.0)
                 self.monitor = Monitor(
-                    context, self.tracker, self.facts.started - offset, self._on_record
+                    context, self.tracker, self.facts.started - offset, self.on_record
                 )
                 self._start_nodes(signals)
                 self._follow(signals)
@@ -183,7 +175,7 @@ class Run:
                 self.progress.close()
                 self.facts.stopped_at = time.monotonic()
                 self._stop_nodes(signals)
-                self._remind_remote()
+                self.remote.remind(plan.mode, plan.policy_path)
                 if self.monitor is not None:
                     self.monitor.close()
                 if context is not None:
@@ -206,7 +198,7 @@ class Run:
             return {'start_delay': HOLD_START_DELAY}
         return {}
 
-    def _start(self, name: str, values: dict | None = None, env: dict | None = None) -> None:
+    def start(self, name: str, values: dict | None = None, env: dict | None = None) -> None:
         """Start a node with its parameters file and `values` on top (default: the values it
         is held with at the run's start), `env` on top of the run's environment."""
         plan = self.plan
@@ -227,98 +219,15 @@ class Run:
             node = dead[0]
             refusal = self.respawns.refusal(node.name, node.process.returncode)
             if not refusal:
-                self._respawn(node, during)
+                self.respawner.restart(node, during)
                 return
             self.crashed.update(n.name for n in dead)
             log = relative_to_cwd(node.log_path)
             restarted = f'; {refusal}' if self.respawns.count(node.name) else ''
             raise RunError(f'{node.why(during)} (log: {log}){restarted}')
         if self.remote:
-            self._check_remote(during)
+            self.remote.check(self.monitor.node_names(), during)
         self._check_one_agent()
-
-    # --- respawn ----------------------------------------------------------------------------
-
-    def _respawn(self, node, during: str) -> None:
-        """Start a dead node again (respawn), with what it needs to carry on the run, and tell
-        the environment when the episode in progress cannot go on."""
-        name, facts = node.name, self.facts
-        cause = node.why(during)
-        restart = self.respawns.begin(
-            name, cause, self.tracker.episodes, time.monotonic() - facts.started
-        )
-        self.say(
-            f'{self.prog}: {cause}; restarting it in {restart.delay:g} s (restart '
-            f'{restart.number} of at most {self.respawns.limit})'
-        )
-        noticed = time.monotonic()
-        until = noticed + restart.delay
-        while time.monotonic() < until and self.signals.first is None:
-            self.monitor.spin(0.05)  # reports still on their way come in meanwhile
-        if self.signals.first is not None:
-            return
-        self._start(name, self._restart_values(name, restart), RESTARTED_ENVIRONMENT)
-        new = self.supervisor.nodes[name]
-
-        def alive() -> bool:
-            return new.alive and self.signals.first is None
-
-        if not self.monitor.answers(name, alive, self.plan.startup_timeout):
-            if alive():
-                raise RunError(
-                    f'{name} did not come back within {self.plan.startup_timeout:g} s of its '
-                    f'restart (log: {relative_to_cwd(new.log_path)})'
-                )
-            return  # it died again or a signal came: the next check says which
-        if name in ('simulator', 'agent'):
-            self._restart_episode(name, restart, node.exit_text())
-        restart.back_after = round(time.monotonic() - noticed, 3)
-        self.monitor.last_activity = time.monotonic()
-        aborted = restart.aborted_episode
-        self.say(
-            f'{self.prog}: {name} is back after {restart.back_after:.1f} s'
-            + (f'; episode {aborted} counted as ABORTED' if aborted is not None else '')
-        )
-
-    def _restart_values(self, name: str, restart: Restart) -> dict:
-        """What a restarted node gets on top of its parameters file."""
-        monitor = self.monitor
-        if name == 'environment':
-            # The episode it left has no summary: counted ABORTED from its steps.
-            episode = monitor.open_episode()
-            if episode is not None:
-                fields = unfinished_fields(
-                    episode, monitor.steps[episode], self.plan.scenario.start[:2]
-                )
-                wall_time = time.monotonic() - self.facts.started
-                for record in self.tracker.add_summary(fields, wall_time):
-                    self._on_record(record)
-                restart.aborted_episode = episode
-            # Its first steps must reach the monitor and the recorder (see step_readers).
-            readers = 1 + bool(self.plan.record)
-            return {'first_episode': monitor.next_episode(), 'step_readers': readers}
-        if name == 'agent' and self.plan.mode == 'train':
-            # Its checkpoint (saved every episode) holds the table, the model, the schedules'
-            # position and the random stream.
-            return {'load_policy': True, 'first_episode': monitor.next_episode()}
-        if name == 'recorder':  # a new file: the dead recorder's is recovered at the end
-            self.recording_files.append(next_recording_file(self.plan.directory))
-            return {'output': str(self.recording_files[-1].resolve())}
-        return {}
-
-    def _restart_episode(self, name: str, restart: Restart, reason: str) -> None:
-        """The restarted simulator or agent cannot carry on the episode in progress: the
-        environment ends it ABORTED and starts the next."""
-        response = self.monitor.restart_episode(name, reason, PARAMETER_TIMEOUT)
-        if response is None:
-            if self.signals.first is None:
-                raise RunError(
-                    f'the environment did not answer rl_env/restart_episode after the {name} '
-                    'was restarted; see its log'
-                )
-            return
-        if response.aborted:
-            restart.aborted_episode = int(response.episode)
 
     def _check_one_agent(self) -> None:
         """Two publishers of the actions: two agents answer every state (RunError), once the
@@ -339,31 +248,9 @@ class Run:
         )
 
     def _killed_agent_lingers(self, agents: list, now: float) -> bool:
-        """Whether the extra publishers can be agents that died recently: the graph keeps a
-        killed process's endpoints until its DDS lease runs out."""
-        recent = [
-            r for r in self.respawns.restarts
-            if r.node == 'agent' and now - self.facts.started - r.died_at < LINGER_TIME
-        ]  # fmt: skip
-        return len(agents) <= 1 + len(recent) and set(agents) <= {'/agent', None}
-
-    def _check_remote(self, during: str) -> None:
-        """Remote nodes are supervised through the graph: there once, gone means ended."""
-        on_graph = self.monitor.node_names()
-        for name, node in self.remote.items():
-            change = node.seen(name in on_graph)
-            if change == 'joined':
-                self.say(f'{name} (remote) joined the run after {node.joined - node.since:.1f} s')
-            elif change == 'left':
-                raise RunError(
-                    f'{name} (remote) left the ROS graph {during} after '
-                    f'{node.left - node.joined:.1f} s on it: it stopped, crashed or lost the '
-                    'network; see its output on its host'
-                )
-
-    def _not_joined(self) -> str:
-        """The remote nodes not on the graph yet ('' once all joined)."""
-        return ', '.join(name for name, node in self.remote.items() if node.joined is None)
+        """Whether the extra publishers can be agents that died recently (respawn)."""
+        recent = self.respawns.died_recently('agent', now - self.facts.started)
+        return len(agents) <= 1 + recent and set(agents) <= {'/agent', None}
 
     def _wait(
         self, signals: Signals, what: str, ready, deadline: float, during: str, too_late=None
@@ -386,42 +273,6 @@ class Run:
                 )
             self.monitor.spin()
 
-    def _announce_remote(self, name: str) -> None:
-        """Print the exact command for the other host; from now on the node may join."""
-        plan = self.plan
-        values = {**plan.parameters[name].values, **self._held_values(name)}
-        node = RemoteNode(name, join_command(name, values, self.facts.domain_id, plan.discovery))
-        self.remote[name] = node
-        where = 'another host' if plan.discovery == 'subnet' else 'another terminal of this host'
-        self.say(
-            f'waiting up to {plan.join_timeout:g} s for {name} to join ROS domain '
-            f'{self.facts.domain_id} from {where}; run there (workspace sourced: '
-            'source scripts/ros_env.sh):'
-        )
-        self.say(f'  {node.shell_command}')
-        if plan.discovery == 'subnet':
-            self.say(f'  ({STATIC_PEERS_HINT})')
-        else:
-            self.say('  (--discovery localhost: only this host can join; --discovery subnet for '
-                     'another host)')  # fmt: skip
-
-    def _join_timeout(self, missing: str) -> str:
-        node = self.remote[missing.split(', ')[0]]
-        return (
-            f'{node.name} did not join ROS domain {self.facts.domain_id} within '
-            f'{self.plan.join_timeout:g} s; start it on its host with: {node.shell_command}'
-        )
-
-    def _remind_remote(self) -> None:
-        """The orchestrator cannot stop a remote node: say so, and where its policy goes."""
-        for name, node in self.remote.items():
-            if node.state != 'on the graph':
-                continue
-            saving = ''
-            if name == 'agent' and self.plan.mode == 'train':
-                saving = f'; it saves the policy to {self.plan.policy_path} (on its host) on exit'
-            self.say(f'{self.prog}: {name} runs on another host: stop it there (Ctrl-C){saving}')
-
     def _start_nodes(self, signals: Signals) -> None:
         """Start every node, wait until all are on the graph with the simulator's services, check
         their parameter names, and (when recording) release the first episode only once the
@@ -432,18 +283,23 @@ class Run:
         composed = ' (the simulator in its process)' if plan.composed else ''
         self.say(f'starting {", ".join(names)}{composed} ...')
         for name in names:
-            self._start(name)
+            self.start(name)
         for name in plan.remote:
-            self._announce_remote(name)
+            values = {**plan.parameters[name].values, **self._held_values(name)}
+            domain_id = self.facts.domain_id
+            self.remote.announce(name, values, domain_id, plan.discovery, plan.join_timeout)
 
         local = [n for n in plan.nodes if n not in plan.remote]
         up = functools.partial(monitor.not_up, local)
         self._wait(signals, 'the system', up, deadline, 'during startup')
         if self.remote and signals.first is None:
             join_deadline = max(node.since for node in self.remote.values()) + plan.join_timeout
+            too_late = functools.partial(
+                self.remote.join_timeout, domain_id=self.facts.domain_id, timeout=plan.join_timeout
+            )
             self._wait(
-                signals, 'the remote nodes', self._not_joined, join_deadline,
-                f'while waiting for {", ".join(self.remote)} to join', self._join_timeout,
+                signals, 'the remote nodes', self.remote.not_joined, join_deadline,
+                f'while waiting for {", ".join(self.remote)} to join', too_late,
             )  # fmt: skip
             deadline = time.monotonic() + plan.startup_timeout  # for what the joined ones bring
             up = functools.partial(monitor.not_up, plan.nodes)

@@ -1,4 +1,4 @@
-"""The one report writer of `stealth train`/`stealth eval` runs (runs/<name>/) and of the
+"""The one report writer of `stealth train`/`stealth rollout` runs (runs/<name>/) and of the
 experiment harness (runs/eval/): what they leave besides recordings, policies, parameters and
 logs. No rclpy.
 
@@ -131,6 +131,18 @@ def write_json(data: dict, path: Path) -> Path:
     """JSON with NaN written as null (strict JSON readers refuse NaN), atomically."""
     text = json.dumps(_finite(data), indent=2) + '\n'
     return _replace_atomically(path, lambda stream: stream.write(text))
+
+
+def read_run_summary(directory: Path) -> dict:
+    """A run directory's summary.json ({} where there is none, or it is not a JSON object)."""
+    path = directory / 'summary.json'
+    if not path.is_file():
+        return {}
+    try:
+        data = json.loads(path.read_text(encoding='utf-8'))
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
 
 
 def _finite(value):

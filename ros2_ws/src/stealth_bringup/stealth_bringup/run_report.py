@@ -382,7 +382,7 @@ class RunReport:
             bag = relative_to_cwd(files['recording'])
             lines.append(f'Replay:    stealth bag play {bag}   (details: stealth bag info {bag})')
         if plan.mode == 'train' and 'policy' in files and records and facts.status != 'failed':
-            lines.append(f'Evaluate:  stealth eval --run {directory}')
+            lines.append(f'Evaluate:  stealth rollout --run {directory}')
         with contextlib.suppress(OSError, ValueError):
             print('\n'.join(lines), file=out, flush=True)
 

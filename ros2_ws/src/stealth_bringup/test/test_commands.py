@@ -6,11 +6,11 @@ from stealth_bringup.commands import COMMANDS
 from stealth_tools import cli
 
 
-def test_stealth_finds_train_eval_render_sweep_and_doctor_in_this_order():
+def test_stealth_finds_train_rollout_eval_render_and_doctor_in_this_order():
     added = cli.added_commands()
-    assert list(added)[:5] == ['train', 'eval', 'render', 'sweep', 'doctor']
+    assert list(added)[:5] == ['train', 'rollout', 'eval', 'render', 'doctor']
     assert {name: added[name] for name in COMMANDS} == COMMANDS
-    assert cli.build_parser().description.endswith(', plus train, eval, render, sweep and doctor.')
+    assert ', plus train, rollout, eval, render, doctor' in cli.build_parser().description
 
 
 @pytest.mark.parametrize('command', list(COMMANDS))
@@ -22,3 +22,12 @@ def test_every_added_command_has_help(capsys, command):
     out, _ = capsys.readouterr()
     assert status == 0
     assert 'usage:' in out or command == 'render'
+
+
+def test_the_old_name_eval_says_it_is_now_rollout_and_runs_rollout(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(['eval', '--help'])
+    out, err = capsys.readouterr()
+    assert exit_.value.code == 0
+    assert err == 'stealth eval is now stealth rollout\n'
+    assert out.startswith('usage: stealth rollout ')

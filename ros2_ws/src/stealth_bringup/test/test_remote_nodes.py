@@ -4,9 +4,10 @@ tells of such a node (no ROS)."""
 import shlex
 
 import pytest
-from stealth_bringup.remote_nodes import RemoteNode, join_command
-from stealth_bringup.run_config import RunConfigError, parse_value
-from stealth_bringup.run_plan import _executables, train_parser
+from stealth_bringup.remote_nodes import RemoteNode, RemoteNodes, join_command
+from stealth_bringup.run_arguments import train_parser
+from stealth_bringup.run_config import RunConfigError, RunError, parse_value
+from stealth_bringup.run_plan import _executables
 
 
 def test_the_join_command_names_domain_range_and_every_parameter_inline():
@@ -59,3 +60,25 @@ def test_remote_flags_parse_and_a_remote_node_is_not_started_here():
         train_parser().parse_args(['--remote', 'recorder'])  # it writes the run directory here
     with pytest.raises(RunConfigError, match=r"--executable 'agent=/x': agent is --remote"):
         _executables(['recorder', 'simulator', 'environment', 'agent'], ['agent=/x'], ('agent',))
+
+
+def test_the_run_announces_follows_and_reminds_of_its_remote_nodes():
+    lines = []
+    remote = RemoteNodes(lines.append, 'stealth train')
+    remote.announce('agent', {'seed': 3}, 17, 'subnet', 300.0)
+    assert lines[0].startswith('waiting up to 300 s for agent to join ROS domain 17 from another')
+    assert 'ROS_DOMAIN_ID=17' in lines[1] and 'seed:=3' in lines[1]
+    assert 'ROS_STATIC_PEERS' in lines[2]
+    assert remote.not_joined() == 'agent'
+    assert remote.join_timeout('agent', 17, 300.0).startswith(
+        'agent did not join ROS domain 17 within 300 s; start it on its host with: env '
+    )
+    remote.check({'agent', 'environment'}, 'during startup')
+    assert remote.not_joined() == '' and lines[-1].startswith('agent (remote) joined the run')
+    remote.remind('train', 'runs/x/policy.npz')
+    assert lines[-1] == (
+        'stealth train: agent runs on another host: stop it there (Ctrl-C); it saves the policy '
+        'to runs/x/policy.npz (on its host) on exit'
+    )
+    with pytest.raises(RunError, match='agent .remote. left the ROS graph during the run after'):
+        remote.check({'environment'}, 'during the run')

@@ -30,3 +30,13 @@ def test_the_delay_stops_growing():
     for _ in range(len(RESPAWN_DELAYS) + 3):
         policy.begin('recorder', 'x', 0, 0.0)
     assert policy.delay('recorder') == RESPAWN_DELAYS[-1]
+
+
+def test_only_deaths_within_the_dds_lease_may_still_linger_on_the_graph():
+    policy = RespawnPolicy(5)
+    policy.begin('agent', 'killed', episode=1, died_at=10.0)
+    policy.begin('agent', 'killed', episode=2, died_at=50.0)
+    policy.begin('simulator', 'killed', episode=2, died_at=55.0)
+    assert policy.died_recently('agent', 60.0) == 1
+    assert policy.died_recently('agent', 30.0) == 2
+    assert policy.died_recently('agent', 100.0) == 0

@@ -6,7 +6,7 @@ commands other packages add, so habits from a full ROS 2 install carry over.
     stealth interface show <pkg/msg/Type>             # ros2 interface show
     stealth bag record|play|info|recover ...          # ros2 bag (+ recover, as mcap recover)
     stealth bridge [--port 8765] [--topics ...]       # foxglove_bridge, on foxglove-sdk's server
-    stealth train|eval|render ...                     # added by stealth_bringup (see below)
+    stealth train|rollout|render ...                  # added by stealth_bringup (see below)
 
 Other packages add commands as ros2cli's extension points add verbs: an entry point in the
 group `stealth.commands` names a mapping {command: (module, function, summary)}; the function

@@ -1,5 +1,5 @@
 """The experiment engine: trials on Ray Tune, on a local Ray (every core) or an existing cluster
-(`ray start`), for `stealth sweep` and `make eval` alike. No rclpy.
+(`ray start`), for `stealth sweep` and `make compare` alike. No rclpy.
 
     engine = Engine(address=None, num_cpus=None, say=print)   # ray.init: local or the cluster
     engine.run_fixed(trials, on_records, storage)             # laid-out trials (grid, random)
@@ -29,8 +29,8 @@ import time
 
 from tqdm import tqdm
 
-from stealth_bringup.harness import DEFAULT_EVAL_EVERY, RunResult, RunSpec, default_budget, run
-from stealth_bringup.sweep_trials import objective, run_trial
+from stealth_experiments.harness import DEFAULT_EVAL_EVERY, RunResult, RunSpec, default_budget, run
+from stealth_experiments.sweep_trials import objective, run_trial
 
 # Ray's node startup waits for its agents (Python processes) to write their ports; under load
 # on a small machine that takes longer than Ray's defaults allow.
@@ -256,7 +256,7 @@ def _fixed_trainable(config: dict) -> None:
 def _search_trainable(config: dict, base: dict) -> None:
     from ray import tune
 
-    from stealth_bringup.sweep_plan import make_trial
+    from stealth_experiments.sweep_plan import make_trial
 
     params = {name: _plain(value) for name, value in config.items()}
     trial = make_trial(
@@ -386,7 +386,7 @@ def _duration(seconds: float) -> str:
     return f'{minutes}m{seconds:02d}s' if minutes else f'{seconds}s'
 
 
-# --- the harness's grid (`make eval`) ------------------------------------------------------------
+# --- the harness's grid (`make compare`) ---------------------------------------------------------
 
 
 def run_grid(
@@ -402,7 +402,7 @@ def run_grid(
     policy_dir: str | None = None,
     progress: bool = True,
 ) -> list[RunResult]:
-    """The harness's grid (`make eval`): every scenario x learner x seed, on ``jobs`` CPUs of a
+    """The harness's grid (`make compare`): every scenario x learner x seed, on ``jobs`` CPUs of a
     local Ray (the engine of `stealth sweep` too) or, with ``jobs`` 1, one after another in this
     process without Ray; results in grid order.
     episodes: per run, None for each learner's DEFAULT_EPISODES."""
@@ -437,9 +437,9 @@ def run_specs(specs, *, jobs: int, progress: bool = True):
     RunResults in the order of ``specs``, policies written where their spec says."""
     import base64
 
-    from stealth_bringup.harness import policy_path
-    from stealth_bringup.sweep_plan import make_trial
-    from stealth_bringup.sweep_trials import record_result
+    from stealth_experiments.harness import policy_path
+    from stealth_experiments.sweep_plan import make_trial
+    from stealth_experiments.sweep_trials import record_result
 
     trials = [
         make_trial('gym', s.scenario, s.goal, s.learner, [s.seed], s.episodes, s.eval_every,

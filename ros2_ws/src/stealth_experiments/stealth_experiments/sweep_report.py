@@ -20,11 +20,11 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 import numpy as np
-
-from stealth_bringup.harness import scenario_label
-from stealth_bringup.harness_report import plot_curves
 from stealth_bringup.run_outputs import write_csv, write_json
-from stealth_bringup.sweep_trials import record_result, replace_spec
+
+from stealth_experiments.harness import scenario_label
+from stealth_experiments.harness_report import plot_curves
+from stealth_experiments.sweep_trials import record_result, replace_spec
 
 BASE_FIELDS = (
     'trial', 'status', 'mode', 'scenario', 'goal', 'learner', 'seed', 'episodes', 'eval_every',

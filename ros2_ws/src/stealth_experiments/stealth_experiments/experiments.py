@@ -1,8 +1,8 @@
 """The experiment harness: scenarios x learners x seeds, trained in-process on the Gymnasium
 environment, measured against value iteration's optimum and the planning baselines.
 
-    python -m stealth_bringup.experiments --scenarios map1 lgfloor --learners qlearning dyna \
-        --seeds 0 1 2 --out runs/eval          # or `make eval`; installed as its `experiments`
+    python -m stealth_experiments.experiments --scenarios map1 lgfloor --learners qlearning dyna \
+        --seeds 0 1 2 --out runs/eval          # or `make compare`; installed as its `experiments`
 
 The runs go to a local Ray over ``--jobs`` CPUs (``sweep_engine``, the engine of `stealth
 sweep`), or with ``--jobs 1`` one after another in this process. Each run (``harness``) trains
@@ -38,7 +38,7 @@ from stealth_agent.learners import LEARNER_NAMES, LearnerConfig
 from stealth_agent.schedules import Schedule
 from stealth_env.gym_env import lattice_model
 
-from stealth_bringup.harness import (
+from stealth_experiments.harness import (
     DEFAULT_EPISODES,
     DEFAULT_EVAL_EVERY,
     MOVING_EPISODES,
@@ -46,8 +46,8 @@ from stealth_bringup.harness import (
     default_budget,
     tuned_config,
 )
-from stealth_bringup.harness_report import write_results
-from stealth_bringup.sweep_engine import run_grid
+from stealth_experiments.harness_report import write_results
+from stealth_experiments.sweep_engine import run_grid
 
 DEFAULT_SCENARIOS = (
     'simple-maze',

@@ -4,10 +4,10 @@ records, and the report written from records (what --resume reads back)."""
 import json
 
 import pytest
-from stealth_bringup.harness import configured, tuned_config
-from stealth_bringup.sweep_plan import SweepError, make_trial, parse_plan
-from stealth_bringup.sweep_report import SweepStore, best_configurations, write_report
-from stealth_bringup.sweep_trials import objective, record_result, ros_command, run_trial
+from stealth_experiments.harness import configured, tuned_config
+from stealth_experiments.sweep_plan import SweepError, make_trial, parse_plan
+from stealth_experiments.sweep_report import SweepStore, best_configurations, write_report
+from stealth_experiments.sweep_trials import objective, record_result, ros_command, run_trial
 
 BASE = {'scenarios': ['simple-maze'], 'learners': ['qlearning', 'dyna'], 'seeds': [0, 1]}
 

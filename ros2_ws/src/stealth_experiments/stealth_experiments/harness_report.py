@@ -12,11 +12,11 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 import numpy as np
+from stealth_bringup.run_outputs import plot_paths, write_csv
 from stealth_env.planners import LatticeModel
 from stealth_env.reward import Outcome
 
-from stealth_bringup.harness import BASELINES, WITHIN, Baseline, RunResult, scenario_label
-from stealth_bringup.run_outputs import plot_paths, write_csv
+from stealth_experiments.harness import BASELINES, WITHIN, Baseline, RunResult, scenario_label
 
 RESULTS_FIELDS = (
     'scenario',

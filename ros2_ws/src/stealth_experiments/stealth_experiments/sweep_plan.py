@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 from stealth_agent.learners import canonical_learner_name
 
-from stealth_bringup.harness import DEFAULT_EVAL_EVERY, PARAMETERS, configured, scenario_label
+from stealth_experiments.harness import DEFAULT_EVAL_EVERY, PARAMETERS, configured, scenario_label
 
 MODES = ('gym', 'ros')
 SEARCHES = ('grid', 'random', 'optuna')

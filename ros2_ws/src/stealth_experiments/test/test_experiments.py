@@ -7,8 +7,12 @@ import numpy as np
 import pytest
 from stealth_agent.policy_store import check_compatible, load_policy
 from stealth_agent.protocol import ProtocolAgent
-from stealth_bringup import experiments
-from stealth_bringup.harness import (
+from stealth_env.gym_env import lattice_model
+from stealth_env.planners import value_iteration
+from stealth_env.reward import Outcome
+from stealth_env.task import StealthTask
+from stealth_experiments import experiments
+from stealth_experiments.harness import (
     DEFAULT_EPISODES,
     MOVING_EPISODES,
     RunSpec,
@@ -18,10 +22,6 @@ from stealth_bringup.harness import (
     settled_within,
     tuned_config,
 )
-from stealth_env.gym_env import lattice_model
-from stealth_env.planners import value_iteration
-from stealth_env.reward import Outcome
-from stealth_env.task import StealthTask
 
 SCENARIO = 'simple-maze'
 
@@ -143,7 +143,7 @@ def test_the_moving_variants_are_in_the_grid_with_their_optimum_and_time_aware_d
 
 
 def test_the_exposure_variants_are_in_the_grid_at_the_static_budgets(tmp_path):
-    """make eval measures the exposure variants (README: all six runs per variant within 5 %
+    """make compare measures the exposure variants (README: all six runs per variant within 5 %
     at these budgets); a learner takes the heading and the turns from the environment."""
     assert {'simple-maze-exposure', 'map1-exposure'} <= set(experiments.DEFAULT_SCENARIOS)
     assert default_budget('dyna', 'map1-exposure') == DEFAULT_EPISODES['dyna']

@@ -33,7 +33,7 @@ import time
 import numpy as np
 from stealth_env.reward import Outcome
 
-from stealth_bringup.harness import RunResult, RunSpec, run, settled_within
+from stealth_experiments.harness import RunResult, RunSpec, run, settled_within
 
 SPEED_WEIGHT = 0.01
 ROS_TIMEOUT = 3600.0  # s: a `stealth train` trial that takes longer is failed

@@ -20,7 +20,7 @@ from pathlib import Path
 import shutil
 import sys
 
-from stealth_bringup.sweep_plan import SweepError, SweepPlan, load_plan
+from stealth_experiments.sweep_plan import SweepError, SweepPlan, load_plan
 
 SAVED_FILE = 'sweep.yaml'
 
@@ -107,9 +107,9 @@ def _values(spec) -> str:
 
 def sweep(plan: SweepPlan, out: Path, *, address=None, cpus=None, plots=True, say=print) -> Path:
     """Run what is not finished in ``out`` and write the report; returns results.md."""
-    from stealth_bringup.sweep_engine import Engine
-    from stealth_bringup.sweep_report import SweepStore, write_report
-    from stealth_bringup.sweep_trials import objective
+    from stealth_experiments.sweep_engine import Engine
+    from stealth_experiments.sweep_report import SweepStore, write_report
+    from stealth_experiments.sweep_trials import objective
 
     store = SweepStore(out)
     done = store.finished()
@@ -156,7 +156,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.cpus is not None and args.cpus < 1:
             raise SweepError(f'--cpus must be >= 1, got {args.cpus}')
         if args.address:
-            from stealth_bringup.sweep_engine import check_address
+            from stealth_experiments.sweep_engine import check_address
 
             check_address(args.address)
     except (SweepError, RuntimeError) as error:

@@ -1,0 +1,27 @@
+from setuptools import find_packages, setup
+
+package_name = 'stealth_experiments'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+    ],
+    install_requires=['setuptools'],
+    extras_require={'test': ['pytest']},
+    zip_safe=True,
+    maintainer='stealth-nav developers',
+    maintainer_email='dev@stealth-nav.org',
+    description='In-process experiments (learners against the planning baselines) and Ray sweeps.',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+            'experiments = stealth_experiments.experiments:main',
+        ],
+        # `stealth sweep`: stealth_tools' `stealth` reads this group.
+        'stealth.commands': ['stealth_experiments = stealth_experiments.commands:COMMANDS'],
+    },
+)

@@ -1,0 +1,14 @@
+"""The command stealth_experiments adds to stealth_tools' `stealth` command.
+
+setup.py registers COMMANDS in the entry-point group `stealth.commands`, which `stealth` reads
+to build its command line (see stealth_bringup's commands); the function is imported only when
+its command runs, so `stealth --help` stays fast.
+"""
+
+COMMANDS = {
+    'sweep': (
+        'stealth_experiments.sweep',
+        'main',
+        'Sweep learners x scenarios x seeds x hyperparameters on Ray (local or a cluster).',
+    ),
+}
