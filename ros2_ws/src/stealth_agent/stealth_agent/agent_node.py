@@ -1,34 +1,54 @@
-"""The agent node: rl-texplore-ros-pkg's rl_agent protocol over the tabular learners.
+"""The agent node (``agent``): rl-texplore-ros-pkg's rl_agent protocol over the tabular learners.
 
-Subscribes rl_env/rl_env_description (reliable, transient local) and rl_env/rl_state_reward;
-publishes rl_agent/rl_action after every non-terminal state, and rl_agent/rl_experiment_info and
-rl_agent/episode_info (stealth_interfaces/AgentEpisodeInfo: greedy or not, epsilon, alpha) at
-every terminal state. An environment that also publishes stealth_interfaces/EpisodeSummary
-(stealth_env does) tells the agent how each episode ended: a TIMEOUT is then a truncation, not a
-terminal state (the last update bootstraps from the final state, so the agent does not learn
-that running out of time is cheap), and an ABORTED episode teaches nothing. A terminal state
-waits for its summary as long as the environment (a summary publisher) is there, with a warning
-every summary_wait seconds: a summary that is only late, on a loaded machine, never turns into a
-guess, so the same seed learns the same episodes whatever the load. Only when no publisher is
-left is the state learned as terminal. A plain rl_msgs environment, with no summary publisher,
-gets rl_agent's behaviour. A restarted environment is told by its states' DDS sequence numbers
-starting again (the old episode is dropped there, whenever its latched description arrives).
+Everything it decides is in the plain-Python core (protocol.py, learners.py, schedules.py,
+state_index.py, policy_store.py, agent_parameters.py, agent_setup.py, agent_messages.py,
+progress.py); this node translates messages and parameters.
 
-With eval_every M > 0, every M-th episode of a learning run is a greedy
-evaluation (epsilon 0, no updates, the schedules stand still), so an experiment can watch the
-learned policy itself. Everything it decides is in the plain-Python core (protocol.py,
-learners.py, state_index.py, policy_store.py); this node translates messages and parameters.
+## Topics
 
-Bad input (an unusable description, a state before any description, a state whose length
-changes, a non-finite reward, an unusable policy file) is logged with what is wrong and the
-message skipped; the node stays up and the table is never touched by a rejected message.
+Names and QoS from ``stealth_node_kit.rl_contract``; every type is stealth_interfaces'.
+
+* subscribes ``rl_env/rl_env_description`` (RLEnvDescription; reliable, transient local) and
+  ``rl_env/rl_state_reward`` (RLStateReward; reliable, volatile);
+* subscribes ``episode_summary_topic`` (EpisodeSummary, ``rl_env/episode_summary``; reliable,
+  transient local), when the environment publishes it (stealth_env does): see Episode endings;
+* publishes ``rl_agent/rl_action`` (RLAction) after every non-terminal state, and
+  ``rl_agent/rl_experiment_info`` (RLExperimentInfo) and ``rl_agent/episode_info``
+  (AgentEpisodeInfo: greedy or not, epsilon, alpha; transient local) at every terminal state.
+
+## Services
+
+None: the agent only answers states.
+
+## Parameters
+
+The table in ``stealth_agent.agent_parameters``. The learner settings may change while running;
+a value that would not make a usable agent is refused, at startup and at runtime. With
+eval_every M > 0, every M-th episode of a learning run is a greedy evaluation (epsilon 0, no
+updates, the schedules stand still), so an experiment can watch the learned policy itself.
+
+## Episode endings
+
+An environment that also publishes EpisodeSummary tells the agent how each episode ended: a
+TIMEOUT is then a truncation, not a terminal state (the last update bootstraps from the final
+state, so the agent does not learn that running out of time is cheap), and an ABORTED episode
+teaches nothing. A terminal state waits for its summary as long as the environment (a summary
+publisher) is there, with a warning every summary_wait seconds: a summary that is only late, on
+a loaded machine, never turns into a guess, so the same seed learns the same episodes whatever
+the load. Only when no publisher is left is the state learned as terminal. A plain rl_msgs
+environment, with no summary publisher, gets rl_agent's behaviour. A restarted environment is
+told by its states' DDS sequence numbers starting again (the old episode is dropped there,
+whenever its latched description arrives).
+
+## Bad input
+
+An unusable description, a state before any description, a state whose length changes, a
+non-finite reward, an unusable policy file: each is logged with what is wrong and the message
+skipped; the node stays up and the table is never touched by a rejected message.
 """
 
-from collections import Counter
-import pathlib
 import time
 
-import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
@@ -50,9 +70,25 @@ from stealth_node_kit.endpoints import (
 from stealth_node_kit.parameters import StartupError, declare_parameters, non_finite
 from stealth_node_kit.running import StartupNode, run_node
 
-from .agent_parameters import PARAMETERS
-from .learners import LearnerConfig, canonical_learner_name, make_learner
-from .policy_store import PolicyFileError, check_compatible, load_policy, save_policy
+from .agent_messages import (
+    StateWriters,
+    description_from_msg,
+    episode_info,
+    experiment_info,
+    outcome_ending,
+    outcome_name,
+    reported_reward,
+)
+from .agent_parameters import (
+    LIVE_LEARNER_PARAMETERS,
+    PARAMETERS,
+    change_problem,
+    learner_config,
+    startup_problem,
+)
+from .agent_setup import set_up_agent
+from .policy_store import save_policy
+from .progress import ProgressLog, evaluation_line, totals_line
 from .protocol import (
     BadInputError,
     Ending,
@@ -61,56 +97,16 @@ from .protocol import (
     ProtocolAgent,
     ResolvedEnd,
     SummaryWait,
-    format_progress,
     is_greedy_episode,
-    parse_description,
 )
-from .schedules import SCHEDULE_KINDS, Schedule
-from .state_index import StateIndex, mapping_from_description
 
-FLOAT32_MAX = float(np.finfo(np.float32).max)
 # s of wall time between checks, while a terminal state waits for its summary, that the
 # environment is still there (only its leaving ends the wait; see SummaryWait).
 SUMMARY_CHECK_PERIOD = 0.5
-OUTCOME_NAMES = {
-    EpisodeSummary.SUCCESS: 'success',
-    EpisodeSummary.DETECTED: 'detected',
-    EpisodeSummary.TIMEOUT: 'timeout',
-    EpisodeSummary.ABORTED: 'aborted',
-}
-# How the environment's outcome is learned (an unknown outcome: as rl_msgs says, terminal).
-OUTCOME_ENDINGS = {
-    EpisodeSummary.SUCCESS: Ending.TERMINATED,
-    EpisodeSummary.DETECTED: Ending.TERMINATED,
-    EpisodeSummary.TIMEOUT: Ending.TRUNCATED,
-    EpisodeSummary.ABORTED: Ending.ABORTED,
-}
-ENDING_FIELDS = {
-    Ending.TERMINATED: AgentEpisodeInfo.END_TERMINAL,
-    Ending.TRUNCATED: AgentEpisodeInfo.END_TRUNCATED,
-    Ending.ABORTED: AgentEpisodeInfo.END_ABORTED,
-}
-# Learner settings that may change while running (applied to the live learner).
-LIVE_LEARNER_PARAMETERS = {
-    'gamma',
-    'alpha',
-    'epsilon',
-    'n',
-    'epsilon_schedule',
-    'epsilon_final',
-    'epsilon_decay_episodes',
-    'alpha_schedule',
-    'alpha_final',
-    'alpha_decay_episodes',
-}
 INCOMPATIBLE_QOS = (
     'an environment endpoint of the RL loop has QoS incompatible with the agent ({policy}): '
     'states or actions do not get through; the RL topics are reliable and volatile'
 )
-STRING_CHOICES = {
-    'epsilon_schedule': SCHEDULE_KINDS,
-    'alpha_schedule': SCHEDULE_KINDS,
-}
 
 
 class AgentNode(StartupNode):
@@ -123,13 +119,10 @@ class AgentNode(StartupNode):
         self._core: ProtocolAgent | None = None
         self._description: EnvDescription | None = None
         self._setup_error = ''
-        self._window = []
-        self._named_outcomes = Counter()
-        self._out_of_range = 0
+        self._progress = ProgressLog()
         self._states_received = 0  # for the shutdown totals, as the environment logs its own
         self._early_state: RLStateReward | None = None  # the latest before any description
-        # The DDS sequence number of the last state (None where the middleware gives none).
-        self._last_state_sequence: int | None = None
+        self._state_writers = StateWriters()
         self._actions_sent = 0
         self._declared = False
         self._endings = EpisodeEndMatcher()
@@ -140,7 +133,9 @@ class AgentNode(StartupNode):
         self.add_post_set_parameters_callback(self._apply_parameters)
         declare_parameters(self, PARAMETERS)
         self._declared = True
-        self._check_startup_parameters()
+        problem = startup_problem(self._values())
+        if problem is not None:
+            raise StartupError(problem)
 
         # Every QoS event handler is one more entity in each of the executor's waits (rclpy's
         # defaults: several per endpoint, most of the agent's per-step executor work): only the
@@ -203,77 +198,26 @@ class AgentNode(StartupNode):
     def _param(self, name: str):
         return self.get_parameter(name).value
 
+    def _values(self) -> dict:
+        """Every parameter's value by name."""
+        return {name: self._param(name) for name in PARAMETERS}
+
     def _validate_parameters(self, parameters) -> SetParametersResult:
         """Reject values that would not make a usable agent (at startup and at runtime)."""
-        values = {}
         reason = non_finite(parameters)
+        if reason is None:
+            changes = [(p.name, p.value) for p in parameters]
+            reason = change_problem(changes, self._values() if self._declared else None)
         if reason is not None:
             return SetParametersResult(successful=False, reason=reason)
-        for p in parameters:
-            value = p.value
-            if p.name == 'agent':
-                try:
-                    canonical_learner_name(value)
-                except ValueError as error:
-                    return SetParametersResult(successful=False, reason=str(error))
-            if p.name in STRING_CHOICES and value not in STRING_CHOICES[p.name]:
-                choices = ', '.join(STRING_CHOICES[p.name])
-                return SetParametersResult(
-                    successful=False, reason=f'{p.name} must be one of {choices}, got {value!r}'
-                )
-            if p.name.endswith('_decay_episodes') and value <= 0:
-                return SetParametersResult(
-                    successful=False, reason=f'{p.name} must be > 0, got {value}'
-                )
-            values[p.name] = value
-        # While declaring, not every parameter exists yet; startup checks the whole set after.
-        if self._declared and LIVE_LEARNER_PARAMETERS & values.keys():
-            try:
-                self._learner_config(values)
-            except ValueError as error:
-                return SetParametersResult(successful=False, reason=str(error))
         return SetParametersResult(successful=True)
 
     def _apply_parameters(self, parameters) -> None:
         names = {p.name for p in parameters}
         if self._core is not None and self._learning_run and LIVE_LEARNER_PARAMETERS & names:
-            self._core.learner.set_config(self._learner_config())
+            self._core.learner.set_config(learner_config(self._values()))
             changed = ', '.join(f'{p.name}={p.value}' for p in parameters)
             self.get_logger().info(f'learner settings changed: {changed}')
-
-    def _learner_config(self, overrides: dict | None = None) -> LearnerConfig:
-        def get(name):
-            if overrides and name in overrides:
-                return overrides[name]
-            return self._param(name)
-
-        return LearnerConfig(
-            gamma=get('gamma'),
-            alpha=Schedule(
-                get('alpha_schedule'),
-                get('alpha'),
-                get('alpha_final'),
-                get('alpha_decay_episodes'),
-            ),
-            epsilon=Schedule(
-                get('epsilon_schedule'),
-                get('epsilon'),
-                get('epsilon_final'),
-                get('epsilon_decay_episodes'),
-            ),
-            initial_value=get('initialvalue'),
-            n_planning=get('n'),
-        )
-
-    def _check_startup_parameters(self) -> None:
-        if (self._param('evaluate') or self._param('load_policy')) and not self._param(
-            'policy_file'
-        ):
-            raise StartupError('evaluate and load_policy need policy_file')
-        try:
-            self._learner_config()
-        except ValueError as error:
-            raise StartupError(str(error)) from None
 
     @property
     def _learning_run(self) -> bool:
@@ -285,17 +229,7 @@ class AgentNode(StartupNode):
     def _on_description(self, msg: RLEnvDescription) -> None:
         log = self.get_logger()
         try:
-            description = parse_description(
-                msg.num_actions,
-                msg.num_states,
-                msg.min_state_range,
-                msg.max_state_range,
-                msg.max_reward,
-                msg.reward_range,
-                msg.stochastic,
-                msg.episodic,
-                msg.title,
-            )
+            description = description_from_msg(msg)
         except BadInputError as error:
             log.error(f'{error}; description ignored, waiting for a usable one')
             return
@@ -311,21 +245,14 @@ class AgentNode(StartupNode):
 
     def _description_again(self, description: EnvDescription) -> None:
         log = self.get_logger()
-        current = self._description
-        if (
-            description.num_actions != current.num_actions
-            or description.title != current.title
-            or len(description.min_state_range) != len(current.min_state_range)
-        ):
+        other = description.other_environment(self._description)
+        if other is not None:
             log.error(
-                f'a different environment description arrived ({description.title!r}, '
-                f'{description.num_actions} actions, {len(description.min_state_range)} state '
-                f'ranges; running: {current.title!r}, {current.num_actions} actions, '
-                f'{len(current.min_state_range)} state ranges); ignored, restart the agent '
-                'to switch environments'
+                f'a different environment description arrived ({other}); ignored, restart the '
+                'agent to switch environments'
             )
             return
-        if self._last_state_sequence is not None:
+        if self._state_writers.last is not None:
             # The states' sequence numbers tell when a new environment's states begin (see
             # _on_state), and this latched description may come after them, on a writer DDS
             # matched later: an episode in progress now may be the new environment's.
@@ -351,79 +278,24 @@ class AgentNode(StartupNode):
     def _setup(self, description: EnvDescription) -> None:
         """Build (or load) the learner for this environment; on failure stay idle, alive."""
         log = self.get_logger()
-        mapping, warnings = mapping_from_description(
-            description.min_state_range,
-            description.max_state_range,
-            nstates=self._param('nstates'),
-            resolution=self._param('state_resolution'),
-        )
-        for warning in warnings:
+        setup = set_up_agent(description, self._values())
+        for warning in setup.warnings:
             log.warning(warning)
-        learner_name = canonical_learner_name(self._param('agent'))
-        evaluate = self._param('evaluate')
-        path = pathlib.Path(self._param('policy_file')) if self._param('policy_file') else None
-        seed = self._param('seed')
-        rng = np.random.default_rng(seed)
-        source = 'a fresh table'
-        if evaluate or self._param('load_policy'):
-            if not path.exists() and not evaluate:
-                log.warning(f'no policy file at {path} yet; starting with a fresh table')
-                policy = None
-            else:
-                try:
-                    policy = load_policy(path)
-                    check_compatible(
-                        policy,
-                        num_actions=description.num_actions,
-                        state_dim=mapping.dim,
-                        learner=None if evaluate else learner_name,
-                        scenario_title=description.title,
-                        mapping=mapping,
-                    )
-                except PolicyFileError as error:
-                    self._setup_error = str(error)
-                    log.error(
-                        f'{error}; the agent will not act (and will not overwrite the file): '
-                        'fix or remove it, then restart the agent'
-                    )
-                    return
-        else:
-            policy = None
-        if policy is not None:
-            learner, index = policy.learner, policy.index
-            source = f'{path} ({learner.episodes} episodes, {len(index)} states)'
-            if not evaluate:
-                learner.set_config(self._learner_config())
-                saved_rng = policy.restored_rng()
-                if saved_rng is not None:
-                    rng = saved_rng
-                    source += ', continuing its random stream'
-        else:
-            learner = make_learner(learner_name, description.num_actions, self._learner_config())
-            index = StateIndex(mapping)
-        self._core = ProtocolAgent(learner, index, rng, learning=not evaluate)
-        self._core.episode = self._param('first_episode')
-        self._setup_error = ''
-        config = learner.config
-        if evaluate:
-            settings = f'greedy, ties broken with seed {seed}'
-        else:
-            settings = (
-                f'gamma {config.gamma}, alpha {learner.alpha} ({config.alpha.kind}), '
-                f'epsilon {learner.epsilon} ({config.epsilon.kind}), '
-                f'initial {config.initial_value}, n {config.n_planning}, seed {seed}'
+        if setup.core is None:
+            self._setup_error = setup.error
+            log.error(
+                f'{setup.error}; the agent will not act (and will not overwrite the file): '
+                'fix or remove it, then restart the agent'
             )
-        log.info(
-            f'environment {description.title!r}: {description.num_actions} actions, state '
-            f'ranges {list(description.min_state_range)}..{list(description.max_state_range)}; '
-            f'learner {learner.name} ({settings}); states {index.mapping.describe()}; '
-            f'from {source}; ' + ('evaluating (no learning)' if evaluate else 'learning')
-        )
+            return
+        self._core = setup.core
+        self._setup_error = ''
+        log.info(setup.summary)
 
     def _on_state(self, msg: RLStateReward, info: dict) -> None:
         log = self.get_logger()
         self._states_received += 1
-        if self._new_state_writer(info.get('publication_sequence_number')):
+        if self._state_writers.new_writer(info.get('publication_sequence_number')):
             note = self._drop_episode() if self._core is not None else ''
             if note:
                 log.warning(f'a new environment is sending states (restarted){note}')
@@ -442,15 +314,6 @@ class AgentNode(StartupNode):
                 )
             return
         self._handle_state(msg)
-
-    def _new_state_writer(self, sequence: int | None) -> bool:
-        """Whether this state comes from another writer than the last one: a writer numbers its
-        messages from 1, so a number that does not grow is a restarted environment, whose
-        states must not continue the old one's episode."""
-        if sequence is None:
-            return False
-        last, self._last_state_sequence = self._last_state_sequence, sequence
-        return last is not None and sequence <= last
 
     def _handle_state(self, msg: RLStateReward) -> None:
         if not self._core.in_episode:
@@ -474,9 +337,9 @@ class AgentNode(StartupNode):
             log.error(f'rl_state_reward skipped: {error}')
             return
         for note in step.notes:
-            self._out_of_range += 1
-            if self._out_of_range <= 5 or self._out_of_range % 1000 == 0:
-                log.warning(f'{note} ({self._out_of_range} so far); it gets its own table row')
+            warning = self._progress.out_of_range(note)
+            if warning is not None:
+                log.warning(warning)
         if step.action is not None:
             self._action_pub.publish(RLAction(action=step.action))
             self._actions_sent += 1
@@ -555,46 +418,19 @@ class AgentNode(StartupNode):
         self._process(resolved.state, resolved.reward, True, ending)
 
     def _episode_done(self, result) -> None:
-        reward = float(np.clip(result.reward, -FLOAT32_MAX, FLOAT32_MAX))
-        self._info_pub.publish(
-            RLExperimentInfo(
-                episode_number=result.episode,
-                episode_reward=reward,
-                number_actions=result.actions,
-            )
-        )
-        learner = self._core.learner
-        info = AgentEpisodeInfo(
-            episode=result.episode,
-            greedy=not result.learning,
-            epsilon=float(result.epsilon),
-            alpha=float(learner.alpha) if result.learning else 0.0,
-            total_reward=reward,
-            steps=result.actions,
-            learner_episodes=learner.episodes,
-            learner_updates=learner.updates,
-            table_states=len(self._core.index),
-            ending=ENDING_FIELDS[_ending_of(result)],
-        )
+        learner, table_rows = self._core.learner, len(self._core.index)
+        self._info_pub.publish(experiment_info(result))
+        info = episode_info(result, learner, table_rows)
         info.header.stamp = self.get_clock().now().to_msg()
         self._episode_info_pub.publish(info)
         if self._learning_run and not result.learning:
-            self.get_logger().info(
-                f'greedy evaluation, episode {result.episode} (after {learner.episodes} '
-                f'learning episodes): return {reward:.3f} in {result.actions} steps'
-            )
-        self._window.append(result)
-        log_every = self._param('log_every')
-        if log_every and len(self._window) >= log_every:
-            self.get_logger().info(
-                format_progress(
-                    self._window,
-                    table_rows=len(self._core.index),
-                    named_outcomes=self._named_outcomes,
-                )
-            )
-            self._window = []
-            self._named_outcomes = Counter()
+            line = evaluation_line(result, reported_reward(result), learner.episodes)
+            self.get_logger().info(line)
+        line = self._progress.episode(
+            result, table_rows=table_rows, log_every=self._param('log_every')
+        )
+        if line is not None:
+            self.get_logger().info(line)
         save_every = self._param('save_every')
         if save_every and self._learning_run and self._core.episode % save_every == 0:
             self.save(f'every {save_every} episodes')
@@ -602,9 +438,8 @@ class AgentNode(StartupNode):
     def _on_summary(self, msg: EpisodeSummary) -> None:
         if self._core is None or msg.episode < self._param('first_episode'):
             return  # from before this agent's first episode (the history a late reader gets)
-        self._named_outcomes[OUTCOME_NAMES.get(msg.outcome, f'outcome {msg.outcome}')] += 1
-        ending = OUTCOME_ENDINGS.get(msg.outcome, Ending.TERMINATED)
-        resolved = self._endings.report(msg.steps, ending, int(msg.episode))
+        self._progress.outcome(outcome_name(msg.outcome))
+        resolved = self._endings.report(msg.steps, outcome_ending(msg.outcome), int(msg.episode))
         if resolved is not None:
             self._end_episode(resolved)
 
@@ -612,9 +447,7 @@ class AgentNode(StartupNode):
 
     def finish(self) -> None:
         """At exit: the totals (what a lost or doubled message would show in), then save."""
-        self._exit_logger().info(
-            f'totals: {self._states_received} states received, {self._actions_sent} actions sent'
-        )
+        self._exit_logger().info(totals_line(self._states_received, self._actions_sent))
         self.save('shutdown')
 
     def _exit_logger(self):
@@ -645,12 +478,6 @@ class AgentNode(StartupNode):
             f'{len(index)} states)'
         )
         return True
-
-
-def _ending_of(result) -> Ending:
-    if result.aborted:
-        return Ending.ABORTED
-    return Ending.TRUNCATED if result.truncated else Ending.TERMINATED
 
 
 def main(args=None) -> int:
