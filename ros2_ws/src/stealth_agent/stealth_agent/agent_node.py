@@ -1,8 +1,9 @@
 """The agent node (``agent``): rl-texplore-ros-pkg's rl_agent protocol over the tabular learners.
 
-Everything it decides is in the plain-Python core (protocol.py, learners.py, schedules.py,
-state_index.py, policy_store.py, agent_parameters.py, agent_setup.py, agent_messages.py,
-progress.py); this node translates messages and parameters.
+Everything it decides is in the plain-Python core: what it does with each message in
+agent_loop.py, over protocol.py, learners.py, schedules.py, state_index.py, policy_store.py,
+agent_parameters.py, agent_setup.py, agent_messages.py and progress.py; this node translates
+messages and parameters.
 
 ## Topics
 
@@ -47,8 +48,6 @@ non-finite reward, an unusable policy file: each is logged with what is wrong an
 skipped; the node stays up and the table is never touched by a rejected message.
 """
 
-import time
-
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
@@ -70,15 +69,7 @@ from stealth_node_kit.endpoints import (
 from stealth_node_kit.parameters import StartupError, declare_parameters, non_finite
 from stealth_node_kit.running import StartupNode, run_node
 
-from .agent_messages import (
-    StateWriters,
-    description_from_msg,
-    episode_info,
-    experiment_info,
-    outcome_ending,
-    outcome_name,
-    reported_reward,
-)
+from .agent_loop import AgentLoop
 from .agent_parameters import (
     LIVE_LEARNER_PARAMETERS,
     PARAMETERS,
@@ -86,19 +77,7 @@ from .agent_parameters import (
     learner_config,
     startup_problem,
 )
-from .agent_setup import set_up_agent
-from .policy_store import save_policy
-from .progress import ProgressLog, evaluation_line, totals_line
-from .protocol import (
-    BadInputError,
-    Ending,
-    EnvDescription,
-    EpisodeEndMatcher,
-    ProtocolAgent,
-    ResolvedEnd,
-    SummaryWait,
-    is_greedy_episode,
-)
+from .progress import totals_line
 
 # s of wall time between checks, while a terminal state waits for its summary, that the
 # environment is still there (only its leaving ends the wait; see SummaryWait).
@@ -110,22 +89,15 @@ INCOMPATIBLE_QOS = (
 
 
 class AgentNode(StartupNode):
-    """rl_agent for rl_msgs environments, with Q-learning, SARSA and Dyna-Q."""
+    """rl_agent for rl_msgs environments, with Q-learning, SARSA and Dyna-Q: the ROS shell of
+    AgentLoop, which it serves as the loop's Ports."""
 
     def __init__(self):
         super().__init__('agent')
 
     def set_up(self) -> None:
-        self._core: ProtocolAgent | None = None
-        self._description: EnvDescription | None = None
-        self._setup_error = ''
-        self._progress = ProgressLog()
-        self._states_received = 0  # for the shutdown totals, as the environment logs its own
-        self._early_state: RLStateReward | None = None  # the latest before any description
-        self._state_writers = StateWriters()
-        self._actions_sent = 0
+        self._loop: AgentLoop | None = None
         self._declared = False
-        self._endings = EpisodeEndMatcher()
         self._summary_sub = None
         self._summary_unmatched_told = False
 
@@ -133,9 +105,10 @@ class AgentNode(StartupNode):
         self.add_post_set_parameters_callback(self._apply_parameters)
         declare_parameters(self, PARAMETERS)
         self._declared = True
-        problem = startup_problem(self._values())
+        problem = startup_problem(self.values())
         if problem is not None:
             raise StartupError(problem)
+        self._loop = AgentLoop(self)
 
         # Every QoS event handler is one more entity in each of the executor's waits (rclpy's
         # defaults: several per endpoint, most of the agent's per-step executor work): only the
@@ -161,7 +134,7 @@ class AgentNode(StartupNode):
         self.create_subscription(
             RLEnvDescription,
             rl_contract.ENV_DESCRIPTION,
-            self._on_description,
+            self._loop.on_description,
             rl_contract.DESCRIPTION_QOS,
             event_callbacks=QUIET_SUBSCRIPTION,
         )
@@ -172,183 +145,67 @@ class AgentNode(StartupNode):
             rl_contract.LOCKSTEP_QOS,
             event_callbacks=warn_subscription(self.get_logger, INCOMPATIBLE_QOS),
         )
-        summary_topic = self._param('episode_summary_topic')
+        summary_topic = self.param('episode_summary_topic')
         if summary_topic:
             self._summary_sub = self.create_subscription(
                 EpisodeSummary,
                 summary_topic,
-                self._on_summary,
+                self._loop.on_summary,
                 rl_contract.REPORT_READER_QOS,
                 event_callbacks=QUIET_SUBSCRIPTION,
             )
-        self._summary_wait = SummaryWait(self._param('summary_wait'))
         self._summary_timer = self.create_timer(
-            min(SUMMARY_CHECK_PERIOD, self._param('summary_wait')),
-            self._check_summary_wait,
+            min(SUMMARY_CHECK_PERIOD, self.param('summary_wait')),
+            self._loop.check_summary_wait,
             clock=Clock(clock_type=ClockType.STEADY_TIME),
         )
         self._summary_timer.cancel()
-        mode = 'evaluating (greedy, no learning)' if self._param('evaluate') else 'learning'
+        mode = 'evaluating (greedy, no learning)' if self.param('evaluate') else 'learning'
         self.get_logger().info(
-            f'agent {self._param("agent")} {mode}; waiting for rl_env/rl_env_description'
+            f'agent {self.param("agent")} {mode}; waiting for rl_env/rl_env_description'
         )
 
     # --- parameters --------------------------------------------------------------------------
 
-    def _param(self, name: str):
+    def param(self, name: str):
         return self.get_parameter(name).value
 
-    def _values(self) -> dict:
+    def values(self) -> dict:
         """Every parameter's value by name."""
-        return {name: self._param(name) for name in PARAMETERS}
+        return {name: self.param(name) for name in PARAMETERS}
 
     def _validate_parameters(self, parameters) -> SetParametersResult:
         """Reject values that would not make a usable agent (at startup and at runtime)."""
         reason = non_finite(parameters)
         if reason is None:
             changes = [(p.name, p.value) for p in parameters]
-            reason = change_problem(changes, self._values() if self._declared else None)
+            reason = change_problem(changes, self.values() if self._declared else None)
         if reason is not None:
             return SetParametersResult(successful=False, reason=reason)
         return SetParametersResult(successful=True)
 
     def _apply_parameters(self, parameters) -> None:
         names = {p.name for p in parameters}
-        if self._core is not None and self._learning_run and LIVE_LEARNER_PARAMETERS & names:
-            self._core.learner.set_config(learner_config(self._values()))
+        core = self._loop.core if self._loop is not None else None
+        if core is not None and self._loop.learning_run and LIVE_LEARNER_PARAMETERS & names:
+            core.learner.set_config(learner_config(self.values()))
             changed = ', '.join(f'{p.name}={p.value}' for p in parameters)
             self.get_logger().info(f'learner settings changed: {changed}')
 
-    @property
-    def _learning_run(self) -> bool:
-        """Whether this run learns (greedy evaluation episodes in between or not)."""
-        return not self._param('evaluate')
-
-    # --- messages ----------------------------------------------------------------------------
-
-    def _on_description(self, msg: RLEnvDescription) -> None:
-        log = self.get_logger()
-        try:
-            description = description_from_msg(msg)
-        except BadInputError as error:
-            log.error(f'{error}; description ignored, waiting for a usable one')
-            return
-        if self._core is not None:
-            self._description_again(description)
-            return
-        self._description = description
-        self._setup(description)
-        early, self._early_state = self._early_state, None
-        if early is not None and self._core is not None:
-            log.info('answering the state that came before the description')
-            self._handle_state(early)
-
-    def _description_again(self, description: EnvDescription) -> None:
-        log = self.get_logger()
-        other = description.other_environment(self._description)
-        if other is not None:
-            log.error(
-                f'a different environment description arrived ({other}); ignored, restart the '
-                'agent to switch environments'
-            )
-            return
-        if self._state_writers.last is not None:
-            # The states' sequence numbers tell when a new environment's states begin (see
-            # _on_state), and this latched description may come after them, on a writer DDS
-            # matched later: an episode in progress now may be the new environment's.
-            log.warning(
-                'environment description received again (environment restarted?); keeping the '
-                "table; the new environment's first state ends the old episode, if one is open"
-            )
-            return
-        note = self._drop_episode()
-        log.warning(
-            f'environment description received again (environment restarted?); '
-            f'keeping the table{note}'
-        )
-
-    def _drop_episode(self) -> str:
-        """The environment restarted: the episode in progress (if any) is void; a note saying
-        what was dropped."""
-        aborted = self._core.abort()
-        self._endings.new_episode()
-        self._stop_waiting()
-        return f'; dropped the episode in progress ({aborted.actions} actions)' if aborted else ''
-
-    def _setup(self, description: EnvDescription) -> None:
-        """Build (or load) the learner for this environment; on failure stay idle, alive."""
-        log = self.get_logger()
-        setup = set_up_agent(description, self._values())
-        for warning in setup.warnings:
-            log.warning(warning)
-        if setup.core is None:
-            self._setup_error = setup.error
-            log.error(
-                f'{setup.error}; the agent will not act (and will not overwrite the file): '
-                'fix or remove it, then restart the agent'
-            )
-            return
-        self._core = setup.core
-        self._setup_error = ''
-        log.info(setup.summary)
+    # --- the loop's ports --------------------------------------------------------------------
 
     def _on_state(self, msg: RLStateReward, info: dict) -> None:
-        log = self.get_logger()
-        self._states_received += 1
-        if self._state_writers.new_writer(info.get('publication_sequence_number')):
-            note = self._drop_episode() if self._core is not None else ''
-            if note:
-                log.warning(f'a new environment is sending states (restarted){note}')
-        if self._core is None:
-            if self._description is None:
-                # Its writer may be matched before the latched description's (a restarted
-                # agent): held, not dropped, or the environment would wait for its answer.
-                self._early_state = msg
-                log.warning(
-                    'rl_state_reward received before any environment description '
-                    '(rl_env/rl_env_description); held until the description arrives'
-                )
-            else:
-                log.error(
-                    f'rl_state_reward skipped: the agent is not usable ({self._setup_error})'
-                )
-            return
-        self._handle_state(msg)
+        self._loop.on_state(msg, info.get('publication_sequence_number'))
 
-    def _handle_state(self, msg: RLStateReward) -> None:
-        if not self._core.in_episode:
-            if not msg.terminal:  # (a report may have come before a terminal first state)
-                self._endings.new_episode()
-            if self._learning_run:
-                greedy = is_greedy_episode(self._core.episode, self._param('eval_every'))
-                self._core.set_learning(not greedy)
-        if msg.terminal and self._environment_reports_endings():
-            # Before any action too: an environment ends an episode whose first state got no
-            # answer (lost to a restarted agent) ABORTED, and that is what is learned (nothing).
-            self._wait_for_summary(msg)
-            return
-        self._process(msg.state, msg.reward, msg.terminal)
+    def send_action(self, action: int) -> None:
+        self._action_pub.publish(RLAction(action=action))
 
-    def _process(self, state, reward, terminal: bool, ending=Ending.TERMINATED) -> None:
-        log = self.get_logger()
-        try:
-            step = self._core.handle(state, reward, terminal, ending)
-        except BadInputError as error:
-            log.error(f'rl_state_reward skipped: {error}')
-            return
-        for note in step.notes:
-            warning = self._progress.out_of_range(note)
-            if warning is not None:
-                log.warning(warning)
-        if step.action is not None:
-            self._action_pub.publish(RLAction(action=step.action))
-            self._actions_sent += 1
-        if step.result is not None:
-            self._episode_done(step.result)
+    def send_reports(self, info: RLExperimentInfo, episode: AgentEpisodeInfo) -> None:
+        self._info_pub.publish(info)
+        episode.header.stamp = self.get_clock().now().to_msg()
+        self._episode_info_pub.publish(episode)
 
-    # --- how an episode ended ----------------------------------------------------------------
-
-    def _environment_reports_endings(self) -> bool:
+    def environment_reports_endings(self) -> bool:
         """Whether some environment publishes EpisodeSummary: then a terminal state waits for
         its summary to know whether it ended the task or only the time allowed."""
         if self._summary_sub is None:
@@ -365,119 +222,23 @@ class AgentNode(StartupNode):
             )
         return False
 
-    def _wait_for_summary(self, msg: RLStateReward) -> None:
-        try:  # a bad terminal state is refused now, not after the wait
-            self._core.check_state_reward(msg.state, msg.reward)
-        except BadInputError as error:
-            self.get_logger().error(f'rl_state_reward skipped: {error}')
-            return
-        resolved = self._endings.terminal(msg.state, msg.reward, self._core.number_actions)
-        if resolved is None:
-            self._summary_wait.start(time.monotonic())
-            self._summary_timer.reset()
-        else:
-            self._end_episode(resolved)
+    def start_summary_timer(self) -> None:
+        self._summary_timer.reset()
 
-    def _check_summary_wait(self) -> None:
-        """While a terminal state waits: give up only when no environment is left to send the
-        summary (a slow one is waited for: wall time must not change what is learned)."""
-        now = time.monotonic()
-        waited = self._summary_wait.waited(now)
-        verdict = self._summary_wait.tick(now, self._environment_reports_endings())
-        if verdict == 'warn':
-            self.get_logger().warning(
-                f'still waiting for the EpisodeSummary of episode {self._core.episode} '
-                f'({waited:.0f} s after its terminal state); the environment is there, so the '
-                'agent keeps waiting (a stuck environment needs a restart)'
-            )
-        elif verdict == 'give up':
-            self._summary_timer.cancel()
-            resolved = self._endings.give_up()
-            if resolved is not None:
-                self.get_logger().warning(
-                    f'the environment left {waited:.1f} s after the terminal state of episode '
-                    f'{self._core.episode}, without its EpisodeSummary; learned as terminal'
-                )
-                self._end_episode(resolved)
-        elif not self._endings.waiting:
-            self._stop_waiting()
-
-    def _stop_waiting(self) -> None:
+    def stop_summary_timer(self) -> None:
         self._summary_timer.cancel()
-        self._summary_wait.stop()
 
-    def _end_episode(self, resolved: ResolvedEnd) -> None:
-        self._stop_waiting()
-        ending = resolved.ending
-        if ending is Ending.TRUNCATED and self._param('timeout_is_terminal'):
-            ending = Ending.TERMINATED
-        if resolved.episode is not None:
-            # The environment numbers the episodes: after a restart of either side (an episode
-            # dropped by one of them) both still name each episode alike.
-            self._core.episode = resolved.episode
-        self._process(resolved.state, resolved.reward, True, ending)
-
-    def _episode_done(self, result) -> None:
-        learner, table_rows = self._core.learner, len(self._core.index)
-        self._info_pub.publish(experiment_info(result))
-        info = episode_info(result, learner, table_rows)
-        info.header.stamp = self.get_clock().now().to_msg()
-        self._episode_info_pub.publish(info)
-        if self._learning_run and not result.learning:
-            line = evaluation_line(result, reported_reward(result), learner.episodes)
-            self.get_logger().info(line)
-        line = self._progress.episode(
-            result, table_rows=table_rows, log_every=self._param('log_every')
-        )
-        if line is not None:
-            self.get_logger().info(line)
-        save_every = self._param('save_every')
-        if save_every and self._learning_run and self._core.episode % save_every == 0:
-            self.save(f'every {save_every} episodes')
-
-    def _on_summary(self, msg: EpisodeSummary) -> None:
-        if self._core is None or msg.episode < self._param('first_episode'):
-            return  # from before this agent's first episode (the history a late reader gets)
-        self._progress.outcome(outcome_name(msg.outcome))
-        resolved = self._endings.report(msg.steps, outcome_ending(msg.outcome), int(msg.episode))
-        if resolved is not None:
-            self._end_episode(resolved)
-
-    # --- policy file -------------------------------------------------------------------------
-
-    def finish(self) -> None:
-        """At exit: the totals (what a lost or doubled message would show in), then save."""
-        self._exit_logger().info(totals_line(self._states_received, self._actions_sent))
-        self.save('shutdown')
-
-    def _exit_logger(self):
+    def exit_logger(self):
         """After Ctrl-C the context is already shut down and /rosout cannot take the message."""
         return self.get_logger() if self.context.ok() else rclpy.logging.get_logger('agent.exit')
 
-    def save(self, reason: str) -> bool:
-        """Save the learned policy atomically, if learning with a policy file."""
-        path = self._param('policy_file')
-        if self._core is None or not self._learning_run or not path:
-            return False
-        learner, index = self._core.learner, self._core.index
-        log = self._exit_logger()
-        try:
-            save_policy(
-                path,
-                learner,
-                index,
-                scenario=self._description.identity(),
-                rng=self._core.rng,
-                extra={'seed': self._param('seed'), 'reason': reason},
-            )
-        except (OSError, ValueError) as error:
-            log.error(f'could not save the policy to {path}: {error}')
-            return False
-        log.info(
-            f'saved the policy to {path} ({reason}; {learner.episodes} episodes, '
-            f'{len(index)} states)'
-        )
-        return True
+    # --- exit --------------------------------------------------------------------------------
+
+    def finish(self) -> None:
+        """At exit: the totals (what a lost or doubled message would show in), then save."""
+        loop = self._loop
+        self.exit_logger().info(totals_line(loop.states_received, loop.actions_sent))
+        loop.save('shutdown')
 
 
 def main(args=None) -> int:
