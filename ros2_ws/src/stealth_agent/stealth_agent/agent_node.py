@@ -1,34 +1,53 @@
-"""The agent node: rl-texplore-ros-pkg's rl_agent protocol over the tabular learners.
+"""The agent node (``agent``): rl-texplore-ros-pkg's rl_agent protocol over the tabular learners.
 
-Subscribes rl_env/rl_env_description (reliable, transient local) and rl_env/rl_state_reward;
-publishes rl_agent/rl_action after every non-terminal state, and rl_agent/rl_experiment_info and
-rl_agent/episode_info (stealth_interfaces/AgentEpisodeInfo: greedy or not, epsilon, alpha) at
-every terminal state. An environment that also publishes stealth_interfaces/EpisodeSummary
-(stealth_env does) tells the agent how each episode ended: a TIMEOUT is then a truncation, not a
-terminal state (the last update bootstraps from the final state, so the agent does not learn
-that running out of time is cheap), and an ABORTED episode teaches nothing. A terminal state
-waits for its summary as long as the environment (a summary publisher) is there, with a warning
-every summary_wait seconds: a summary that is only late, on a loaded machine, never turns into a
-guess, so the same seed learns the same episodes whatever the load. Only when no publisher is
-left is the state learned as terminal. A plain rl_msgs environment, with no summary publisher,
-gets rl_agent's behaviour. A restarted environment is told by its states' DDS sequence numbers
-starting again (the old episode is dropped there, whenever its latched description arrives).
+Everything it decides is in the plain-Python core: what it does with each message in
+agent_loop.py, over protocol.py, learners.py, schedules.py, state_index.py, policy_store.py,
+agent_parameters.py, agent_setup.py, agent_messages.py and progress.py; this node translates
+messages and parameters.
 
-With eval_every M > 0, every M-th episode of a learning run is a greedy
-evaluation (epsilon 0, no updates, the schedules stand still), so an experiment can watch the
-learned policy itself. Everything it decides is in the plain-Python core (protocol.py,
-learners.py, state_index.py, policy_store.py); this node translates messages and parameters.
+## Topics
 
-Bad input (an unusable description, a state before any description, a state whose length
-changes, a non-finite reward, an unusable policy file) is logged with what is wrong and the
-message skipped; the node stays up and the table is never touched by a rejected message.
+Names and QoS from ``stealth_node_kit.rl_contract``; every type is stealth_interfaces'.
+
+* subscribes ``rl_env/rl_env_description`` (RLEnvDescription; reliable, transient local) and
+  ``rl_env/rl_state_reward`` (RLStateReward; reliable, volatile);
+* subscribes ``episode_summary_topic`` (EpisodeSummary, ``rl_env/episode_summary``; reliable,
+  transient local), when the environment publishes it (stealth_env does): see Episode endings;
+* publishes ``rl_agent/rl_action`` (RLAction) after every non-terminal state, and
+  ``rl_agent/rl_experiment_info`` (RLExperimentInfo) and ``rl_agent/episode_info``
+  (AgentEpisodeInfo: greedy or not, epsilon, alpha; transient local) at every terminal state.
+
+## Services
+
+None: the agent only answers states.
+
+## Parameters
+
+The table in ``stealth_agent.agent_parameters``. The learner settings may change while running;
+a value that would not make a usable agent is refused, at startup and at runtime. With
+eval_every M > 0, every M-th episode of a learning run is a greedy evaluation (epsilon 0, no
+updates, the schedules stand still), so an experiment can watch the learned policy itself.
+
+## Episode endings
+
+An environment that also publishes EpisodeSummary tells the agent how each episode ended: a
+TIMEOUT is then a truncation, not a terminal state (the last update bootstraps from the final
+state, so the agent does not learn that running out of time is cheap), and an ABORTED episode
+teaches nothing. A terminal state waits for its summary as long as the environment (a summary
+publisher) is there, with a warning every summary_wait seconds: a summary that is only late, on
+a loaded machine, never turns into a guess, so the same seed learns the same episodes whatever
+the load. Only when no publisher is left is the state learned as terminal. A plain rl_msgs
+environment, with no summary publisher, gets rl_agent's behaviour. A restarted environment is
+told by its states' DDS sequence numbers starting again (the old episode is dropped there,
+whenever its latched description arrives).
+
+## Bad input
+
+An unusable description, a state before any description, a state whose length changes, a
+non-finite reward, an unusable policy file: each is logged with what is wrong and the message
+skipped; the node stays up and the table is never touched by a rejected message.
 """
 
-from collections import Counter
-import pathlib
-import time
-
-import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
@@ -50,89 +69,35 @@ from stealth_node_kit.endpoints import (
 from stealth_node_kit.parameters import StartupError, declare_parameters, non_finite
 from stealth_node_kit.running import StartupNode, run_node
 
-from .agent_parameters import PARAMETERS
-from .learners import LearnerConfig, canonical_learner_name, make_learner
-from .policy_store import PolicyFileError, check_compatible, load_policy, save_policy
-from .protocol import (
-    BadInputError,
-    Ending,
-    EnvDescription,
-    EpisodeEndMatcher,
-    ProtocolAgent,
-    ResolvedEnd,
-    SummaryWait,
-    format_progress,
-    is_greedy_episode,
-    parse_description,
+from .agent_loop import AgentLoop
+from .agent_parameters import (
+    LIVE_LEARNER_PARAMETERS,
+    PARAMETERS,
+    change_problem,
+    learner_config,
+    startup_problem,
 )
-from .schedules import SCHEDULE_KINDS, Schedule
-from .state_index import StateIndex, mapping_from_description
+from .progress import totals_line
 
-FLOAT32_MAX = float(np.finfo(np.float32).max)
 # s of wall time between checks, while a terminal state waits for its summary, that the
 # environment is still there (only its leaving ends the wait; see SummaryWait).
 SUMMARY_CHECK_PERIOD = 0.5
-OUTCOME_NAMES = {
-    EpisodeSummary.SUCCESS: 'success',
-    EpisodeSummary.DETECTED: 'detected',
-    EpisodeSummary.TIMEOUT: 'timeout',
-    EpisodeSummary.ABORTED: 'aborted',
-}
-# How the environment's outcome is learned (an unknown outcome: as rl_msgs says, terminal).
-OUTCOME_ENDINGS = {
-    EpisodeSummary.SUCCESS: Ending.TERMINATED,
-    EpisodeSummary.DETECTED: Ending.TERMINATED,
-    EpisodeSummary.TIMEOUT: Ending.TRUNCATED,
-    EpisodeSummary.ABORTED: Ending.ABORTED,
-}
-ENDING_FIELDS = {
-    Ending.TERMINATED: AgentEpisodeInfo.END_TERMINAL,
-    Ending.TRUNCATED: AgentEpisodeInfo.END_TRUNCATED,
-    Ending.ABORTED: AgentEpisodeInfo.END_ABORTED,
-}
-# Learner settings that may change while running (applied to the live learner).
-LIVE_LEARNER_PARAMETERS = {
-    'gamma',
-    'alpha',
-    'epsilon',
-    'n',
-    'epsilon_schedule',
-    'epsilon_final',
-    'epsilon_decay_episodes',
-    'alpha_schedule',
-    'alpha_final',
-    'alpha_decay_episodes',
-}
 INCOMPATIBLE_QOS = (
     'an environment endpoint of the RL loop has QoS incompatible with the agent ({policy}): '
     'states or actions do not get through; the RL topics are reliable and volatile'
 )
-STRING_CHOICES = {
-    'epsilon_schedule': SCHEDULE_KINDS,
-    'alpha_schedule': SCHEDULE_KINDS,
-}
 
 
 class AgentNode(StartupNode):
-    """rl_agent for rl_msgs environments, with Q-learning, SARSA and Dyna-Q."""
+    """rl_agent for rl_msgs environments, with Q-learning, SARSA and Dyna-Q: the ROS shell of
+    AgentLoop, which it serves as the loop's Ports."""
 
     def __init__(self):
         super().__init__('agent')
 
     def set_up(self) -> None:
-        self._core: ProtocolAgent | None = None
-        self._description: EnvDescription | None = None
-        self._setup_error = ''
-        self._window = []
-        self._named_outcomes = Counter()
-        self._out_of_range = 0
-        self._states_received = 0  # for the shutdown totals, as the environment logs its own
-        self._early_state: RLStateReward | None = None  # the latest before any description
-        # The DDS sequence number of the last state (None where the middleware gives none).
-        self._last_state_sequence: int | None = None
-        self._actions_sent = 0
+        self._loop: AgentLoop | None = None
         self._declared = False
-        self._endings = EpisodeEndMatcher()
         self._summary_sub = None
         self._summary_unmatched_told = False
 
@@ -140,7 +105,10 @@ class AgentNode(StartupNode):
         self.add_post_set_parameters_callback(self._apply_parameters)
         declare_parameters(self, PARAMETERS)
         self._declared = True
-        self._check_startup_parameters()
+        problem = startup_problem(self.values())
+        if problem is not None:
+            raise StartupError(problem)
+        self._loop = AgentLoop(self)
 
         # Every QoS event handler is one more entity in each of the executor's waits (rclpy's
         # defaults: several per endpoint, most of the agent's per-step executor work): only the
@@ -166,7 +134,7 @@ class AgentNode(StartupNode):
         self.create_subscription(
             RLEnvDescription,
             rl_contract.ENV_DESCRIPTION,
-            self._on_description,
+            self._loop.on_description,
             rl_contract.DESCRIPTION_QOS,
             event_callbacks=QUIET_SUBSCRIPTION,
         )
@@ -177,315 +145,67 @@ class AgentNode(StartupNode):
             rl_contract.LOCKSTEP_QOS,
             event_callbacks=warn_subscription(self.get_logger, INCOMPATIBLE_QOS),
         )
-        summary_topic = self._param('episode_summary_topic')
+        summary_topic = self.param('episode_summary_topic')
         if summary_topic:
             self._summary_sub = self.create_subscription(
                 EpisodeSummary,
                 summary_topic,
-                self._on_summary,
+                self._loop.on_summary,
                 rl_contract.REPORT_READER_QOS,
                 event_callbacks=QUIET_SUBSCRIPTION,
             )
-        self._summary_wait = SummaryWait(self._param('summary_wait'))
         self._summary_timer = self.create_timer(
-            min(SUMMARY_CHECK_PERIOD, self._param('summary_wait')),
-            self._check_summary_wait,
+            min(SUMMARY_CHECK_PERIOD, self.param('summary_wait')),
+            self._loop.check_summary_wait,
             clock=Clock(clock_type=ClockType.STEADY_TIME),
         )
         self._summary_timer.cancel()
-        mode = 'evaluating (greedy, no learning)' if self._param('evaluate') else 'learning'
+        mode = 'evaluating (greedy, no learning)' if self.param('evaluate') else 'learning'
         self.get_logger().info(
-            f'agent {self._param("agent")} {mode}; waiting for rl_env/rl_env_description'
+            f'agent {self.param("agent")} {mode}; waiting for rl_env/rl_env_description'
         )
 
     # --- parameters --------------------------------------------------------------------------
 
-    def _param(self, name: str):
+    def param(self, name: str):
         return self.get_parameter(name).value
+
+    def values(self) -> dict:
+        """Every parameter's value by name."""
+        return {name: self.param(name) for name in PARAMETERS}
 
     def _validate_parameters(self, parameters) -> SetParametersResult:
         """Reject values that would not make a usable agent (at startup and at runtime)."""
-        values = {}
         reason = non_finite(parameters)
+        if reason is None:
+            changes = [(p.name, p.value) for p in parameters]
+            reason = change_problem(changes, self.values() if self._declared else None)
         if reason is not None:
             return SetParametersResult(successful=False, reason=reason)
-        for p in parameters:
-            value = p.value
-            if p.name == 'agent':
-                try:
-                    canonical_learner_name(value)
-                except ValueError as error:
-                    return SetParametersResult(successful=False, reason=str(error))
-            if p.name in STRING_CHOICES and value not in STRING_CHOICES[p.name]:
-                choices = ', '.join(STRING_CHOICES[p.name])
-                return SetParametersResult(
-                    successful=False, reason=f'{p.name} must be one of {choices}, got {value!r}'
-                )
-            if p.name.endswith('_decay_episodes') and value <= 0:
-                return SetParametersResult(
-                    successful=False, reason=f'{p.name} must be > 0, got {value}'
-                )
-            values[p.name] = value
-        # While declaring, not every parameter exists yet; startup checks the whole set after.
-        if self._declared and LIVE_LEARNER_PARAMETERS & values.keys():
-            try:
-                self._learner_config(values)
-            except ValueError as error:
-                return SetParametersResult(successful=False, reason=str(error))
         return SetParametersResult(successful=True)
 
     def _apply_parameters(self, parameters) -> None:
         names = {p.name for p in parameters}
-        if self._core is not None and self._learning_run and LIVE_LEARNER_PARAMETERS & names:
-            self._core.learner.set_config(self._learner_config())
+        core = self._loop.core if self._loop is not None else None
+        if core is not None and self._loop.learning_run and LIVE_LEARNER_PARAMETERS & names:
+            core.learner.set_config(learner_config(self.values()))
             changed = ', '.join(f'{p.name}={p.value}' for p in parameters)
             self.get_logger().info(f'learner settings changed: {changed}')
 
-    def _learner_config(self, overrides: dict | None = None) -> LearnerConfig:
-        def get(name):
-            if overrides and name in overrides:
-                return overrides[name]
-            return self._param(name)
-
-        return LearnerConfig(
-            gamma=get('gamma'),
-            alpha=Schedule(
-                get('alpha_schedule'),
-                get('alpha'),
-                get('alpha_final'),
-                get('alpha_decay_episodes'),
-            ),
-            epsilon=Schedule(
-                get('epsilon_schedule'),
-                get('epsilon'),
-                get('epsilon_final'),
-                get('epsilon_decay_episodes'),
-            ),
-            initial_value=get('initialvalue'),
-            n_planning=get('n'),
-        )
-
-    def _check_startup_parameters(self) -> None:
-        if (self._param('evaluate') or self._param('load_policy')) and not self._param(
-            'policy_file'
-        ):
-            raise StartupError('evaluate and load_policy need policy_file')
-        try:
-            self._learner_config()
-        except ValueError as error:
-            raise StartupError(str(error)) from None
-
-    @property
-    def _learning_run(self) -> bool:
-        """Whether this run learns (greedy evaluation episodes in between or not)."""
-        return not self._param('evaluate')
-
-    # --- messages ----------------------------------------------------------------------------
-
-    def _on_description(self, msg: RLEnvDescription) -> None:
-        log = self.get_logger()
-        try:
-            description = parse_description(
-                msg.num_actions,
-                msg.num_states,
-                msg.min_state_range,
-                msg.max_state_range,
-                msg.max_reward,
-                msg.reward_range,
-                msg.stochastic,
-                msg.episodic,
-                msg.title,
-            )
-        except BadInputError as error:
-            log.error(f'{error}; description ignored, waiting for a usable one')
-            return
-        if self._core is not None:
-            self._description_again(description)
-            return
-        self._description = description
-        self._setup(description)
-        early, self._early_state = self._early_state, None
-        if early is not None and self._core is not None:
-            log.info('answering the state that came before the description')
-            self._handle_state(early)
-
-    def _description_again(self, description: EnvDescription) -> None:
-        log = self.get_logger()
-        current = self._description
-        if (
-            description.num_actions != current.num_actions
-            or description.title != current.title
-            or len(description.min_state_range) != len(current.min_state_range)
-        ):
-            log.error(
-                f'a different environment description arrived ({description.title!r}, '
-                f'{description.num_actions} actions, {len(description.min_state_range)} state '
-                f'ranges; running: {current.title!r}, {current.num_actions} actions, '
-                f'{len(current.min_state_range)} state ranges); ignored, restart the agent '
-                'to switch environments'
-            )
-            return
-        if self._last_state_sequence is not None:
-            # The states' sequence numbers tell when a new environment's states begin (see
-            # _on_state), and this latched description may come after them, on a writer DDS
-            # matched later: an episode in progress now may be the new environment's.
-            log.warning(
-                'environment description received again (environment restarted?); keeping the '
-                "table; the new environment's first state ends the old episode, if one is open"
-            )
-            return
-        note = self._drop_episode()
-        log.warning(
-            f'environment description received again (environment restarted?); '
-            f'keeping the table{note}'
-        )
-
-    def _drop_episode(self) -> str:
-        """The environment restarted: the episode in progress (if any) is void; a note saying
-        what was dropped."""
-        aborted = self._core.abort()
-        self._endings.new_episode()
-        self._stop_waiting()
-        return f'; dropped the episode in progress ({aborted.actions} actions)' if aborted else ''
-
-    def _setup(self, description: EnvDescription) -> None:
-        """Build (or load) the learner for this environment; on failure stay idle, alive."""
-        log = self.get_logger()
-        mapping, warnings = mapping_from_description(
-            description.min_state_range,
-            description.max_state_range,
-            nstates=self._param('nstates'),
-            resolution=self._param('state_resolution'),
-        )
-        for warning in warnings:
-            log.warning(warning)
-        learner_name = canonical_learner_name(self._param('agent'))
-        evaluate = self._param('evaluate')
-        path = pathlib.Path(self._param('policy_file')) if self._param('policy_file') else None
-        seed = self._param('seed')
-        rng = np.random.default_rng(seed)
-        source = 'a fresh table'
-        if evaluate or self._param('load_policy'):
-            if not path.exists() and not evaluate:
-                log.warning(f'no policy file at {path} yet; starting with a fresh table')
-                policy = None
-            else:
-                try:
-                    policy = load_policy(path)
-                    check_compatible(
-                        policy,
-                        num_actions=description.num_actions,
-                        state_dim=mapping.dim,
-                        learner=None if evaluate else learner_name,
-                        scenario_title=description.title,
-                        mapping=mapping,
-                    )
-                except PolicyFileError as error:
-                    self._setup_error = str(error)
-                    log.error(
-                        f'{error}; the agent will not act (and will not overwrite the file): '
-                        'fix or remove it, then restart the agent'
-                    )
-                    return
-        else:
-            policy = None
-        if policy is not None:
-            learner, index = policy.learner, policy.index
-            source = f'{path} ({learner.episodes} episodes, {len(index)} states)'
-            if not evaluate:
-                learner.set_config(self._learner_config())
-                saved_rng = policy.restored_rng()
-                if saved_rng is not None:
-                    rng = saved_rng
-                    source += ', continuing its random stream'
-        else:
-            learner = make_learner(learner_name, description.num_actions, self._learner_config())
-            index = StateIndex(mapping)
-        self._core = ProtocolAgent(learner, index, rng, learning=not evaluate)
-        self._core.episode = self._param('first_episode')
-        self._setup_error = ''
-        config = learner.config
-        if evaluate:
-            settings = f'greedy, ties broken with seed {seed}'
-        else:
-            settings = (
-                f'gamma {config.gamma}, alpha {learner.alpha} ({config.alpha.kind}), '
-                f'epsilon {learner.epsilon} ({config.epsilon.kind}), '
-                f'initial {config.initial_value}, n {config.n_planning}, seed {seed}'
-            )
-        log.info(
-            f'environment {description.title!r}: {description.num_actions} actions, state '
-            f'ranges {list(description.min_state_range)}..{list(description.max_state_range)}; '
-            f'learner {learner.name} ({settings}); states {index.mapping.describe()}; '
-            f'from {source}; ' + ('evaluating (no learning)' if evaluate else 'learning')
-        )
+    # --- the loop's ports --------------------------------------------------------------------
 
     def _on_state(self, msg: RLStateReward, info: dict) -> None:
-        log = self.get_logger()
-        self._states_received += 1
-        if self._new_state_writer(info.get('publication_sequence_number')):
-            note = self._drop_episode() if self._core is not None else ''
-            if note:
-                log.warning(f'a new environment is sending states (restarted){note}')
-        if self._core is None:
-            if self._description is None:
-                # Its writer may be matched before the latched description's (a restarted
-                # agent): held, not dropped, or the environment would wait for its answer.
-                self._early_state = msg
-                log.warning(
-                    'rl_state_reward received before any environment description '
-                    '(rl_env/rl_env_description); held until the description arrives'
-                )
-            else:
-                log.error(
-                    f'rl_state_reward skipped: the agent is not usable ({self._setup_error})'
-                )
-            return
-        self._handle_state(msg)
+        self._loop.on_state(msg, info.get('publication_sequence_number'))
 
-    def _new_state_writer(self, sequence: int | None) -> bool:
-        """Whether this state comes from another writer than the last one: a writer numbers its
-        messages from 1, so a number that does not grow is a restarted environment, whose
-        states must not continue the old one's episode."""
-        if sequence is None:
-            return False
-        last, self._last_state_sequence = self._last_state_sequence, sequence
-        return last is not None and sequence <= last
+    def send_action(self, action: int) -> None:
+        self._action_pub.publish(RLAction(action=action))
 
-    def _handle_state(self, msg: RLStateReward) -> None:
-        if not self._core.in_episode:
-            if not msg.terminal:  # (a report may have come before a terminal first state)
-                self._endings.new_episode()
-            if self._learning_run:
-                greedy = is_greedy_episode(self._core.episode, self._param('eval_every'))
-                self._core.set_learning(not greedy)
-        if msg.terminal and self._environment_reports_endings():
-            # Before any action too: an environment ends an episode whose first state got no
-            # answer (lost to a restarted agent) ABORTED, and that is what is learned (nothing).
-            self._wait_for_summary(msg)
-            return
-        self._process(msg.state, msg.reward, msg.terminal)
+    def send_reports(self, info: RLExperimentInfo, episode: AgentEpisodeInfo) -> None:
+        self._info_pub.publish(info)
+        episode.header.stamp = self.get_clock().now().to_msg()
+        self._episode_info_pub.publish(episode)
 
-    def _process(self, state, reward, terminal: bool, ending=Ending.TERMINATED) -> None:
-        log = self.get_logger()
-        try:
-            step = self._core.handle(state, reward, terminal, ending)
-        except BadInputError as error:
-            log.error(f'rl_state_reward skipped: {error}')
-            return
-        for note in step.notes:
-            self._out_of_range += 1
-            if self._out_of_range <= 5 or self._out_of_range % 1000 == 0:
-                log.warning(f'{note} ({self._out_of_range} so far); it gets its own table row')
-        if step.action is not None:
-            self._action_pub.publish(RLAction(action=step.action))
-            self._actions_sent += 1
-        if step.result is not None:
-            self._episode_done(step.result)
-
-    # --- how an episode ended ----------------------------------------------------------------
-
-    def _environment_reports_endings(self) -> bool:
+    def environment_reports_endings(self) -> bool:
         """Whether some environment publishes EpisodeSummary: then a terminal state waits for
         its summary to know whether it ended the task or only the time allowed."""
         if self._summary_sub is None:
@@ -502,155 +222,23 @@ class AgentNode(StartupNode):
             )
         return False
 
-    def _wait_for_summary(self, msg: RLStateReward) -> None:
-        try:  # a bad terminal state is refused now, not after the wait
-            self._core.check_state_reward(msg.state, msg.reward)
-        except BadInputError as error:
-            self.get_logger().error(f'rl_state_reward skipped: {error}')
-            return
-        resolved = self._endings.terminal(msg.state, msg.reward, self._core.number_actions)
-        if resolved is None:
-            self._summary_wait.start(time.monotonic())
-            self._summary_timer.reset()
-        else:
-            self._end_episode(resolved)
+    def start_summary_timer(self) -> None:
+        self._summary_timer.reset()
 
-    def _check_summary_wait(self) -> None:
-        """While a terminal state waits: give up only when no environment is left to send the
-        summary (a slow one is waited for: wall time must not change what is learned)."""
-        now = time.monotonic()
-        waited = self._summary_wait.waited(now)
-        verdict = self._summary_wait.tick(now, self._environment_reports_endings())
-        if verdict == 'warn':
-            self.get_logger().warning(
-                f'still waiting for the EpisodeSummary of episode {self._core.episode} '
-                f'({waited:.0f} s after its terminal state); the environment is there, so the '
-                'agent keeps waiting (a stuck environment needs a restart)'
-            )
-        elif verdict == 'give up':
-            self._summary_timer.cancel()
-            resolved = self._endings.give_up()
-            if resolved is not None:
-                self.get_logger().warning(
-                    f'the environment left {waited:.1f} s after the terminal state of episode '
-                    f'{self._core.episode}, without its EpisodeSummary; learned as terminal'
-                )
-                self._end_episode(resolved)
-        elif not self._endings.waiting:
-            self._stop_waiting()
-
-    def _stop_waiting(self) -> None:
+    def stop_summary_timer(self) -> None:
         self._summary_timer.cancel()
-        self._summary_wait.stop()
 
-    def _end_episode(self, resolved: ResolvedEnd) -> None:
-        self._stop_waiting()
-        ending = resolved.ending
-        if ending is Ending.TRUNCATED and self._param('timeout_is_terminal'):
-            ending = Ending.TERMINATED
-        if resolved.episode is not None:
-            # The environment numbers the episodes: after a restart of either side (an episode
-            # dropped by one of them) both still name each episode alike.
-            self._core.episode = resolved.episode
-        self._process(resolved.state, resolved.reward, True, ending)
-
-    def _episode_done(self, result) -> None:
-        reward = float(np.clip(result.reward, -FLOAT32_MAX, FLOAT32_MAX))
-        self._info_pub.publish(
-            RLExperimentInfo(
-                episode_number=result.episode,
-                episode_reward=reward,
-                number_actions=result.actions,
-            )
-        )
-        learner = self._core.learner
-        info = AgentEpisodeInfo(
-            episode=result.episode,
-            greedy=not result.learning,
-            epsilon=float(result.epsilon),
-            alpha=float(learner.alpha) if result.learning else 0.0,
-            total_reward=reward,
-            steps=result.actions,
-            learner_episodes=learner.episodes,
-            learner_updates=learner.updates,
-            table_states=len(self._core.index),
-            ending=ENDING_FIELDS[_ending_of(result)],
-        )
-        info.header.stamp = self.get_clock().now().to_msg()
-        self._episode_info_pub.publish(info)
-        if self._learning_run and not result.learning:
-            self.get_logger().info(
-                f'greedy evaluation, episode {result.episode} (after {learner.episodes} '
-                f'learning episodes): return {reward:.3f} in {result.actions} steps'
-            )
-        self._window.append(result)
-        log_every = self._param('log_every')
-        if log_every and len(self._window) >= log_every:
-            self.get_logger().info(
-                format_progress(
-                    self._window,
-                    table_rows=len(self._core.index),
-                    named_outcomes=self._named_outcomes,
-                )
-            )
-            self._window = []
-            self._named_outcomes = Counter()
-        save_every = self._param('save_every')
-        if save_every and self._learning_run and self._core.episode % save_every == 0:
-            self.save(f'every {save_every} episodes')
-
-    def _on_summary(self, msg: EpisodeSummary) -> None:
-        if self._core is None or msg.episode < self._param('first_episode'):
-            return  # from before this agent's first episode (the history a late reader gets)
-        self._named_outcomes[OUTCOME_NAMES.get(msg.outcome, f'outcome {msg.outcome}')] += 1
-        ending = OUTCOME_ENDINGS.get(msg.outcome, Ending.TERMINATED)
-        resolved = self._endings.report(msg.steps, ending, int(msg.episode))
-        if resolved is not None:
-            self._end_episode(resolved)
-
-    # --- policy file -------------------------------------------------------------------------
-
-    def finish(self) -> None:
-        """At exit: the totals (what a lost or doubled message would show in), then save."""
-        self._exit_logger().info(
-            f'totals: {self._states_received} states received, {self._actions_sent} actions sent'
-        )
-        self.save('shutdown')
-
-    def _exit_logger(self):
+    def exit_logger(self):
         """After Ctrl-C the context is already shut down and /rosout cannot take the message."""
         return self.get_logger() if self.context.ok() else rclpy.logging.get_logger('agent.exit')
 
-    def save(self, reason: str) -> bool:
-        """Save the learned policy atomically, if learning with a policy file."""
-        path = self._param('policy_file')
-        if self._core is None or not self._learning_run or not path:
-            return False
-        learner, index = self._core.learner, self._core.index
-        log = self._exit_logger()
-        try:
-            save_policy(
-                path,
-                learner,
-                index,
-                scenario=self._description.identity(),
-                rng=self._core.rng,
-                extra={'seed': self._param('seed'), 'reason': reason},
-            )
-        except (OSError, ValueError) as error:
-            log.error(f'could not save the policy to {path}: {error}')
-            return False
-        log.info(
-            f'saved the policy to {path} ({reason}; {learner.episodes} episodes, '
-            f'{len(index)} states)'
-        )
-        return True
+    # --- exit --------------------------------------------------------------------------------
 
-
-def _ending_of(result) -> Ending:
-    if result.aborted:
-        return Ending.ABORTED
-    return Ending.TRUNCATED if result.truncated else Ending.TERMINATED
+    def finish(self) -> None:
+        """At exit: the totals (what a lost or doubled message would show in), then save."""
+        loop = self._loop
+        self.exit_logger().info(totals_line(loop.states_received, loop.actions_sent))
+        loop.save('shutdown')
 
 
 def main(args=None) -> int:

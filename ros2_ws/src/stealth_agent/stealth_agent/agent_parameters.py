@@ -1,8 +1,15 @@
 """The agent node's parameters (agent_node declares them), importable without rclpy: an
-orchestrator checks parameter names against them before it starts the node."""
+orchestrator checks parameter names against them before it starts the node. Here too what
+their values must be, at startup and when set at runtime, and the learner settings they make.
+"""
+
+from collections.abc import Iterable, Mapping
 
 from stealth_node_kit import rl_contract
 from stealth_node_kit.param_table import Param
+
+from .learners import LearnerConfig, canonical_learner_name
+from .schedules import SCHEDULE_KINDS, Schedule
 
 PARAMETERS = {
     'agent': Param(
@@ -103,3 +110,79 @@ PARAMETERS = {
         read_only=True,
     ),
 }
+
+# Learner settings that may change while running (applied to the live learner).
+LIVE_LEARNER_PARAMETERS = {
+    'gamma',
+    'alpha',
+    'epsilon',
+    'n',
+    'epsilon_schedule',
+    'epsilon_final',
+    'epsilon_decay_episodes',
+    'alpha_schedule',
+    'alpha_final',
+    'alpha_decay_episodes',
+}
+STRING_CHOICES = {
+    'epsilon_schedule': SCHEDULE_KINDS,
+    'alpha_schedule': SCHEDULE_KINDS,
+}
+
+
+def learner_config(values: Mapping) -> LearnerConfig:
+    """The learner settings of these parameter values; ValueError naming what is unusable."""
+    return LearnerConfig(
+        gamma=values['gamma'],
+        alpha=Schedule(
+            values['alpha_schedule'],
+            values['alpha'],
+            values['alpha_final'],
+            values['alpha_decay_episodes'],
+        ),
+        epsilon=Schedule(
+            values['epsilon_schedule'],
+            values['epsilon'],
+            values['epsilon_final'],
+            values['epsilon_decay_episodes'],
+        ),
+        initial_value=values['initialvalue'],
+        n_planning=values['n'],
+    )
+
+
+def change_problem(changes: Iterable[tuple[str, object]], current: Mapping | None) -> str | None:
+    """Why a change of parameters ((name, value) pairs) is refused, or None: each value on its
+    own, then, when it touches the learner settings, the settings they make together with the
+    `current` values (None while declaring: not every parameter exists yet, startup_problem
+    checks the whole set after)."""
+    values = {}
+    for name, value in changes:
+        if name == 'agent':
+            try:
+                canonical_learner_name(value)
+            except ValueError as error:
+                return str(error)
+        if name in STRING_CHOICES and value not in STRING_CHOICES[name]:
+            choices = ', '.join(STRING_CHOICES[name])
+            return f'{name} must be one of {choices}, got {value!r}'
+        if name.endswith('_decay_episodes') and value <= 0:
+            return f'{name} must be > 0, got {value}'
+        values[name] = value
+    if current is not None and LIVE_LEARNER_PARAMETERS & values.keys():
+        try:
+            learner_config({**current, **values})
+        except ValueError as error:
+            return str(error)
+    return None
+
+
+def startup_problem(values: Mapping) -> str | None:
+    """Why the declared parameters cannot make a usable agent, or None."""
+    if (values['evaluate'] or values['load_policy']) and not values['policy_file']:
+        return 'evaluate and load_policy need policy_file'
+    try:
+        learner_config(values)
+    except ValueError as error:
+        return str(error)
+    return None

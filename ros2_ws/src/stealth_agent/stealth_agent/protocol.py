@@ -20,8 +20,7 @@ the index and the episode untouched, so the caller can skip the message and carr
 node only converts messages; an in-process trainer can drive the same object.
 """
 
-from collections import Counter, deque
-from collections.abc import Mapping, Sequence
+from collections import deque
 from dataclasses import dataclass
 import enum
 import math
@@ -71,6 +70,21 @@ class EnvDescription:
             'stochastic': self.stochastic,
             'episodic': self.episodic,
         }
+
+    def other_environment(self, running: 'EnvDescription') -> str | None:
+        """What makes this description another environment than the running one's (action
+        count, title, state length differ), or None: the same one again (it restarted)."""
+        if (
+            self.num_actions == running.num_actions
+            and self.title == running.title
+            and len(self.min_state_range) == len(running.min_state_range)
+        ):
+            return None
+        return (
+            f'{self.title!r}, {self.num_actions} actions, {len(self.min_state_range)} state '
+            f'ranges; running: {running.title!r}, {running.num_actions} actions, '
+            f'{len(running.min_state_range)} state ranges'
+        )
 
 
 def parse_description(
@@ -426,43 +440,3 @@ def is_greedy_episode(episode: int, eval_every: int) -> bool:
     if eval_every < 0:
         raise ValueError(f'eval_every must be an integer >= 0, got {eval_every}')
     return eval_every > 0 and (int(episode) + 1) % eval_every == 0
-
-
-def outcome_mix(results: Sequence[EpisodeResult]) -> Counter:
-    """Outcomes told apart by the terminal reward's sign (all the rl_msgs protocol carries)."""
-    mix = Counter()
-    for result in results:
-        if result.aborted:
-            mix['aborted'] += 1
-        elif result.truncated or result.terminal_reward is None:
-            mix['truncated'] += 1
-        elif result.terminal_reward > 0:
-            mix['positive end'] += 1
-        elif result.terminal_reward < 0:
-            mix['negative end'] += 1
-        else:
-            mix['zero end'] += 1
-    return mix
-
-
-def format_progress(
-    results: Sequence[EpisodeResult],
-    *,
-    table_rows: int,
-    named_outcomes: Mapping[str, int] | None = None,
-) -> str:
-    """One log line about a window of episodes: returns, steps, outcome mix, epsilon."""
-    if not results:
-        return 'no episodes yet'
-    returns = np.array([r.reward for r in results], dtype=np.float64)
-    steps = np.array([r.actions for r in results], dtype=np.float64)
-    mix = named_outcomes if named_outcomes else outcome_mix(results)
-    mix_text = ', '.join(f'{name} {count}' for name, count in sorted(mix.items()))
-    first, last = results[0], results[-1]
-    mode = f'learner total {last.learner_episode + 1}' if last.learning else 'evaluation'
-    return (
-        f'episodes {first.episode}-{last.episode} ({mode}): '
-        f'return mean {returns.mean():.3f} [min {returns.min():.3f}, max {returns.max():.3f}], '
-        f'last {last.reward:.3f}; steps mean {steps.mean():.1f}, last {last.actions}; '
-        f'outcomes: {mix_text}; epsilon {last.epsilon:.4f}; table {table_rows} states'
-    )

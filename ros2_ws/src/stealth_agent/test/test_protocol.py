@@ -13,8 +13,6 @@ from stealth_agent.protocol import (
     ProtocolAgent,
     ResolvedEnd,
     SummaryWait,
-    format_progress,
-    outcome_mix,
     parse_description,
 )
 from stealth_agent.state_index import StateIndex, mapping_from_description
@@ -268,25 +266,3 @@ def test_descriptions_with_an_unusable_action_count_are_rejected(count):
 def test_a_description_parses():
     description = parse_description(4.0, 0, [0.0, 0.0], [10.0, 5.0], 1, 2, True, True, 'lg')
     assert description.num_actions == 4 and description.identity()['title'] == 'lg'
-
-
-def test_progress_line_reports_return_steps_outcomes_and_epsilon():
-    results = [
-        EpisodeResult(0, 0, 5.0, 10, 10.0, 0.1),
-        EpisodeResult(1, 1, -20.0, 4, -10.0, 0.1),
-        EpisodeResult(2, 2, -3.0, 100, -1.0, 0.05),
-    ]
-    line = format_progress(results, table_rows=42)
-    for part in (
-        'episodes 0-2 (learner total 3)',
-        'return mean -6.000 [min -20.000, max 5.000], last -3.000',
-        'steps mean 38.0, last 100',
-        'outcomes: negative end 2, positive end 1',
-        'epsilon 0.0500',
-        'table 42 states',
-    ):
-        assert part in line
-    assert 'outcomes: detected 1, success 2' in format_progress(
-        results, table_rows=1, named_outcomes={'success': 2, 'detected': 1}
-    )
-    assert outcome_mix([EpisodeResult(0, 0, 0.0, 0, None, 0.0, aborted=True)]) == {'aborted': 1}

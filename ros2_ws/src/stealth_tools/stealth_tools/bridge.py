@@ -5,6 +5,9 @@ install, which PyPI does not have.
     bridge --ros-args -p port:=8765          # or: stealth bridge [--port 8765] [--topics ...]
 
 The Foxglove app connects to ``ws://localhost:PORT`` (Open connection, Foxglove WebSocket).
+
+## Topics
+
 Every topic with publishers (or the ``topics`` asked for, plus /clock) becomes a channel with
 encoding ``cdr`` and a ``ros2msg`` schema holding the type's full definition with its nested
 types (the text the recorder writes, stealth_tools.interfaces); messages are relayed as the CDR
@@ -19,7 +22,19 @@ holds back the run. /clock, when
 published, sets the message times and the Foxglove timeline (server time), as foxglove_bridge
 under use_sim_time; without it, the wall clock does.
 
-Bad input: a port in use stops the node with one line naming the port and the parameter (exit
+## Services
+
+None: no ROS services, and the WebSocket server's one capability is Time (the timeline).
+
+## Parameters
+
+The table in ``stealth_tools.bridge_parameters``: ``port`` (the server's TCP port),
+``address`` (where it listens; 0.0.0.0 for a Foxglove app on another machine), ``topics``
+(unset: every topic with publishers), ``discovery_period``, ``include_hidden_topics``.
+
+## Bad input
+
+A port in use stops the node with one line naming the port and the parameter (exit
 2; ``stealth bridge`` names --port, exit 1); a topic whose type cannot be resolved (package not
 installed, several types) is skipped with a warning naming it; a client that sends garbage or
 disconnects mid-message is dropped by the server and logged once per kind of trouble.

@@ -1,16 +1,40 @@
-"""The recorder node: every topic on the graph, or a chosen set, into an MCAP as rosbag2 does.
+"""The recorder node (``recorder``): every topic on the graph, or a chosen set, into an MCAP as
+rosbag2 does.
 
     recorder --ros-args -p output:=run.mcap -p topics:="['/rl_env/rl_state_reward']"
 
-Discovery polls the graph every `discovery_period` (steady time), so topics that appear later
-are recorded too. Each topic is subscribed raw (CDR bytes, never deserialized) with what all of
-its publishers offer: reliable only if all are reliable, transient local only if all are (so
-latched /map and rl_env/rl_env_description arrive), and KEEP_ALL history, so a slow moment makes
-DDS hold the publisher back instead of dropping a step; a loss DDS does report is logged. The
-log time is the ROS clock at reception (sim time under use_sim_time, waiting for /clock first,
-as rosbag2); the publish time is the publisher's source timestamp. SIGINT and SIGTERM close the
-file with summary and indexes; after a SIGKILL at most ~max_chunk_duration * 1.5 + batch_period
-is missing and `stealth bag recover` restores an indexed file.
+## Topics
+
+Subscribes every topic with publishers (hidden ones with ``include_hidden_topics``), or the
+``topics`` asked for; a topic with several types or a type not installed is skipped with a
+warning naming it. Discovery polls the graph every ``discovery_period`` (steady time), so
+topics that appear later are recorded too. Each topic is subscribed raw (CDR bytes, never
+deserialized) with what all of its publishers offer: reliable only if all are reliable,
+transient local only if all are (so latched /map and rl_env/rl_env_description arrive), and
+KEEP_ALL history, so a slow moment makes DDS hold the publisher back instead of dropping a
+step; a loss DDS does report is logged. The log time is the ROS clock at reception (sim time
+under use_sim_time, waiting for /clock first, as rosbag2); the publish time is the
+publisher's source timestamp.
+
+## Services
+
+None.
+
+## Parameters
+
+Names in ``stealth_tools.recorder_parameters``, defaults in ``RecorderSettings``: ``output``
+(the file; default rosbag2's name, rosbag2_YYYY_MM_DD-HH_MM_SS), ``topics`` (unset: every
+topic), ``discovery_period`` (s, > 0), ``max_chunk_duration`` (s) and ``chunk_size`` (bytes):
+when a chunk is closed, ``compression`` of the chunks (zstd, lz4, none),
+``include_hidden_topics``, ``batch_period`` (s, 0 to MAX_BATCH_PERIOD; see Batches).
+
+## Stopping
+
+SIGINT and SIGTERM close the file with summary and indexes; after a SIGKILL at most
+~max_chunk_duration * 1.5 + batch_period is missing and `stealth bag recover` restores an
+indexed file.
+
+## Batches
 
 Messages are taken in batches: the recorder wakes at most once per `batch_period` and then takes
 what every topic's queue holds (KEEP_ALL), writing the batch in log-time order; while messages

@@ -1,0 +1,116 @@
+"""The agent's messages, to and from the plain-Python core (no rclpy).
+
+What the agent reads (RLEnvDescription; EpisodeSummary's outcome codes; the DDS sequence
+numbers of the states) and what it publishes at the end of an episode (RLExperimentInfo,
+AgentEpisodeInfo), so that the node only moves messages.
+"""
+
+import numpy as np
+from stealth_interfaces.msg import (
+    AgentEpisodeInfo,
+    EpisodeSummary,
+    RLEnvDescription,
+    RLExperimentInfo,
+)
+
+from .learners import TabularLearner
+from .protocol import Ending, EnvDescription, EpisodeResult, parse_description
+
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+OUTCOME_NAMES = {
+    EpisodeSummary.SUCCESS: 'success',
+    EpisodeSummary.DETECTED: 'detected',
+    EpisodeSummary.TIMEOUT: 'timeout',
+    EpisodeSummary.ABORTED: 'aborted',
+}
+# How the environment's outcome is learned (an unknown outcome: as rl_msgs says, terminal).
+OUTCOME_ENDINGS = {
+    EpisodeSummary.SUCCESS: Ending.TERMINATED,
+    EpisodeSummary.DETECTED: Ending.TERMINATED,
+    EpisodeSummary.TIMEOUT: Ending.TRUNCATED,
+    EpisodeSummary.ABORTED: Ending.ABORTED,
+}
+ENDING_FIELDS = {
+    Ending.TERMINATED: AgentEpisodeInfo.END_TERMINAL,
+    Ending.TRUNCATED: AgentEpisodeInfo.END_TRUNCATED,
+    Ending.ABORTED: AgentEpisodeInfo.END_ABORTED,
+}
+
+
+def description_from_msg(msg: RLEnvDescription) -> EnvDescription:
+    """The checked description; BadInputError when unusable."""
+    return parse_description(
+        msg.num_actions,
+        msg.num_states,
+        msg.min_state_range,
+        msg.max_state_range,
+        msg.max_reward,
+        msg.reward_range,
+        msg.stochastic,
+        msg.episodic,
+        msg.title,
+    )
+
+
+def outcome_name(outcome: int) -> str:
+    """The progress log's name of an EpisodeSummary outcome."""
+    return OUTCOME_NAMES.get(outcome, f'outcome {outcome}')
+
+
+def outcome_ending(outcome: int) -> Ending:
+    """How an episode with this EpisodeSummary outcome is learned."""
+    return OUTCOME_ENDINGS.get(outcome, Ending.TERMINATED)
+
+
+def ending_of(result: EpisodeResult) -> Ending:
+    if result.aborted:
+        return Ending.ABORTED
+    return Ending.TRUNCATED if result.truncated else Ending.TERMINATED
+
+
+def reported_reward(result: EpisodeResult) -> float:
+    """The episode's return as the messages carry it (float32: clipped to its range)."""
+    return float(np.clip(result.reward, -FLOAT32_MAX, FLOAT32_MAX))
+
+
+def experiment_info(result: EpisodeResult) -> RLExperimentInfo:
+    """rl_msgs' report of a finished episode."""
+    return RLExperimentInfo(
+        episode_number=result.episode,
+        episode_reward=reported_reward(result),
+        number_actions=result.actions,
+    )
+
+
+def episode_info(
+    result: EpisodeResult, learner: TabularLearner, table_rows: int
+) -> AgentEpisodeInfo:
+    """The agent's own report of a finished episode (the caller stamps its header)."""
+    return AgentEpisodeInfo(
+        episode=result.episode,
+        greedy=not result.learning,
+        epsilon=float(result.epsilon),
+        alpha=float(learner.alpha) if result.learning else 0.0,
+        total_reward=reported_reward(result),
+        steps=result.actions,
+        learner_episodes=learner.episodes,
+        learner_updates=learner.updates,
+        table_states=table_rows,
+        ending=ENDING_FIELDS[ending_of(result)],
+    )
+
+
+class StateWriters:
+    """Tells a restarted environment by the DDS sequence numbers of its states: a writer
+    numbers its messages from 1, so a number that does not grow is a new writer, whose states
+    must not continue the old one's episode."""
+
+    def __init__(self):
+        self.last: int | None = None  # of the last state (None: the middleware gives none)
+
+    def new_writer(self, sequence: int | None) -> bool:
+        """Whether this state comes from another writer than the last one."""
+        if sequence is None:
+            return False
+        last, self.last = self.last, sequence
+        return last is not None and sequence <= last

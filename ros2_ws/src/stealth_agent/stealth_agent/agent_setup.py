@@ -1,0 +1,94 @@
+"""The agent's core for an environment, built from the agent's parameters (no rclpy).
+
+A fresh table, or the one in the policy file (evaluate, load_policy) once it is checked against
+the environment; the seeded random generator (a resumed learning run continues the file's
+random stream); and the log line saying what was built, so that a run's log tells how it
+started. An unusable policy file leaves the agent without a core: it must not act, nor
+overwrite the file.
+"""
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+import pathlib
+
+import numpy as np
+
+from .agent_parameters import learner_config
+from .learners import canonical_learner_name, make_learner
+from .policy_store import PolicyFileError, check_compatible, load_policy
+from .protocol import EnvDescription, ProtocolAgent
+from .state_index import StateIndex, mapping_from_description
+
+
+@dataclass(frozen=True)
+class AgentSetup:
+    """What set_up_agent built, and what to log about it (the warnings first)."""
+
+    core: ProtocolAgent | None  # None: the agent is not usable, `error` says why
+    warnings: tuple[str, ...] = ()
+    error: str = ''
+    summary: str = ''  # the line that says what was built
+
+
+def set_up_agent(description: EnvDescription, values: Mapping) -> AgentSetup:
+    """The core for this environment from the parameter values (agent_parameters)."""
+    mapping, warnings = mapping_from_description(
+        description.min_state_range,
+        description.max_state_range,
+        nstates=values['nstates'],
+        resolution=values['state_resolution'],
+    )
+    warnings = list(warnings)
+    learner_name = canonical_learner_name(values['agent'])
+    evaluate = values['evaluate']
+    path = pathlib.Path(values['policy_file']) if values['policy_file'] else None
+    seed = values['seed']
+    rng = np.random.default_rng(seed)
+    source = 'a fresh table'
+    policy = None
+    if evaluate or values['load_policy']:
+        if not path.exists() and not evaluate:
+            warnings.append(f'no policy file at {path} yet; starting with a fresh table')
+        else:
+            try:
+                policy = load_policy(path)
+                check_compatible(
+                    policy,
+                    num_actions=description.num_actions,
+                    state_dim=mapping.dim,
+                    learner=None if evaluate else learner_name,
+                    scenario_title=description.title,
+                    mapping=mapping,
+                )
+            except PolicyFileError as error:
+                return AgentSetup(None, tuple(warnings), error=str(error))
+    if policy is not None:
+        learner, index = policy.learner, policy.index
+        source = f'{path} ({learner.episodes} episodes, {len(index)} states)'
+        if not evaluate:
+            learner.set_config(learner_config(values))
+            saved_rng = policy.restored_rng()
+            if saved_rng is not None:
+                rng = saved_rng
+                source += ', continuing its random stream'
+    else:
+        learner = make_learner(learner_name, description.num_actions, learner_config(values))
+        index = StateIndex(mapping)
+    core = ProtocolAgent(learner, index, rng, learning=not evaluate)
+    core.episode = values['first_episode']
+    config = learner.config
+    if evaluate:
+        settings = f'greedy, ties broken with seed {seed}'
+    else:
+        settings = (
+            f'gamma {config.gamma}, alpha {learner.alpha} ({config.alpha.kind}), '
+            f'epsilon {learner.epsilon} ({config.epsilon.kind}), '
+            f'initial {config.initial_value}, n {config.n_planning}, seed {seed}'
+        )
+    summary = (
+        f'environment {description.title!r}: {description.num_actions} actions, state '
+        f'ranges {list(description.min_state_range)}..{list(description.max_state_range)}; '
+        f'learner {learner.name} ({settings}); states {index.mapping.describe()}; '
+        f'from {source}; ' + ('evaluating (no learning)' if evaluate else 'learning')
+    )
+    return AgentSetup(core, tuple(warnings), summary=summary)
