@@ -29,7 +29,6 @@ import sys
 
 import numpy as np
 
-from stealth_env.planners import optimal_path
 from stealth_env.scenario_drawing import figure_pixels, goal_marks, scenario_figure
 from stealth_env.visibility import scenario_visibility
 
@@ -143,6 +142,8 @@ def render_bounce_comparison(
     ValueError when the scenario has no bounce."""
     from PIL import Image
 
+    from stealth_env.planners import optimal_path
+
     bounce = getattr(scenario, 'bounce', None)
     if bounce is None:
         raise ValueError(
@@ -247,6 +248,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 0
         if not args.scenario:
             parser.error('give a scenario name or path, or --all')
+        from stealth_env.planners import optimal_path
         from stealth_env.scenario import find_scenario, load_scenario
 
         scenario = load_scenario(find_scenario(args.scenario))
