@@ -27,8 +27,8 @@ from matplotlib import colormaps
 from matplotlib.colors import to_rgb
 import numpy as np
 
+from stealth_env import palette
 from stealth_env.planners import PERPENDICULAR, LatticeModel
-from stealth_env.render import DARK_COLOUR, HEATMAP, UNKNOWN_COLOUR, WALL_COLOUR
 from stealth_env.reward import Outcome
 from stealth_env.scenario import Scenario, find_scenario, load_scenario
 from stealth_env.task import EpisodeStats, StealthTask, StepJudgement
@@ -36,9 +36,6 @@ from stealth_env.visibility import scenario_visibility
 
 ENV_ID = 'StealthNav-v0'
 DEFAULT_SCENARIO = 'map1'
-PATH_RGB = (5, 113, 176)
-ROBOT_RGB = (26, 150, 65)
-GOAL_RGB = (123, 50, 148)
 
 
 class StealthNavEnv(gym.Env):
@@ -257,25 +254,27 @@ class StealthNavEnv(gym.Env):
             col, row = occupancy.world_to_cell(x, y)
             return height - 1 - row, col
 
+        path_rgb = palette.FRAME_PATH
         for before, after in zip(self._path, self._path[1:], strict=False):
             (r0, c0), (r1, c1) = pixel(*self._points[before]), pixel(*self._points[after])
-            image[min(r0, r1) - 1 : max(r0, r1) + 2, min(c0, c1) - 1 : max(c0, c1) + 2] = PATH_RGB
+            image[min(r0, r1) - 1 : max(r0, r1) + 2, min(c0, c1) - 1 : max(c0, c1) + 2] = path_rgb
         goal = self.task.goal
-        _disc(image, *pixel(goal.x, goal.y), goal.radius / occupancy.resolution, GOAL_RGB)
+        goal_radius = goal.radius / occupancy.resolution
+        _disc(image, *pixel(goal.x, goal.y), goal_radius, palette.FRAME_GOAL)
         radius = max(self.scenario.robot_radius / occupancy.resolution, 2.0)
-        _disc(image, *pixel(*self._points[self._node]), radius, ROBOT_RGB)
+        _disc(image, *pixel(*self._points[self._node]), radius, palette.FRAME_ROBOT)
         return image
 
 
 def _scenario_picture(scenario: Scenario) -> np.ndarray:
-    """Visibility heat on free cells (render's colours), walls and unknown space; north up."""
+    """Visibility heat on free cells (the pictures' colours), walls and unknown space; north up."""
     occupancy = scenario.map
     total, _ = scenario_visibility(scenario)
     scale = max(float(total[~occupancy.blocked].max(initial=0.0)), scenario.detection_threshold)
-    heat = colormaps[HEATMAP](np.clip(total / scale, 0.0, 1.0))[..., :3]
-    rgb = np.where((total > 0)[..., None], heat, to_rgb(DARK_COLOUR))
-    rgb[occupancy.unknown] = UNKNOWN_COLOUR[:3]
-    rgb[occupancy.occupied] = WALL_COLOUR[:3]
+    heat = colormaps[palette.HEATMAP](np.clip(total / scale, 0.0, 1.0))[..., :3]
+    rgb = np.where((total > 0)[..., None], heat, to_rgb(palette.DARK_FLOOR))
+    rgb[occupancy.unknown] = palette.UNKNOWN_SPACE[:3]
+    rgb[occupancy.occupied] = palette.WALL[:3]
     return np.ascontiguousarray((rgb[::-1] * 255).round().astype(np.uint8))
 
 

@@ -40,6 +40,17 @@ from typing import NamedTuple
 import numpy as np
 
 from stealth_env.lighting import cone_factor, intensity
+from stealth_env.palette import (
+    MARKER_DETECTION,
+    MARKER_GOAL,
+    MARKER_HEATMAP_STOPS,
+    MARKER_LAMP,
+    MARKER_LIGHT,
+    MARKER_MOTION,
+    MARKER_OTHER_GOAL_ALPHA,
+    MARKER_START,
+    MARKER_TEXT,
+)
 from stealth_env.searchlight import PatrolMotion, Searchlight, SweepMotion
 
 RGBA = tuple[float, float, float, float]
@@ -51,23 +62,7 @@ RINGS = 6  # cone rings, at evenly spaced intensities from 1 down to delta
 Z_CONE, Z_DISC, Z_LINE, Z_TEXT = 0.01, 0.02, 0.03, 0.6
 LINE_WIDTH = 0.05  # m
 TEXT_HEIGHT = 0.4  # m
-# YlOrRd, the scenario pictures' heatmap (stealth_env.render.HEATMAP), at 0, 0.25, ... 1.
-_YLORRD = np.array(
-    [
-        (1.000, 1.000, 0.800),
-        (0.996, 0.851, 0.463),
-        (0.992, 0.553, 0.235),
-        (0.890, 0.102, 0.110),
-        (0.502, 0.000, 0.149),
-    ]
-)
-LIGHT_COLOUR: RGBA = (0.122, 0.306, 0.620, 0.9)  # '#1f4e9e', the pictures' light colour
-DETECTION_COLOUR: RGBA = (0.890, 0.102, 0.110, 0.9)
-LAMP_COLOUR: RGBA = (1.0, 0.851, 0.184, 1.0)  # '#ffd92f'
-START_COLOUR: RGBA = (0.102, 0.588, 0.255, 0.8)  # '#1a9641'
-GOAL_COLOUR: RGBA = (0.482, 0.196, 0.580, 0.7)  # '#7b3294'
-OTHER_GOAL_ALPHA = 0.25
-TEXT_COLOUR: RGBA = (1.0, 1.0, 1.0, 1.0)
+_YLORRD = np.array(MARKER_HEATMAP_STOPS)  # the pictures' YlOrRd at 0, 0.25, ... 1
 
 
 class MarkerSpec(NamedTuple):
@@ -225,14 +220,14 @@ def light_markers(
             index,
             'line_strip',
             sector_outline(now.x, now.y, now.direction, now.fov, now.range),
-            color=LIGHT_COLOUR,
+            color=MARKER_LIGHT,
             scale=(LINE_WIDTH, 0.0, 0.0),
         ),
         MarkerSpec(
             'lamps',
             index,
             'sphere',
-            color=LAMP_COLOUR,
+            color=MARKER_LAMP,
             position=(now.x, now.y, Z_LINE),
             scale=(0.3, 0.3, 0.3),
         ),
@@ -240,7 +235,7 @@ def light_markers(
             'names',
             index,
             'text',
-            color=TEXT_COLOUR,
+            color=MARKER_TEXT,
             position=(now.x, now.y, Z_TEXT),
             scale=(0.0, 0.0, TEXT_HEIGHT),
             text=light.name,
@@ -253,7 +248,7 @@ def light_markers(
         arc = tuple((float(p[0]), float(p[1]), Z_LINE) for p in _arc_points(now, angles, reach))
         markers.append(
             MarkerSpec(
-                'detection', index, 'line_strip', arc, color=DETECTION_COLOUR, scale=(0.03, 0, 0)
+                'detection', index, 'line_strip', arc, color=MARKER_DETECTION, scale=(0.03, 0, 0)
             )
         )
     motion = _motion_outline(light, now)
@@ -264,7 +259,7 @@ def light_markers(
                 index,
                 'line_strip',
                 motion,
-                color=(*LIGHT_COLOUR[:3], 0.4),
+                color=MARKER_MOTION,
                 scale=(0.03, 0.0, 0.0),
             )
         )
@@ -300,13 +295,13 @@ def scene_markers(scenario, goal: str, t: float = 0.0, walls: WallMap | None = N
     size = max(2 * scenario.robot_radius, 0.2)
     markers.append(
         MarkerSpec(
-            'start', 0, 'cylinder', color=START_COLOUR, position=(x, y, Z_DISC),
+            'start', 0, 'cylinder', color=MARKER_START, position=(x, y, Z_DISC),
             scale=(size, size, 0.02),
         )
     )  # fmt: skip
     markers.append(_label(0, x, y, 'start'))
     for index, (name, target) in enumerate(scenario.goals.items()):
-        colour = GOAL_COLOUR if name == goal else (*GOAL_COLOUR[:3], OTHER_GOAL_ALPHA)
+        colour = MARKER_GOAL if name == goal else (*MARKER_GOAL[:3], MARKER_OTHER_GOAL_ALPHA)
         markers.append(
             MarkerSpec(
                 'goals', index, 'cylinder', color=colour, position=(target.x, target.y, Z_DISC),
@@ -323,7 +318,7 @@ def _label(index: int, x: float, y: float, text: str) -> MarkerSpec:
         'labels',
         index,
         'text',
-        color=TEXT_COLOUR,
+        color=MARKER_TEXT,
         position=(float(x), float(y), Z_TEXT),
         scale=(0.0, 0.0, TEXT_HEIGHT),
         text=text,

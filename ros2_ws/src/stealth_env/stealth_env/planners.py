@@ -500,9 +500,15 @@ def baseline_paths(
     }
 
 
-def optimal_path(scenario, goal: str):
-    """The value-iteration optimum on the move lattice: (points (n, 2), PathResult)."""
+def optimal_path(scenario, goal: str | None, poses: bool = False):
+    """The value-iteration optimum on the move lattice: (points (n, 2), PathResult); with
+    ``poses``, the points are (n, 3) with the yaw (rad) of each place's heading (to draw the
+    robot's footprint)."""
     model = LatticeModel.build(StealthTask(scenario, goal))
     optimum = value_iteration(model)
-    result = walk(model, follow(model, lambda i: int(optimum.policy[i])))
-    return result.points, result
+    path = follow(model, lambda i: int(optimum.policy[i]))
+    result = walk(model, path)
+    if not poses:
+        return result.points, result
+    yaws = model.heading_of(path[: len(result.points)]) * (np.pi / 2)
+    return np.column_stack([result.points, yaws]), result

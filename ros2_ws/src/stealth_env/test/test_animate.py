@@ -3,7 +3,7 @@
 import numpy as np
 from PIL import Image
 import pytest
-from stealth_env.render import animate_scenario, main, optimal_points
+from stealth_env.render import animate_scenario, main
 from stealth_env.scenario import load_scenario
 
 
@@ -54,9 +54,3 @@ def test_the_command_animates_the_optimum(tmp_path, capsys):
     assert str(out) in captured.out and 'frame 3/3' in captured.err
     assert main(['simple-maze-moving', '--animate', str(tmp_path / 'x.png')]) == 1
     assert 'expected a .gif' in capsys.readouterr().err
-
-
-def test_the_optimum_reaches_the_goal(scenario):
-    points = optimal_points(scenario)
-    goal = scenario.goal
-    assert np.hypot(*(points[-1] - goal.point)) <= goal.radius

@@ -12,6 +12,7 @@ from stealth_env.planners import (
     astar,
     dark_path,
     follow,
+    optimal_path,
     step_terms,
     value_iteration,
     walk,
@@ -129,6 +130,13 @@ def test_probabilistic_detection_is_an_expectation(model):
     lit = probabilistic.step_visibility > 0
     assert ((p_detected > 0) & (p_detected < 1))[lit].all() and (p_detected[~lit] == 0).all()
     assert value_iteration(probabilistic).optimal_return <= value_iteration(model).optimal_return
+
+
+def test_the_optimum_with_moving_lights_reaches_the_goal():
+    scenario = load_scenario('simple-maze-moving')
+    points, _ = optimal_path(scenario, None)
+    goal = scenario.goal
+    assert np.hypot(*(points[-1] - goal.point)) <= goal.radius
 
 
 @pytest.mark.parametrize('name', SHIPPED)

@@ -7,8 +7,10 @@ import matplotlib.image
 import numpy as np
 import pytest
 from stealth_env import render
-from stealth_env.render import goal_marks, read_path_csv, render_scenario
+from stealth_env.planners import optimal_path
+from stealth_env.render import read_path_csv, render_scenario
 from stealth_env.scenario import load_scenario
+from stealth_env.scenario_drawing import goal_marks, scenario_figure
 from stealth_env.searchlight import PatrolMotion, Searchlight, SweepMotion
 from stealth_sim.occupancy_map import OccupancyMap
 
@@ -130,10 +132,10 @@ def test_cli_renders_every_scenario(tmp_path, capsys):
 
 def test_an_exposure_optimum_is_drawn_with_the_robots_footprint_at_each_pose(tmp_path):
     scenario = load_scenario('simple-maze-exposure')
-    poses = render.optimal_points(scenario, poses=True)
+    poses, _ = optimal_path(scenario, None, poses=True)
     assert poses.shape[1] == 3 and set(np.round(poses[:, 2] / (np.pi / 2)) % 4) <= {0, 1, 2, 3}
-    assert np.array_equal(poses[:, :2], render.optimal_points(scenario))
-    figure = render.scenario_figure(scenario, [poses], cache_dir=tmp_path)
+    assert np.array_equal(poses[:, :2], optimal_path(scenario, None)[0])
+    figure = scenario_figure(scenario, [poses], cache_dir=tmp_path)
     rectangles = [p for p in figure.axes[0].patches if type(p).__name__ == 'Rectangle']
     assert len(rectangles) == len(poses)
     # facing north up the column: the rectangle's long side is along y

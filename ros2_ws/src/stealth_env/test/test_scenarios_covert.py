@@ -27,7 +27,7 @@ import pytest
 from stealth_env.bounce import point_bounce, received_light, wall_emitters
 from stealth_env.lighting import GridFrame, point_visibility
 from stealth_env.move_lattice import ACTIONS, MoveLattice
-from stealth_env.render import goal_marks
+from stealth_env.scenario_drawing import goal_marks
 from stealth_env.searchlight import PatrolMotion, SweepMotion
 from stealth_env.visibility import visibility_field
 

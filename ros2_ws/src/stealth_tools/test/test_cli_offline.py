@@ -3,10 +3,11 @@ verbs are exercised in the repository's tests/test_cli.py; the commands stealth_
 its test_commands.py)."""
 
 import argparse
+import pkgutil
 import sys
 
 from sample_bags import chatter_samples, write_bag
-from stealth_tools import cli
+from stealth_tools import cli, commands
 from stealth_tools.executables import failure_line, run_supervised
 
 
@@ -36,6 +37,11 @@ def test_every_command_has_help(capsys):
         status, out, _ = run_cli(capsys, *path, '--help')
         assert status == 0, path
         assert 'usage:' in out or 'Usage' in out, path
+
+
+def test_each_own_command_is_a_module_of_commands():
+    modules = {module.name for module in pkgutil.iter_modules(commands.__path__)}
+    assert modules - {'arguments'} == set(cli.OWN_COMMANDS)
 
 
 def test_commands_not_written_yet_say_so_in_one_line(capsys, monkeypatch):
