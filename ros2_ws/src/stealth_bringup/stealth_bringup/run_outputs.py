@@ -24,18 +24,12 @@ from pathlib import Path
 from matplotlib.figure import Figure  # no pyplot: no global state, no display (Agg)
 from matplotlib.lines import Line2D
 import numpy as np
+from stealth_env import palette
 from stealth_env.planners import optimal_path  # noqa: F401 - where run_report takes it
-from stealth_env.reward import Outcome
 
 from stealth_bringup.episode_tracker import CSV_FIELDS, OUTCOMES, EpisodeRecord
 from stealth_bringup.run_config import RunConfigError
 
-OUTCOME_COLOURS = {
-    Outcome.SUCCESS.name: '#1a9641',
-    Outcome.DETECTED.name: '#d7191c',
-    Outcome.TIMEOUT.name: '#fdae61',
-    Outcome.ABORTED.name: '#7f7f7f',
-}
 AVERAGE_WINDOW = 20
 
 
@@ -185,33 +179,44 @@ def plot_learning_curve(
     # Training episodes as dots, greedy evaluations as outlined diamonds over them.
     styles = (
         (training, {'s': 14, 'alpha': 0.7, 'linewidths': 0, 'zorder': 2}),
-        (greedy, {'s': 60, 'marker': 'D', 'edgecolors': 'black', 'linewidths': 0.9, 'zorder': 4}),
+        (
+            greedy,
+            {
+                's': 60,
+                'marker': 'D',
+                'edgecolors': palette.PLOT_INK,
+                'linewidths': 0.9,
+                'zorder': 4,
+            },
+        ),
     )
     for outcome in OUTCOMES:
         for kind, style in styles:
             chosen = [r for r in kind if r.outcome == outcome]
             if chosen:
                 episodes, returns = [r.episode for r in chosen], [r.total_reward for r in chosen]
-                top.scatter(episodes, returns, color=OUTCOME_COLOURS[outcome], **style)
+                top.scatter(episodes, returns, color=palette.OUTCOMES[outcome], **style)
     if training:
         top.plot(
             [r.episode for r in training],
             moving_average([r.total_reward for r in training]),
-            color='#253494',
+            color=palette.RETURN,
             linewidth=2.0,
             zorder=3,
         )
     if optimal_return is not None:
-        top.axhline(optimal_return, color='#253494', linestyle=':', linewidth=1.2, zorder=1)
+        top.axhline(optimal_return, color=palette.RETURN, linestyle=':', linewidth=1.2, zorder=1)
     if streak_start is not None:
         for axes in (top, bottom):
-            axes.axvline(streak_start, color='#1a9641', linestyle='--', linewidth=1.2, zorder=1)
+            axes.axvline(
+                streak_start, color=palette.STREAK, linestyle='--', linewidth=1.2, zorder=1
+            )
     top.set_ylabel('return (sum of rewards)')
     top.grid(True, alpha=0.3)
     top.set_title(title)
 
     handles = [
-        Line2D([], [], marker='o', linestyle='none', color=OUTCOME_COLOURS[o], label=o.lower())
+        Line2D([], [], marker='o', linestyle='none', color=palette.OUTCOMES[o], label=o.lower())
         for o in OUTCOMES
         if any(r.outcome == o for r in records)
     ]
@@ -221,8 +226,8 @@ def plot_learning_curve(
             [],
             marker='D',
             linestyle='none',
-            color='white',
-            markeredgecolor='black',
+            color=palette.PLOT_PAPER,
+            markeredgecolor=palette.PLOT_INK,
             label='greedy evaluation',
         )
     )
@@ -231,21 +236,21 @@ def plot_learning_curve(
             Line2D(
                 [],
                 [],
-                color='#253494',
+                color=palette.RETURN,
                 linewidth=2,
                 label=f'mean of the last {AVERAGE_WINDOW} training episodes',
             )
         )
     if optimal_return is not None:
         handles.append(
-            Line2D([], [], color='#253494', linestyle=':', label='optimum (value iteration)')
+            Line2D([], [], color=palette.RETURN, linestyle=':', label='optimum (value iteration)')
         )
     if streak_start is not None:
         handles.append(
             Line2D(
                 [],
                 [],
-                color='#1a9641',
+                color=palette.STREAK,
                 linestyle='--',
                 label=f'greedy success streak from {streak_start}',
             )
@@ -256,7 +261,7 @@ def plot_learning_curve(
         [r.episode for r in records],
         [r.steps for r in records],
         width=1.0,
-        color=[OUTCOME_COLOURS.get(r.outcome, '#7f7f7f') for r in records],
+        color=[palette.OUTCOMES.get(r.outcome, palette.UNKNOWN_OUTCOME) for r in records],
         alpha=0.75,
     )
     bottom.set_ylabel('steps')
@@ -265,7 +270,7 @@ def plot_learning_curve(
     epsilons = [(r.episode, r.epsilon) for r in training if not math.isnan(r.epsilon)]
     if epsilons:
         twin = bottom.twinx()
-        twin.plot(*zip(*epsilons, strict=True), color='black', linewidth=1.2)
+        twin.plot(*zip(*epsilons, strict=True), color=palette.PLOT_INK, linewidth=1.2)
         twin.set_ylabel('epsilon (training)')
         twin.set_ylim(0, max(0.05, max(e for _, e in epsilons) * 1.15))
     path.parent.mkdir(parents=True, exist_ok=True)

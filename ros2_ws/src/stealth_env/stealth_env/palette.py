@@ -1,10 +1,12 @@
-"""The colours of stealth_env, each named for what it shows, so that the scenario pictures, the
-RViz/Foxglove markers and the Gymnasium frames show one thing in one colour.
+"""The project's colours, each named for what it shows, so that the scenario pictures, the
+RViz/Foxglove markers, the Gymnasium frames and the plots of runs and experiments show one thing
+in one colour.
 
 Three forms, as each drawer takes them: matplotlib colours for the pictures (stealth_env.render,
-scenario_drawing), RGBA in [0, 1] for the markers (stealth_env.markers: the pictures' colours
-rounded to 3 decimals, with the alpha the scene needs) and 0-255 RGB for the frames of
-gym_env's rgb_array render.
+scenario_drawing) and plots (stealth_bringup.run_outputs, stealth_experiments.harness_report),
+RGBA in [0, 1] for the markers (stealth_env.markers: the pictures' colours rounded to 3
+decimals, with the alpha the scene needs) and 0-255 RGB for the frames of gym_env's rgb_array
+render.
 """
 
 # --- the scenario pictures (matplotlib colours) -------------------------------------------------
@@ -47,3 +49,18 @@ MARKER_TEXT = (1.0, 1.0, 1.0, 1.0)  # names and labels
 FRAME_PATH = (5, 113, 176)  # PATHS[0]: the path walked
 FRAME_ROBOT = (26, 150, 65)  # START
 FRAME_GOAL = (123, 50, 148)  # GOAL
+
+# --- the plots of runs and experiments (matplotlib colours) -------------------------------------
+
+OUTCOMES = {  # by stealth_env.reward.Outcome name: an episode's bar in the learning curve
+    'SUCCESS': START,
+    'DETECTED': '#d7191c',
+    'TIMEOUT': '#fdae61',
+    'ABORTED': '#7f7f7f',
+}
+UNKNOWN_OUTCOME = OUTCOMES['ABORTED']
+RETURN = '#253494'  # the moving average of the return, and the optimum's return
+STREAK = START  # where the greedy success streak that ended the run began
+PLOT_INK = 'black'  # edges, epsilon, and the optimum of the experiments' plots
+PLOT_PAPER = 'white'  # the fill of the greedy-evaluation legend mark
+LEARNERS = {'qlearning': PATHS[0], 'sarsa': PATHS[1], 'dyna': PATHS[2]}

@@ -13,6 +13,7 @@ from pathlib import Path
 from matplotlib.figure import Figure
 import numpy as np
 from stealth_bringup.run_outputs import plot_paths, write_csv
+from stealth_env import palette
 from stealth_env.planners import LatticeModel
 from stealth_env.reward import Outcome
 
@@ -174,7 +175,6 @@ COLUMNS = (
     'within 5 % of the optimum, median (min-max) over seeds. wall: seconds per run.'
 )
 PATH_SHIFT = 0.08  # of a step, between the lines of two methods
-COLOURS = {'qlearning': '#0571b0', 'sarsa': '#d01c8b', 'dyna': '#018571'}
 
 
 def plot_curves(ax, results: Sequence[RunResult], optimum: float, title: str) -> None:
@@ -183,7 +183,7 @@ def plot_curves(ax, results: Sequence[RunResult], optimum: float, title: str) ->
     for result in results:
         by_learner.setdefault(result.spec.learner, []).append(result)
     for learner, runs in by_learner.items():
-        colour = COLOURS.get(learner)
+        colour = palette.LEARNERS.get(learner)
         x = runs[0].eval_at
         greedy = np.array([r.eval_returns for r in runs])
         ax.plot(x, greedy.mean(axis=0), color=colour, linewidth=1.6, label=f'{learner} (greedy)')
@@ -201,10 +201,10 @@ def plot_curves(ax, results: Sequence[RunResult], optimum: float, title: str) ->
             linestyle=':',
             label=f'{learner} (training, mean of {window})',
         )
-    ax.axhline(optimum, color='black', linewidth=1.0, label=f'optimum {optimum:.1f}')
+    ax.axhline(optimum, color=palette.PLOT_INK, linewidth=1.0, label=f'optimum {optimum:.1f}')
     ax.axhline(
         optimum - WITHIN * abs(optimum),
-        color='black',
+        color=palette.PLOT_INK,
         linewidth=0.8,
         linestyle='--',
         label='5 % below the optimum',
