@@ -4,10 +4,10 @@ A move is "turn to a heading, then drive a distance" (or only the turn). The con
 the estimate, as a robot running on AMCL would: it turns in place until the estimated heading is
 within tolerance, then drives towards the target point fixed at the start of the drive
 (estimated start + distance along the heading), steering onto it, and finally brakes to rest.
-Speeds follow the discrete-time braking curve of the physics step, so the robot can always stop
-within the acceleration limit and, near the target, covers the rest in one step (no slow
-proportional tail). Simulated time runs as fast as the CPU allows; ``on_step`` lets a caller
-publish or pace it.
+Speeds follow the discrete-time braking curve of the physics step (:mod:`stealth_sim.controller`),
+so the robot can always stop within the acceleration limit and, near the target, covers the rest
+in one step (no slow proportional tail). Simulated time runs as fast as the CPU allows;
+``on_step`` lets a caller publish or pace it.
 
 The four grid moves are the original's actions: up (+y), down (-y), left (-x), right (+x) of the
 map frame, each a drive of the given step from wherever the robot is. GO_TO drives to a point of
@@ -26,7 +26,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from stealth_sim import compiled_move
+from stealth_sim import compiled_move, jit
+from stealth_sim.controller import approach_speed, signed_approach_speed
 from stealth_sim.kinematics import Pose, wrap_angle
 from stealth_sim.occupancy_map import FREE, OCCUPIED, OccupancyMap
 from stealth_sim.simulator import SimConfig, Simulator
@@ -330,23 +331,15 @@ class _MoveRun:
         self.sim.localise_now()
         return outcome
 
-    def _approach_speed(self, distance: float, max_speed: float, max_accel: float) -> float:
-        """The fastest speed (<= max_speed) from which, after one physics step at it, the robot
-        can still brake to rest within ``distance`` at ``braking_share`` of ``max_accel``.
-
-        It solves ``v dt + v^2 / 2a = d``: ``sqrt(2 a d)`` far out, ``d / dt`` (deadbeat) near
-        the target, and following it never asks to slow by more than ``a dt`` per step.
-        """
-        decel = self.controller.braking_share * max_accel
-        dt = self.sim.config.physics_dt
-        speed = decel * (math.sqrt(dt * dt + 2.0 * distance / decel) - dt)
-        return min(speed, max_speed)
-
     def _turn_rate(self, error: float) -> float:
         """Turn rate towards a heading error, on the braking curve."""
         limits = self.sim.config.limits
-        rate = self._approach_speed(abs(error), limits.max_angular_speed, limits.max_angular_accel)
-        return math.copysign(rate, error)
+        return signed_approach_speed(
+            error,
+            limits.max_angular_speed,
+            self.controller.braking_share * limits.max_angular_accel,
+            self.sim.config.physics_dt,
+        )
 
     def turn_to(self, heading: float) -> Outcome | None:
         """Turn in place until the estimated heading is within tolerance, then stop (None)."""
@@ -371,8 +364,11 @@ class _MoveRun:
                 return None
             aim = math.atan2(dy, dx) if math.hypot(dx, dy) > controller.aim_distance else heading
             error = wrap_angle(aim - pose.yaw)
-            speed = self._approach_speed(
-                remaining, limits.max_linear_speed, limits.max_linear_accel
+            speed = approach_speed(
+                remaining,
+                limits.max_linear_speed,
+                controller.braking_share * limits.max_linear_accel,
+                self.sim.config.physics_dt,
             )
             # Slow down while badly misaligned rather than drive sideways off the line.
             speed *= max(0.0, math.cos(error))
@@ -393,7 +389,7 @@ class _MoveRun:
 def warm_up() -> float | None:
     """Compile the kernels (or load them from the cache) with one move of a throwaway
     simulator, so that no real move pays for it: the seconds it took, None without numba."""
-    if compiled_move.import_problem() is not None:
+    if jit.import_problem() is not None:
         return None
     cells = np.full((40, 40), OCCUPIED, np.int8)
     cells[1:-1, 1:-1] = FREE

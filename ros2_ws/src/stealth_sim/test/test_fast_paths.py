@@ -18,6 +18,8 @@ import numpy as np
 import pytest
 from sim_test_maps import maze_map
 from stealth_sim import compiled_move, move_executor
+from stealth_sim.jit import jit
+from stealth_sim.kernels import move_loop, numeric
 from stealth_sim.kinematics import Limits, Pose
 from stealth_sim.laser import noisy_ranges
 from stealth_sim.localisation import FilterConfig
@@ -193,13 +195,13 @@ def test_the_kernel_pauses_exactly_at_the_steps_the_hook_is_due(publisher, monke
     """Same hook steps and states as the per-step path (bit for bit) and as the reference (within
     1e-9), and one kernel call per hook call plus one per move."""
     calls = []
-    run_move = compiled_move.run_move
+    run_move = move_loop.run_move
 
     def counted(*arguments):
         calls.append(arguments[0])
         return run_move(*arguments)
 
-    monkeypatch.setattr(compiled_move, 'run_move', counted)
+    monkeypatch.setattr(move_loop, 'run_move', counted)
     fast = hooked_walk(False, moves=KERNEL_MOVES, **publisher)
     fast_calls = len(calls)
     assert fast == hooked_walk(False, per_step=True, moves=KERNEL_MOVES, **publisher)
@@ -258,7 +260,7 @@ def test_without_the_kernels_moves_take_the_reference_path_and_say_so_once(monke
     ]
 
 
-@compiled_move.jit
+@jit
 def _numba_draws(rng, count):
     return (rng.standard_normal(3), rng.standard_normal((count, 3)), rng.random())
 
@@ -278,11 +280,11 @@ def test_the_kernels_sums_and_remainders_are_numpys_and_pythons():
     rng = np.random.default_rng(0)
     for count in (1, 7, 8, 60, 128, 129, 200, 1000, 100_000):
         values = rng.random(count) ** 3
-        assert compiled_move._pairwise_sum(values, count) == values.sum()
+        assert numeric.pairwise_sum(values, count) == values.sum()
     angles = np.concatenate([rng.uniform(-20, 20, 2000), np.arange(-6, 7) * math.pi])
     for angle in angles.tolist():
         for modulus in (math.pi, 2.0 * math.pi):
-            assert compiled_move._remainder(angle, modulus) == math.remainder(angle, modulus)
+            assert numeric.remainder(angle, modulus) == math.remainder(angle, modulus)
 
 
 def test_whoever_listens_the_walk_is_the_same_bit_for_bit():
