@@ -202,4 +202,4 @@ class CompiledMoveRun:
                 self._store()
                 self.on_step(self.sim)
         self._store()
-        return int(outcome)  # an ExecuteMove outcome number (move_executor.Outcome)
+        return int(outcome)  # an ExecuteMove outcome number (move_executor.MoveOutcome)

@@ -36,7 +36,7 @@ CASTER_RES, CASTER_X, CASTER_Y, RANGE_MAX, RANGE_MIN, NOISE_STD = range(29, 35)
 FIELD_INVERSE_RES, FIELD_X, FIELD_Y, PARAMS_SIZE = 35, 36, 37, 38
 
 # The stages of a move (``_MoveRun.move``) and what a kernel call ends with (move_executor's
-# Outcome numbers, and PAUSED: the step budget is used up).
+# MoveOutcome numbers, and PAUSED: the step budget is used up).
 TURN, TURN_BRAKE, DRIVE, END_BRAKE, LOCALISE, ENDED = range(6)
 FINISHED, BUMPED, TIMED_OUT, PAUSED = 0, 1, 3, -1
 
