@@ -69,9 +69,9 @@ if numba is not None:
 
     class _PackageCacheLocator(caching.InTreeCacheLocator):
         """numba's in-tree cache (``__pycache__`` beside the source), stamped with the whole
-        package's sources rather than the one file's. Only for the kernels ``jit`` makes (the
-        ones whose package holds a marker ``_jit_package`` attribute below) and only when no
-        ``NUMBA_CACHE_DIR`` overrides numba's locators."""
+        package's sources rather than the one file's: for the kernels ``jit`` makes (marked
+        ``_jit_package``) unless ``NUMBA_CACHE_DIR`` is set; any other numba user in the
+        process keeps numba's own locators."""
 
         @classmethod
         def from_function(cls, py_func, py_file):
