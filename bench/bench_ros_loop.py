@@ -355,7 +355,7 @@ def simulator_in_process(moves: int = 300) -> float:
     from stealth_sim.kinematics import Limits, Pose
     from stealth_sim.laser import LaserConfig
     from stealth_sim.localisation import FilterConfig
-    from stealth_sim.move_executor import Move, execute_move
+    from stealth_sim.move_executor import MoveRequest, execute_move
     from stealth_sim.simulator import SimConfig, Simulator
 
     scenario = load_scenario(SCENARIO)
@@ -377,10 +377,10 @@ def simulator_in_process(moves: int = 300) -> float:
     sim = Simulator(scenario.map, config, Pose(*scenario.start))
     # Untimed, as bench_sim's: the process's first compiled move loads numba's kernels (or
     # compiles them), which is no part of a move's cost (it was a third of this figure).
-    execute_move(sim, Move(1, scenario.step_distance))
+    execute_move(sim, MoveRequest(1, scenario.step_distance))
     started = time.perf_counter()
     for index in range(moves):
-        execute_move(sim, Move(index % 2, scenario.step_distance))  # up and down
+        execute_move(sim, MoveRequest(index % 2, scenario.step_distance))  # up and down
     return moves / (time.perf_counter() - started)
 
 

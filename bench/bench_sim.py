@@ -32,7 +32,7 @@ sys.path.insert(0, str(REPO_ROOT / 'ros2_ws' / 'src' / 'stealth_sim'))
 from ros_support import NodeProcesses, reserved_domain_id  # noqa: E402
 from stealth_sim.kinematics import DiscFootprint, Pose  # noqa: E402
 from stealth_sim.localisation import FilterConfig  # noqa: E402
-from stealth_sim.move_executor import GRID_HEADINGS, Move, MoveKind, execute_move  # noqa: E402
+from stealth_sim.move_executor import GRID_HEADINGS, MoveKind, MoveRequest, execute_move  # noqa: E402
 from stealth_sim.occupancy_map import load_map  # noqa: E402
 from stealth_sim.simulator import SimConfig, Simulator  # noqa: E402
 
@@ -85,7 +85,7 @@ def first_call(occupancy_map, config: SimConfig) -> float:
     loads them from its cache) here, so the timed runs do not pay for it."""
     sim = Simulator(occupancy_map, config, START)
     started = time.perf_counter()
-    execute_move(sim, Move(MoveKind.UP, STEP))
+    execute_move(sim, MoveRequest(MoveKind.UP, STEP))
     return time.perf_counter() - started
 
 
@@ -102,7 +102,7 @@ def in_process(occupancy_map, config: SimConfig, reference: bool) -> tuple[float
     elapsed = 0.0
     for _ in range(MOVES):
         estimate = sim.estimate
-        move = Move(chooser.choose(estimate.x, estimate.y), STEP)
+        move = MoveRequest(chooser.choose(estimate.x, estimate.y), STEP)
         started = time.perf_counter()
         execute_move(sim, move)
         elapsed += time.perf_counter() - started

@@ -469,7 +469,7 @@ def test_a_moving_variant_has_the_phase_in_the_state_and_a_wait(agent, node_proc
     move's end time and steps are judged along the way."""
     scenario, task, description = start_variant(agent, node_processes, 'simple-maze-moving')
     assert description.num_actions == 5
-    assert description.max_state_range[2] == scenario.timing.phase_bins - 1
+    assert description.max_state_range[2] == scenario.timing.cycle_bins - 1
     first = agent.next_state()
     assert list(first.state) == [*scenario.start[:2], 0.0]
     state, info = agent.act(WAIT)
@@ -478,14 +478,14 @@ def test_a_moving_variant_has_the_phase_in_the_state_and_a_wait(agent, node_proc
     waited = info.header.stamp.sec + info.header.stamp.nanosec * 1e-9
     slot = task.step_seconds
     assert waited == pytest.approx(slot, abs=1e-6)  # a wait holds still for a step's slot
-    assert state.state[2] == scenario.timing.phase_of(slot)
+    assert state.state[2] == scenario.timing.bin_of(slot)
     state, info = agent.act(RIGHT)
     check_step(task, state, info)
     assert state.state[0] == pytest.approx(first.state[0] + scenario.step_distance)
     # A move that ends early is padded to its slot's end, a slower one ends a little late.
     moved = info.header.stamp.sec + info.header.stamp.nanosec * 1e-9
     assert 2 * slot - 1e-6 <= moved < 2 * slot + scenario.timing.bin_seconds
-    assert state.state[2] == scenario.timing.phase_of(2 * slot)
+    assert state.state[2] == scenario.timing.bin_of(2 * slot)
 
 
 def test_an_exposure_variant_has_the_heading_in_the_state_and_turns(agent, node_processes):

@@ -1,4 +1,4 @@
-"""The one-bounce light's compiled kernels (numba, through ``stealth_sim.compiled_move.jit``):
+"""The one-bounce light's compiled kernels (numba, through ``stealth_sim.jit``):
 ``visibility.bounce_field`` and ``PointVisibility`` call them; imported only when a scenario
 has a bounce, so that direct-light users never import numba.
 
@@ -11,19 +11,19 @@ equal to the last bit. Without numba ``jit`` leaves them plain Python: the same 
 """
 
 import numpy as np
-from stealth_sim import compiled_move
+from stealth_sim.jit import jit
 
 from stealth_env.bounce import Bounce, Emitters, contribution
 from stealth_env.lighting import bresenham_start, bresenham_step
 
-_contribution = compiled_move.jit(contribution)
+_contribution = jit(contribution)
 
 
-_start = compiled_move.jit(bresenham_start)
-_step = compiled_move.jit(bresenham_step)
+_start = jit(bresenham_start)
+_step = jit(bresenham_step)
 
 
-@compiled_move.jit
+@jit
 def _line_blocked(blocked, col0, row0, col1, row1):
     """``lighting.line_of_sight``'s answer negated, walking the same Bresenham steps and
     stopping at the first block (compiled: the bounce traces millions of short lines)."""
@@ -40,7 +40,7 @@ def _line_blocked(blocked, col0, row0, col1, row1):
     return False
 
 
-@compiled_move.jit
+@jit
 def field(blocked, emitters, received, x_of_col, y_of_row, reach, parameters):
     """The bounce field: emitter after emitter (in order), every cell of its window."""
     height, width = blocked.shape
@@ -64,7 +64,7 @@ def field(blocked, emitters, received, x_of_col, y_of_row, reach, parameters):
     return field
 
 
-@compiled_move.jit
+@jit
 def at_points(blocked, xs, ys, cols, rows, emitters, received, centres, parameters):
     """The bounce at points (xs, ys) in cells (cols, rows): emitters added up in order."""
     weight, range_squared, beta = parameters

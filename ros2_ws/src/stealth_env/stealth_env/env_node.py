@@ -135,7 +135,15 @@ from stealth_env.markers import (
 from stealth_env.reward import Outcome
 from stealth_env.scenario import ScenarioError, load_scenario
 from stealth_env.task import WAIT, StealthTask
-from stealth_env.topic_moves import Limits, Move, Pose, TopicConfig, go_to, hold, route_home
+from stealth_env.topic_moves import (
+    Limits,
+    MoveGoal,
+    Pose,
+    TopicConfig,
+    go_to,
+    hold_goal,
+    route_home,
+)
 from stealth_env.topic_robot import TOPICS as ROBOT_TOPICS
 from stealth_env.topic_robot import MoveEnd, TopicRobot
 
@@ -910,7 +918,7 @@ class EnvironmentNode(StartupNode):
             request = ExecuteMove.Request(
                 kind=ExecuteMove.Request.TURN_TO_HEADING, heading=heading
             )
-            self._run(self.flow.token, Move(heading), request)
+            self._run(self.flow.token, MoveGoal(heading), request)
             return
         request = ExecuteMove.Request(kind=ExecuteMove.Request.GO_TO, x=x, y=y)
         self._run(self.flow.token, go_to(x, y), request)
@@ -921,7 +929,7 @@ class EnvironmentNode(StartupNode):
         if seconds < SLOT_TOLERANCE:
             seconds = self.task.step_seconds
         request = ExecuteMove.Request(kind=ExecuteMove.Request.HOLD, seconds=seconds)
-        self._run(token, hold(seconds), request)
+        self._run(token, hold_goal(seconds), request)
 
     def _run(self, token: int, move, request: ExecuteMove.Request) -> None:
         """A move over the robot's topics or the simulator's service."""

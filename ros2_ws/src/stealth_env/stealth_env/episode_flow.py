@@ -316,7 +316,7 @@ class EpisodeFlow:
         judgement = task.judge(x, y, te, self.steps + 1, visibility=visibility)
         self._judged_at = (x, y, te, judged.yaw)
         timing = task.timing
-        if timing is not None and timing.phase_of(te) != timing.phase_of(self._slot_end()):
+        if timing is not None and timing.bin_of(te) != timing.bin_of(self._slot_end()):
             self.counts.off_schedule += 1
         self.estimate = PlanarPose(*estimate)
         self.steps += 1

@@ -227,9 +227,9 @@ class StealthNavEnv(gym.Env):
         grid = [['#'] * columns for _ in range(rows)]
         threshold = self.scenario.detection_threshold
         n = len(model.nodes)
-        phase_start = self._node - model.node_of(self._node)  # the lights at the robot's phase
+        layer_start = self._node - model.node_of(self._node)  # the lights at the robot's bin
         for i, (a, b) in enumerate(model.nodes):
-            v = self._visibility[phase_start + i]
+            v = self._visibility[layer_start + i]
             mark = 'G' if model.goal[i] else '!' if v >= threshold else '+' if v > 0 else '.'
             grid[rows - 1 - (b - lattice.j_min)][a - lattice.i_min] = mark
         for i, mark in ((model.start, 'S'), (self._node, 'R')):

@@ -20,14 +20,14 @@ arrays), and every path is judged by ``StealthTask.judge``, as the environments 
   (rewards after the first state, summed), which is what the project's 5 % criterion compares;
   the learners themselves discount (gamma 0.99 by default).
 
-With moving lights and ``phase_bins`` the model is time-expanded: its places are (node, phase)
-pairs, a step advances the phase, a fifth action waits, and every step is judged on the most
+With moving lights and ``phase_bins`` the model is time-expanded: its places are (node, bin)
+pairs, a step advances the bin, a fifth action waits, and every step is judged on the most
 light along it (sampled in space and time, ``StealthTask.step_visibility``), so the optimum
 times its passages and cannot slip through a beam between two nodes; ``dark_path`` is then a
-time-aware Dark Path (A* over (node, phase), never taking a detected step). Moving lights
+time-aware Dark Path (A* over (node, bin), never taking a detected step). Moving lights
 without ``phase_bins`` are frozen at time ``t``. Walls: a move into a wall leaves the robot
 where it is, and still counts as a step (the model's successor of a blocked move is the node
-itself, at the next phase).
+itself, at the next bin).
 """
 
 from __future__ import annotations
@@ -74,20 +74,20 @@ def action_distribution(slip: float, num_actions: int = len(ACTIONS)) -> np.ndar
 @dataclasses.dataclass(frozen=True, eq=False)
 class LatticeModel:
     """The task on its time-expanded move lattice, as arrays over *places*: a place is a valid
-    node at a phase of the lights' cycle and, where lights are weighed by exposure, facing one
-    of four headings (``stealth_env.exposure``), index ``(heading * phases + phase) *
-    len(nodes) + node`` (node in the order of ``MoveLattice.valid_nodes``); one phase when the
+    node at a bin of the lights' cycle and, where lights are weighed by exposure, facing one
+    of four headings (``stealth_env.exposure``), index ``(heading * cycle_bins + cycle_bin) *
+    len(nodes) + node`` (node in the order of ``MoveLattice.valid_nodes``); one bin when the
     lights do not move or the state has no phase (moving lights are then frozen at time ``t``,
     and the model is not the task), one heading without exposure.
 
     successors[i, b]: the place a step in direction b (0-3 the moves, then a wait where lights
     move, then the turns where the scenario has them: ``task.action_names``) from place i
-    reaches: the target node (i's own when the move is blocked or a turn) at the phase
+    reaches: the target node (i's own when the move is blocked or a turn) at the bin
     ``bins_per_step`` later, facing the step's heading (``StealthTask.heading_after``).
     step_visibility[i, b]: that step's visibility
     (``StealthTask.step_visibility``: the most light along the move, sampled in space and
     time, the arrival included), what the step is judged on. visibility[i]: the light at the
-    place itself (its node at its phase's start); states[i]: the agent's float32 state there.
+    place itself (its node at its bin's start); states[i]: the agent's float32 state there.
     """
 
     task: StealthTask
@@ -101,7 +101,7 @@ class LatticeModel:
     distance: np.ndarray  # (places,) to the goal point, m
     goal: np.ndarray  # (places,) bool: within the goal's radius
     start: int
-    phases: int = 1
+    cycle_bins: int = 1
     headings: int = 1  # 4 where lights are weighed by exposure (stealth_env.exposure)
 
     @classmethod
@@ -118,14 +118,14 @@ class LatticeModel:
                 target = lattice.successor(node, action) if action < len(ACTIONS) else None
                 moves[i, action] = i if target is None else index[target]
         timing = task.timing
-        phases, headings = task.phase_bins, task.headings
+        cycle_bins, headings = task.cycle_bins, task.headings
         advance = 0 if timing is None else timing.bins_per_step
         bin_seconds = 0.0 if timing is None else timing.bin_seconds
         step_seconds = 0.0 if timing is None else timing.step_seconds
-        places = np.arange(n * phases * headings)
+        places = np.arange(n * cycle_bins * headings)
         node_of_place = places % n
-        phase_of_place = (places // n) % phases
-        heading_of_place = places // (n * phases)
+        bin_of_place = (places // n) % cycle_bins
+        heading_of_place = places // (n * cycle_bins)
         # The heading after each step: (headings, n, directions).
         moved = moves != np.arange(n)[:, None]
         after = np.array(
@@ -135,15 +135,15 @@ class LatticeModel:
             ]
         ) if headings > 1 else np.zeros((1, n, directions), dtype=np.int64)  # fmt: skip
         successors = (
-            after[heading_of_place, node_of_place] * phases
-            + (phase_of_place[:, None] + advance) % phases
+            after[heading_of_place, node_of_place] * cycle_bins
+            + (bin_of_place[:, None] + advance) % cycle_bins
         ) * n + moves[node_of_place]
         step_visibility = np.empty((places.size, directions))
         visibility = np.empty(places.size)
         ends = node_points[moves]  # (n, directions, 2)
-        for layer in range(phases * headings):
-            heading, phase = divmod(layer, phases)
-            t0 = t + phase * bin_seconds
+        for layer in range(cycle_bins * headings):
+            heading, cycle_bin = divmod(layer, cycle_bins)
+            t0 = t + cycle_bin * bin_seconds
             rows = slice(layer * n, (layer + 1) * n)
             yaw = exposure.heading_angle(heading) if task.footprint is not None else None
             step_visibility[rows] = _step_peaks(
@@ -158,13 +158,13 @@ class LatticeModel:
         start_x, start_y, start_yaw = task.scenario.start
         start = index[lattice.point_to_node(start_x, start_y)]
         if headings > 1:
-            start += exposure.heading_of(start_yaw) * phases * n
-        phase_times = t + phase_of_place * bin_seconds
+            start += exposure.heading_of(start_yaw) * cycle_bins * n
+        bin_starts = t + bin_of_place * bin_seconds
         yaws = heading_of_place * (math.pi / 2)
         states = np.array(
             [
                 task.state_of(x, y, time, yaw)
-                for (x, y), time, yaw in zip(points, phase_times, yaws, strict=True)
+                for (x, y), time, yaw in zip(points, bin_starts, yaws, strict=True)
             ],
             dtype=np.float32,
         )
@@ -180,23 +180,23 @@ class LatticeModel:
             distance=distance,
             goal=distance <= goal.radius,
             start=start,
-            phases=phases,
+            cycle_bins=cycle_bins,
             headings=headings,
         )
 
     @property
     def size(self) -> int:
-        """The number of places (nodes x phases)."""
+        """The number of places (nodes x bins x headings)."""
         return len(self.points)
 
     @property
     def layers(self) -> int:
-        """Places per node: phases x headings."""
-        return self.phases * self.headings
+        """Places per node: bins x headings."""
+        return self.cycle_bins * self.headings
 
     def heading_of(self, place) -> np.ndarray:
         """The lattice heading (quarter turns from +x) of places; 0 without headings."""
-        return np.asarray(place) // (len(self.nodes) * self.phases)
+        return np.asarray(place) // (len(self.nodes) * self.cycle_bins)
 
     @property
     def num_actions(self) -> int:
@@ -375,7 +375,7 @@ def dark_path(model: LatticeModel, weight: float = DEFAULT_DARK_PATH_WEIGHT) -> 
     """The cheapest path with cost step_distance + weight * visibility per step (a wait costs
     the same as a move: it takes a step), never taking a step whose visibility reaches the
     detection threshold; None when every way is seen. With moving lights this is A* over
-    (node, phase): it waits where waiting lets a beam pass."""
+    (node, bin): it waits where waiting lets a beam pass."""
     if not (math.isfinite(weight) and weight >= 0):
         raise ValueError(f'weight: expected a number >= 0 (m per unit visibility), got {weight!r}')
     step = model.task.scenario.step_distance
@@ -435,7 +435,7 @@ def value_iteration(
     model: LatticeModel, slip: float = 0.0, gamma: float = 1.0, horizon: int | None = None
 ) -> ValueIterationResult:
     """Optimal expected return and policy by backward induction over ``horizon`` steps (default:
-    the scenario's step limit), V_0 = 0 (the episode is truncated); over (node, phase) places
+    the scenario's step limit), V_0 = 0 (the episode is truncated); over (node, bin) places
     where lights move, so exact with time."""
     if not 0.0 <= gamma <= 1.0:
         raise ValueError(f'gamma: expected a number in [0, 1], got {gamma!r}')

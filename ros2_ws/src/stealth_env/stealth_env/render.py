@@ -93,7 +93,7 @@ def animate_scenario(
     timing = getattr(scenario, 'timing', None)
     step = timing.step_seconds if timing is not None else 1.0
     if frames is None:
-        cycle = timing.phase_bins // timing.bins_per_step if timing is not None else 1
+        cycle = timing.cycle_bins // timing.bins_per_step if timing is not None else 1
         frames = max([len(p) for p in paths] + [cycle])
     if frames < 1:
         raise ValueError(f'frames: expected a number >= 1, got {frames}')
@@ -103,7 +103,7 @@ def animate_scenario(
     for k in range(frames):
         t = k * step
         if timing is not None:  # the same instants every cycle: the field cache serves them
-            t = ((k * timing.bins_per_step) % timing.phase_bins) * timing.bin_seconds
+            t = ((k * timing.bins_per_step) % timing.cycle_bins) * timing.bin_seconds
         walked = [p[: min(k, len(p) - 1) + 1] for p in paths]
         fig = scenario_figure(
             scenario,

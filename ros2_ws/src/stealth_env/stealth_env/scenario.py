@@ -20,7 +20,7 @@ from +x) and radians in the :class:`Scenario`. Example, every field::
     detection_mode: threshold       # or probabilistic
     step_limit: 300                 # moves per episode
     phase_bins: 8                   # moving lights only: bins of the lights' joint cycle, the
-                                    # phase is then a state feature (stealth_env.timing)
+                                    # phase is then a state feature (stealth_env.light_cycle)
     step_seconds: 3.0               # moving lights only: simulated s per move or wait, a whole
                                     # number of bins (default: one bin)
     lights:
@@ -48,10 +48,10 @@ the map, that the start has ``robot_radius`` of clearance, that every goal is re
 start on the robot's move lattice (:mod:`stealth_env.move_lattice`) and that every light and
 patrol waypoint lies inside the map (a lamp may sit on a wall, as ``stealth_env.lighting``
 allows), and that moving lights' periods and the step fit the phase bins
-(:mod:`stealth_env.timing`), and that an ``exposure`` footprint has a length and a width > 0 (m)
-(:mod:`stealth_env.exposure`). A scenario whose lights move without ``phase_bins`` loads with a
-warning: the state does not say where the lights are, so the task is not Markov. Whether the
-goals can be reached unseen is a property of the shipped scenarios, proved
+(:mod:`stealth_env.light_cycle`), and that an ``exposure`` footprint has a length and a width
+> 0 (m) (:mod:`stealth_env.exposure`). A scenario whose lights move without ``phase_bins``
+loads with a warning: the state does not say where the lights are, so the task is not Markov.
+Whether the goals can be reached unseen is a property of the shipped scenarios, proved
 by their tests, not a load-time check.
 """
 
@@ -72,6 +72,7 @@ from stealth_sim.occupancy_map import (
 
 from stealth_env.bounce import DEFAULT_RANGE, Bounce, bounce_bound
 from stealth_env.exposure import Footprint, valid_length
+from stealth_env.light_cycle import Timing, TimingError, check_timing
 from stealth_env.move_lattice import MoveLattice
 from stealth_env.reward import (
     DETECTION_MODES,
@@ -81,7 +82,6 @@ from stealth_env.reward import (
     undetected_visibility_bound,
 )
 from stealth_env.searchlight import LightError, PatrolMotion, Searchlight, SweepMotion
-from stealth_env.timing import Timing, TimingError, check_timing
 
 DIFFICULTIES = ('easy', 'medium', 'hard')
 SCENARIOS_ENV = 'STEALTH_NAV_SCENARIOS'

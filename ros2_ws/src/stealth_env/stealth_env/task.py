@@ -24,7 +24,7 @@ Decisions:
   above.
 - **Time** (scenarios with moving lights): the state grows by the features of
   ``state_features`` beyond x and y; today ``phase``, the bin of the lights' joint cycle
-  (``stealth_env.timing``) the time falls in, when the scenario sets ``phase_bins``. A fifth
+  (``stealth_env.light_cycle``) the time falls in, when the scenario sets ``phase_bins``. A fifth
   action, ``wait`` (4), keeps the robot at its node for one step; it exists only where lights
   move (``num_actions``). A step takes ``step_seconds`` of simulated time in-process; in ROS
   the simulator's reported time.
@@ -178,7 +178,7 @@ class StealthTask:
         # Features beyond (x, y), in order: (name, low, high) each.
         self.extra_features: tuple[tuple[str, float, float], ...] = ()
         if self.timing is not None:
-            self.extra_features += (('phase', 0.0, float(self.timing.phase_bins - 1)),)
+            self.extra_features += (('phase', 0.0, float(self.timing.cycle_bins - 1)),)
         if self.footprint is not None:
             self.extra_features += (('heading', 0.0, float(exposure.HEADINGS - 1)),)
         samples = math.ceil(scenario.step_distance / scenario.map.resolution - 1e-9)
@@ -222,9 +222,9 @@ class StealthTask:
         return (heading + self.turn_of(action)) % exposure.HEADINGS
 
     @property
-    def phase_bins(self) -> int:
-        """Phases of the state (1 when the state has no phase)."""
-        return 1 if self.timing is None else self.timing.phase_bins
+    def cycle_bins(self) -> int:
+        """Bins of the lights' cycle in the state (1 when the state has no phase)."""
+        return 1 if self.timing is None else self.timing.cycle_bins
 
     def state_of(self, x: float, y: float, t: float = 0.0, yaw: float = 0.0) -> tuple[float, ...]:
         """The agent's state for a pose (x, y, yaw) at time t (s): (x, y) rounded to the nearest
@@ -238,7 +238,7 @@ class StealthTask:
         (phase, heading)."""
         features = ()
         if self.timing is not None:
-            features += (float(self.timing.phase_of(t)),)
+            features += (float(self.timing.bin_of(t)),)
         if self.footprint is not None:
             features += (float(exposure.heading_of(yaw)),)
         return features
@@ -306,7 +306,7 @@ class StealthTask:
         states = {self.state_of(*lattice.node_to_point(n)) for n in lattice.valid_nodes()}
         return {
             'num_actions': self.num_actions,
-            'num_states': len(states) * self.phase_bins * self.headings,
+            'num_states': len(states) * self.cycle_bins * self.headings,
             'min_state_range': list(low),
             'max_state_range': list(high),
             'max_reward': max_reward,

@@ -35,12 +35,13 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+from stealth_sim.controller import signed_approach_speed
 from stealth_sim.kinematics import Limits, Pose, compose, relative, wrap_angle
-from stealth_sim.move_executor import ControllerConfig, Outcome
+from stealth_sim.move_executor import ControllerConfig, MoveOutcome
 
 from stealth_env.move_lattice import MoveLattice, Node
 
-__all__ = ['ControllerConfig', 'Limits', 'Outcome', 'Pose']
+__all__ = ['ControllerConfig', 'Limits', 'MoveOutcome', 'Pose']
 
 ODOM_HISTORY = 64  # odometry poses kept to place an amcl_pose stamped in the past
 _PERIOD_SMOOTHING = 0.2  # weight of the newest odom interval in the period's running mean
@@ -185,8 +186,12 @@ def interpolate(a: Odom, b: Odom, t: float) -> Pose:
 # --- the move -----------------------------------------------------------------------------------
 
 
-class Move(NamedTuple):
-    """Turn to ``heading`` (rad, map frame), then drive ``distance`` (m; 0: only the turn); or,
+class MoveGoal(NamedTuple):
+    """What a move over topics is to reach, in the controller's own terms rather than the kinds
+    of the simulator's request (``move_executor.MoveRequest``, whose grid moves and drives
+    depend on where the robot is).
+
+    Turn to ``heading`` (rad, map frame), then drive ``distance`` (m; 0: only the turn); or,
     with a ``target`` (x, y in m, map frame), turn to face it and drive there, as the
     simulator's GO_TO (heading and distance then follow from where the move starts); or, with
     ``hold`` > 0, stand still that long (s of the robot's clock), as the simulator's HOLD."""
@@ -197,14 +202,14 @@ class Move(NamedTuple):
     hold: float = 0.0
 
 
-def go_to(x: float, y: float) -> Move:
+def go_to(x: float, y: float) -> MoveGoal:
     """The move to the point (x, y) of the map frame."""
-    return Move(0.0, 0.0, (float(x), float(y)))
+    return MoveGoal(0.0, 0.0, (float(x), float(y)))
 
 
-def hold(seconds: float) -> Move:
-    """Standing still for ``seconds`` of the robot's clock."""
-    return Move(0.0, 0.0, None, float(seconds))
+def hold_goal(seconds: float) -> MoveGoal:
+    """The goal of standing still for ``seconds`` of the robot's clock."""
+    return MoveGoal(0.0, 0.0, None, float(seconds))
 
 
 class Command(NamedTuple):
@@ -220,7 +225,7 @@ STOP = Command(0.0, 0.0)
 class Finished(NamedTuple):
     """The end of a move: its outcome, why, and whether the robot moved at all during it."""
 
-    outcome: Outcome
+    outcome: MoveOutcome
     message: str
     duration: float  # s of the robot's clock
     moved: bool
@@ -238,7 +243,9 @@ class TopicConfig:
     default_period: float = 0.1  # s: the control period until odometry has shown its own
 
 
-class Phase(enum.Enum):
+class MoveStage(enum.Enum):
+    """What a move in progress is doing (``TopicMove.stage``)."""
+
     TURN = 'turn'
     DRIVE = 'drive'
     BRAKE = 'brake'
@@ -246,9 +253,9 @@ class Phase(enum.Enum):
 
 
 MESSAGES = {
-    Outcome.DONE: '',
-    Outcome.BUMPED: 'the robot met a wall or unknown space and stopped',
-    Outcome.TIMED_OUT: 'the move did not finish within {limit:.1f} s',
+    MoveOutcome.DONE: '',
+    MoveOutcome.BUMPED: 'the robot met a wall or unknown space and stopped',
+    MoveOutcome.TIMED_OUT: 'the move did not finish within {limit:.1f} s',
 }
 
 
@@ -259,7 +266,7 @@ class TopicMove:
 
     def __init__(
         self,
-        move: Move,
+        move: MoveGoal,
         start: Pose,
         t: float,
         config: TopicConfig | None = None,
@@ -271,10 +278,10 @@ class TopicMove:
             dx, dy = move.target[0] - start.x, move.target[1] - start.y
             distance = math.hypot(dx, dy)
             if distance <= controller.position_tolerance:  # there already: no turn, no drive
-                move = Move(start.yaw, 0.0, move.target)
+                move = MoveGoal(start.yaw, 0.0, move.target)
             else:
-                move = Move(math.atan2(dy, dx), distance, move.target)
-        self.move = Move(wrap_angle(move.heading), move.distance, move.target, move.hold)
+                move = MoveGoal(math.atan2(dy, dx), distance, move.target)
+        self.move = MoveGoal(wrap_angle(move.heading), move.distance, move.target, move.hold)
         self.start_time = t
         self.start = start
         limits = config.limits
@@ -283,8 +290,8 @@ class TopicMove:
             + move.distance / limits.max_linear_speed
         )
         self.time_limit = controller.time_limit_factor * nominal + controller.time_limit_margin
-        self.phase = Phase.HOLD if move.hold > 0 else Phase.TURN
-        self._after_brake: Outcome | None = None  # None: continue with the drive
+        self.stage = MoveStage.HOLD if move.hold > 0 else MoveStage.TURN
+        self._after_brake: MoveOutcome | None = None  # None: continue with the drive
         self._target: tuple[float, float] | None = None
         self._start_odom: Pose | None = None
         self._moved = False
@@ -310,28 +317,28 @@ class TopicMove:
 
     def _decide(self, t, estimate, odom, clearance, period) -> Command | Finished:
         elapsed = t - self.start_time
-        if self.phase is Phase.HOLD:
+        if self.stage is MoveStage.HOLD:
             return self._hold(elapsed)
-        if self.phase is not Phase.BRAKE and elapsed > self.time_limit:
-            return self._brake(Outcome.TIMED_OUT)
-        if self.phase is Phase.TURN:
+        if self.stage is not MoveStage.BRAKE and elapsed > self.time_limit:
+            return self._brake(MoveOutcome.TIMED_OUT)
+        if self.stage is MoveStage.TURN:
             return self._turn(t, estimate, odom, period)
-        if self.phase is Phase.DRIVE:
+        if self.stage is MoveStage.DRIVE:
             return self._drive(t, estimate, odom, clearance, period)
         return self._braking(t, estimate, odom, period)
 
-    # --- phases ---------------------------------------------------------------------------------
+    # --- stages ---------------------------------------------------------------------------------
 
     def _hold(self, elapsed: float) -> Command | Finished:
         """Stop and stay; done when the time is up (a robot that still rolls has moved)."""
         if elapsed >= self.move.hold:
-            return Finished(Outcome.DONE, '', elapsed, self._moved)
+            return Finished(MoveOutcome.DONE, '', elapsed, self._moved)
         return STOP
 
     def _turn(self, t: float, estimate: Pose, odom: Odom, period: float) -> Command | Finished:
         error = wrap_angle(self.move.heading - estimate.yaw)
         if abs(error) <= self.controller.heading_tolerance:
-            self.phase = Phase.BRAKE  # then the drive, once at rest
+            self.stage = MoveStage.BRAKE  # then the drive, once at rest
             return self._braking(t, estimate, odom, period)
         return Command(0.0, self._turn_rate(error, odom.angular, period))
 
@@ -341,7 +348,7 @@ class TopicMove:
             estimate.x + distance * math.cos(heading),
             estimate.y + distance * math.sin(heading),
         )
-        self.phase = Phase.DRIVE
+        self.stage = MoveStage.DRIVE
 
     def _drive(
         self, t: float, estimate: Pose, odom: Odom, clearance: float, period: float
@@ -351,27 +358,24 @@ class TopicMove:
         dx, dy = self._target[0] - estimate.x, self._target[1] - estimate.y
         remaining = self._remaining(estimate)
         if abs(remaining) <= controller.position_tolerance:
-            return self._brake(Outcome.DONE)
+            return self._brake(MoveOutcome.DONE)
         free = clearance - self.config.bump_distance  # how far until too close to an obstacle
         if clearance < remaining - self.config.bump_distance:  # it stands before the target
             if free <= controller.position_tolerance:
-                return self._brake(Outcome.BUMPED)
+                return self._brake(MoveOutcome.BUMPED)
             remaining = free
         if self._stalled(t, odom):
-            return self._brake(Outcome.BUMPED)
+            return self._brake(MoveOutcome.BUMPED)
         aim = math.atan2(dy, dx) if remaining > controller.aim_distance else heading
         error = wrap_angle(aim - estimate.yaw)
         limits = self.config.limits
         # Signed: past the target (a command that came late at speed), it backs up to it.
         left = remaining - coast(odom.linear, self._sent.linear, limits.max_linear_accel, period)
-        speed = math.copysign(
-            approach_speed(
-                abs(left),
-                limits.max_linear_speed,
-                limits.max_linear_accel * controller.braking_share,
-                period,
-            ),
+        speed = signed_approach_speed(
             left,
+            limits.max_linear_speed,
+            limits.max_linear_accel * controller.braking_share,
+            period,
         )
         # Slow down while badly misaligned rather than drive sideways off the line.
         speed *= max(0.0, math.cos(error))
@@ -384,21 +388,21 @@ class TopicMove:
         if not (at_rest or overdue):
             return STOP
         tolerance = self.controller.position_tolerance
-        if self._after_brake is Outcome.DONE and abs(self._remaining(estimate)) > tolerance:
+        if self._after_brake is MoveOutcome.DONE and abs(self._remaining(estimate)) > tolerance:
             self._after_brake = None  # it coasted past the target: back to it
-            self.phase = Phase.DRIVE
+            self.stage = MoveStage.DRIVE
             return self._drive(t, estimate, odom, math.inf, period)
         if self._after_brake is not None:
             outcome = self._after_brake
             message = MESSAGES[outcome].format(limit=self.time_limit)
             return Finished(outcome, message, t - self.start_time, self._moved)
         # The turn is over: check the heading once at rest (a coarse period may coast past it).
-        self.phase = Phase.TURN
+        self.stage = MoveStage.TURN
         error = wrap_angle(self.move.heading - estimate.yaw)
         if abs(error) > self.controller.heading_tolerance:
             return Command(0.0, self._turn_rate(error, odom.angular, period))
         if self.move.distance <= 0:
-            self._after_brake = Outcome.DONE
+            self._after_brake = MoveOutcome.DONE
             return self._braking(t, estimate, odom, period)
         self._start_drive(estimate)
         return self._drive(t, estimate, odom, math.inf, period)
@@ -413,8 +417,8 @@ class TopicMove:
             self._target[1] - estimate.y
         ) * math.sin(heading)
 
-    def _brake(self, then: Outcome | None) -> Command:
-        self.phase = Phase.BRAKE
+    def _brake(self, then: MoveOutcome | None) -> Command:
+        self.stage = MoveStage.BRAKE
         if then is not None:
             self._after_brake = then
         return STOP
@@ -425,13 +429,12 @@ class TopicMove:
         """Turn rate towards a heading error, on the braking curve, after a period of coasting."""
         limits = self.config.limits
         left = error - coast(rate, self._sent.angular, limits.max_angular_accel, period)
-        speed = approach_speed(
-            abs(left),
+        return signed_approach_speed(
+            left,
             limits.max_angular_speed,
             limits.max_angular_accel * self.controller.braking_share,
             period,
         )
-        return math.copysign(speed, left)
 
     def _note_motion(self, odom: Odom) -> None:
         if self._start_odom is None:
@@ -459,15 +462,6 @@ def coast(velocity: float, command: float, accel: float, dt: float) -> float:
     ramp = min(abs(command - velocity) / accel, dt)
     reached = velocity + math.copysign(accel * ramp, command - velocity)
     return (velocity + reached) / 2 * ramp + reached * (dt - ramp)
-
-
-def approach_speed(distance: float, max_speed: float, decel: float, dt: float) -> float:
-    """The fastest speed (<= max_speed) from which, after ``dt`` at it, the robot can still brake
-    to rest within ``distance`` at ``decel``: ``v dt + v^2 / 2a = d`` (move_executor's curve);
-    ``sqrt(2 a d)`` far out, ``d / dt`` (deadbeat) near the end, 0 when already past."""
-    if distance <= 0:
-        return 0.0
-    return min(decel * (math.sqrt(dt * dt + 2.0 * distance / decel) - dt), max_speed)
 
 
 # --- the laser --------------------------------------------------------------------------------
@@ -501,7 +495,7 @@ def forward_clearance(
 # --- driving back to the start ------------------------------------------------------------------
 
 
-def route_home(lattice: MoveLattice, pose: Pose, start: Pose) -> list[Move] | None:
+def route_home(lattice: MoveLattice, pose: Pose, start: Pose) -> list[MoveGoal] | None:
     """Moves from ``pose`` back to ``start`` on the collision-free move lattice (lights
     ignored): to the nearest valid node, along a shortest lattice path with straight runs
     merged into one drive, then a turn to the start's heading. None when there is no path."""
@@ -521,9 +515,9 @@ def route_home(lattice: MoveLattice, pose: Pose, start: Pose) -> list[Move] | No
     for point in _corners([lattice.node_to_point(n) for n in path]):
         distance = math.dist(here, point)
         if distance > ControllerConfig().position_tolerance:
-            moves.append(Move(math.atan2(point[1] - here[1], point[0] - here[0]), distance))
+            moves.append(MoveGoal(math.atan2(point[1] - here[1], point[0] - here[0]), distance))
         here = point
-    moves.append(Move(start.yaw))
+    moves.append(MoveGoal(start.yaw))
     return moves
 
 

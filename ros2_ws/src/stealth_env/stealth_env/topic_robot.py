@@ -32,9 +32,9 @@ from stealth_env.log_throttle import Throttle
 from stealth_env.topic_moves import (
     STOP,
     Command,
-    Move,
+    MoveGoal,
+    MoveOutcome,
     Odom,
-    Outcome,
     Pose,
     PoseTracker,
     TopicConfig,
@@ -60,7 +60,7 @@ ESTIMATE_QOS = kept_qos(5)
 class MoveEnd(NamedTuple):
     """What a finished move hands back: outcome (None: it could not be run), poses, time."""
 
-    outcome: Outcome | None
+    outcome: MoveOutcome | None
     message: str
     estimate: Pose | None
     truth: Pose | None  # None when no ground truth is published
@@ -78,7 +78,7 @@ class TopicRobot:
         self.tracker = PoseTracker()
         self._scan: LaserScan | None = None
         self._truth: tuple[float, Pose] | None = None
-        self._moves: list[Move] = []  # still to run after the current one
+        self._moves: list[MoveGoal] = []  # still to run after the current one
         self._move: TopicMove | None = None
         self._on_end: Callable[[MoveEnd], None] | None = None
         self._ending: tuple[MoveEnd, float] | None = None  # waiting for the truth, since (wall)
@@ -128,7 +128,7 @@ class TopicRobot:
             topics.append(f'{TOPICS["estimate"]} (frame {self.map_frame})')
         return ' and '.join(topics)
 
-    def run(self, moves: list[Move], on_end: Callable[[MoveEnd], None]) -> None:
+    def run(self, moves: list[MoveGoal], on_end: Callable[[MoveEnd], None]) -> None:
         """Run the moves one after the other; ``on_end`` gets the last one's end, or the first
         that was not DONE."""
         self.cancel()
@@ -249,7 +249,7 @@ class TopicRobot:
         self._move = None
         self.send(STOP)
         end = MoveEnd(result.outcome, result.message, estimate, None, odom.t, result.moved)
-        if result.outcome == Outcome.DONE and self._moves:
+        if result.outcome == MoveOutcome.DONE and self._moves:
             self._next_move()
         else:
             self._end(end)

@@ -429,9 +429,9 @@ class _BounceSources:
 def warm_up_bounce() -> float | None:
     """Compile the bounce kernels (or load them from numba's cache) on a throwaway map, so that
     no scenario load pays for it (``make setup`` calls this): the seconds, None without numba."""
-    from stealth_sim import compiled_move
+    from stealth_sim import jit
 
-    if compiled_move.import_problem() is not None:
+    if jit.import_problem() is not None:
         return None
     blocked = np.zeros((8, 8), dtype=bool)
     blocked[0] = True

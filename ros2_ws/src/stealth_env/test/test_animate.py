@@ -34,7 +34,7 @@ def test_the_animation_shows_the_lights_moving_and_the_path_walked(scenario, tmp
 
 
 def test_the_default_is_one_cycle_or_the_longest_path(scenario, tmp_path):
-    cycle = scenario.timing.phase_bins // scenario.timing.bins_per_step
+    cycle = scenario.timing.cycle_bins // scenario.timing.bins_per_step
     assert len(frames_of(animate_scenario(scenario, tmp_path / 'c.gif', cache_dir=tmp_path))) == (
         cycle
     )

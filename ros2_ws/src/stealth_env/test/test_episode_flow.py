@@ -303,7 +303,7 @@ def test_an_episode_starts_at_phase_zero_whatever_the_simulators_clock_says(movi
     assert state[2] == 0.0 and flow.episode_time(1000.0 + 5 * bin_seconds + 0.3) == 0.0
     x, y = moving.scenario.start[:2]
     report = step(flow, WAIT, PlanarPose(x, y), t=flow.origin + moving.step_seconds)
-    assert report.state[2] == moving.timing.phase_of(moving.step_seconds)
+    assert report.state[2] == moving.timing.bin_of(moving.step_seconds)
     assert report.t == flow.origin + moving.step_seconds  # stamps stay the simulator's
 
 
@@ -322,7 +322,7 @@ def test_a_step_is_padded_to_its_slot_and_a_late_one_counted(moving):
     assert flow.accept_action(WAIT) is None
     assert flow.step_time_left(50.0 + 2 * slot + 0.5) == 0.0
     flow.finish_move(flow.token, PlanarPose(x, y), PlanarPose(x, y), 50.0 + 2 * slot + 0.5)
-    assert flow.counts.off_schedule == 0 and flow.state[2] == moving.timing.phase_of(2 * slot)
+    assert flow.counts.off_schedule == 0 and flow.state[2] == moving.timing.bin_of(2 * slot)
     # ... a phase bin late is not, and is counted.
     assert flow.accept_action(WAIT) is None
     late = 50.0 + 3 * slot + moving.timing.bin_seconds

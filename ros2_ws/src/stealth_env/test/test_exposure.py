@@ -270,17 +270,17 @@ def test_exposure_combines_with_moving_lights():
     model = LatticeModel.build(task)
     timing = scenario.timing
     n = len(model.nodes)
-    assert model.size == n * timing.phase_bins * 4
+    assert model.size == n * timing.cycle_bins * 4
     rng = np.random.default_rng(1)
     for i in rng.choice(model.size, 12, replace=False):
-        phase = (i // n) % timing.phase_bins
+        cycle_bin = (i // n) % timing.cycle_bins
         heading = int(model.heading_of(i))
-        t0 = phase * timing.bin_seconds
+        t0 = cycle_bin * timing.bin_seconds
         for action in range(task.num_actions):
             j = int(model.successors[i, action])
-            assert (j // n) % timing.phase_bins == (
-                phase + timing.bins_per_step
-            ) % timing.phase_bins
+            assert (j // n) % timing.cycle_bins == (
+                cycle_bin + timing.bins_per_step
+            ) % timing.cycle_bins
             expected = task.step_visibility(
                 *model.points[i], t0, *model.points[j], t0 + timing.step_seconds,
                 exposure.heading_angle(heading), exposure.heading_angle(int(model.heading_of(j))),

@@ -12,11 +12,11 @@ from collections import deque
 import numpy as np
 import pytest
 from stealth_env.gym_env import lattice_model
+from stealth_env.light_cycle import lattice_step_seconds
 from stealth_env.planners import astar, dark_path, follow, value_iteration, walk
 from stealth_env.reward import Outcome
 from stealth_env.scenario import load_scenario, scenario_paths
 from stealth_env.searchlight import PatrolMotion, SweepMotion
-from stealth_env.timing import lattice_step_seconds
 
 MOVING = [path.stem for path in scenario_paths() if path.stem.endswith('-moving')]
 
@@ -24,7 +24,7 @@ MOVING = [path.stem for path in scenario_paths() if path.stem.endswith('-moving'
 def dark_at_every_time(model, path_nodes=None) -> list[int] | None:
     """A route over nodes taking only steps that no phase catches (BFS), or None."""
     n = len(model.nodes)
-    caught = model.step_seen.reshape(model.phases, n, -1).any(axis=0)
+    caught = model.step_seen.reshape(model.cycle_bins, n, -1).any(axis=0)
     moves = model.successors[:n] % n
     came_from = {model.start: None}
     frontier = deque([model.start])
@@ -46,7 +46,7 @@ def test_every_map_has_a_moving_variant_with_a_sweep_and_a_patrol_among_them():
     kinds = set()
     for name in MOVING:
         scenario = load_scenario(name)
-        assert scenario.timing is not None and scenario.timing.phase_bins > 1
+        assert scenario.timing is not None and scenario.timing.cycle_bins > 1
         # a step takes about as long as the simulator's robot needs for a turn and a move
         assert abs(scenario.timing.step_seconds - lattice_step_seconds(0.5)) < 0.1
         kinds |= {type(light.motion) for light in scenario.lights if light.is_moving}
@@ -84,7 +84,7 @@ def test_the_optimal_route_is_seen_when_walked_at_another_time(model):
     n = len(model.nodes)
     directions = [model.direction(a, b) for a, b in zip(path, path[1:], strict=False)]
     caught_at = []
-    for delay in range(1, model.phases):
+    for delay in range(1, model.cycle_bins):
         place = model.start + delay * n
         seen = False
         for direction in directions:

@@ -497,7 +497,7 @@ def moving(phase_bins=None, step_seconds=None, motion=SWEEP_12S):
 def test_phase_bins_and_step_seconds(write):
     scenario = load_scenario(write(moving(phase_bins=6, step_seconds=4.0)))
     timing = scenario.timing
-    assert (timing.cycle, timing.phase_bins, timing.step_seconds) == (12.0, 6, 4.0)
+    assert (timing.cycle, timing.cycle_bins, timing.step_seconds) == (12.0, 6, 4.0)
     assert timing.bins_per_step == 2
     assert load_scenario(write(moving(phase_bins=4))).timing.step_seconds == 3.0  # one bin
     assert load_scenario(write()).timing is None

@@ -31,10 +31,10 @@ def test_the_state_grows_by_the_phase(task):
     assert description['num_actions'] == 5
     assert len(description['min_state_range']) == len(description['max_state_range']) == 3
     assert description['min_state_range'][2] == 0.0
-    assert description['max_state_range'][2] == timing.phase_bins - 1
+    assert description['max_state_range'][2] == timing.cycle_bins - 1
     static = StealthTask(load_scenario('simple-maze')).description()
     assert static['num_actions'] == 4 and len(static['min_state_range']) == 2
-    assert description['num_states'] == static['num_states'] * timing.phase_bins
+    assert description['num_states'] == static['num_states'] * timing.cycle_bins
 
 
 def test_wait_stays_at_the_node(task):
@@ -71,16 +71,16 @@ def test_the_model_steps_are_the_tasks_steps():
     n = len(model.nodes)
     rng = np.random.default_rng(2)
     for place in rng.choice(model.size, 25, replace=False):
-        phase, node = divmod(int(place), n)
+        cycle_bin, node = divmod(int(place), n)
         for direction in range(model.num_actions):
             target = int(model.successors[place, direction])
-            assert target // n == (phase + task.timing.bins_per_step) % model.phases
-            t0 = phase * task.timing.bin_seconds
+            assert target // n == (cycle_bin + task.timing.bins_per_step) % model.cycle_bins
+            t0 = cycle_bin * task.timing.bin_seconds
             expected = task.step_visibility(
                 *model.points[place], t0, *model.points[target], t0 + task.step_seconds
             )
             assert model.step_visibility[place, direction] == pytest.approx(expected, abs=1e-9)
-        assert tuple(model.states[place]) == (*model.points[place], phase)
+        assert tuple(model.states[place]) == (*model.points[place], cycle_bin)
 
 
 def test_the_gym_env_has_the_phase_and_the_wait():
@@ -91,7 +91,7 @@ def test_the_gym_env_has_the_phase_and_the_wait():
     bins = env.task.timing.bins_per_step
     observation, reward, terminated, truncated, info = env.step(WAIT)
     assert tuple(observation[:2]) == tuple(env.model.points[env.model.start])
-    assert observation[2] == bins % env.task.timing.phase_bins
+    assert observation[2] == bins % env.task.timing.cycle_bins
     assert info['steps'] == 1 and not terminated
     with pytest.raises(ValueError, match='0, 1, 2, 3, 4'):
         env.step(5)

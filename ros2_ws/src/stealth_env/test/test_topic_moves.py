@@ -13,16 +13,16 @@ from stealth_env.topic_moves import (
     Command,
     ControllerConfig,
     Finished,
-    Move,
+    MoveGoal,
+    MoveOutcome,
     Odom,
-    Outcome,
     Pose,
     PoseTracker,
     TopicConfig,
     TopicMove,
     forward_clearance,
     go_to,
-    hold,
+    hold_goal,
     pose_problem,
     route_home,
 )
@@ -33,10 +33,10 @@ from stealth_sim.simulator import SimConfig, Simulator
 TOLERANCE = ControllerConfig()
 
 
-def action_move(action: int, distance: float) -> Move:
+def action_move(action: int, distance: float) -> MoveGoal:
     """A relative grid move (0 up, 1 down, 2 left, 3 right) of `distance` from where the robot
     is: the controller's primitive, as the simulator's UP..RIGHT."""
-    return Move(GRID_HEADINGS[MoveKind[ACTIONS[action][0].upper()]], distance)
+    return MoveGoal(GRID_HEADINGS[MoveKind[ACTIONS[action][0].upper()]], distance)
 
 
 LIMITS = Limits(0.5, 1.5, 1.0, 3.0)  # config/simulator.yaml's
@@ -89,7 +89,7 @@ class TopicRobot:
         return sample
 
 
-def run_move(robot: TopicRobot, move: Move, config=None):
+def run_move(robot: TopicRobot, move: MoveGoal, config=None):
     """Drive a move to its end; (Finished, periods, the controller)."""
     odom, estimate, clearance = robot.period(Command(0.0, 0.0))
     controller = TopicMove(move, estimate, odom.t, config or TopicConfig(limits=LIMITS))
@@ -114,7 +114,7 @@ def test_grid_moves_end_within_the_service_paths_tolerances(maze, period, phase)
         move = action_move(action, 0.5)
         result, periods, controller = run_move(robot, move)
         periods_used.append(periods)
-        assert result.outcome == Outcome.DONE, result
+        assert result.outcome == MoveOutcome.DONE, result
         assert result.moved
         assert robot.sim.state.linear == robot.sim.state.angular == 0.0
         # Where the estimate ended against the target the drive fixed from it: not short of
@@ -145,7 +145,7 @@ def test_moves_to_lattice_nodes_take_an_offset_robot_back_onto_the_lattice(maze)
         estimate = robot.sim.estimate
         target = task.move_target(estimate.x, estimate.y, action)
         result, _, _ = run_move(robot, go_to(*target))
-        assert result.outcome == Outcome.DONE, result
+        assert result.outcome == MoveOutcome.DONE, result
         estimate = robot.sim.estimate
         assert math.dist((estimate.x, estimate.y), target) < 0.05
         assert robot.sim.state.linear == robot.sim.state.angular == 0.0
@@ -157,7 +157,7 @@ def test_commands_that_come_late_at_speed_are_made_up_for(maze):
     robot = TopicRobot(maze, maze.start, period=0.2, late=(9, 10))
     move = action_move(0, 0.5)  # up: no turn, the drive starts at once
     result, _, controller = run_move(robot, move)
-    assert result.outcome == Outcome.DONE
+    assert result.outcome == MoveOutcome.DONE
     assert abs(controller._remaining(robot.sim.estimate)) <= TOLERANCE.position_tolerance
 
 
@@ -165,15 +165,15 @@ def test_a_move_into_a_wall_is_bumped_short_of_it(maze):
     robot = TopicRobot(maze, maze.start)
     left = action_move(2, 0.5)
     result, _, _ = run_move(robot, left)  # to the last node before the west wall
-    assert result.outcome == Outcome.DONE
+    assert result.outcome == MoveOutcome.DONE
     result, _, _ = run_move(robot, left)
-    assert result.outcome == Outcome.BUMPED and result.moved
+    assert result.outcome == MoveOutcome.BUMPED and result.moved
     assert robot.sim.bumps == 0  # it stopped before touching
     assert robot.clearance() < TopicConfig().bump_distance + 0.03
     # Again into the same wall: bumped at once, at most creeping the scan's noise closer.
     here = robot.sim.ground_truth
     result, periods, _ = run_move(robot, left)
-    assert result.outcome == Outcome.BUMPED and periods <= 8
+    assert result.outcome == MoveOutcome.BUMPED and periods <= 8
     assert math.dist(robot.sim.ground_truth[:2], here[:2]) < TopicConfig().bump_distance
     assert robot.sim.bumps == 0
 
@@ -189,14 +189,14 @@ def test_a_robot_that_moves_then_stalls_is_bumped(maze):
         if isinstance(result, Finished):
             break
         odom, estimate, _ = robot.period(result)
-    assert result.outcome == Outcome.BUMPED and result.moved
+    assert result.outcome == MoveOutcome.BUMPED and result.moved
     assert robot.sim.bumps >= 1  # the simulator's contact stopped it; no progress said so
 
 
 def test_a_robot_that_ignores_cmd_vel_times_out_without_moving(maze):
     robot = TopicRobot(maze, maze.start, respond=False)
     result, _, controller = run_move(robot, action_move(3, 0.5))
-    assert (result.outcome, result.moved) == (Outcome.TIMED_OUT, False)
+    assert (result.outcome, result.moved) == (MoveOutcome.TIMED_OUT, False)
     # The service path's limit: 4 x (a quarter turn at 1.5 rad/s + 0.5 m at 0.5 m/s) + 5 s.
     assert controller.time_limit == pytest.approx(4 * (math.pi / 2 / 1.5 + 1.0) + 5, abs=0.05)
     assert result.message == f'the move did not finish within {controller.time_limit:.1f} s'
@@ -207,8 +207,8 @@ def test_a_hold_stops_the_robot_and_ends_when_its_time_is_up(maze):
     robot = TopicRobot(maze, maze.start)
     run_move(robot, action_move(3, 0.5))
     before = robot.sim.ground_truth
-    result, periods, _ = run_move(robot, hold(3.0))
-    assert (result.outcome, result.message) == (Outcome.DONE, '')
+    result, periods, _ = run_move(robot, hold_goal(3.0))
+    assert (result.outcome, result.message) == (MoveOutcome.DONE, '')
     assert 3.0 <= result.duration < 3.0 + 0.2  # the first odometry past the time
     assert periods == 16  # 0.2 s odometry periods: 3 s after the start, then the Finished
     assert math.dist(robot.sim.ground_truth[:2], before[:2]) < 1e-3
@@ -288,7 +288,7 @@ def test_route_home_follows_the_lattice_and_ends_at_the_start_heading(maze):
     start = Pose(*maze.start)
     away = Pose(start.x + 2.0 + 0.03, start.y - 0.5 - 0.02, 1.0)  # a bit off a node
     moves = route_home(lattice, away, start)
-    assert moves[-1] == Move(start.yaw, 0.0)
+    assert moves[-1] == MoveGoal(start.yaw, 0.0)
     x, y = away.x, away.y
     for move in moves[:-1]:
         x += move.distance * math.cos(move.heading)
@@ -304,7 +304,7 @@ def test_a_robot_drives_home_along_the_route(maze):
     robot = TopicRobot(maze, (start.x + 2.0, start.y - 0.5, 2.0), period=0.2)
     for move in route_home(lattice, robot.sim.estimate, start):
         result, _, _ = run_move(robot, move)
-        assert result.outcome == Outcome.DONE, (move, result)
+        assert result.outcome == MoveOutcome.DONE, (move, result)
     truth = robot.sim.ground_truth
     assert math.dist(truth[:2], start[:2]) < 0.15
     assert abs(wrap_angle(truth.yaw - start.yaw)) < 0.1

@@ -131,7 +131,7 @@ class RunResult:
 def default_budget(learner: str, scenario: str | None = None) -> int:
     """Training episodes per run of a learner (on a scenario: more where lights move)."""
     name = canonical_learner_name(learner)
-    if scenario is not None and lattice_model(scenario).phases > 1:
+    if scenario is not None and lattice_model(scenario).cycle_bins > 1:
         return MOVING_EPISODES[name]
     return DEFAULT_EPISODES[name]
 

@@ -4,10 +4,10 @@ A move is "turn to a heading, then drive a distance" (or only the turn). The con
 the estimate, as a robot running on AMCL would: it turns in place until the estimated heading is
 within tolerance, then drives towards the target point fixed at the start of the drive
 (estimated start + distance along the heading), steering onto it, and finally brakes to rest.
-Speeds follow the discrete-time braking curve of the physics step, so the robot can always stop
-within the acceleration limit and, near the target, covers the rest in one step (no slow
-proportional tail). Simulated time runs as fast as the CPU allows; ``on_step`` lets a caller
-publish or pace it.
+Speeds follow the discrete-time braking curve of the physics step (:mod:`stealth_sim.controller`),
+so the robot can always stop within the acceleration limit and, near the target, covers the rest
+in one step (no slow proportional tail). Simulated time runs as fast as the CPU allows;
+``on_step`` lets a caller publish or pace it.
 
 The four grid moves are the original's actions: up (+y), down (-y), left (-x), right (+x) of the
 map frame, each a drive of the given step from wherever the robot is. GO_TO drives to a point of
@@ -26,7 +26,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from stealth_sim import compiled_move
+from stealth_sim import compiled_move, jit
+from stealth_sim.controller import approach_speed, signed_approach_speed
 from stealth_sim.kinematics import Pose, wrap_angle
 from stealth_sim.occupancy_map import FREE, OCCUPIED, OccupancyMap
 from stealth_sim.simulator import SimConfig, Simulator
@@ -45,7 +46,7 @@ class MoveKind(enum.IntEnum):
     HOLD = 7
 
 
-class Outcome(enum.IntEnum):
+class MoveOutcome(enum.IntEnum):
     """The outcomes of stealth_interfaces/ExecuteMove (same numbers)."""
 
     DONE = 0
@@ -63,9 +64,10 @@ GRID_HEADINGS = {
 
 
 @dataclasses.dataclass(frozen=True)
-class Move:
-    """A move request: ``distance`` (m) for the drives, ``heading`` (rad, map) for the turn,
-    ``x``, ``y`` (m, map) for GO_TO, ``seconds`` (simulated) for HOLD."""
+class MoveRequest:
+    """A move as stealth_interfaces/ExecuteMove's request has it: ``distance`` (m) for the
+    drives, ``heading`` (rad, map) for the turn, ``x``, ``y`` (m, map) for GO_TO, ``seconds``
+    (simulated) for HOLD."""
 
     kind: int
     distance: float = 0.0
@@ -99,7 +101,7 @@ class StepStops(NamedTuple):
 
 @dataclasses.dataclass(frozen=True)
 class MoveResult:
-    outcome: Outcome
+    outcome: MoveOutcome
     message: str = ''
     duration: float = 0.0  # simulated s
     steps: int = 0
@@ -124,7 +126,7 @@ class ControllerConfig:
 MAX_HOLD_SECONDS = 600.0  # a HOLD longer than this is a mistake in the caller, not a wait
 
 
-def move_problem(move: Move, max_distance: float, start: Pose | None = None) -> str | None:
+def move_problem(move: MoveRequest, max_distance: float, start: Pose | None = None) -> str | None:
     """Why a move request cannot be executed, or None when it can (GO_TO: from `start`)."""
     try:
         kind = MoveKind(move.kind)
@@ -165,7 +167,7 @@ def move_problem(move: Move, max_distance: float, start: Pose | None = None) -> 
 
 def execute_move(
     sim: Simulator,
-    move: Move,
+    move: MoveRequest,
     on_step: Callable[[Simulator], None] | None = None,
     controller: ControllerConfig = ControllerConfig(),
     step_stops: Callable[[], StepStops] | None = None,
@@ -181,10 +183,10 @@ def execute_move(
     start = sim.estimate
     problem = move_problem(move, sim.max_move_distance, start)
     if problem:
-        return MoveResult(Outcome.REJECTED, problem)
+        return MoveResult(MoveOutcome.REJECTED, problem)
     kind = MoveKind(move.kind)
     if kind == MoveKind.HOLD:
-        return hold(sim, move.seconds, on_step, step_stops)
+        return execute_hold(sim, move.seconds, on_step, step_stops)
     target = None
     if kind == MoveKind.GO_TO:
         distance = math.hypot(move.x - start.x, move.y - start.y)
@@ -203,16 +205,16 @@ def execute_move(
         run = _MoveRun(sim, controller, on_step, nominal, step_stops)
     else:
         run = compiled_move.CompiledMoveRun(sim, controller, on_step, nominal, step_stops)
-    outcome = Outcome(run.move(heading, distance, target))
+    outcome = MoveOutcome(run.move(heading, distance, target))
     messages = {
-        Outcome.DONE: '',
-        Outcome.BUMPED: 'the robot touched a wall or unknown space and stopped',
-        Outcome.TIMED_OUT: f'the move did not finish within {run.time_limit:.1f} s',
+        MoveOutcome.DONE: '',
+        MoveOutcome.BUMPED: 'the robot touched a wall or unknown space and stopped',
+        MoveOutcome.TIMED_OUT: f'the move did not finish within {run.time_limit:.1f} s',
     }
     return MoveResult(outcome, messages[outcome], sim.time - run.start_time, run.steps)
 
 
-def hold(
+def execute_hold(
     sim: Simulator,
     seconds: float,
     on_step: Callable[[Simulator], None] | None = None,
@@ -237,7 +239,7 @@ def hold(
         elif sim.step(0.0, 0.0):
             message = 'the robot touched a wall or unknown space while braking to stand still'
             return MoveResult(
-                Outcome.BUMPED, message, sim.time - start_time, sim.steps - start_step
+                MoveOutcome.BUMPED, message, sim.time - start_time, sim.steps - start_step
             )
         if on_step is not None and (
             stops is None or stops.due(sim.time, sim.localisation_updates)
@@ -245,7 +247,7 @@ def hold(
             on_step(sim)
             if step_stops is not None:
                 stops = step_stops()
-    return MoveResult(Outcome.DONE, '', sim.time - start_time, count)
+    return MoveResult(MoveOutcome.DONE, '', sim.time - start_time, count)
 
 
 def _steps_to_stop(sim: Simulator, end: int, stops: StepStops | None) -> int:
@@ -297,7 +299,7 @@ class _MoveRun:
             controller.time_limit_factor * nominal_duration + controller.time_limit_margin
         )
 
-    def _step(self, linear: float, angular: float, timed: bool = True) -> Outcome | None:
+    def _step(self, linear: float, angular: float, timed: bool = True) -> MoveOutcome | None:
         bumped = self.sim.step(linear, angular)
         self.steps += 1
         if self.on_step is not None and (
@@ -307,12 +309,12 @@ class _MoveRun:
             if self.stops is not None:
                 self.stops = self.step_stops()
         if bumped:
-            return Outcome.BUMPED
+            return MoveOutcome.BUMPED
         if timed and self.sim.time - self.start_time > self.time_limit:
-            return Outcome.TIMED_OUT
+            return MoveOutcome.TIMED_OUT
         return None
 
-    def move(self, heading: float, distance: float, target) -> Outcome:
+    def move(self, heading: float, distance: float, target) -> MoveOutcome:
         """Turn to ``heading``, drive ``distance`` to ``target`` (None: that far along the
         heading from the estimate after the turn), end at rest, update the filter."""
         outcome = self.turn_to(heading)
@@ -324,31 +326,23 @@ class _MoveRun:
                     start.y + distance * math.sin(heading),
                 )
             outcome = self.drive_to(target, heading)
-        if outcome in (None, Outcome.TIMED_OUT):
+        if outcome in (None, MoveOutcome.TIMED_OUT):
             # Always end at rest; only a bump can interrupt the braking.
-            outcome = self.brake(timed=False) or outcome or Outcome.DONE
+            outcome = self.brake(timed=False) or outcome or MoveOutcome.DONE
         self.sim.localise_now()
         return outcome
-
-    def _approach_speed(self, distance: float, max_speed: float, max_accel: float) -> float:
-        """The fastest speed (<= max_speed) from which, after one physics step at it, the robot
-        can still brake to rest within ``distance`` at ``braking_share`` of ``max_accel``.
-
-        It solves ``v dt + v^2 / 2a = d``: ``sqrt(2 a d)`` far out, ``d / dt`` (deadbeat) near
-        the target, and following it never asks to slow by more than ``a dt`` per step.
-        """
-        decel = self.controller.braking_share * max_accel
-        dt = self.sim.config.physics_dt
-        speed = decel * (math.sqrt(dt * dt + 2.0 * distance / decel) - dt)
-        return min(speed, max_speed)
 
     def _turn_rate(self, error: float) -> float:
         """Turn rate towards a heading error, on the braking curve."""
         limits = self.sim.config.limits
-        rate = self._approach_speed(abs(error), limits.max_angular_speed, limits.max_angular_accel)
-        return math.copysign(rate, error)
+        return signed_approach_speed(
+            error,
+            limits.max_angular_speed,
+            self.controller.braking_share * limits.max_angular_accel,
+            self.sim.config.physics_dt,
+        )
 
-    def turn_to(self, heading: float) -> Outcome | None:
+    def turn_to(self, heading: float) -> MoveOutcome | None:
         """Turn in place until the estimated heading is within tolerance, then stop (None)."""
         tolerance = self.controller.heading_tolerance
         while True:
@@ -359,7 +353,7 @@ class _MoveRun:
             if outcome is not None:
                 return outcome
 
-    def drive_to(self, target: tuple[float, float], heading: float) -> Outcome | None:
+    def drive_to(self, target: tuple[float, float], heading: float) -> MoveOutcome | None:
         """Drive until the target is within tolerance along the drive's line (None)."""
         limits, controller = self.sim.config.limits, self.controller
         direction = (math.cos(heading), math.sin(heading))
@@ -371,8 +365,11 @@ class _MoveRun:
                 return None
             aim = math.atan2(dy, dx) if math.hypot(dx, dy) > controller.aim_distance else heading
             error = wrap_angle(aim - pose.yaw)
-            speed = self._approach_speed(
-                remaining, limits.max_linear_speed, limits.max_linear_accel
+            speed = approach_speed(
+                remaining,
+                limits.max_linear_speed,
+                controller.braking_share * limits.max_linear_accel,
+                self.sim.config.physics_dt,
             )
             # Slow down while badly misaligned rather than drive sideways off the line.
             speed *= max(0.0, math.cos(error))
@@ -380,7 +377,7 @@ class _MoveRun:
             if outcome is not None:
                 return outcome
 
-    def brake(self, timed: bool = True) -> Outcome | None:
+    def brake(self, timed: bool = True) -> MoveOutcome | None:
         """Command zero until the robot is at rest (None), unless it bumps or runs out of time."""
         stopped = self.controller.stopped_speed
         while abs(self.sim.state.linear) > stopped or abs(self.sim.state.angular) > stopped:
@@ -393,11 +390,11 @@ class _MoveRun:
 def warm_up() -> float | None:
     """Compile the kernels (or load them from the cache) with one move of a throwaway
     simulator, so that no real move pays for it: the seconds it took, None without numba."""
-    if compiled_move.import_problem() is not None:
+    if jit.import_problem() is not None:
         return None
     cells = np.full((40, 40), OCCUPIED, np.int8)
     cells[1:-1, 1:-1] = FREE
     sim = Simulator(OccupancyMap(cells, 0.05, (0.0, 0.0, 0.0)), SimConfig(), Pose(1.0, 1.0, 0.0))
     started = time.perf_counter()
-    execute_move(sim, Move(MoveKind.UP, 0.3))
+    execute_move(sim, MoveRequest(MoveKind.UP, 0.3))
     return time.perf_counter() - started

@@ -73,7 +73,7 @@ from stealth_sim.idle_time import idle_tick
 from stealth_sim.kinematics import Limits, Pose
 from stealth_sim.laser import LaserConfig
 from stealth_sim.localisation import FilterConfig
-from stealth_sim.move_executor import Move, Outcome, StepStops, execute_move, warm_up
+from stealth_sim.move_executor import MoveOutcome, MoveRequest, StepStops, execute_move, warm_up
 from stealth_sim.occupancy_map import MapError, OccupancyMap, load_map, to_occupancy_grid_data
 from stealth_sim.odometry_noise import MotionNoise
 from stealth_sim.sim_parameters import PARAMETERS, START_UP
@@ -408,7 +408,7 @@ class SimulatorNode(StartupNode):
     # --- services ----------------------------------------------------------------------------
 
     def _on_execute_move(self, request, response):
-        move = Move(
+        move = MoveRequest(
             request.kind, request.distance, request.heading, request.x, request.y, request.seconds
         )
         self._command = None  # a move takes over the robot
@@ -417,7 +417,7 @@ class SimulatorNode(StartupNode):
         self._command = None
         self._held = True
         self._pacer.anchor(self.sim.time)
-        if result.outcome == Outcome.REJECTED:
+        if result.outcome == MoveOutcome.REJECTED:
             self.get_logger().warning(f'move rejected: {result.message}')
         else:
             self._publish_state(everything=True)

@@ -16,7 +16,8 @@ import math
 import cv2
 import numpy as np
 
-from stealth_sim import compiled_move
+from stealth_sim import jit
+from stealth_sim.kernels import laser as laser_kernel
 from stealth_sim.kinematics import (
     DiscFootprint,
     Limits,
@@ -250,8 +251,8 @@ class Simulator:
         """
         bearings = self.config.laser.bearings()
         x, y, yaw = self.state.pose
-        if not self.reference and compiled_move.import_problem() is None:
-            ranges = compiled_move.cast(self.caster, x, y, yaw, bearings)
+        if not self.reference and jit.import_problem() is None:
+            ranges = laser_kernel.cast(self.caster, x, y, yaw, bearings)
         else:
             ranges = self.caster.cast(x, y, yaw, bearings)
         return noisy_ranges(ranges, self.config.laser, self._published_scan_rng)

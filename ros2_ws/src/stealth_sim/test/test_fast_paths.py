@@ -18,14 +18,16 @@ import numpy as np
 import pytest
 from sim_test_maps import maze_map
 from stealth_sim import compiled_move, move_executor
+from stealth_sim.jit import jit
+from stealth_sim.kernels import move_loop, numeric
 from stealth_sim.kinematics import Limits, Pose
 from stealth_sim.laser import noisy_ranges
 from stealth_sim.localisation import FilterConfig
 from stealth_sim.move_executor import (
     ControllerConfig,
-    Move,
     MoveKind,
-    Outcome,
+    MoveOutcome,
+    MoveRequest,
     StepStops,
     execute_move,
 )
@@ -36,24 +38,24 @@ TOLERANCE = 1e-9
 START = Pose(3.0, 2.0, 0.0)
 TRAINING = SimConfig(physics_dt=0.04, filter=FilterConfig(particles=200))
 MOVES = [
-    Move(MoveKind.UP, 0.5),
-    Move(MoveKind.HOLD, seconds=3.0),  # from a move's residual speed: brake, then stand
-    Move(MoveKind.LEFT, 0.5),
-    Move(MoveKind.TURN_TO_HEADING, heading=-2.5),
-    Move(MoveKind.DRIVE_DISTANCE, 1.0),
-    Move(MoveKind.RIGHT, 0.5),
-    Move(MoveKind.DOWN, 3.0),  # into the bottom wall: BUMPED
-    Move(MoveKind.DOWN, 0.5),  # pushing against it again
-    Move(MoveKind.UP, 0.7),
-    Move(MoveKind.UP, float('nan')),  # rejected
-    Move(MoveKind.GO_TO, x=3.5, y=1.0),  # turn to face it, drive there
-    Move(MoveKind.GO_TO, x=3.5, y=1.005),  # there already: DONE at once
-    Move(MoveKind.GO_TO, x=3.5, y=-2.0),  # through the bottom wall: BUMPED
-    Move(MoveKind.GO_TO, x=float('inf'), y=1.0),  # rejected
-    Move(MoveKind.GO_TO, x=2.0, y=1.5),
-    Move(MoveKind.HOLD, seconds=0.01),  # less than a physics step: one step
-    Move(MoveKind.HOLD, seconds=float('nan')),  # rejected
-    Move(MoveKind.HOLD, seconds=1.7),
+    MoveRequest(MoveKind.UP, 0.5),
+    MoveRequest(MoveKind.HOLD, seconds=3.0),  # from a move's residual speed: brake, then stand
+    MoveRequest(MoveKind.LEFT, 0.5),
+    MoveRequest(MoveKind.TURN_TO_HEADING, heading=-2.5),
+    MoveRequest(MoveKind.DRIVE_DISTANCE, 1.0),
+    MoveRequest(MoveKind.RIGHT, 0.5),
+    MoveRequest(MoveKind.DOWN, 3.0),  # into the bottom wall: BUMPED
+    MoveRequest(MoveKind.DOWN, 0.5),  # pushing against it again
+    MoveRequest(MoveKind.UP, 0.7),
+    MoveRequest(MoveKind.UP, float('nan')),  # rejected
+    MoveRequest(MoveKind.GO_TO, x=3.5, y=1.0),  # turn to face it, drive there
+    MoveRequest(MoveKind.GO_TO, x=3.5, y=1.005),  # there already: DONE at once
+    MoveRequest(MoveKind.GO_TO, x=3.5, y=-2.0),  # through the bottom wall: BUMPED
+    MoveRequest(MoveKind.GO_TO, x=float('inf'), y=1.0),  # rejected
+    MoveRequest(MoveKind.GO_TO, x=2.0, y=1.5),
+    MoveRequest(MoveKind.HOLD, seconds=0.01),  # less than a physics step: one step
+    MoveRequest(MoveKind.HOLD, seconds=float('nan')),  # rejected
+    MoveRequest(MoveKind.HOLD, seconds=1.7),
 ]
 
 
@@ -107,7 +109,7 @@ def assert_equal_within_tolerance(fast, reference, path='walk'):
 def test_fast_moves_equal_the_reference(config):
     fast, reference = walk(config, False), walk(config, True)
     outcomes = [entry[0][0] for entry in reference]
-    assert Outcome.BUMPED in outcomes and Outcome.REJECTED in outcomes
+    assert MoveOutcome.BUMPED in outcomes and MoveOutcome.REJECTED in outcomes
     assert_equal_within_tolerance(fast, reference)
 
 
@@ -117,10 +119,14 @@ def test_fast_moves_are_deterministic():
 
 def test_fast_moves_time_out_as_the_reference_does():
     hurried = ControllerConfig(time_limit_factor=0.0, time_limit_margin=0.5)
-    moves = [Move(MoveKind.UP, 2.0), Move(MoveKind.RIGHT, 0.5), Move(MoveKind.GO_TO, x=2, y=3)]
+    moves = [
+        MoveRequest(MoveKind.UP, 2.0),
+        MoveRequest(MoveKind.RIGHT, 0.5),
+        MoveRequest(MoveKind.GO_TO, x=2, y=3),
+    ]
     fast = walk(TRAINING, False, moves, controller=hurried)
     reference = walk(TRAINING, True, moves, controller=hurried)
-    assert reference[0][0][0] == Outcome.TIMED_OUT
+    assert reference[0][0][0] == MoveOutcome.TIMED_OUT
     assert_equal_within_tolerance(fast, reference)
 
 
@@ -193,19 +199,19 @@ def test_the_kernel_pauses_exactly_at_the_steps_the_hook_is_due(publisher, monke
     """Same hook steps and states as the per-step path (bit for bit) and as the reference (within
     1e-9), and one kernel call per hook call plus one per move."""
     calls = []
-    run_move = compiled_move.run_move
+    run_move = move_loop.run_move
 
     def counted(*arguments):
         calls.append(arguments[0])
         return run_move(*arguments)
 
-    monkeypatch.setattr(compiled_move, 'run_move', counted)
+    monkeypatch.setattr(move_loop, 'run_move', counted)
     fast = hooked_walk(False, moves=KERNEL_MOVES, **publisher)
     fast_calls = len(calls)
     assert fast == hooked_walk(False, per_step=True, moves=KERNEL_MOVES, **publisher)
     assert_equal_within_tolerance(fast, hooked_walk(True, moves=KERNEL_MOVES, **publisher))
     record, seen = fast
-    executed = sum(entry[0][0] != Outcome.REJECTED for entry in record)
+    executed = sum(entry[0][0] != MoveOutcome.REJECTED for entry in record)
     assert fast_calls == len(seen) + executed
     if publisher.get('on_time', True):
         assert len(seen) > 50
@@ -224,7 +230,7 @@ def test_holds_pass_their_steps_at_rest_at_once_but_stop_where_the_hook_is_due(p
     assert_equal_within_tolerance(fast, hooked_walk(True, **publisher))
     record, seen = fast
     held = [entry for move, entry in zip(MOVES, record, strict=True) if move.kind == MoveKind.HOLD]
-    done, rejected = Outcome.DONE, Outcome.REJECTED
+    done, rejected = MoveOutcome.DONE, MoveOutcome.REJECTED
     assert [entry[0][0] for entry in held] == [done, done, rejected, done]
     assert [entry[0][3] for entry in held] == [75, 1, 0, 42]  # 3, 0.01 and 1.7 s in 0.04 s steps
 
@@ -235,7 +241,7 @@ def test_a_hook_with_stops_due_every_step_sees_every_step():
         seen = []
         result = execute_move(
             sim,
-            Move(MoveKind.UP, 0.5),
+            MoveRequest(MoveKind.UP, 0.5),
             on_step=lambda s: seen.append(observed(s)),
             step_stops=lambda: StepStops(math.inf, -1, every_step=True),
         )
@@ -258,7 +264,7 @@ def test_without_the_kernels_moves_take_the_reference_path_and_say_so_once(monke
     ]
 
 
-@compiled_move.jit
+@jit
 def _numba_draws(rng, count):
     return (rng.standard_normal(3), rng.standard_normal((count, 3)), rng.random())
 
@@ -278,11 +284,11 @@ def test_the_kernels_sums_and_remainders_are_numpys_and_pythons():
     rng = np.random.default_rng(0)
     for count in (1, 7, 8, 60, 128, 129, 200, 1000, 100_000):
         values = rng.random(count) ** 3
-        assert compiled_move._pairwise_sum(values, count) == values.sum()
+        assert numeric.pairwise_sum(values, count) == values.sum()
     angles = np.concatenate([rng.uniform(-20, 20, 2000), np.arange(-6, 7) * math.pi])
     for angle in angles.tolist():
         for modulus in (math.pi, 2.0 * math.pi):
-            assert compiled_move._remainder(angle, modulus) == math.remainder(angle, modulus)
+            assert numeric.remainder(angle, modulus) == math.remainder(angle, modulus)
 
 
 def test_whoever_listens_the_walk_is_the_same_bit_for_bit():

@@ -5,7 +5,7 @@ import pytest
 from sim_test_maps import maze_map
 from stealth_sim.idle_time import MAX_CATCH_UP, IdleTick, idle_tick
 from stealth_sim.kinematics import Pose
-from stealth_sim.move_executor import ControllerConfig, Move, MoveKind, execute_move
+from stealth_sim.move_executor import ControllerConfig, MoveKind, MoveRequest, execute_move
 from stealth_sim.simulator import SimConfig, Simulator
 
 PERIOD = 0.02  # s: the node's idle_period
@@ -27,7 +27,7 @@ def test_a_move_can_end_within_the_stopped_speed_but_not_at_zero():
     """Why the node holds the robot a move left: its braking ends below stopped_speed, not
     always at exactly zero (here 0.2 mm/s), and an idle step would take that up."""
     sim = Simulator(maze_map(), SimConfig(), Pose(3.0, 2.0, 0.0))
-    execute_move(sim, Move(MoveKind.GO_TO, x=3.5, y=2.0))
+    execute_move(sim, MoveRequest(MoveKind.GO_TO, x=3.5, y=2.0))
     assert 0.0 < abs(sim.state.linear) <= ControllerConfig().stopped_speed
 
 

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 from sim_test_maps import PROJECT_MAPS, as_map, maze_map, project_map_and_start, room
-from stealth_sim import compiled_move
+from stealth_sim.kernels import laser as laser_kernel
 from stealth_sim.laser import LaserConfig, RayCaster, noisy_ranges, ray_entry
 from stealth_sim.occupancy_map import OCCUPIED, UNKNOWN
 
@@ -130,4 +130,4 @@ def test_casting_is_exactly_the_reference_march(name, beams):
             yaw = 0.0 if trial % 2 else float(rng.uniform(-4.0, 4.0))
             expected = reference_cast(occupancy_map, range_max, x, y, yaw, bearings)
             assert np.array_equal(caster.cast(x, y, yaw, bearings), expected)
-            assert np.array_equal(compiled_move.cast(caster, x, y, yaw, bearings), expected)
+            assert np.array_equal(laser_kernel.cast(caster, x, y, yaw, bearings), expected)

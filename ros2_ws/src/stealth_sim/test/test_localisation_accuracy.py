@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from sim_test_maps import PROJECT_MAPS, maze_map, project_map_and_start
 from stealth_sim.kinematics import DiscFootprint, Pose
-from stealth_sim.move_executor import GRID_HEADINGS, Move, Outcome, execute_move
+from stealth_sim.move_executor import GRID_HEADINGS, MoveOutcome, MoveRequest, execute_move
 from stealth_sim.simulator import SimConfig, Simulator
 
 MOVES = 200
@@ -55,8 +55,8 @@ def random_walk(occupancy_map, start: Pose, seed: int = SEED) -> WalkFigures:
             ]
             if possible:
                 break
-        result = execute_move(sim, Move(rng.choice(possible), STEP))
-        bumps += result.outcome == Outcome.BUMPED
+        result = execute_move(sim, MoveRequest(rng.choice(possible), STEP))
+        bumps += result.outcome == MoveOutcome.BUMPED
         truth, estimate, odometry = sim.ground_truth, sim.estimate, sim.odometry_pose
         estimate_sq.append((estimate.x - truth.x) ** 2 + (estimate.y - truth.y) ** 2)
         odometry_sq.append((odometry.x - truth.x) ** 2 + (odometry.y - truth.y) ** 2)

@@ -9,9 +9,9 @@ from sim_test_maps import angle_error, maze_map
 from stealth_sim.kinematics import Limits, Pose
 from stealth_sim.move_executor import (
     ControllerConfig,
-    Move,
     MoveKind,
-    Outcome,
+    MoveOutcome,
+    MoveRequest,
     execute_move,
 )
 from stealth_sim.odometry_noise import MotionNoise
@@ -47,8 +47,8 @@ def snapshot(sim: Simulator):
 )
 def test_grid_moves_go_their_step_along_the_map_axes_and_end_at_rest(kind, direction):
     sim = make_sim()
-    result = execute_move(sim, Move(kind, 0.5))
-    assert result.outcome == Outcome.DONE and result.message == ''
+    result = execute_move(sim, MoveRequest(kind, 0.5))
+    assert result.outcome == MoveOutcome.DONE and result.message == ''
     truth = sim.ground_truth
     assert truth.x - START.x == pytest.approx(0.5 * direction[0], abs=0.1)
     assert truth.y - START.y == pytest.approx(0.5 * direction[1], abs=0.1)
@@ -59,27 +59,27 @@ def test_grid_moves_go_their_step_along_the_map_axes_and_end_at_rest(kind, direc
 
 def test_turn_to_heading_turns_in_place_to_the_estimated_heading():
     sim = make_sim()
-    result = execute_move(sim, Move(MoveKind.TURN_TO_HEADING, heading=-2.5))
-    assert result.outcome == Outcome.DONE
+    result = execute_move(sim, MoveRequest(MoveKind.TURN_TO_HEADING, heading=-2.5))
+    assert result.outcome == MoveOutcome.DONE
     assert angle_error(sim.estimate.yaw, -2.5) < 0.05
     assert math.hypot(sim.ground_truth.x - START.x, sim.ground_truth.y - START.y) < 1e-9
 
 
 def test_drive_distance_follows_the_current_heading():
     sim = make_sim()
-    execute_move(sim, Move(MoveKind.TURN_TO_HEADING, heading=math.pi / 4))
+    execute_move(sim, MoveRequest(MoveKind.TURN_TO_HEADING, heading=math.pi / 4))
     before = sim.ground_truth
-    result = execute_move(sim, Move(MoveKind.DRIVE_DISTANCE, 1.0))
+    result = execute_move(sim, MoveRequest(MoveKind.DRIVE_DISTANCE, 1.0))
     after = sim.ground_truth
-    assert result.outcome == Outcome.DONE
+    assert result.outcome == MoveOutcome.DONE
     assert math.hypot(after.x - before.x, after.y - before.y) == pytest.approx(1.0, abs=0.1)
     assert angle_error(math.atan2(after.y - before.y, after.x - before.x), math.pi / 4) < 0.1
 
 
 def test_driving_into_a_wall_bumps_and_stops_at_the_wall():
     sim = make_sim()
-    result = execute_move(sim, Move(MoveKind.LEFT, 5.0))  # the west wall is 2.95 m away
-    assert result.outcome == Outcome.BUMPED and 'wall' in result.message
+    result = execute_move(sim, MoveRequest(MoveKind.LEFT, 5.0))  # the west wall is 2.95 m away
+    assert result.outcome == MoveOutcome.BUMPED and 'wall' in result.message
     truth = sim.ground_truth
     radius = sim.config.robot_radius
     assert truth.x == pytest.approx(0.05 + radius, abs=0.01)
@@ -92,10 +92,10 @@ def test_go_to_reaches_the_point_from_wherever_the_robot_is():
     """GO_TO aims at a fixed point: an offset start (here 0.2 m beside and behind the line a
     grid move would take) is corrected, not carried along as a grid move carries it."""
     sim = make_sim()
-    execute_move(sim, Move(MoveKind.GO_TO, x=3.2, y=1.8))
+    execute_move(sim, MoveRequest(MoveKind.GO_TO, x=3.2, y=1.8))
     target = (3.2, 2.3)
-    result = execute_move(sim, Move(MoveKind.GO_TO, x=target[0], y=target[1]))
-    assert result.outcome == Outcome.DONE
+    result = execute_move(sim, MoveRequest(MoveKind.GO_TO, x=target[0], y=target[1]))
+    assert result.outcome == MoveOutcome.DONE
     estimate, truth = sim.estimate, sim.ground_truth
     position_tolerance = ControllerConfig().position_tolerance
     assert math.dist((estimate.x, estimate.y), target) <= position_tolerance + 0.01
@@ -107,34 +107,34 @@ def test_go_to_reaches_the_point_from_wherever_the_robot_is():
 def test_go_to_where_the_robot_already_is_does_nothing():
     sim = make_sim()
     estimate = sim.estimate
-    result = execute_move(sim, Move(MoveKind.GO_TO, x=estimate.x + 0.005, y=estimate.y))
-    assert result.outcome == Outcome.DONE
+    result = execute_move(sim, MoveRequest(MoveKind.GO_TO, x=estimate.x + 0.005, y=estimate.y))
+    assert result.outcome == MoveOutcome.DONE
     assert sim.ground_truth == START and result.duration == pytest.approx(sim.time)
     assert result.steps <= 1
 
 
 def test_go_to_a_point_behind_a_wall_bumps_at_the_wall():
     sim = make_sim()
-    result = execute_move(sim, Move(MoveKind.GO_TO, x=-2.0, y=2.0))  # beyond the west wall
-    assert result.outcome == Outcome.BUMPED
+    result = execute_move(sim, MoveRequest(MoveKind.GO_TO, x=-2.0, y=2.0))  # beyond the west wall
+    assert result.outcome == MoveOutcome.BUMPED
     assert sim.ground_truth.x == pytest.approx(0.05 + sim.config.robot_radius, abs=0.01)
 
 
 def test_a_move_that_runs_out_of_time_reports_it_and_still_ends_at_rest():
     sim = make_sim()
     controller = ControllerConfig(time_limit_factor=0.0, time_limit_margin=0.5)
-    result = execute_move(sim, Move(MoveKind.UP, 2.0), controller=controller)
-    assert result.outcome == Outcome.TIMED_OUT and '0.5 s' in result.message
+    result = execute_move(sim, MoveRequest(MoveKind.UP, 2.0), controller=controller)
+    assert result.outcome == MoveOutcome.TIMED_OUT and '0.5 s' in result.message
     assert (sim.state.linear, sim.state.angular) == (0.0, 0.0)
 
 
 def test_a_hold_lets_time_pass_with_the_robot_where_it_stopped():
     sim = make_sim()
-    execute_move(sim, Move(MoveKind.UP, 0.5))
+    execute_move(sim, MoveRequest(MoveKind.UP, 0.5))
     before = snapshot(sim)
-    result = execute_move(sim, Move(MoveKind.HOLD, seconds=3.0))
+    result = execute_move(sim, MoveRequest(MoveKind.HOLD, seconds=3.0))
     steps = round(3.0 / sim.config.physics_dt)
-    assert (result.outcome, result.message, result.steps) == (Outcome.DONE, '', steps)
+    assert (result.outcome, result.message, result.steps) == (MoveOutcome.DONE, '', steps)
     assert result.duration == pytest.approx(3.0) and sim.time == pytest.approx(before[0] + 3.0)
     assert (sim.state.linear, sim.state.angular) == (0.0, 0.0)
     # The move left it within 1 mm/s of rest: braking that takes it nowhere measurable.
@@ -152,28 +152,28 @@ def test_standing_still_refuses_a_moving_robot():
 @pytest.mark.parametrize(
     ('move', 'fragment'),
     [
-        (Move(MoveKind.UP, math.nan), 'distance'),
-        (Move(MoveKind.DRIVE_DISTANCE, math.inf), 'distance'),
-        (Move(MoveKind.DOWN, -0.5), 'distance'),
-        (Move(MoveKind.RIGHT, 0.0), 'distance'),
-        (Move(MoveKind.LEFT, 1e6), 'diagonal'),
-        (Move(MoveKind.TURN_TO_HEADING, heading=math.nan), 'heading'),
-        (Move(MoveKind.GO_TO, x=math.nan, y=2.0), 'finite point'),
-        (Move(MoveKind.GO_TO, x=3.0, y=math.inf), 'finite point'),
-        (Move(MoveKind.GO_TO, x=3.0, y=1e6), 'diagonal'),
-        (Move(MoveKind.HOLD, seconds=0.0), 'seconds'),
-        (Move(MoveKind.HOLD, seconds=-1.0), 'seconds'),
-        (Move(MoveKind.HOLD, seconds=math.nan), 'seconds'),
-        (Move(MoveKind.HOLD, seconds=601.0), 'at most 600'),
-        (Move(17, 0.5), 'kind'),
+        (MoveRequest(MoveKind.UP, math.nan), 'distance'),
+        (MoveRequest(MoveKind.DRIVE_DISTANCE, math.inf), 'distance'),
+        (MoveRequest(MoveKind.DOWN, -0.5), 'distance'),
+        (MoveRequest(MoveKind.RIGHT, 0.0), 'distance'),
+        (MoveRequest(MoveKind.LEFT, 1e6), 'diagonal'),
+        (MoveRequest(MoveKind.TURN_TO_HEADING, heading=math.nan), 'heading'),
+        (MoveRequest(MoveKind.GO_TO, x=math.nan, y=2.0), 'finite point'),
+        (MoveRequest(MoveKind.GO_TO, x=3.0, y=math.inf), 'finite point'),
+        (MoveRequest(MoveKind.GO_TO, x=3.0, y=1e6), 'diagonal'),
+        (MoveRequest(MoveKind.HOLD, seconds=0.0), 'seconds'),
+        (MoveRequest(MoveKind.HOLD, seconds=-1.0), 'seconds'),
+        (MoveRequest(MoveKind.HOLD, seconds=math.nan), 'seconds'),
+        (MoveRequest(MoveKind.HOLD, seconds=601.0), 'at most 600'),
+        (MoveRequest(17, 0.5), 'kind'),
     ],
 )
 def test_bad_moves_are_rejected_with_a_reason_and_touch_nothing(move, fragment):
     sim = make_sim()
-    execute_move(sim, Move(MoveKind.UP, 0.5))
+    execute_move(sim, MoveRequest(MoveKind.UP, 0.5))
     before = snapshot(sim)
     result = execute_move(sim, move)
-    assert result.outcome == Outcome.REJECTED and fragment in result.message
+    assert result.outcome == MoveOutcome.REJECTED and fragment in result.message
     assert snapshot(sim) == before and result.duration == 0.0
 
 
@@ -189,7 +189,7 @@ def test_bad_moves_are_rejected_with_a_reason_and_touch_nothing(move, fragment):
 )
 def test_bad_resets_are_rejected_with_a_reason_and_touch_nothing(pose, covariance, fragment):
     sim = make_sim()
-    execute_move(sim, Move(MoveKind.UP, 0.5))
+    execute_move(sim, MoveRequest(MoveKind.UP, 0.5))
     before = snapshot(sim)
     with pytest.raises(ValueError, match=fragment):
         sim.reset(pose, covariance)
@@ -207,7 +207,7 @@ def test_non_finite_velocity_commands_are_rejected_and_touch_nothing(command):
 
 def test_reset_teleports_stops_and_restarts_odometry_and_localisation():
     sim = make_sim()
-    execute_move(sim, Move(MoveKind.UP, 1.0))
+    execute_move(sim, MoveRequest(MoveKind.UP, 1.0))
     target = Pose(8.5, 6.0, 1.0)
     sim.reset(target, np.diag([0.04, 0.04, 0.01]))
     assert sim.ground_truth == target and sim.odometry_pose == target
@@ -223,8 +223,8 @@ def test_an_initial_estimate_moves_the_belief_not_the_robot():
     assert sim.ground_truth == truth
     assert math.hypot(sim.estimate.x - 3.3, sim.estimate.y - 2.2) < 0.05
     for _ in range(4):  # the scans pull the belief back to the truth
-        execute_move(sim, Move(MoveKind.RIGHT, 0.5))
-        execute_move(sim, Move(MoveKind.LEFT, 0.5))
+        execute_move(sim, MoveRequest(MoveKind.RIGHT, 0.5))
+        execute_move(sim, MoveRequest(MoveKind.LEFT, 0.5))
     error = math.hypot(sim.estimate.x - sim.ground_truth.x, sim.estimate.y - sim.ground_truth.y)
     assert error < 0.1
 
@@ -237,7 +237,7 @@ def test_a_seed_fixes_every_move_and_published_scans_do_not_disturb_it():
             if publish_scans and s.steps % 10 == 0:
                 s.scan()
 
-        moves = [Move(k, 0.5) for k in (MoveKind.UP, MoveKind.RIGHT, MoveKind.DOWN)]
+        moves = [MoveRequest(k, 0.5) for k in (MoveKind.UP, MoveKind.RIGHT, MoveKind.DOWN)]
         return [(execute_move(sim, m, publish), sim.estimate, sim.ground_truth) for m in moves]
 
     assert run(42, False) == run(42, True)
@@ -247,7 +247,9 @@ def test_a_seed_fixes_every_move_and_published_scans_do_not_disturb_it():
 def test_the_step_hook_sees_every_physics_step():
     sim = make_sim()
     seen = []
-    result = execute_move(sim, Move(MoveKind.RIGHT, 0.5), on_step=lambda s: seen.append(s.time))
+    result = execute_move(
+        sim, MoveRequest(MoveKind.RIGHT, 0.5), on_step=lambda s: seen.append(s.time)
+    )
     assert len(seen) == result.steps and seen[-1] == sim.time
     assert np.allclose(np.diff(seen), sim.config.physics_dt)
 
@@ -266,7 +268,7 @@ def test_runtime_reconfiguration_takes_limits_and_noise_but_not_the_layout():
 def test_without_noise_the_odometry_is_the_ground_truth_after_any_moves():
     sim = make_sim(odometry_noise=MotionNoise(0.0, 0.0, 0.0, 0.0))
     for kind in (MoveKind.UP, MoveKind.RIGHT, MoveKind.TURN_TO_HEADING, MoveKind.DOWN):
-        execute_move(sim, Move(kind, 0.5, heading=2.0))
+        execute_move(sim, MoveRequest(kind, 0.5, heading=2.0))
         assert sim.odometry_pose == pytest.approx(sim.ground_truth, abs=1e-9)
 
 
@@ -279,8 +281,8 @@ def test_a_coarse_physics_step_finishes_moves_in_few_steps_without_overshooting(
         odometry_noise=MotionNoise(0.0, 0.0, 0.0, 0.0),
     )
     for kind, target in ((MoveKind.RIGHT, (3.5, 2.0)), (MoveKind.UP, (3.5, 2.5))):
-        result = execute_move(sim, Move(kind, 0.5))
-        assert result.outcome == Outcome.DONE and result.steps <= 12
+        result = execute_move(sim, MoveRequest(kind, 0.5))
+        assert result.outcome == MoveOutcome.DONE and result.steps <= 12
         truth = sim.ground_truth
         assert math.hypot(truth.x - target[0], truth.y - target[1]) < 0.02
         assert (sim.state.linear, sim.state.angular) == (0.0, 0.0)

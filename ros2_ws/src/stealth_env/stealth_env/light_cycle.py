@@ -1,4 +1,4 @@
-"""Time for moving searchlights: the lights' joint cycle, its phase bins and each move's duration.
+"""Time for moving searchlights: the lights' joint cycle, its bins and each move's duration.
 
 A moving light is periodic (``searchlight``): a sweep repeats every ``2*(max - min)/speed``
 seconds, a patrol every lap length / speed. The lights together repeat every *joint cycle*, the
@@ -11,14 +11,14 @@ Decisions:
 
 - **Exact, not approximate**: every moving light's period must be a whole number of bins, and a
   step (a move or a wait) must take a whole number of bins (``step_seconds``). Then time is
-  always a multiple of the bin width in the in-process model, the phase advances by the same
-  number of bins every step, and the time-expanded lattice (node x phase, ``planners``) is the
+  always a multiple of the bin width in the in-process model, the bin advances by the same
+  number of bins every step, and the time-expanded lattice (node x bin, ``planners``) is the
   exact task. A period that does not divide into the bins, or a step that does not, is an error
   naming the light (or the field) and what would fit.
 - **Common multiples of real numbers**: periods are turned into fractions with denominators up
   to 1000 (ms resolution for periods of seconds), whose lcm is exact; a period that is no such
   fraction to 1e-9 relative is refused.
-- **Phase of a time**: ``floor(t / bin + 1e-9) mod phase_bins``: the tolerance keeps a time that is
+- **Bin of a time**: ``floor(t / bin + 1e-9) mod phase_bins``: the tolerance keeps a time that is
   a multiple of the bin up to rounding (t = 7 * 3.0 s) in its own bin.
 - **Move duration**: ``lattice_move_seconds`` is how long the simulator's robot takes to drive
   (or turn) a given amount from rest to rest at its speed and acceleration limits (a
@@ -99,43 +99,43 @@ def joint_cycle(lights: Iterable[Searchlight]) -> float | None:
 
 @dataclasses.dataclass(frozen=True)
 class Timing:
-    """The phase of the lights' joint cycle: ``phase_bins`` bins of ``bin_seconds`` each; a
-    step takes ``step_seconds`` = ``bins_per_step`` bins."""
+    """The bins of the lights' joint cycle: ``cycle_bins`` bins of ``bin_seconds`` each (the
+    scenario's ``phase_bins``); a step takes ``step_seconds`` = ``bins_per_step`` bins."""
 
     cycle: float  # s
-    phase_bins: int
+    cycle_bins: int
     step_seconds: float  # s per step (move or wait)
 
     @property
     def bin_seconds(self) -> float:
-        return self.cycle / self.phase_bins
+        return self.cycle / self.cycle_bins
 
     @property
     def bins_per_step(self) -> int:
         return round(self.step_seconds / self.bin_seconds)
 
-    def phase_of(self, t: float) -> int:
-        """The bin of the cycle time t (s) falls in."""
-        return math.floor(float(t) / self.bin_seconds + _TOLERANCE) % self.phase_bins
+    def bin_of(self, t: float) -> int:
+        """The bin of the cycle time t (s) falls in (the state's ``phase`` feature)."""
+        return math.floor(float(t) / self.bin_seconds + _TOLERANCE) % self.cycle_bins
 
-    def phase_time(self, phase: int) -> float:
-        """The start of bin ``phase`` in the first cycle (s)."""
-        return phase * self.bin_seconds
+    def bin_start(self, cycle_bin: int) -> float:
+        """The start of bin ``cycle_bin`` in the first cycle (s)."""
+        return cycle_bin * self.bin_seconds
 
 
 def check_timing(
-    lights: Iterable[Searchlight], phase_bins: int, step_seconds: float | None
+    lights: Iterable[Searchlight], cycle_bins: int, step_seconds: float | None
 ) -> Timing | None:
-    """The Timing of these lights split into phase_bins bins, each step taking step_seconds
+    """The Timing of these lights split into cycle_bins bins, each step taking step_seconds
     (None: one bin); None when no light moves. TimingError naming the light or the field when
     a period or the step is not a whole number of bins."""
     lights = tuple(lights)
-    if isinstance(phase_bins, bool) or not isinstance(phase_bins, int) or phase_bins < 1:
-        raise TimingError(f"field 'phase_bins': expected an integer >= 1, got {phase_bins!r}")
+    if isinstance(cycle_bins, bool) or not isinstance(cycle_bins, int) or cycle_bins < 1:
+        raise TimingError(f"field 'phase_bins': expected an integer >= 1, got {cycle_bins!r}")
     cycle = joint_cycle(lights)
     if cycle is None:
         return None
-    bin_seconds = cycle / phase_bins
+    bin_seconds = cycle / cycle_bins
     for light in lights:
         period = light_period(light)
         if period is None:
@@ -145,7 +145,7 @@ def check_timing(
             raise TimingError(
                 f'searchlight {light.name!r}: field {speed_field(light)!r}: its period '
                 f'{period:g} s is {bins:g} phase bins of {bin_seconds:g} s (joint cycle '
-                f'{cycle:g} s / phase_bins {phase_bins}); expected a whole number: change the '
+                f'{cycle:g} s / phase_bins {cycle_bins}); expected a whole number: change the '
                 'speed, or choose phase_bins so that each bin divides every period'
             )
     if step_seconds is None:
@@ -156,10 +156,10 @@ def check_timing(
     ):
         raise TimingError(
             f"field 'step_seconds': expected a whole number (>= 1) of phase bins of "
-            f'{bin_seconds:g} s (joint cycle {cycle:g} s / phase_bins {phase_bins}), got '
+            f'{bin_seconds:g} s (joint cycle {cycle:g} s / phase_bins {cycle_bins}), got '
             f'{step_seconds!r}'
         )
-    return Timing(cycle, phase_bins, float(step_seconds))
+    return Timing(cycle, cycle_bins, float(step_seconds))
 
 
 def lattice_move_seconds(

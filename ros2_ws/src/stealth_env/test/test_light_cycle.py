@@ -3,8 +3,7 @@
 import math
 
 import pytest
-from stealth_env.searchlight import PatrolMotion, Searchlight, SweepMotion
-from stealth_env.timing import (
+from stealth_env.light_cycle import (
     TimingError,
     check_timing,
     joint_cycle,
@@ -12,6 +11,7 @@ from stealth_env.timing import (
     lattice_step_seconds,
     light_period,
 )
+from stealth_env.searchlight import PatrolMotion, Searchlight, SweepMotion
 
 
 def sweep(name='s', degrees_per_second=10.0, span=60.0):
@@ -44,13 +44,13 @@ def test_the_joint_cycle_is_the_least_common_multiple():
     assert joint_cycle([Searchlight('still', 0.0, 0.0, 0.0, 1.0, 5.0)]) is None
 
 
-def test_phases_and_steps():
+def test_bins_and_steps():
     timing = check_timing([sweep()], 4, 6.0)  # 12 s in bins of 3 s, a step of two bins
     assert (timing.bin_seconds, timing.bins_per_step) == (3.0, 2)
-    assert [timing.phase_of(t) for t in (0.0, 2.999, 3.0, 9.5, 12.0, 21.0 * 1.0)] == [
+    assert [timing.bin_of(t) for t in (0.0, 2.999, 3.0, 9.5, 12.0, 21.0 * 1.0)] == [
         0, 0, 1, 3, 0, 3,
     ]  # fmt: skip
-    assert timing.phase_of(7 * 0.1 * 30) == 3  # 21.000000000000004 s stays in its bin
+    assert timing.bin_of(7 * 0.1 * 30) == 3  # 21.000000000000004 s stays in its bin
     assert check_timing([sweep()], 4, None).step_seconds == 3.0
     assert check_timing([Searchlight('still', 0.0, 0.0, 0.0, 1.0, 5.0)], 4, None) is None
 
