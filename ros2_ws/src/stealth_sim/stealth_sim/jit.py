@@ -82,8 +82,18 @@ if numba is not None:
         def get_source_stamp(self):
             return _package_stamp(_package_root(self._py_file))
 
-    if _PackageCacheLocator not in caching.CacheImpl._locator_classes:
-        caching.CacheImpl._locator_classes.insert(0, _PackageCacheLocator)
+    # A numba internal (0.68, pinned): a later numba without it keeps its per-file stamps,
+    # and says so, rather than failing every import.
+    _LOCATORS = getattr(caching.CacheImpl, '_locator_classes', None)
+    if _LOCATORS is None:
+        LOG.warning(
+            'numba %s has no CacheImpl._locator_classes: cached kernels are checked against '
+            'their own file only (after editing a kernel module, delete the *.nbi and *.nbc '
+            'files in its __pycache__)',
+            numba.__version__,
+        )
+    elif _PackageCacheLocator not in _LOCATORS:
+        _LOCATORS.insert(0, _PackageCacheLocator)
 
 
 def _njit(function):
