@@ -24,12 +24,12 @@ from rclpy.qos import (
 )
 from rclpy.validate_full_topic_name import validate_full_topic_name
 
+from stealth_tools.clock_arithmetic import RateWindow
 from stealth_tools.errors import CommandError
 from stealth_tools.interfaces import InterfaceError, message_class
 from stealth_tools.message_yaml import message_to_yaml
 from stealth_tools.qos_text import subscription_policies
 from stealth_tools.ros_session import absolute_topic, describe_qos, spin_until, topic_types
-from stealth_tools.timing import RateWindow
 
 GRAPH_SETTLE = 0.5  # s without a new topic before `topic list` trusts what it has seen
 UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'  # endpoint info before the node's discovery info arrived

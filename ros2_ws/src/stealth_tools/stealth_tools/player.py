@@ -21,10 +21,10 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from stealth_tools.bag_files import bag_files
 from stealth_tools.bag_format import BagError
 from stealth_tools.bag_reading import open_indexed_reader
+from stealth_tools.clock_arithmetic import NS, PlaybackTimeline
 from stealth_tools.interfaces import InterfaceError, message_class
 from stealth_tools.qos_text import parse_offered_qos_yaml, playback_profile
 from stealth_tools.ros_session import absolute_topic, qos_profile
-from stealth_tools.timing import NS, PlaybackTimeline
 
 ACK_TIMEOUT = 2.0  # s to let reliable subscribers acknowledge the last messages before exiting
 CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)  # rclcpp::ClockQoS

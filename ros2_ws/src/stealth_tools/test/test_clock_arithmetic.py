@@ -1,7 +1,7 @@
 """Rate statistics of `topic hz` and the playback timeline of `bag play`."""
 
 import pytest
-from stealth_tools.timing import NS, PlaybackTimeline, RateWindow
+from stealth_tools.clock_arithmetic import NS, PlaybackTimeline, RateWindow
 
 
 def test_rate_is_reported_once_a_second_over_the_window():
