@@ -19,6 +19,7 @@ is not repeatable step for step.
 
 from __future__ import annotations
 
+import time
 from typing import NamedTuple
 
 MAX_CATCH_UP = 0.25  # s of simulated time an idle tick may run before the clock is re-anchored
@@ -55,3 +56,23 @@ def idle_tick(
     if due - sim_time > max_catch_up:  # fell behind (a busy machine): do not race
         return IdleTick(sim_time + idle_period * (real_time_factor or 1.0), True)
     return IdleTick(due, False)
+
+
+class RealTimePacer:
+    """Holds simulated time to ``factor`` times wall time from an anchor (0: never holds)."""
+
+    def __init__(self, sim_time: float):
+        self.anchor(sim_time)
+
+    def anchor(self, sim_time: float) -> None:
+        self.wall_start, self.sim_start = time.monotonic(), sim_time
+
+    def due(self, factor: float) -> float:
+        """The simulated time that should have been reached by now."""
+        return self.sim_start + (time.monotonic() - self.wall_start) * factor
+
+    def wait(self, sim_time: float, factor: float) -> None:
+        if factor > 0:
+            ahead = (sim_time - self.sim_start) / factor - (time.monotonic() - self.wall_start)
+            if ahead > 1e-3:
+                time.sleep(ahead)

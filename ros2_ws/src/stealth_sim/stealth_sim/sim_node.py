@@ -1,6 +1,12 @@
 """The simulator node (``simulator``): a thin ROS 2 shell around :class:`Simulator`.
 
-It stands in for Stage and AMCL. Topics (frames ``map``, ``odom``, ``base_link``):
+It stands in for Stage and AMCL. Everything it simulates is in the plain-Python core
+(simulator, kinematics, odometry_noise, laser, localisation, move_executor, idle_time); its
+messages are built in sim_messages; this node decides when to send them.
+
+## Topics
+
+Frames ``map``, ``odom``, ``base_link``.
 
 * ``map`` (nav_msgs/OccupancyGrid, reliable + transient local), from the ``map`` YAML;
 * ``odom`` (nav_msgs/Odometry: the noisy odometry pose, odom -> base_link), ``ground_truth``
@@ -8,18 +14,30 @@ It stands in for Stage and AMCL. Topics (frames ``map``, ``odom``, ``base_link``
 * ``scan`` (sensor_msgs/LaserScan, base_link: the laser sits at the robot's centre), ``clock``;
 * ``amcl_pose`` (geometry_msgs/PoseWithCovarianceStamped, map; reliable + transient local, as
   nav2's AMCL) after every filter update, and always at the end of a move or reset;
+* ``/tf`` (tf2_msgs/TFMessage, reliable, volatile, depth 100, as tf2_ros's
+  TransformBroadcaster): ``map -> odom`` (the localisation's correction, estimate *
+  odometry^-1, as AMCL publishes it) and ``odom -> base_link`` (the odometry), stamped with the
+  simulated time, with ``odom`` and only when someone subscribes (math in
+  :mod:`stealth_sim.frames`). No ``/tf_static``: there is no fixed frame, the laser sits at
+  base_link's origin and its scans are in base_link;
 * subscribes ``cmd_vel`` (geometry_msgs/Twist; a command older than ``cmd_vel_timeout`` of
   simulated time is dropped, so teleop tools that publish on key presses work) and
   ``initialpose`` (re-initialises localisation, as AMCL does; an all-zero covariance means the
   default spread).
 
-``/tf`` (tf2_msgs/TFMessage, reliable, volatile, depth 100, as tf2_ros's TransformBroadcaster):
-``map -> odom`` (the localisation's correction, estimate * odometry^-1, as AMCL publishes it) and
-``odom -> base_link`` (the odometry), stamped with the simulated time, with ``odom`` and only
-when someone subscribes (math in :mod:`stealth_sim.frames`). No ``/tf_static``: there is no fixed
-frame, the laser sits at base_link's origin and its scans are in base_link.
+## Services
 
-Services ``sim/execute_move`` and ``sim/reset`` (stealth_interfaces) run the motion interface.
+``sim/execute_move`` (stealth_interfaces/ExecuteMove) and ``sim/reset``
+(stealth_interfaces/ResetRobot) run the motion interface (names from
+``stealth_node_kit.rl_contract``); a node of the same process (``stealth_bringup sim_env``)
+calls them directly.
+
+## Parameters
+
+The table in ``stealth_sim.sim_parameters`` (``map`` and ``initial_pose`` at start-up only; the
+rest may change while running, checked by the same ``sim_config`` that builds the simulator).
+
+## Time
 
 Time is simulated. A move runs as fast as the CPU allows when ``real_time_factor`` is 0, or
 held to that multiple of wall time. Between moves, simulated time flows at the real-time factor
@@ -34,14 +52,9 @@ training down; they draw their scan noise from a stream of their own.
 import ctypes
 import ctypes.util
 import math
-import time
 
-from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Pose as PoseMsg
 from geometry_msgs.msg import (
-    PoseWithCovariance,
     PoseWithCovarianceStamped,
-    TransformStamped,
     Twist,
 )
 from nav_msgs.msg import OccupancyGrid, Odometry
@@ -54,7 +67,7 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import LaserScan
 from stealth_interfaces.srv import ExecuteMove, ResetRobot
 from stealth_node_kit import rl_contract
-from stealth_node_kit.conversions import quaternion_yaw, time_msg, yaw_quaternion
+from stealth_node_kit.conversions import quaternion_yaw, time_msg
 from stealth_node_kit.endpoints import QUIET_PUBLISHER, warn_publisher, warn_subscription
 from stealth_node_kit.in_process import InProcessServices
 from stealth_node_kit.parameters import StartupError, declare_parameters
@@ -63,112 +76,26 @@ from stealth_node_kit.running import StartupNode, run_node
 from tf2_msgs.msg import TFMessage
 
 from stealth_sim.frames import (
-    BASE_FRAME,
     MAP_FRAME,
     ODOM_FRAME,
-    FrameTransform,
     robot_transforms,
 )
-from stealth_sim.idle_time import idle_tick
-from stealth_sim.kinematics import Limits, Pose
-from stealth_sim.laser import LaserConfig
-from stealth_sim.localisation import FilterConfig
+from stealth_sim.idle_time import RealTimePacer, idle_tick
+from stealth_sim.kinematics import Pose
 from stealth_sim.move_executor import MoveOutcome, MoveRequest, StepStops, execute_move, warm_up
-from stealth_sim.occupancy_map import MapError, OccupancyMap, load_map, to_occupancy_grid_data
-from stealth_sim.odometry_noise import MotionNoise
-from stealth_sim.sim_parameters import PARAMETERS, START_UP
-from stealth_sim.simulator import SimConfig, Simulator, most_open_pose
-
-# Indices of x, y and yaw in a row-major 6x6 pose covariance (x, y, z, roll, pitch, yaw).
-POSE_COVARIANCE_AXES = (0, 1, 5)
-
-
-def sim_config(values: dict) -> SimConfig:
-    """The simulator configuration the parameter values describe (ValueError when invalid)."""
-    return SimConfig(
-        physics_dt=values['physics_dt'],
-        limits=Limits(
-            values['max_linear_speed'],
-            values['max_angular_speed'],
-            values['max_linear_accel'],
-            values['max_angular_accel'],
-        ),
-        robot_radius=values['robot_radius'],
-        odometry_noise=MotionNoise(*(values[f'odom_alpha{i}'] for i in range(1, 5))),
-        laser=LaserConfig(
-            beams=values['laser_beams'],
-            range_max=values['laser_range'],
-            noise_std=values['laser_noise'],
-        ),
-        filter=FilterConfig(
-            particles=values['particles'],
-            update_min_d=values['update_min_d'],
-            update_min_a=values['update_min_a'],
-        ),
-        seed=values['seed'],
-    )
-
-
-# --- message conversions ------------------------------------------------------------------------
-
-
-def pose_msg(pose: Pose) -> PoseMsg:
-    result = PoseMsg(orientation=yaw_quaternion(pose.yaw))
-    result.position.x, result.position.y = pose.x, pose.y
-    return result
-
-
-def pose_with_covariance(pose: Pose, covariance: np.ndarray) -> PoseWithCovariance:
-    full = np.zeros((6, 6))
-    full[np.ix_(POSE_COVARIANCE_AXES, POSE_COVARIANCE_AXES)] = covariance
-    # An ndarray is taken as is; a list is checked element by element (measured: 5x slower).
-    return PoseWithCovariance(pose=pose_msg(pose), covariance=full.ravel())
-
-
-def planar_covariance(covariance_6x6) -> np.ndarray:
-    return np.asarray(covariance_6x6, dtype=float).reshape(6, 6)[
-        np.ix_(POSE_COVARIANCE_AXES, POSE_COVARIANCE_AXES)
-    ]
-
-
-def transform_msg(transform: FrameTransform, stamp: Time) -> TransformStamped:
-    result = TransformStamped(child_frame_id=transform.child)
-    result.header.stamp, result.header.frame_id = stamp, transform.parent
-    pose = transform.pose
-    result.transform.translation.x, result.transform.translation.y = pose.x, pose.y
-    result.transform.rotation = yaw_quaternion(pose.yaw)
-    return result
-
-
-def occupancy_grid(occupancy_map: OccupancyMap) -> OccupancyGrid:
-    grid = OccupancyGrid()
-    grid.header.frame_id = MAP_FRAME
-    grid.info.resolution = occupancy_map.resolution
-    grid.info.width, grid.info.height = occupancy_map.width, occupancy_map.height
-    x, y, yaw = occupancy_map.origin
-    grid.info.origin = pose_msg(Pose(x, y, yaw))
-    grid.data = to_occupancy_grid_data(occupancy_map)
-    return grid
-
-
-class RealTimePacer:
-    """Holds simulated time to ``factor`` times wall time from an anchor (0: never holds)."""
-
-    def __init__(self, sim_time: float):
-        self.anchor(sim_time)
-
-    def anchor(self, sim_time: float) -> None:
-        self.wall_start, self.sim_start = time.monotonic(), sim_time
-
-    def due(self, factor: float) -> float:
-        """The simulated time that should have been reached by now."""
-        return self.sim_start + (time.monotonic() - self.wall_start) * factor
-
-    def wait(self, sim_time: float, factor: float) -> None:
-        if factor > 0:
-            ahead = (sim_time - self.sim_start) / factor - (time.monotonic() - self.wall_start)
-            if ahead > 1e-3:
-                time.sleep(ahead)
+from stealth_sim.occupancy_map import MapError, OccupancyMap, load_map
+from stealth_sim.sim_messages import (
+    estimate_message,
+    occupancy_grid,
+    odometry_message,
+    planar_covariance,
+    pose_msg,
+    pose_with_covariance,
+    scan_message,
+    transform_msg,
+)
+from stealth_sim.sim_parameters import PARAMETERS, START_UP, sim_config
+from stealth_sim.simulator import Simulator, most_open_pose
 
 
 class SimulatorNode(StartupNode):
@@ -462,33 +389,14 @@ class SimulatorNode(StartupNode):
             (self.truth_pub, MAP_FRAME, sim.ground_truth),
         ):
             if publisher.get_subscription_count():
-                message = Odometry(child_frame_id=BASE_FRAME)
-                message.header.stamp, message.header.frame_id = stamp, frame
-                message.pose.pose = pose_msg(pose)
-                message.twist.twist.linear.x = sim.state.linear
-                message.twist.twist.angular.z = sim.state.angular
-                publisher.publish(message)
+                publisher.publish(odometry_message(sim, frame, pose, stamp))
         if self.scan_pub.get_subscription_count():
-            self.scan_pub.publish(self._scan_message(stamp))
+            self.scan_pub.publish(scan_message(self.sim, stamp, self.publish_period))
         if self.tf_pub.get_subscription_count():
             tree = robot_transforms(sim.estimate, sim.odometry_pose)
             self.tf_pub.publish(TFMessage(transforms=[transform_msg(t, stamp) for t in tree]))
         if everything:
             self._publish_estimate(only_if_subscribed=True)
-
-    def _scan_message(self, stamp: Time) -> LaserScan:
-        laser = self.sim.config.laser
-        scan = LaserScan(
-            angle_min=laser.angle_min,
-            angle_max=laser.angle_max,
-            angle_increment=laser.angle_increment,
-            scan_time=self.publish_period,
-            range_min=laser.range_min,
-            range_max=laser.range_max,
-        )
-        scan.header.stamp, scan.header.frame_id = stamp, BASE_FRAME
-        scan.ranges = self.sim.scan().astype(np.float32).tolist()
-        return scan
 
     def _publish_estimate(self, only_if_subscribed: bool = False) -> None:
         """amcl_pose; `only_if_subscribed`: with no subscriber it stays due, and the idle tick
@@ -499,10 +407,7 @@ class SimulatorNode(StartupNode):
             return
         self._estimate_due = False
         self._published_updates = self.sim.localisation_updates
-        message = PoseWithCovarianceStamped()
-        message.header.stamp, message.header.frame_id = time_msg(self.sim.time), MAP_FRAME
-        message.pose = pose_with_covariance(self.sim.estimate, self.sim.estimate_covariance)
-        self.pose_pub.publish(message)
+        self.pose_pub.publish(estimate_message(self.sim))
 
 
 def keep_freed_memory_for_reuse() -> None:

@@ -5,6 +5,10 @@ import math
 
 from stealth_node_kit.param_table import Param, Unset
 
+from stealth_sim.kinematics import Limits
+from stealth_sim.laser import LaserConfig
+from stealth_sim.localisation import FilterConfig
+from stealth_sim.odometry_noise import MotionNoise
 from stealth_sim.simulator import SimConfig
 
 IDLE_PERIOD = 0.02  # s of wall time between idle ticks (50 Hz: teleop is smooth, idling cheap)
@@ -57,3 +61,29 @@ PARAMETERS = {
         True,
     ),
 }
+
+
+def sim_config(values: dict) -> SimConfig:
+    """The simulator configuration the parameter values describe (ValueError when invalid)."""
+    return SimConfig(
+        physics_dt=values['physics_dt'],
+        limits=Limits(
+            values['max_linear_speed'],
+            values['max_angular_speed'],
+            values['max_linear_accel'],
+            values['max_angular_accel'],
+        ),
+        robot_radius=values['robot_radius'],
+        odometry_noise=MotionNoise(*(values[f'odom_alpha{i}'] for i in range(1, 5))),
+        laser=LaserConfig(
+            beams=values['laser_beams'],
+            range_max=values['laser_range'],
+            noise_std=values['laser_noise'],
+        ),
+        filter=FilterConfig(
+            particles=values['particles'],
+            update_min_d=values['update_min_d'],
+            update_min_a=values['update_min_a'],
+        ),
+        seed=values['seed'],
+    )
