@@ -1,44 +1,41 @@
 """The environment node (``environment``): rl-texplore-ros-pkg's rl_env protocol over the
-simulator, judged by the shared core (``StealthTask`` via ``EpisodeFlow``).
-
-A thin shell: the decisions are ``stealth_env.episode_flow``'s, the messages
-``stealth_env.env_messages``', the scene ``stealth_env.scene_publisher``'s (the marker geometry
-``stealth_env.markers``'), and the robot one ``stealth_env.robot.Robot``: the simulator's
-services (``stealth_env.service_robot``) or a ROS robot's topics (``stealth_env.topic_robot``).
+simulator, judged by the shared core (``StealthTask`` via ``EpisodeFlow``). A thin shell: the
+decisions are ``stealth_env.episode_flow``'s, the messages ``env_messages``', the RL topics
+``agent_link``'s, the scene ``scene_publisher``'s (its geometry ``markers``'), and the robot one
+``stealth_env.robot.Robot``: ``service_robot`` or ``topic_robot``.
 
 ## Topics
 
-Frame ``map``. The RL names and QoS are ``stealth_node_kit.rl_contract``'s: the RL topics are
-reliable and volatile, with a lockstep history that never fills (no step may be dropped
-silently).
+Frame ``map``; names and QoS of the RL loop from ``stealth_node_kit.rl_contract``: the RL
+topics are reliable and volatile, with a lockstep history that never fills (no step may be
+dropped silently).
 
 * publishes ``rl_env/rl_env_description`` (RLEnvDescription; reliable + transient local,
   depth 1) once; ``rl_env/rl_state_reward`` (RLStateReward) at every episode start and after
-  every action; ``rl_env/step_info`` (StepInfo) after every action; ``rl_env/episode_summary``
-  (EpisodeSummary) at every episode end. ``step_info`` and ``episode_summary`` are transient
-  local with the last STEP_HISTORY and SUMMARY_HISTORY messages, for a reader that (re)joins
-  late (a recorder, the orchestrator, an agent: DDS may match a restarted node's endpoints
-  after the first ones). StepInfo is built only while someone subscribes (a recorder, a
-  viewer), as the simulator does with its periodic topics;
-* publishes the scene for RViz and Foxglove: ``searchlights`` (SearchlightArray, transient
-  local) and ``searchlight_markers`` (visualization_msgs/MarkerArray, transient local): the
-  lights and the scene, and ``visibility_grid`` (nav_msgs/OccupancyGrid, transient local: the
-  lit area as a costmap, 0-100 = total visibility as a percentage of the detection threshold),
-  again every ``marker_period`` while lights move or when a new viewer subscribes; with
-  ``publish_plan`` (on under ``stealth train --watch``), ``planned_path`` (nav_msgs/Path,
-  transient local): value iteration's optimum on the move lattice, once;
+  every action; ``rl_env/step_info`` (StepInfo) after every action, built only while someone
+  subscribes (a recorder, a viewer) as the simulator does with its periodic topics;
+  ``rl_env/episode_summary`` (EpisodeSummary) at every episode end. ``step_info`` and
+  ``episode_summary`` are transient local with the last STEP_HISTORY and SUMMARY_HISTORY
+  messages, for a reader that (re)joins late (a recorder, the orchestrator, an agent: DDS may
+  match a restarted node's endpoints after the first ones);
+* the scene for RViz and Foxglove, transient local: ``searchlights`` (SearchlightArray) and
+  ``searchlight_markers`` (visualization_msgs/MarkerArray): the lights and the scene, and
+  ``visibility_grid`` (nav_msgs/OccupancyGrid: the lit area as a costmap, 0-100 = total
+  visibility as a percentage of the detection threshold), again every ``marker_period`` while
+  lights move or when a new viewer subscribes; with ``publish_plan`` (on under ``stealth train
+  --watch``), ``planned_path`` (nav_msgs/Path): value iteration's optimum on the move lattice,
+  once;
 * subscribes ``rl_agent/rl_action`` (RLAction) and ``rl_agent/rl_experiment_info``
   (RLExperimentInfo); reads the simulator's latched ``map`` once to check it is the scenario's
   (an error line if not).
 
 ## Services
 
-* serves ``rl_env/restart_episode`` (RestartEpisode): a restarted simulator's or agent's episode
-  ends ABORTED (stealth train's respawn);
-* calls ``sim/execute_move`` and ``sim/reset`` (stealth_interfaces) of the simulator node
-  (``robot_interface`` service; ``topics``: see below), asynchronously: no callback ever blocks
-  the executor. A service of a node in this process (``stealth_bringup.sim_env``) is called
-  directly.
+Serves ``rl_env/restart_episode`` (RestartEpisode): a restarted simulator's or agent's episode
+ends ABORTED (stealth train's respawn). Calls ``sim/execute_move`` and ``sim/reset``
+(stealth_interfaces) of the simulator node (``robot_interface`` service; ``topics``: see below)
+asynchronously: no callback ever blocks the executor (directly when a node of this process
+serves them: ``stealth_bringup.sim_env``).
 
 ## Episodes
 
@@ -59,9 +56,10 @@ to come gets a fresh one. Totals of actions and states are logged at shutdown.
 
 ## Parameters
 
-``stealth_env.env_parameters.PARAMETERS`` (names, defaults, ranges, read-only). The robot
-interface (``robot_interface``, ``reset_mode``): ``service`` (the default) is the above.
-``topics`` plugs into any ROS robot (Stage, Gazebo, a TurtleBot with nav2's AMCL; or
+``stealth_env.env_parameters.PARAMETERS``. Bad startup input (no or an unusable scenario, an
+unknown goal, a bad parameter value) stops the node with one line saying which and why, and exit
+code 2. The robot interface (``robot_interface``, ``reset_mode``): ``service`` (the default) is
+the above. ``topics`` plugs into any ROS robot (Stage, Gazebo, a TurtleBot with nav2's AMCL; or
 ``stealth_sim`` over the same topics): a move is the same turn-then-drive with the same
 tolerances and outcomes, executed closed-loop by ``stealth_env.topic_moves`` on every ``odom``
 message: ``geometry_msgs/Twist`` on ``cmd_vel``, the pose from ``amcl_pose``
@@ -78,9 +76,6 @@ with code 3 and a line saying the robot is not responding. A robot that stops pu
 ``odom`` for ``move_timeout`` aborts the episode, as a simulator that does not answer. An
 ``amcl_pose`` in another frame or any non-finite pose is dropped with a one-line error naming the
 topic (throttled), and the move goes on with the next good message.
-
-Bad startup input (no or an unusable scenario, an unknown goal, a bad parameter value) stops
-the node with one line saying which and why, and exit code 2.
 """
 
 from __future__ import annotations
@@ -102,7 +97,7 @@ from stealth_node_kit.running import StartupNode, run_node
 
 from stealth_env.agent_link import TOPICS, AgentLink
 from stealth_env.env_messages import MAP_FRAME
-from stealth_env.env_parameters import CHOICES, PARAMETERS, topic_config
+from stealth_env.env_parameters import PARAMETERS, not_a_choice, topic_config
 from stealth_env.episode_flow import (
     Aborted,
     EpisodeFlow,
@@ -161,8 +156,8 @@ class EnvironmentNode(StartupNode):
         self.first_action_timeout = values['first_action_timeout']
         self.step_readers = values['step_readers']
         self.log_every = values['log_every']
-        self.reset_mode = values['reset_mode']
-        if self.reset_mode == 'drive' and values['robot_interface'] != 'topics':
+        self.reset_by_teleport = values['reset_mode'] == 'teleport'
+        if not self.reset_by_teleport and values['robot_interface'] != 'topics':
             raise StartupError('parameter reset_mode: drive needs robot_interface topics')
         self.reset_service = values['reset_service']
         self.exit_code = 0
@@ -203,7 +198,7 @@ class EnvironmentNode(StartupNode):
 
     def _make_robot(self, values: dict) -> Robot:
         teleport = None
-        if self.reset_mode == 'teleport':
+        if self.reset_by_teleport:
             teleport = Teleport(self, self._in_process, self.reset_service, self._move_timeout)
         if values['robot_interface'] == 'service':
             return ServiceRobot(self, self._in_process, teleport, self._move_timeout)
@@ -229,15 +224,7 @@ class EnvironmentNode(StartupNode):
 
     def _validate_parameters(self, changes) -> SetParametersResult:
         """rclpy checks types, ranges and read-only; this checks what it cannot."""
-        for change in changes:
-            choices = CHOICES.get(change.name)
-            if choices is not None and change.value not in choices:
-                return SetParametersResult(
-                    successful=False,
-                    reason=f'{change.name} must be one of {", ".join(choices)}, got '
-                    f'{change.value!r}',
-                )
-        reason = non_finite(changes)
+        reason = not_a_choice(changes) or non_finite(changes)
         return SetParametersResult(successful=reason is None, reason=reason or '')
 
     def _apply_parameters(self, changes) -> None:
@@ -327,20 +314,14 @@ class EnvironmentNode(StartupNode):
             self._ready_since = None
             if now - self._waiting_logged >= WAITING_LOG_PERIOD:
                 self._waiting_logged = now
-                missing = [
-                    what
-                    for what, there in (
-                        (f'the robot: {self.robot.describe()}', robot),
-                        (
-                            f'an agent (publishing {TOPICS["action"]}, subscribed to '
-                            f'{TOPICS["state"]})',
-                            agent,
-                        ),
-                        (f'{self.step_readers} readers of {TOPICS["step_info"]}', readers),
-                    )
-                    if not there
-                ]
-                self.get_logger().info(f'still waiting for {" and ".join(missing)}')
+                wanted = {
+                    f'the robot: {self.robot.describe()}': robot,
+                    f'an agent (publishing {TOPICS["action"]}, subscribed to {TOPICS["state"]})':
+                        agent,
+                    f'{self.step_readers} readers of {TOPICS["step_info"]}': readers,
+                }  # fmt: skip
+                missing = ' and '.join(what for what, there in wanted.items() if not there)
+                self.get_logger().info(f'still waiting for {missing}')
             return
         if self._ready_since is None:
             self._ready_since = now
@@ -362,8 +343,7 @@ class EnvironmentNode(StartupNode):
                 self._retry_at = time.monotonic() + RESET_RETRY
                 if self._reset_failed_log():
                     what = 'the drive to the start'
-                    if self.reset_mode == 'teleport':
-                        what = self.reset_service
+                    what = self.reset_service if self.reset_by_teleport else what
                     self.get_logger().error(
                         f'{what} failed: {problem}; trying again in {RESET_RETRY:g} s'
                     )
@@ -409,12 +389,11 @@ class EnvironmentNode(StartupNode):
         stamp = time_msg(end.t)
         t = seconds(stamp)
         self._sim_time = max(self._sim_time, t)
-        pad, (outcome, message) = self.flow.move_ended(
-            token, t, end.outcome == DONE, (end.outcome, end.message)
-        )
+        pad, note = self.flow.move_ended(token, t, end.outcome == DONE, (end.outcome, end.message))
         if pad is not None:
             self._run(token, pad)
             return
+        outcome, message = note
         try:
             report = self.flow.finish_move(token, estimate, truth, t)
         except ValueError as error:

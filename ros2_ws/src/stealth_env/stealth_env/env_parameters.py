@@ -113,6 +113,15 @@ PARAMETERS = {
 }  # fmt: skip
 
 
+def not_a_choice(changes) -> str | None:
+    """Why a change of a parameter with CHOICES is refused (None: none is)."""
+    for change in changes:
+        choices = CHOICES.get(change.name)
+        if choices is not None and change.value not in choices:
+            return f'{change.name} must be one of {", ".join(choices)}, got {change.value!r}'
+    return None
+
+
 def topic_config(values: dict, robot_radius: float) -> TopicConfig:
     """The moves of robot_interface topics, from the parameters' values."""
     names = ('max_linear_speed', 'max_angular_speed', 'max_linear_accel', 'max_angular_accel')
