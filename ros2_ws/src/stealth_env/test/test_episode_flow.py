@@ -5,16 +5,19 @@ import math
 
 import pytest
 from stealth_env.episode_flow import (
+    SLOT_TOLERANCE,
     Endpoint,
     EpisodeFlow,
     EpisodePhase,
     FlowError,
     PlanarPose,
     agent_connected,
+    progress_line,
 )
 from stealth_env.reward import Outcome
 from stealth_env.scenario import load_scenario
-from stealth_env.task import WAIT, StealthTask
+from stealth_env.task import WAIT, EpisodeSummaryFields, StealthTask
+from stealth_env.topic_moves import Move, go_to, hold
 
 
 @pytest.fixture(scope='module')
@@ -353,3 +356,108 @@ def test_a_first_state_left_unanswered_ends_aborted_before_its_first_step(map1):
     assert flow.unanswered('after a step') is None and flow.phase is EpisodePhase.RUNNING
     assert flow.accept_action(0) is None
     assert flow.unanswered('moving') is None and flow.phase is EpisodePhase.MOVING
+
+
+# --- the move of an action, and slot padding ----------------------------------------------------
+
+
+def test_an_action_is_a_drive_to_its_lattice_node(map1):
+    task = StealthTask(map1)
+    flow = started(task)
+    with pytest.raises(FlowError):
+        flow.move_for_action(0.0)  # no action accepted
+    for action in range(4):
+        flow = started(task)
+        assert flow.accept_action(action) is None
+        target = task.move_target(*map1.start[:2], action)
+        assert flow.move_for_action(0.0) == go_to(*target)
+    assert flow.move_for_action(0.0).target == (3.0, 2.5)  # right from (2.5, 2.5)
+
+
+@pytest.fixture(scope='module')
+def exposure_task():
+    return StealthTask(load_scenario('simple-maze-exposure'))
+
+
+def test_where_lights_weigh_exposure_a_turn_or_a_blocked_move_turns_in_place(exposure_task):
+    task = exposure_task
+    turn_left, turn_right = (
+        task.action_names.index('turn_left'),
+        task.action_names.index('turn_right'),
+    )
+    flow = started(task)  # facing west (heading 2)
+    assert flow.accept_action(turn_left) is None
+    assert flow.move_for_action(0.0) == Move(1.5 * math.pi)  # left of west: south
+    flow = started(task)
+    assert flow.accept_action(turn_right) is None
+    assert flow.move_for_action(0.0) == Move(math.pi / 2)  # right of west: north
+    # Down from (1.0, 1.0) meets the map's edge: no drive, the robot keeps its heading (a turn
+    # in place to where it faces, west).
+    flow = started(task)
+    flow.state = task.state_of(1.0, 1.0, 0.0, math.pi)
+    assert flow.accept_action(1) is None
+    assert flow.move_for_action(0.0) == Move(math.pi)
+    # An open move is still a drive to its node.
+    flow = started(task)
+    assert flow.accept_action(3) is None
+    assert flow.move_for_action(0.0) == go_to(3.5, 1.5)
+
+
+def test_a_wait_holds_for_the_rest_of_its_slot_or_a_whole_one(moving):
+    flow = EpisodeFlow(moving)
+    token, _ = flow.begin_reset()
+    flow.reset_done(token, 50.0)
+    slot = moving.step_seconds
+    assert flow.accept_action(WAIT) is None
+    assert flow.move_for_action(50.4).hold == pytest.approx(slot - 0.4)
+    assert flow.move_for_action(50.0 + slot) == hold(slot)  # nothing left: a whole slot
+    assert flow.move_for_action(50.0 + slot - SLOT_TOLERANCE / 2) == hold(slot)
+    assert flow.hold_move(0.25) == hold(0.25)
+
+
+def test_a_move_that_ends_early_is_padded_and_judged_with_its_own_note(moving):
+    flow = EpisodeFlow(moving)
+    token, _ = flow.begin_reset()
+    flow.reset_done(token, 50.0)
+    slot = moving.step_seconds
+    assert flow.accept_action(3) is None
+    token = flow.token
+    pad, note = flow.move_ended(token, 51.0, False, 'bumped')
+    assert pad == hold(slot - 1.0) and note is None
+    # The hold ends on the slot's end: the step is judged with the move's note ...
+    assert flow.move_ended(token, 50.0 + slot, True, 'held') == (None, 'bumped')
+    # ... unless the hold itself went wrong.
+    flow.move_ended(token, 51.0, False, 'bumped')
+    assert flow.move_ended(token, 50.0 + slot, False, 'hold timed out') == (
+        None,
+        'hold timed out',
+    )
+    # A move that ends on its slot (or within the tolerance) is judged at once.
+    assert flow.move_ended(token, 50.0 + slot - SLOT_TOLERANCE / 2, True, 'done') == (
+        None,
+        'done',
+    )
+    # So is a stale one (another token): nothing pads it.
+    assert flow.move_ended(token - 1, 51.0, True, 'stale') == (None, 'stale')
+    report = flow.finish_move(token, PlanarPose(2.0, 1.5), PlanarPose(2.0, 1.5), 50.0 + slot)
+    assert report.step == 1 and flow.counts.off_schedule == 0
+
+
+def test_without_moving_lights_a_move_is_judged_when_it_ends(map1):
+    flow = started(StealthTask(map1))
+    assert flow.accept_action(0) is None
+    assert flow.move_ended(flow.token, 0.1, True, 'done') == (None, 'done')
+
+
+def test_the_progress_line_sums_up_its_episodes():
+    def summary(episode, outcome, total_reward, steps):
+        return EpisodeSummaryFields(episode, outcome, steps, total_reward, 0.0, 0.0, 0.0, 0.0, '')
+
+    window = [
+        summary(4, Outcome.SUCCESS, 10.0, 20),
+        summary(5, Outcome.DETECTED, -5.0, 7),
+        summary(6, Outcome.SUCCESS, 4.0, 30),
+    ]
+    assert progress_line(window) == (
+        'episodes 4-6: detected 1, success 2; mean return 3.00, mean steps 19.0'
+    )
