@@ -24,7 +24,7 @@ class MoveEnd(NamedTuple):
     estimate: Pose | None
     truth: Pose | None  # None when no ground truth is published
     t: float  # the robot's clock at the end (s)
-    moved: bool
+    moved: bool  # the robot moved during it (the simulator's moves: always said to)
 
 
 OnMoveEnd = Callable[[MoveEnd], None]
