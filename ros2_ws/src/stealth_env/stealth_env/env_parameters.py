@@ -4,7 +4,13 @@ orchestrator checks parameter names against them before it starts the node."""
 from stealth_node_kit import rl_contract
 from stealth_node_kit.param_table import Param
 
-from stealth_env.topic_moves import Limits
+from stealth_env.episode_flow import JUDGE_ON
+from stealth_env.topic_moves import Limits, TopicConfig
+
+ROBOT_INTERFACES = ('service', 'topics')
+RESET_MODES = ('teleport', 'drive')
+# The string parameters with a fixed set of values (the node refuses any other).
+CHOICES = {'judge_on': JUDGE_ON, 'robot_interface': ROBOT_INTERFACES, 'reset_mode': RESET_MODES}
 
 PARAMETERS = {
     'scenario': Param(
@@ -105,3 +111,23 @@ PARAMETERS = {
         read_only=True,
     ),
 }  # fmt: skip
+
+
+def not_a_choice(changes) -> str | None:
+    """Why a change of a parameter with CHOICES is refused (None: none is)."""
+    for change in changes:
+        choices = CHOICES.get(change.name)
+        if choices is not None and change.value not in choices:
+            return f'{change.name} must be one of {", ".join(choices)}, got {change.value!r}'
+    return None
+
+
+def topic_config(values: dict, robot_radius: float) -> TopicConfig:
+    """The moves of robot_interface topics, from the parameters' values."""
+    names = ('max_linear_speed', 'max_angular_speed', 'max_linear_accel', 'max_angular_accel')
+    return TopicConfig(
+        limits=Limits(*(values[name] for name in names)),
+        robot_radius=robot_radius,
+        bump_distance=values['bump_distance'],
+        stall_time=values['stall_time'],
+    )

@@ -7,15 +7,17 @@ rl_env) is made here, on top of the shared judging core ``stealth_env.task.Steal
     flow = EpisodeFlow(task, judge_on='true')
     token, pose = flow.begin_reset()             # WAITING/ENDED -> RESETTING: call sim/reset
     state = flow.reset_done(token)               # -> RUNNING: publish the first state (reward 0)
-    problem = flow.accept_action(action)         # None: RUNNING -> MOVING, call sim/execute_move
+    problem = flow.accept_action(action)         # None: RUNNING -> MOVING
+    move = flow.move_for_action(t)               # the move to run (sim/execute_move or topics)
+    pad, note = flow.move_ended(token, t, done, note)    # a hold to run first, or judge now:
     report = flow.finish_move(token, estimate, truth, t)   # -> RUNNING or ENDED
     aborted = flow.abort(token, reason)          # the move failed: -> ENDED (ABORTED)
     problem = flow.experiment_info()             # None: the agent closed the episode, reset
 
-Phases: WAITING (for the simulator and an agent) -> RESETTING -> RUNNING <-> MOVING -> ENDED ->
-RESETTING ... Every request sent to the simulator carries the ``token`` current when it was
-sent; an answer with an older token (a move that timed out and was aborted, a reset overtaken
-by the agent leaving) is stale and changes nothing.
+Phases (``EpisodePhase``): WAITING (for the simulator and an agent) -> RESETTING -> RUNNING <->
+MOVING -> ENDED -> RESETTING ... Every request sent to the simulator carries the ``token``
+current when it was sent; an answer with an older token (a move that timed out and was aborted,
+a reset overtaken by the agent leaving) is stale and changes nothing.
 
 Decisions:
 
@@ -26,12 +28,13 @@ Decisions:
   /initialpose), with reward 0 and terminal false.
 - **The episode's clock** (where lights move): the lights' time is the simulated time since the
   episode's reset, so an episode starts at phase 0 with the lights where the scenario puts them,
-  as in the Gymnasium env. Each step has a *slot* of ``step_seconds``: the node pads a move
-  that ends early with a hold (``step_time_left``), so a step ends on its slot's end and the
-  phase advances one step's worth per step, as the time-expanded model assumes; a move slower
-  than its slot (a quarter turn and a drive take a little over 3 s on the default robot) ends
-  late, the next step's slot stays where it was, and a step whose phase is not its slot's is
-  counted (``off_schedule``).
+  as in the Gymnasium env. Each step has a *slot* of ``step_seconds``: a move that ends more
+  than ``SLOT_TOLERANCE`` early is padded with a hold to the slot's end (``move_ended``; the
+  step is judged when the hold ends, with the move's own outcome unless the hold failed), so a
+  step ends on its slot's end and the phase advances one step's worth per step, as the
+  time-expanded model assumes; a move slower than its slot (a quarter turn and a drive take a
+  little over 3 s on the default robot) ends late, the next step's slot stays where it was, and
+  a step whose phase is not its slot's is counted (``off_schedule``).
 - **Steps** are judged on ``task.step_visibility``: the straight way from the pose the previous
   step was judged at (the start, after a reset) to the judged pose, sampled in space and in
   the simulator's time from the previous step's end to this one's, so a beam crossed on the way
@@ -43,6 +46,12 @@ Decisions:
   estimate off the map (possible only with very poor localisation) is judged at the nearest
   point of the map. Episode statistics follow EpisodeSummary: path length and final distance
   to the goal are always the true pose's.
+- **Moves** (``move_for_action``): every action is a drive to a lattice node
+  (``StealthTask.move_target``, ``topic_moves.go_to``), so the robot stays on the lattice the
+  agent's states and the planners assume. A wait (where lights move) stands still for the rest
+  of the step's slot, or a whole slot when nothing is left of it (a wait that comes after a late
+  step still takes time). Where lights are weighed by exposure, a turn (and a move the map
+  blocks, which turns nothing on the lattice) turns in place to its lattice heading.
 - **Actions** are accepted only while the flow waits for one (RUNNING) and only when they are
   those of ``task.action_names`` (0-3 the moves, then 4 wait where lights move, then turn left
   and turn right where the scenario has turn actions); anything else is dropped with a
@@ -68,23 +77,27 @@ import enum
 import math
 from typing import NamedTuple
 
+from stealth_env.exposure import heading_angle
 from stealth_env.reward import Outcome
 from stealth_env.task import (
+    WAIT,
     EpisodeStats,
     EpisodeSummaryFields,
     StealthTask,
     StepJudgement,
 )
+from stealth_env.topic_moves import MoveGoal, go_to, hold_goal
 
 JUDGE_ON = ('true', 'estimate')
 _ON_MAP_MARGIN = 1e-6  # m: how far inside the map an off-map estimate is moved to be judged
+SLOT_TOLERANCE = 1e-3  # s: a move ending this close to its step's slot end is not padded
 
 
 class FlowError(RuntimeError):
     """A call that the current phase does not allow (a bug in the caller, not bad input)."""
 
 
-class Phase(enum.Enum):
+class EpisodePhase(enum.Enum):
     WAITING = 'waiting for the simulator and an agent'
     RESETTING = 'resetting the robot'
     RUNNING = "waiting for the agent's action"
@@ -162,6 +175,18 @@ class Counts:
         )
 
 
+def progress_line(window: list[EpisodeSummaryFields]) -> str:
+    """The log line about the episodes of `window` (the node logs one every ``log_every``)."""
+    outcomes = Counter(Outcome(s.outcome).name.lower() for s in window)
+    names = ', '.join(f'{name} {outcomes[name]}' for name in sorted(outcomes))
+    mean_return = sum(s.total_reward for s in window) / len(window)
+    mean_steps = sum(s.steps for s in window) / len(window)
+    return (
+        f'episodes {window[0].episode}-{window[-1].episode}: {names}; mean return '
+        f'{mean_return:.2f}, mean steps {mean_steps:.1f}'
+    )
+
+
 class EpisodeFlow:
     """Episodes of one task, driven by the node's messages and the simulator's answers."""
 
@@ -170,7 +195,7 @@ class EpisodeFlow:
             raise ValueError(f'judge_on: expected one of {", ".join(JUDGE_ON)}, got {judge_on!r}')
         self.task = task
         self.judge_on = judge_on
-        self.phase = Phase.WAITING
+        self.phase = EpisodePhase.WAITING
         self.token = 0
         self.counts = Counts()
         # Number of the current (or last) episode; the first is first_episode (0 unless a
@@ -183,29 +208,31 @@ class EpisodeFlow:
         self.estimate: PlanarPose | None = None  # the robot's last pose estimate
         self._judged_at: tuple[float, ...] | None = None  # x, y, t, yaw of the last judging
         self.origin = 0.0  # simulated time of the episode's reset: its clock's zero (s)
+        # (token, note) of a move that ended before its step's slot while the hold padding it runs
+        self._padded: tuple[int, object] | None = None
 
     # --- episodes -------------------------------------------------------------------------------
 
     @property
     def in_episode(self) -> bool:
         """True while an episode runs (its last state was not terminal)."""
-        return self.phase in (Phase.RUNNING, Phase.MOVING)
+        return self.phase in (EpisodePhase.RUNNING, EpisodePhase.MOVING)
 
     def ready_to_start(self) -> bool:
-        return self.phase is Phase.WAITING
+        return self.phase is EpisodePhase.WAITING
 
     def begin_reset(self) -> tuple[int, tuple[float, float, float]]:
         """Start the next episode: (token, start pose (x, y, yaw)) to reset the robot to."""
-        if self.phase not in (Phase.WAITING, Phase.ENDED):
+        if self.phase not in (EpisodePhase.WAITING, EpisodePhase.ENDED):
             raise FlowError(f'cannot reset while {self.phase.value}')
-        self.phase = Phase.RESETTING
+        self.phase = EpisodePhase.RESETTING
         self.token += 1
         return self.token, tuple(float(v) for v in self.task.scenario.start)
 
     def reset_done(self, token: int, t: float = 0.0) -> tuple[float, ...] | None:
         """The robot is at the start at simulated time t (s): the episode's first state, or None
         when stale."""
-        if token != self.token or self.phase is not Phase.RESETTING:
+        if token != self.token or self.phase is not EpisodePhase.RESETTING:
             return None
         x, y, yaw = self.task.scenario.start
         self.episode += 1
@@ -215,22 +242,22 @@ class EpisodeFlow:
         self.state = self.task.state_of(x, y, 0.0, yaw)
         self.estimate = PlanarPose(x, y, yaw)
         self._judged_at = (x, y, 0.0, yaw)
-        self.phase = Phase.RUNNING
+        self.phase = EpisodePhase.RUNNING
         self.counts.episodes_started += 1
         self.counts.states_sent += 1
         return self.state
 
     def reset_failed(self, token: int) -> bool:
         """The reset did not happen: back to WAITING (True), unless the answer is stale."""
-        if token != self.token or self.phase is not Phase.RESETTING:
+        if token != self.token or self.phase is not EpisodePhase.RESETTING:
             return False
-        self.phase = Phase.WAITING
+        self.phase = EpisodePhase.WAITING
         return True
 
     def experiment_info(self) -> str | None:
         """The agent's RLExperimentInfo: None when it closes the episode (reset next), else why
         it is ignored."""
-        if self.phase is Phase.ENDED:
+        if self.phase is EpisodePhase.ENDED:
             return None
         return (
             f'RLExperimentInfo ignored: it closes an episode, but the environment is {self._now}'
@@ -242,16 +269,16 @@ class EpisodeFlow:
         An episode the agent never acted in (it stopped after its last episode, say) is
         withdrawn instead: no summary, and the next episode takes its number.
         """
-        if self.phase is Phase.WAITING:
+        if self.phase is EpisodePhase.WAITING:
             return None
         summary = None
-        if self.phase is Phase.RUNNING and self.steps == 0:
+        if self.phase is EpisodePhase.RUNNING and self.steps == 0:
             self.episode -= 1
             self.counts.episodes_started -= 1
             self.counts.episodes_withdrawn += 1
         elif self.in_episode:
             summary = self._end(Outcome.ABORTED)
-        self.phase = Phase.WAITING
+        self.phase = EpisodePhase.WAITING
         self.token += 1  # an answer still on its way is stale now
         return summary
 
@@ -265,7 +292,7 @@ class EpisodeFlow:
         if problem is not None:
             self.counts.actions_dropped += 1
             return problem
-        self.phase = Phase.MOVING
+        self.phase = EpisodePhase.MOVING
         self.token += 1
         self.action = int(action)
         self.counts.moves += 1
@@ -279,15 +306,15 @@ class EpisodeFlow:
         ):
             names = ', '.join(f'{i} {name}' for i, name in enumerate(self.task.action_names))
             return f'action {action!r} dropped: expected one of {names}'
-        if self.phase is not Phase.RUNNING:
+        if self.phase is not EpisodePhase.RUNNING:
             return f'action {action} dropped: the environment is {self._now}'
         return None
 
     @property
     def _now(self) -> str:
-        if self.phase is Phase.MOVING:
+        if self.phase is EpisodePhase.MOVING:
             return f'{self.phase.value} (action {self.action}, step {self.steps + 1})'
-        if self.phase is Phase.ENDED:
+        if self.phase is EpisodePhase.ENDED:
             return f'between episodes ({self.phase.value})'
         return self.phase.value
 
@@ -299,7 +326,7 @@ class EpisodeFlow:
         ValueError (and nothing changes) for a true pose off the scenario's map: the simulator
         runs another map than the scenario's, and the caller should abort the episode.
         """
-        if token != self.token or self.phase is not Phase.MOVING:
+        if token != self.token or self.phase is not EpisodePhase.MOVING:
             return None
         task = self.task
         action = self.action
@@ -331,7 +358,7 @@ class EpisodeFlow:
         if judgement.terminal:
             summary = self._end(judgement.outcome)
         else:
-            self.phase = Phase.RUNNING
+            self.phase = EpisodePhase.RUNNING
         return StepReport(
             self.episode,
             self.steps,
@@ -345,6 +372,43 @@ class EpisodeFlow:
             summary,
         )
 
+    def move_for_action(self, t: float) -> MoveGoal:
+        """The move that executes the action just accepted, decided at simulated time t (s):
+        a hold for a wait, a turn in place, or a drive to a lattice node."""
+        if self.phase is not EpisodePhase.MOVING:
+            raise FlowError(f'no action to execute while {self.phase.value}')
+        task, state, action = self.task, self.state, self.action
+        if action == WAIT and task.action_names[action] == 'wait':
+            return self.hold_move(self.step_time_left(t))
+        x, y = task.move_target(*state[:2], action) if action < WAIT else state[:2]
+        blocked = task.lattice.point_to_node(x, y) == task.lattice.point_to_node(*state[:2])
+        if task.footprint is not None and blocked:
+            return MoveGoal(
+                heading_angle(task.heading_after(task.heading_in(state), action, False))
+            )
+        return go_to(x, y)
+
+    def hold_move(self, seconds: float) -> MoveGoal:
+        """Standing still for `seconds`, or a whole step's slot when nothing is left of it."""
+        if seconds < SLOT_TOLERANCE:
+            seconds = self.task.step_seconds
+        return hold_goal(seconds)
+
+    def move_ended(self, token: int, t: float, done: bool, note):
+        """A move (or the hold padding it) ended at simulated time t (s), DONE or not: (hold,
+        None) while its step's slot has time left (run the hold under the same token, then call
+        again), else (None, note) to judge the step now. `note` is what to report about the
+        move (the node's outcome and message): a padded move's own note, unless the hold after
+        it was not DONE."""
+        padded, self._padded = self._padded, None
+        if padded is not None and padded[0] == token:  # the hold after the move: judge it now
+            return None, padded[1] if done else note
+        left = self.step_time_left(t) if token == self.token else 0.0
+        if left >= SLOT_TOLERANCE:
+            self._padded = (token, note)  # early: stand still to the slot's end
+            return self.hold_move(left), None
+        return None, note
+
     def episode_time(self, t: float) -> float:
         """The episode's clock at simulated time t (s): the lights' time."""
         return float(t) - self.origin
@@ -352,7 +416,7 @@ class EpisodeFlow:
     def step_time_left(self, t: float) -> float:
         """Seconds from simulated time t to the end of the running step's slot: what a move
         that ended at t is to be padded with (0 without moving lights, or when it is late)."""
-        if self.task.timing is None or self.phase is not Phase.MOVING:
+        if self.task.timing is None or self.phase is not EpisodePhase.MOVING:
             return 0.0
         return max(0.0, self._slot_end() - self.episode_time(t))
 
@@ -363,7 +427,7 @@ class EpisodeFlow:
     def abort(self, token: int, reason: str) -> Aborted | None:
         """The move in flight failed (rejected, no answer, ...): end the episode as ABORTED.
         None when stale."""
-        if token != self.token or self.phase is not Phase.MOVING:
+        if token != self.token or self.phase is not EpisodePhase.MOVING:
             return None
         return self._aborted(reason)
 
@@ -373,8 +437,8 @@ class EpisodeFlow:
         goes back to WAITING. None when no episode was running. Answers still on their way are
         stale from now on."""
         self.token += 1
-        if self.phase is Phase.RESETTING:
-            self.phase = Phase.WAITING
+        if self.phase is EpisodePhase.RESETTING:
+            self.phase = EpisodePhase.WAITING
             return None
         if not self.in_episode:
             return None
@@ -384,7 +448,7 @@ class EpisodeFlow:
         """The first state got no action in time (it can be lost to an agent that DDS matched
         late): the episode ends ABORTED before its first step. None unless the episode waits
         for its first action."""
-        if self.phase is not Phase.RUNNING or self.steps != 0:
+        if self.phase is not EpisodePhase.RUNNING or self.steps != 0:
             return None
         self.token += 1
         return self._aborted(reason)
@@ -395,7 +459,7 @@ class EpisodeFlow:
         return Aborted(self.state, self._end(Outcome.ABORTED), reason)
 
     def _end(self, outcome: Outcome) -> EpisodeSummaryFields:
-        self.phase = Phase.ENDED
+        self.phase = EpisodePhase.ENDED
         self.action = None
         self.counts.outcomes[Outcome(outcome).name] += 1
         return self.stats.summary(outcome)

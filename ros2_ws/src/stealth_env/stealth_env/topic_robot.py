@@ -1,10 +1,16 @@
-"""The environment node's ``topics`` robot interface: a thin rclpy shell that feeds
-``stealth_env.topic_moves`` with ``odom``, ``amcl_pose``, ``scan`` and ``ground_truth`` and sends
-its commands on ``cmd_vel`` (and ``initialpose`` after a drive home). All names are relative, so
-``--ros-args -r odom:=/robot/odom`` and the like plug it into any robot.
+"""The environment node's ``topics`` robot interface (a :class:`stealth_env.robot.Robot`): a thin
+rclpy shell that feeds ``stealth_env.topic_moves`` with ``odom``, ``amcl_pose``, ``scan`` and
+``ground_truth`` and sends its commands on ``cmd_vel`` (and ``initialpose`` after a drive home).
+All names are relative, so ``--ros-args -r odom:=/robot/odom`` and the like plug it into any
+robot. A reset is the simulator's teleport (``reset_mode teleport``: the first state once
+odometry from after it has come) or a drive back to the start along a collision-free path on
+the move lattice (``drive``: lights ignored, then ``initialpose``).
 
 Everything happens in the odometry callback (one control step per message, in the robot's
-time) and the node's housekeeping tick (wall-clock watchdogs); nothing blocks the executor.
+time) and the node's housekeeping tick (wall-clock watchdogs: a robot that stops publishing
+``odom`` for ``move_timeout`` fails its move or its drive home); nothing blocks the executor.
+A robot that does not move on ``cmd_vel`` makes moves TIME OUT; after ``unresponsive_moves``
+episode moves of them in a row it is not responding (:meth:`TopicRobot.not_responding`).
 Bad messages (a pose that is not finite, an ``amcl_pose`` in a frame other than ``map``) are
 dropped with a throttled one-line error naming the topic; the move goes on with the next good
 one.
@@ -13,9 +19,9 @@ one.
 from __future__ import annotations
 
 from collections.abc import Callable
+import functools
 import math
 import time
-from typing import NamedTuple
 
 from geometry_msgs.msg import PoseWithCovarianceStamped, Twist
 from nav_msgs.msg import Odometry
@@ -24,16 +30,20 @@ from rclpy.qos import (
     qos_profile_sensor_data,
 )
 from sensor_msgs.msg import LaserScan
-from stealth_node_kit.conversions import quaternion_yaw, seconds, yaw_quaternion
+from stealth_node_kit.conversions import seconds, yaw_quaternion
 from stealth_node_kit.endpoints import QUIET_PUBLISHER, QUIET_SUBSCRIPTION
 from stealth_node_kit.qos import kept_qos
+from stealth_sim.move_executor import MoveOutcome
 
+from stealth_env.env_messages import pose_of
 from stealth_env.log_throttle import Throttle
+from stealth_env.move_lattice import MoveLattice
+from stealth_env.robot import MoveEnd, OnMoveEnd, OnReset, failed
+from stealth_env.service_robot import Teleport
 from stealth_env.topic_moves import (
     STOP,
     Command,
     MoveGoal,
-    MoveOutcome,
     Odom,
     Pose,
     PoseTracker,
@@ -41,6 +51,7 @@ from stealth_env.topic_moves import (
     TopicMove,
     forward_clearance,
     pose_problem,
+    route_home,
 )
 
 TOPICS = {
@@ -57,24 +68,33 @@ TRUTH_WAIT = 1.0  # s of wall time a finished move waits for the ground truth of
 ESTIMATE_QOS = kept_qos(5)
 
 
-class MoveEnd(NamedTuple):
-    """What a finished move hands back: outcome (None: it could not be run), poses, time."""
-
-    outcome: MoveOutcome | None
-    message: str
-    estimate: Pose | None
-    truth: Pose | None  # None when no ground truth is published
-    t: float  # the robot's clock at the end (s)
-    moved: bool
-
-
 class TopicRobot:
-    """One move (or a drive home of several) at a time over the robot's standard topics."""
+    """One move (or a drive home of several) at a time over the robot's standard topics.
 
-    def __init__(self, node, config: TopicConfig, map_frame: str):
+    `teleport`: the reset of ``reset_mode teleport`` (None: drive home over `lattice`);
+    `move_timeout`: the node's parameter (it can change).
+    """
+
+    def __init__(
+        self,
+        node,
+        config: TopicConfig,
+        map_frame: str,
+        lattice: MoveLattice,
+        teleport: Teleport | None,
+        unresponsive_moves: int,
+        move_timeout: Callable[[], float],
+    ):
         self.node = node
         self.config = config
         self.map_frame = map_frame
+        self.lattice = lattice
+        self.teleport = teleport
+        self.unresponsive_moves = unresponsive_moves
+        self._move_timeout = move_timeout
+        self._unresponsive = 0  # episode moves in a row that timed out without the robot moving
+        self._judged_on_estimate = False  # said once: no ground truth, judged on the estimate
+        self._on_silent: Callable[[str], None] | None = None  # the running moves' failure
         self.tracker = PoseTracker()
         self._scan: LaserScan | None = None
         self._truth: tuple[float, Pose] | None = None
@@ -113,10 +133,18 @@ class TopicRobot:
 
     # --- what the node asks ---------------------------------------------------------------------
 
-    @property
     def ready(self) -> bool:
-        """Odometry and a localisation estimate have come."""
+        """Odometry and a localisation estimate have come (and the teleport answers)."""
+        if self.teleport is not None and not self.teleport.ready():
+            return False
         return self.tracker.estimate is not None
+
+    def describe(self) -> str:
+        names = ', '.join(self.node.resolve_topic_name(t) for t in TOPICS.values())
+        moves = f'topics ({names}'
+        if self.teleport is not None:
+            return f'{moves}, {self.teleport.describe()})'
+        return f'{moves}; reset by driving to the start)'
 
     @property
     def busy(self) -> bool:
@@ -128,19 +156,90 @@ class TopicRobot:
             topics.append(f'{TOPICS["estimate"]} (frame {self.map_frame})')
         return ' and '.join(topics)
 
-    def run(self, moves: list[MoveGoal], on_end: Callable[[MoveEnd], None]) -> None:
+    def run(self, move: MoveGoal, on_end: OnMoveEnd) -> None:
+        """One move of an episode: its end counts towards :meth:`not_responding`."""
+        self._run_moves([move], functools.partial(self._episode_move_end, on_end),
+                        lambda reason: on_end(failed(reason)))  # fmt: skip
+
+    def _episode_move_end(self, on_end: OnMoveEnd, end: MoveEnd) -> None:
+        if end.outcome is not None:
+            timed_out = end.outcome == MoveOutcome.TIMED_OUT
+            self._unresponsive = self._unresponsive + 1 if timed_out and not end.moved else 0
+            if end.truth is None and not self._judged_on_estimate and not self.not_responding():
+                self._judged_on_estimate = True
+                self.node.get_logger().warning(
+                    f'no {self.node.resolve_topic_name(TOPICS["truth"])} is published: steps '
+                    'are judged on the localisation estimate (StepInfo.true_pose is NaN)'
+                )
+        on_end(end)
+
+    def not_responding(self) -> str:
+        if self._unresponsive < self.unresponsive_moves:
+            return ''
+        cmd_vel = self.node.resolve_topic_name(TOPICS['cmd_vel'])
+        return (
+            f'the robot is not responding to {cmd_vel}: {self._unresponsive} moves in a row '
+            'timed out without it moving (is it running, and is cmd_vel remapped to its topic?)'
+        )
+
+    def reset(self, pose: Pose, on_done: OnReset) -> None:
+        """Teleport to `pose` (the first state once odometry from after it has come), or drive
+        there and tell the localisation."""
+        if self.teleport is None:
+            self._drive_home(pose, on_done)
+            return
+
+        def placed(problem: str) -> None:
+            if problem:
+                on_done(problem, -math.inf)
+            else:
+                self.restart(pose, lambda: on_done('', self._clock()))
+
+        self.teleport.place(pose, placed)
+
+    def _drive_home(self, start: Pose, on_done: OnReset) -> None:
+        here = self.tracker.estimate
+        moves = route_home(self.lattice, here, start) if here is not None else None
+        if moves is None:
+            on_done(f'no collision-free path from {here} to the start', -math.inf)
+            return
+
+        def arrived(end: MoveEnd) -> None:
+            if end.outcome != MoveOutcome.DONE:
+                outcome = 'no move' if end.outcome is None else end.outcome.name
+                on_done(f'driving to the start: {outcome} {end.message}', -math.inf)
+                return
+            self.set_initial_pose(start)
+            on_done('', self._clock())
+
+        self._run_moves(moves, arrived, lambda reason: on_done(reason, -math.inf))
+
+    def _clock(self) -> float:
+        """The robot's clock by its latest odometry (s; -inf before any)."""
+        latest = self.tracker.latest
+        return latest.t if latest is not None else -math.inf
+
+    def _run_moves(
+        self, moves: list[MoveGoal], on_end: OnMoveEnd, on_silent: Callable[[str], None]
+    ) -> None:
         """Run the moves one after the other; ``on_end`` gets the last one's end, or the first
-        that was not DONE."""
-        self.cancel()
+        that was not DONE; ``on_silent`` why they failed when odometry stops."""
+        self._stop()
         self._moves = list(moves)
-        self._on_end = on_end
+        self._on_end, self._on_silent = on_end, on_silent
         self._next_move()
 
     def cancel(self) -> None:
         """Drop what is running (its end will not be reported) and stop the robot."""
+        self._stop()
+        if self.teleport is not None:
+            self.teleport.cancel()
+
+    def _stop(self) -> None:
         if self.busy:
             self.send(STOP)
         self._moves, self._move, self._ending, self._on_end = [], None, None, None
+        self._on_silent = None
 
     def restart(self, pose: Pose, on_placed: Callable[[], None]) -> None:
         """The robot was teleported to ``pose``: ``on_placed`` once odometry after it came."""
@@ -169,12 +268,26 @@ class TopicRobot:
         return time.monotonic() - self._last_odom_wall
 
     def tick(self) -> None:
-        """Housekeeping: a robot waiting to be placed gets a zero command (a simulator that
-        holds its clock at rest lets it run), and a move's end stops waiting for the truth."""
+        """Housekeeping: the teleport's deadline; a robot waiting to be placed gets a zero
+        command (a simulator that holds its clock at rest lets it run); a move's end stops
+        waiting for the truth; and a robot that stops publishing odometry mid-move fails the
+        move, as a simulator that does not answer does."""
+        if self.teleport is not None:
+            self.teleport.tick()
         if self._on_placed is not None:
             self.send(STOP)
         if self._ending is not None and time.monotonic() - self._ending[1] > TRUTH_WAIT:
             self._report(self._ending[0])
+        move_timeout = self._move_timeout()
+        if not self.busy or self.silent_for() <= move_timeout:
+            return
+        on_silent = self._on_silent
+        self._stop()
+        if on_silent is not None:
+            on_silent(
+                f'no {self.node.resolve_topic_name(TOPICS["odom"])} for move_timeout '
+                f'{move_timeout:g} s (is the robot running?)'
+            )
 
     # --- messages -------------------------------------------------------------------------------
 
@@ -188,7 +301,7 @@ class TopicRobot:
             )
 
     def _on_odom(self, message: Odometry) -> None:
-        pose = _pose_of(message.pose.pose)
+        pose = pose_of(message.pose.pose)
         problem = pose_problem(*pose)
         twist = message.twist.twist
         if not problem and not (math.isfinite(twist.linear.x) and math.isfinite(twist.angular.z)):
@@ -206,7 +319,7 @@ class TopicRobot:
             self._control()
 
     def _on_estimate(self, message: PoseWithCovarianceStamped) -> None:
-        pose = _pose_of(message.pose.pose)
+        pose = pose_of(message.pose.pose)
         problem = pose_problem(*pose, message.header.frame_id, self.map_frame)
         if problem:
             self._bad('estimate', problem)
@@ -217,7 +330,7 @@ class TopicRobot:
         self._scan = message
 
     def _on_truth(self, message: Odometry) -> None:
-        pose = _pose_of(message.pose.pose)
+        pose = pose_of(message.pose.pose)
         problem = pose_problem(*pose, message.header.frame_id, self.map_frame)
         if problem:
             self._bad('truth', problem)
@@ -232,8 +345,7 @@ class TopicRobot:
     def _next_move(self) -> None:
         latest, estimate = self.tracker.latest, self.tracker.estimate
         if estimate is None:
-            self._end(MoveEnd(None, f'no pose of the robot ({self.waiting_for()})', None,
-                              None, 0.0, False))  # fmt: skip
+            self._end(failed(f'no pose of the robot ({self.waiting_for()})'))
             return
         self._move = TopicMove(self._moves.pop(0), estimate, latest.t, self.config)
         self._control()
@@ -267,7 +379,7 @@ class TopicRobot:
         self._ending = None
         if self._truth is not None:
             end = end._replace(truth=self._truth[1])
-        on_end, self._on_end = self._on_end, None
+        on_end, self._on_end, self._on_silent = self._on_end, None, None
         if on_end is not None:
             on_end(end)
 
@@ -286,7 +398,3 @@ class TopicRobot:
         )
         age = max(0.0, odom.t - seconds(scan.header.stamp))
         return clearance - max(0.0, odom.linear) * age
-
-
-def _pose_of(pose) -> Pose:
-    return Pose(pose.position.x, pose.position.y, quaternion_yaw(pose.orientation))

@@ -5,16 +5,19 @@ import math
 
 import pytest
 from stealth_env.episode_flow import (
+    SLOT_TOLERANCE,
     Endpoint,
     EpisodeFlow,
+    EpisodePhase,
     FlowError,
-    Phase,
     PlanarPose,
     agent_connected,
+    progress_line,
 )
 from stealth_env.reward import Outcome
 from stealth_env.scenario import load_scenario
-from stealth_env.task import WAIT, StealthTask
+from stealth_env.task import WAIT, EpisodeSummaryFields, StealthTask
+from stealth_env.topic_moves import MoveGoal, go_to, hold_goal
 
 
 @pytest.fixture(scope='module')
@@ -51,11 +54,11 @@ def step(flow, action, estimate, truth=None, t=0.0):
 def test_an_episode_starts_at_the_scenario_start_with_its_state(map1):
     task = StealthTask(map1)
     flow = EpisodeFlow(task)
-    assert flow.phase is Phase.WAITING and flow.ready_to_start()
+    assert flow.phase is EpisodePhase.WAITING and flow.ready_to_start()
     token, pose = flow.begin_reset()
-    assert pose == map1.start and flow.phase is Phase.RESETTING
+    assert pose == map1.start and flow.phase is EpisodePhase.RESETTING
     assert flow.reset_done(token) == task.state_of(*map1.start[:2]) == (2.5, 2.5)
-    assert (flow.phase, flow.episode, flow.steps) == (Phase.RUNNING, 0, 0)
+    assert (flow.phase, flow.episode, flow.steps) == (EpisodePhase.RUNNING, 0, 0)
     assert flow.counts.episodes_started == flow.counts.states_sent == 1
 
 
@@ -63,7 +66,7 @@ def test_a_failed_or_stale_reset_changes_nothing_it_should_not(map1):
     flow = EpisodeFlow(StealthTask(map1))
     token, _ = flow.begin_reset()
     assert not flow.reset_failed(token + 1)  # stale
-    assert flow.reset_failed(token) and flow.phase is Phase.WAITING
+    assert flow.reset_failed(token) and flow.phase is EpisodePhase.WAITING
     assert flow.reset_done(token) is None  # a late answer to the failed reset
     assert flow.counts.states_sent == 0
     token, _ = flow.begin_reset()
@@ -82,7 +85,7 @@ def test_the_state_is_the_estimate_and_the_judgement_the_true_pose(map1):
     assert report.judgement == task.judge(dark.x, dark.y, 4.5, 1)
     assert (report.judged, report.truth, report.estimate) == (dark, dark, estimate)
     assert (report.episode, report.step, report.action, report.t) == (0, 1, 3, 4.5)
-    assert not report.terminal and report.summary is None and flow.phase is Phase.RUNNING
+    assert not report.terminal and report.summary is None and flow.phase is EpisodePhase.RUNNING
 
     # The original's way: everything on the estimate, which is in the light here.
     flow = started(task, judge_on='estimate')
@@ -110,7 +113,7 @@ def test_actions_out_of_range_are_dropped(map1, action):
     flow = started(StealthTask(map1))
     problem = flow.accept_action(action)
     assert problem.startswith(f'action {action!r} dropped: expected one of 0 up, 1 down')
-    assert flow.phase is Phase.RUNNING
+    assert flow.phase is EpisodePhase.RUNNING
     assert (flow.counts.actions_received, flow.counts.actions_dropped) == (1, 1)
 
 
@@ -125,7 +128,7 @@ def test_actions_out_of_turn_are_dropped_not_queued(map1):
     assert flow.accept_action(2) == (
         'action 2 dropped: the environment is executing a move (action 1, step 1)'
     )
-    assert flow.action == 1 and flow.phase is Phase.MOVING
+    assert flow.action == 1 and flow.phase is EpisodePhase.MOVING
     assert flow.counts.moves == 1 and flow.counts.actions_dropped == 3
 
 
@@ -156,7 +159,7 @@ def test_goal_ends_the_episode_and_the_experiment_info_starts_the_next(map1):
     )
     assert summary.total_reward == pytest.approx(first.reward + last.reward)
     assert summary.path_length == pytest.approx(0.5 + math.hypot(15.0 - 3.0, 9.5 - 2.5))
-    assert flow.phase is Phase.ENDED and not flow.in_episode
+    assert flow.phase is EpisodePhase.ENDED and not flow.in_episode
     assert 'between episodes' in flow.accept_action(0)
     token, _ = flow.begin_reset()
     assert 'resetting the robot' in flow.experiment_info()
@@ -182,7 +185,7 @@ def test_a_failed_move_aborts_with_a_terminal_copy_of_the_last_state(map1):
     aborted = flow.abort(flow.token, 'rejected')
     assert aborted.state == report.state and aborted.reason == 'rejected'
     assert (aborted.summary.outcome, aborted.summary.steps) == (Outcome.ABORTED, 1)
-    assert flow.phase is Phase.ENDED and flow.experiment_info() is None
+    assert flow.phase is EpisodePhase.ENDED and flow.experiment_info() is None
     counts = flow.counts
     assert counts.states_sent == 3 and counts.outcomes == {'ABORTED': 1}
     assert counts.describe() == (
@@ -197,14 +200,14 @@ def test_an_agent_that_goes_away_aborts_the_running_episode_only(map1):
     assert flow.accept_action(0) is None
     token = flow.token
     summary = flow.agent_lost()
-    assert summary.outcome == Outcome.ABORTED and flow.phase is Phase.WAITING
+    assert summary.outcome == Outcome.ABORTED and flow.phase is EpisodePhase.WAITING
     pose = PlanarPose(2.5, 3.0)
     assert flow.finish_move(token, pose, pose, 1.0) is None  # the move's answer is stale
     assert flow.agent_lost() is None
     # After a finished episode there is nothing to abort.
     flow = started(StealthTask(dataclasses.replace(map1, step_limit=1)))
     assert step(flow, 0, pose).terminal
-    assert flow.agent_lost() is None and flow.phase is Phase.WAITING
+    assert flow.agent_lost() is None and flow.phase is EpisodePhase.WAITING
     assert flow.counts.outcomes == {'TIMEOUT': 1}
 
 
@@ -237,13 +240,13 @@ def test_a_true_pose_off_the_map_is_refused_and_changes_nothing(map1):
     assert flow.accept_action(0) is None
     with pytest.raises(ValueError, match=r'true pose \(25.000, 2.500\) lies outside the map'):
         flow.finish_move(flow.token, PlanarPose(2.5, 3.0), PlanarPose(25.0, 2.5), 1.0)
-    assert (flow.phase, flow.steps, flow.counts.states_sent) == (Phase.MOVING, 0, 1)
+    assert (flow.phase, flow.steps, flow.counts.states_sent) == (EpisodePhase.MOVING, 0, 1)
     assert flow.abort(flow.token, 'wrong map').summary.steps == 0
 
 
 def test_an_episode_the_agent_left_before_acting_is_withdrawn(map1):
     flow = started(StealthTask(map1))
-    assert flow.agent_lost() is None and flow.phase is Phase.WAITING
+    assert flow.agent_lost() is None and flow.phase is EpisodePhase.WAITING
     counts = flow.counts
     assert (flow.episode, counts.episodes_started, counts.episodes_withdrawn) == (-1, 0, 1)
     token, _ = flow.begin_reset()
@@ -262,7 +265,7 @@ def test_a_restarted_robot_aborts_the_episode_whatever_it_waited_for(map1):
     aborted = flow.interrupt('the simulator was restarted')
     assert aborted.state == report.state and aborted.reason == 'the simulator was restarted'
     assert (aborted.summary.episode, aborted.summary.outcome) == (0, Outcome.ABORTED)
-    assert flow.phase is Phase.ENDED and flow.experiment_info() is None
+    assert flow.phase is EpisodePhase.ENDED and flow.experiment_info() is None
     # During a move: its answer, if it ever comes, is stale.
     token, _ = flow.begin_reset()
     flow.reset_done(token)
@@ -273,7 +276,7 @@ def test_a_restarted_robot_aborts_the_episode_whatever_it_waited_for(map1):
     assert flow.finish_move(token, pose, pose, 1.0) is None
     # A reset in flight goes back to waiting; with no episode there is nothing to abort.
     token, _ = flow.begin_reset()
-    assert flow.interrupt('during the reset') is None and flow.phase is Phase.WAITING
+    assert flow.interrupt('during the reset') is None and flow.phase is EpisodePhase.WAITING
     assert flow.reset_done(token) is None
     assert flow.interrupt('idle') is None
     assert flow.counts.outcomes == {'ABORTED': 2}
@@ -343,13 +346,118 @@ def test_a_first_state_left_unanswered_ends_aborted_before_its_first_step(map1):
     aborted = flow.unanswered('no first action')
     assert aborted.state == first and aborted.reason == 'no first action'
     assert (aborted.summary.outcome, aborted.summary.steps) == (Outcome.ABORTED, 0)
-    assert flow.phase is Phase.ENDED and flow.experiment_info() is None
+    assert flow.phase is EpisodePhase.ENDED and flow.experiment_info() is None
     assert flow.accept_action(0) is not None  # the late answer is dropped, not executed
     assert flow.token != token and flow.counts.states_sent == 2
     # Only an episode still waiting for its first action is ended that way.
     assert flow.unanswered('again') is None
     flow = started(StealthTask(map1))
     step(flow, 0, PlanarPose(2.5, 3.0))
-    assert flow.unanswered('after a step') is None and flow.phase is Phase.RUNNING
+    assert flow.unanswered('after a step') is None and flow.phase is EpisodePhase.RUNNING
     assert flow.accept_action(0) is None
-    assert flow.unanswered('moving') is None and flow.phase is Phase.MOVING
+    assert flow.unanswered('moving') is None and flow.phase is EpisodePhase.MOVING
+
+
+# --- the move of an action, and slot padding ----------------------------------------------------
+
+
+def test_an_action_is_a_drive_to_its_lattice_node(map1):
+    task = StealthTask(map1)
+    flow = started(task)
+    with pytest.raises(FlowError):
+        flow.move_for_action(0.0)  # no action accepted
+    for action in range(4):
+        flow = started(task)
+        assert flow.accept_action(action) is None
+        target = task.move_target(*map1.start[:2], action)
+        assert flow.move_for_action(0.0) == go_to(*target)
+    assert flow.move_for_action(0.0).target == (3.0, 2.5)  # right from (2.5, 2.5)
+
+
+@pytest.fixture(scope='module')
+def exposure_task():
+    return StealthTask(load_scenario('simple-maze-exposure'))
+
+
+def test_where_lights_weigh_exposure_a_turn_or_a_blocked_move_turns_in_place(exposure_task):
+    task = exposure_task
+    turn_left, turn_right = (
+        task.action_names.index('turn_left'),
+        task.action_names.index('turn_right'),
+    )
+    flow = started(task)  # facing west (heading 2)
+    assert flow.accept_action(turn_left) is None
+    assert flow.move_for_action(0.0) == MoveGoal(1.5 * math.pi)  # left of west: south
+    flow = started(task)
+    assert flow.accept_action(turn_right) is None
+    assert flow.move_for_action(0.0) == MoveGoal(math.pi / 2)  # right of west: north
+    # Down from (1.0, 1.0) meets the map's edge: no drive, the robot keeps its heading (a turn
+    # in place to where it faces, west).
+    flow = started(task)
+    flow.state = task.state_of(1.0, 1.0, 0.0, math.pi)
+    assert flow.accept_action(1) is None
+    assert flow.move_for_action(0.0) == MoveGoal(math.pi)
+    # An open move is still a drive to its node.
+    flow = started(task)
+    assert flow.accept_action(3) is None
+    assert flow.move_for_action(0.0) == go_to(3.5, 1.5)
+
+
+def test_a_wait_holds_for_the_rest_of_its_slot_or_a_whole_one(moving):
+    flow = EpisodeFlow(moving)
+    token, _ = flow.begin_reset()
+    flow.reset_done(token, 50.0)
+    slot = moving.step_seconds
+    assert flow.accept_action(WAIT) is None
+    assert flow.move_for_action(50.4).hold == pytest.approx(slot - 0.4)
+    assert flow.move_for_action(50.0 + slot) == hold_goal(slot)  # nothing left: a whole slot
+    assert flow.move_for_action(50.0 + slot - SLOT_TOLERANCE / 2) == hold_goal(slot)
+    assert flow.hold_move(0.25) == hold_goal(0.25)
+
+
+def test_a_move_that_ends_early_is_padded_and_judged_with_its_own_note(moving):
+    flow = EpisodeFlow(moving)
+    token, _ = flow.begin_reset()
+    flow.reset_done(token, 50.0)
+    slot = moving.step_seconds
+    assert flow.accept_action(3) is None
+    token = flow.token
+    pad, note = flow.move_ended(token, 51.0, False, 'bumped')
+    assert pad == hold_goal(slot - 1.0) and note is None
+    # The hold ends on the slot's end: the step is judged with the move's note ...
+    assert flow.move_ended(token, 50.0 + slot, True, 'held') == (None, 'bumped')
+    # ... unless the hold itself went wrong.
+    flow.move_ended(token, 51.0, False, 'bumped')
+    assert flow.move_ended(token, 50.0 + slot, False, 'hold timed out') == (
+        None,
+        'hold timed out',
+    )
+    # A move that ends on its slot (or within the tolerance) is judged at once.
+    assert flow.move_ended(token, 50.0 + slot - SLOT_TOLERANCE / 2, True, 'done') == (
+        None,
+        'done',
+    )
+    # So is a stale one (another token): nothing pads it.
+    assert flow.move_ended(token - 1, 51.0, True, 'stale') == (None, 'stale')
+    report = flow.finish_move(token, PlanarPose(2.0, 1.5), PlanarPose(2.0, 1.5), 50.0 + slot)
+    assert report.step == 1 and flow.counts.off_schedule == 0
+
+
+def test_without_moving_lights_a_move_is_judged_when_it_ends(map1):
+    flow = started(StealthTask(map1))
+    assert flow.accept_action(0) is None
+    assert flow.move_ended(flow.token, 0.1, True, 'done') == (None, 'done')
+
+
+def test_the_progress_line_sums_up_its_episodes():
+    def summary(episode, outcome, total_reward, steps):
+        return EpisodeSummaryFields(episode, outcome, steps, total_reward, 0.0, 0.0, 0.0, 0.0, '')
+
+    window = [
+        summary(4, Outcome.SUCCESS, 10.0, 20),
+        summary(5, Outcome.DETECTED, -5.0, 7),
+        summary(6, Outcome.SUCCESS, 4.0, 30),
+    ]
+    assert progress_line(window) == (
+        'episodes 4-6: detected 1, success 2; mean return 3.00, mean steps 19.0'
+    )

@@ -1,0 +1,142 @@
+"""The environment's side of the RL loop with its agent: the topics of
+``stealth_node_kit.rl_contract`` it publishes (the description, states, step info, episode
+summaries) and hears (actions, experiment info), and whether an agent is there to be sent a
+first state (:func:`stealth_env.episode_flow.agent_connected` over the ROS graph).
+"""
+
+from __future__ import annotations
+
+from rclpy.qos import DurabilityPolicy
+from stealth_interfaces.msg import (
+    EpisodeSummary,
+    RLAction,
+    RLEnvDescription,
+    RLExperimentInfo,
+    RLStateReward,
+    StepInfo,
+)
+from stealth_node_kit import rl_contract
+from stealth_node_kit.endpoints import (
+    QUIET_PUBLISHER,
+    QUIET_SUBSCRIPTION,
+    warn_publisher,
+    warn_subscription,
+)
+
+from stealth_env.env_messages import (
+    description_msg,
+    float32,
+    state_reward_msg,
+    step_info_msg,
+    summary_msg,
+)
+from stealth_env.episode_flow import Endpoint, agent_connected
+
+TOPICS = {
+    'description': rl_contract.ENV_DESCRIPTION,
+    'state': rl_contract.STATE,
+    'step_info': rl_contract.STEP_INFO,
+    'summary': rl_contract.EPISODE_SUMMARY,
+    'action': rl_contract.ACTION,
+    'experiment_info': rl_contract.EXPERIMENT_INFO,
+}
+
+
+class AgentLink:
+    """The RL topics on `node`; `on_action` and `on_experiment_info` get the agent's messages."""
+
+    def __init__(self, node, on_action, on_experiment_info):
+        self.node = node
+        self._description_pub = node.create_publisher(
+            RLEnvDescription, TOPICS['description'], rl_contract.DESCRIPTION_QOS
+        )
+        self._state_pub = node.create_publisher(
+            RLStateReward,
+            TOPICS['state'],
+            rl_contract.LOCKSTEP_QOS,
+            event_callbacks=warn_publisher(
+                node.get_logger,
+                f'a subscription to {TOPICS["state"]} requests QoS this environment cannot '
+                'offer ({policy}): it gets no states; the RL topics are reliable and volatile',
+            ),
+        )
+        self._step_pub = node.create_publisher(
+            StepInfo, TOPICS['step_info'], rl_contract.STEP_INFO_QOS,
+            event_callbacks=QUIET_PUBLISHER,
+        )  # fmt: skip
+        self._summary_pub = node.create_publisher(
+            EpisodeSummary, TOPICS['summary'], rl_contract.SUMMARY_QOS,
+            event_callbacks=QUIET_PUBLISHER,
+        )  # fmt: skip
+        self._action_sub = node.create_subscription(
+            RLAction,
+            TOPICS['action'],
+            on_action,
+            rl_contract.LOCKSTEP_QOS,
+            event_callbacks=warn_subscription(
+                node.get_logger,
+                f'a publisher of {TOPICS["action"]} offers QoS this environment cannot accept '
+                '({policy}): its actions never arrive; the RL topics are reliable and volatile',
+            ),
+        )
+        node.create_subscription(
+            RLExperimentInfo,
+            TOPICS['experiment_info'],
+            on_experiment_info,
+            rl_contract.LOCKSTEP_QOS,
+            event_callbacks=QUIET_SUBSCRIPTION,
+        )
+
+    # --- who is there ---------------------------------------------------------------------------
+
+    def action_writers(self) -> int:
+        """Publishers of actions (0: the agent went away)."""
+        return self._action_sub.get_publisher_count()
+
+    def step_readers(self) -> int:
+        return self._step_pub.get_subscription_count()
+
+    def agent_connected(self) -> bool:
+        """An agent publishes actions and its state reader is matched (a volatile first state
+        published before that would be lost)."""
+        if self.action_writers() == 0:
+            return False
+        graph = self.node
+        writers = [
+            Endpoint(_node_of(info))
+            for info in graph.get_publishers_info_by_topic(self._action_sub.topic_name)
+        ]
+        readers = [
+            Endpoint(
+                _node_of(info),
+                info.qos_profile.durability != DurabilityPolicy.TRANSIENT_LOCAL,
+            )
+            for info in graph.get_subscriptions_info_by_topic(self._state_pub.topic_name)
+        ]
+        return agent_connected(writers, readers, self._state_pub.get_subscription_count())
+
+    # --- publishing -----------------------------------------------------------------------------
+
+    def publish_description(self, fields: dict) -> None:
+        self._description_pub.publish(description_msg(fields))
+
+    def publish_state(self, state, reward: float = 0.0, terminal: bool = False) -> None:
+        """A first state (reward 0), or an abort's terminal state (reward 0)."""
+        self._state_pub.publish(state_reward_msg(state, reward, terminal))
+
+    def publish_step(self, report, stamp, truth_known: bool = True) -> None:
+        """A step's RLStateReward, and its StepInfo while someone subscribes (as the simulator
+        does with its periodic topics: built only when wanted)."""
+        state = list(report.state)
+        reward = float32(report.reward)
+        self._state_pub.publish(state_reward_msg(state, reward, report.terminal))
+        if self._step_pub.get_subscription_count():
+            self._step_pub.publish(step_info_msg(report, state, reward, stamp, truth_known))
+
+    def publish_summary(self, summary, stamp) -> None:
+        self._summary_pub.publish(summary_msg(summary, stamp))
+
+
+def _node_of(info) -> str:
+    namespace = info.node_namespace.rstrip('/')
+    return f'{namespace}/{info.node_name}'
