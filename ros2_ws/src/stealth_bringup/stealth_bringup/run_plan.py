@@ -246,7 +246,7 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
         goal = check_goal(scenario, args.goal, default_goal)
         params_dir = args.params_dir
     else:
-        scenario, goal, source_policy, params_dir = rollout_source(args)
+        scenario, goal, source_policy, params_dir, source_notes = rollout_source(args)
     if mode == 'train':
         episodes, eval_every, streak = train_settings(args, continued)
     else:
@@ -316,6 +316,8 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
         recording = next_recording_file(directory).resolve()
         parameters['recorder'].values['output'] = str(recording)
     notes = _check_parameters(args, parameters, params_dir)
+    if mode != 'train':
+        notes += source_notes
     if continued is not None and not policy_path.is_file():
         notes.append(f'{relative_to_cwd(policy_path)} is not there: the agent starts from a '
                      'fresh table (the run was killed before it saved one)')  # fmt: skip

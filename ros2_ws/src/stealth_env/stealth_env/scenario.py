@@ -58,6 +58,8 @@ by their tests, not a load-time check.
 """
 
 import dataclasses
+import hashlib
+import json
 import math
 import os
 from pathlib import Path
@@ -160,6 +162,22 @@ class Scenario:
     def goal(self) -> Goal:
         """The goal pursued unless another is asked for."""
         return self.goals[self.default_goal]
+
+
+def content_identity(scenario: Scenario) -> dict[str, str]:
+    """What a policy is learned on, by content, not by name (a scenario file may keep its name
+    and get another map or other lights): SHA-256 of the occupancy grid (cells, resolution,
+    origin) and of the lights (every field, motions included)."""
+    grid = scenario.map
+    shape = json.dumps([list(grid.data.shape), grid.resolution, list(grid.origin)])
+    lights = json.dumps(
+        [[type(light.motion).__name__, dataclasses.asdict(light)] for light in scenario.lights],
+        sort_keys=True,
+    )
+    return {
+        'grid_sha256': hashlib.sha256(shape.encode() + grid.data.tobytes()).hexdigest(),
+        'lights_sha256': hashlib.sha256(lights.encode()).hexdigest(),
+    }
 
 
 # --- finding scenarios --------------------------------------------------------------------------
