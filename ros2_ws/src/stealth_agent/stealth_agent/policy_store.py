@@ -8,7 +8,8 @@ One `.npz` archive (numpy, loaded with allow_pickle=False) holding
 - ``model_*``: Dyna-Q's learned model (dyna only);
 - ``meta``: a JSON string: format and version, learner name, hyperparameters and schedules,
   action count, state dimension, state mapping, finished episodes and updates, the scenario
-  identity (the environment description, title first), the random generator's state (so a
+  identity (the environment description, title first, and, when the run gave them, the
+  SHA-256 of the map's grid and of the lights: CONTENT_KEYS), the random generator's state (so a
   resumed run continues the same random stream), when it was saved and free-form extras.
 
 Writes are atomic: a temporary file in the same directory, fsync, then os.replace, so a crash

@@ -78,8 +78,8 @@ def same_content(policy: Path, saved: dict, scenario) -> list[str]:
     if not any(saved.get(key) for key in now):
         return [
             f'{policy} records no map or lights hash (saved before policies did): only its '
-            f'scenario name is checked, not that {relative_to_cwd(scenario.path)} still has '
-            'the map and lights it was trained on (stealth train --resume records them)'
+            f'scenario name is checked, not whether {relative_to_cwd(scenario.path)} still has '
+            'the map and lights it was trained on'
         ]
     kinds = {'grid_sha256': 'a different map', 'lights_sha256': 'different lights'}
     differ = [what for key, what in kinds.items() if saved.get(key) and saved[key] != now[key]]

@@ -86,8 +86,8 @@ def test_a_policy_saved_before_the_hashes_gets_a_note_that_only_the_name_is_chec
     plan = rollout_plan(policy, scenario, tmp_path / 'runs')
     assert plan.notes == [
         f'{policy} records no map or lights hash (saved before policies did): only its '
-        f'scenario name is checked, not that {scenario} still has the map and lights it was '
-        'trained on (stealth train --resume records them)'
+        f'scenario name is checked, not whether {scenario} still has the map and lights it was '
+        'trained on'
     ]
 
 
