@@ -31,7 +31,7 @@ from .agent_messages import (
     reported_reward,
 )
 from .agent_setup import set_up_agent
-from .policy_store import save_policy
+from .policy_store import CONTENT_KEYS, save_policy
 from .progress import ProgressLog, evaluation_line
 from .protocol import (
     BadInputError,
@@ -307,12 +307,15 @@ class AgentLoop:
             return False
         learner, index = self.core.learner, self.core.index
         log = self._ports.exit_logger()
+        identity = self.description.identity()  # and by content, when the run gave it
+        content = {key: self._ports.param(key) for key in CONTENT_KEYS}
+        identity.update({key: value for key, value in content.items() if value})
         try:
             save_policy(
                 path,
                 learner,
                 index,
-                scenario=self.description.identity(),
+                scenario=identity,
                 rng=self.core.rng,
                 extra={'seed': self._ports.param('seed'), 'reason': reason},
             )

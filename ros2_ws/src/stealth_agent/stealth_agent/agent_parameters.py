@@ -61,6 +61,18 @@ PARAMETERS = {
     'policy_file': Param(
         '', 'Policy file (.npz) to save to and load from; empty = none.', read_only=True
     ),
+    'grid_sha256': Param(
+        '',
+        "SHA-256 of the scenario's occupancy grid (stealth train sets it): saved with the "
+        'policy, for stealth rollout to check it runs on the same map; empty = not saved.',
+        read_only=True,
+    ),
+    'lights_sha256': Param(
+        '',
+        "SHA-256 of the scenario's lights (stealth train sets it): saved with the policy, for "
+        'stealth rollout to check it runs under the same lights; empty = not saved.',
+        read_only=True,
+    ),
     'save_every': Param(
         100,
         'Save the policy every this many episodes (0 = only at shutdown).',

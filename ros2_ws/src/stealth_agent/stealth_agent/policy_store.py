@@ -8,7 +8,8 @@ One `.npz` archive (numpy, loaded with allow_pickle=False) holding
 - ``model_*``: Dyna-Q's learned model (dyna only);
 - ``meta``: a JSON string: format and version, learner name, hyperparameters and schedules,
   action count, state dimension, state mapping, finished episodes and updates, the scenario
-  identity (the environment description, title first), the random generator's state (so a
+  identity (the environment description, title first, and, when the run gave them, the
+  SHA-256 of the map's grid and of the lights: CONTENT_KEYS), the random generator's state (so a
   resumed run continues the same random stream), when it was saved and free-form extras.
 
 Writes are atomic: a temporary file in the same directory, fsync, then os.replace, so a crash
@@ -33,6 +34,9 @@ from .state_index import StateIndex, StateMapping
 FORMAT = 'stealth-nav tabular policy'
 FORMAT_VERSION = 1
 ZIP_MAGIC = b'PK\x03\x04'  # every .npz is a zip archive
+# The scenario identity by content (stealth_env.scenario.content_identity), in the scenario
+# meta beside the title when the run knew it: files saved before have none.
+CONTENT_KEYS = ('grid_sha256', 'lights_sha256')
 
 
 class PolicyFileError(ValueError):

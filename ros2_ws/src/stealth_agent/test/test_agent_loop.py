@@ -222,6 +222,20 @@ def test_an_unusable_policy_file_leaves_the_agent_idle(tmp_path):
     assert node.actions == [] and node.told('error', 'the agent is not usable (policy file')
 
 
+def test_the_saved_policy_names_its_scenario_by_content_when_the_run_gives_it(tmp_path):
+    path = tmp_path / 'p.npz'
+    _, loop = started(policy_file=str(path), grid_sha256='ab' * 32, lights_sha256='cd' * 32)
+    run_episode(loop)
+    assert loop.save('shutdown')
+    saved = load_policy(path).scenario
+    assert saved['grid_sha256'] == 'ab' * 32 and saved['lights_sha256'] == 'cd' * 32
+    assert saved['title'] == loop.description.title
+    _, plain = started(policy_file=str(path))  # a run that does not know them saves none
+    run_episode(plain)
+    assert plain.save('shutdown')
+    assert 'grid_sha256' not in load_policy(path).scenario
+
+
 def test_the_policy_is_saved_every_save_every_and_at_the_end(tmp_path):
     path = tmp_path / 'p.npz'
     node, loop = started(save_every=2, policy_file=str(path))

@@ -1,5 +1,6 @@
 """`stealth rollout`: which saved policy it runs, on which scenario and goal (the training run's,
-or the ones the policy file names), checked before anything starts. No rclpy.
+or the ones the policy file names), checked before anything starts: by name (the title) and by
+content (the map's grid and the lights, as the policy file records them). No rclpy.
 """
 
 from __future__ import annotations
@@ -7,13 +8,18 @@ from __future__ import annotations
 from pathlib import Path
 import re
 
-from stealth_bringup.run_config import RunConfigError, check_goal, load_run_scenario
+from stealth_bringup.run_config import (
+    RunConfigError,
+    check_goal,
+    load_run_scenario,
+    relative_to_cwd,
+)
 
 _TITLE = re.compile(r'^stealth-nav: (?P<scenario>.+) \((?P<goal>[^()]+)\)$')
 
 
 def rollout_source(args):
-    """(scenario, goal, policy path, params dir) of `stealth rollout`."""
+    """(scenario, goal, policy path, params dir, notes) of `stealth rollout`."""
     from stealth_agent.policy_store import PolicyFileError, load_policy
 
     from stealth_bringup.run_outputs import read_run_summary
@@ -59,4 +65,28 @@ def rollout_source(args):
             f'{policy} was trained on {title!r}, not on {expected!r}; give the matching '
             '--scenario and --goal'
         )
-    return scenario, goal, policy, params_dir
+    return scenario, goal, policy, params_dir, same_content(policy, saved.scenario, scenario)
+
+
+def same_content(policy: Path, saved: dict, scenario) -> list[str]:
+    """RunConfigError when the policy was learned on another map or under other lights than
+    the scenario's (a file that kept its name); a note to say when the policy file records
+    neither (saved before they were), and only the name could be compared."""
+    from stealth_env.scenario import content_identity
+
+    now = content_identity(scenario)
+    if not any(saved.get(key) for key in now):
+        return [
+            f'{policy} records no map or lights hash (saved before policies did): only its '
+            f'scenario name is checked, not whether {relative_to_cwd(scenario.path)} still has '
+            'the map and lights it was trained on'
+        ]
+    kinds = {'grid_sha256': 'a different map', 'lights_sha256': 'different lights'}
+    differ = [what for key, what in kinds.items() if saved.get(key) and saved[key] != now[key]]
+    if differ:
+        raise RunConfigError(
+            f'{policy} was trained on scenario {scenario.name!r} with {" and ".join(differ)} '
+            f'than {relative_to_cwd(scenario.path)} has now (the same name, other content): '
+            'give --scenario the scenario file it was trained on, or train a policy on this one'
+        )
+    return []

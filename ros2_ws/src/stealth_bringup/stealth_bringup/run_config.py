@@ -75,6 +75,8 @@ MANAGED = {
     'agent.load_policy': 'stealth train --resume or stealth rollout',
     'agent.eval_every': '--eval-every',
     'agent.first_episode': 'stealth train --resume',
+    'agent.grid_sha256': '--scenario',
+    'agent.lights_sha256': '--scenario',
     'environment.first_episode': 'stealth train --resume',
     'recorder.output': '--name/--runs-dir',
 }
@@ -392,6 +394,8 @@ def write_params_file(parameters: NodeParameters, path: Path, header: str) -> Pa
 
 def scenario_parameters(scenario, goal: str) -> dict[str, dict[str, Any]]:
     """What the nodes must agree on, filled in from the scenario so users only name it."""
+    from stealth_env.scenario import content_identity
+
     x, y, yaw = scenario.start
     return {
         'simulator': {
@@ -400,6 +404,7 @@ def scenario_parameters(scenario, goal: str) -> dict[str, dict[str, Any]]:
             'robot_radius': float(scenario.robot_radius),
         },
         'environment': {'scenario': str(Path(scenario.path).resolve()), 'goal': goal},
+        'agent': content_identity(scenario),  # saved with the policy: what rollout checks
     }
 
 

@@ -49,6 +49,14 @@ DRAIN_TIME = 0.1  # s of taking in late reports before each node is stopped
 NAMING_TIME = 2.0  # s for the graph to name the node of a second action publisher
 
 
+def start_line(local: list[str], remote: tuple[str, ...], composed: bool) -> str:
+    """What the run says as it starts its nodes (none here when every one is --remote)."""
+    if not local:
+        return f'no local nodes to start; waiting for the remote ones: {", ".join(remote)} ...'
+    composed_text = ' (the simulator in its process)' if composed else ''
+    return f'starting {", ".join(local)}{composed_text} ...'
+
+
 class Run:
     """One orchestrated run: the nodes' processes from start to stop. What it finds out goes
     into `facts`, from which run_report writes the outputs; run_monitor watches."""
@@ -280,8 +288,7 @@ class Run:
         plan, monitor = self.plan, self.monitor
         deadline = time.monotonic() + plan.startup_timeout
         names = [n for n in plan.nodes if n in plan.commands]
-        composed = ' (the simulator in its process)' if plan.composed else ''
-        self.say(f'starting {", ".join(names)}{composed} ...')
+        self.say(start_line(names, plan.remote, plan.composed))
         for name in names:
             self.start(name)
         for name in plan.remote:

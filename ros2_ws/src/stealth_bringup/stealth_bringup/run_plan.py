@@ -246,7 +246,7 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
         goal = check_goal(scenario, args.goal, default_goal)
         params_dir = args.params_dir
     else:
-        scenario, goal, source_policy, params_dir = rollout_source(args)
+        scenario, goal, source_policy, params_dir, source_notes = rollout_source(args)
     if mode == 'train':
         episodes, eval_every, streak = train_settings(args, continued)
     else:
@@ -280,7 +280,7 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
     }
 
     if 'bridge' in parameters:
-        _check_port_free(parameters['bridge'].values)
+        _check_port_free(parameters['bridge'])
 
     stamp = utc_stamp()
     # Episode numbers start at 0, or go on after a continued run's last one (agent and
@@ -316,6 +316,8 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
         recording = next_recording_file(directory).resolve()
         parameters['recorder'].values['output'] = str(recording)
     notes = _check_parameters(args, parameters, params_dir)
+    if mode != 'train':
+        notes += source_notes
     if continued is not None and not policy_path.is_file():
         notes.append(f'{relative_to_cwd(policy_path)} is not there: the agent starts from a '
                      'fresh table (the run was killed before it saved one)')  # fmt: skip
@@ -388,17 +390,27 @@ def declared_parameters(node: str) -> frozenset[str]:
     return frozenset(tables[node].PARAMETERS) | ROS_OWN_PARAMETERS
 
 
-def _check_port_free(bridge: dict) -> None:
-    """The bridge's port must be free before anything starts (RunConfigError naming it)."""
+def _check_port_free(bridge: NodeParameters) -> None:
+    """The bridge's port must be a TCP port, and free, before anything starts (RunConfigError
+    naming where the value came from)."""
     import socket
 
     from stealth_tools.bridge_core import DEFAULT_PORT, port_in_use_line
+    from stealth_tools.bridge_parameters import PARAMETERS
 
-    port, address = bridge.get('port', DEFAULT_PORT), bridge.get('address', '127.0.0.1')
+    port = bridge.values.get('port', DEFAULT_PORT)
+    address = bridge.values.get('address', '127.0.0.1')
+    low, high = PARAMETERS['port'].bounds
+    if isinstance(port, bool) or not isinstance(port, int) or not low <= port <= high:
+        given = '--set' if 'port' in bridge.overrides else f'{bridge.source}:'
+        raise RunConfigError(
+            f'{given} bridge.port: expected a TCP port, a whole number from {low} to {high}, '
+            f'got {port!r}'
+        )
     with socket.socket() as probe:
         probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as the server binds
         try:
-            probe.bind((address, int(port)))
+            probe.bind((address, port))
         except OSError as error:
             if error.errno == errno.EADDRINUSE:
                 raise RunConfigError(

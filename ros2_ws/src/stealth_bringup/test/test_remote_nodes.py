@@ -82,3 +82,24 @@ def test_the_run_announces_follows_and_reminds_of_its_remote_nodes():
     )
     with pytest.raises(RunError, match='agent .remote. left the ROS graph during the run after'):
         remote.check({'environment'}, 'during the run')
+
+
+def test_with_every_node_remote_the_start_line_says_it_waits_for_them(tmp_path):
+    from stealth_bringup.run_lifecycle import start_line
+    from stealth_bringup.run_plan import make_plan
+
+    argv = ['--no-record', '--remote', 'simulator', '--remote', 'environment', '--remote', 'agent']
+    plan = make_plan(
+        train_parser().parse_args([*argv, '--runs-dir', str(tmp_path)]), 'train', argv
+    )
+    local = [name for name in plan.nodes if name in plan.commands]
+    assert local == []
+    assert start_line(local, plan.remote, plan.composed) == (
+        'no local nodes to start; waiting for the remote ones: simulator, environment, agent ...'
+    )
+    assert start_line(['recorder', 'simulator'], ('agent',), False) == (
+        'starting recorder, simulator ...'
+    )
+    assert start_line(['recorder', 'environment'], (), True) == (
+        'starting recorder, environment (the simulator in its process) ...'
+    )

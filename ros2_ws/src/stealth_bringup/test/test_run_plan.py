@@ -110,6 +110,24 @@ def test_watch_with_the_bridge_port_in_use_is_one_line_naming_port_and_option(tm
     assert not (tmp_path / 'runs').exists()  # nothing was made
 
 
+@pytest.mark.parametrize(('value', 'shown'), [('99999', '99999'), ('-5', '-5'), ('abc', "'abc'")])
+def test_watch_with_a_bridge_port_that_is_no_port_is_one_line(value, shown, tmp_path):
+    with pytest.raises(RunConfigError) as error:
+        plan_of('--watch', '--set', f'bridge.port={value}', runs_dir=tmp_path / 'runs')
+    assert str(error.value) == (
+        f'--set bridge.port: expected a TCP port, a whole number from 1 to 65535, got {shown}'
+    )
+    assert not (tmp_path / 'runs').exists()
+
+
+def test_a_bridge_port_that_is_no_port_in_a_parameter_file_names_the_file(tmp_path):
+    params = tmp_path / 'params'
+    params.mkdir()
+    (params / 'bridge.yaml').write_text('bridge:\n  ros__parameters:\n    port: 70000\n')
+    with pytest.raises(RunConfigError, match=f'^{params / "bridge.yaml"}: bridge.port: expected'):
+        plan_of('--watch', '--params-dir', str(params), runs_dir=tmp_path / 'runs')
+
+
 def test_a_bridge_executable_without_watch_is_refused(tmp_path):
     with pytest.raises(RunConfigError, match='this run has no bridge node'):
         plan_of('--executable', 'bridge=/bin/true', runs_dir=tmp_path)

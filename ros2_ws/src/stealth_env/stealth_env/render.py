@@ -33,6 +33,18 @@ from stealth_env.scenario_drawing import figure_pixels, goal_marks, scenario_fig
 from stealth_env.visibility import scenario_visibility
 
 DEFAULT_OUT_DIR = Path('docs/images/scenarios')
+MAX_FPS = 100  # a GIF counts a frame's time in hundredths of a second
+
+
+def gif_frame_ms(fps: float, name: str = 'fps') -> int:
+    """How long a GIF frame shows at `fps` frames per second (ms); ValueError naming `name`
+    unless 0 < fps <= MAX_FPS, so a bad rate stops before any frame is drawn."""
+    if not (math.isfinite(fps) and 0 < fps <= MAX_FPS):
+        raise ValueError(
+            f'{name}: expected frames per second, a number > 0 and at most {MAX_FPS} (a GIF '
+            f'frame lasts at least 10 ms), got {fps:g}'
+        )
+    return round(1000 / fps)
 
 
 def read_path_csv(path: str | os.PathLike) -> np.ndarray:
@@ -89,6 +101,7 @@ def animate_scenario(
     out = Path(out)
     if out.suffix.lower() != '.gif':
         raise ValueError(f'{out}: expected a .gif file name (an animated GIF)')
+    duration = gif_frame_ms(fps)
     paths = [np.asarray(p, dtype=float).reshape(-1, 2) for p in paths]
     timing = getattr(scenario, 'timing', None)
     step = timing.step_seconds if timing is not None else 1.0
@@ -123,7 +136,7 @@ def animate_scenario(
         out,
         save_all=True,
         append_images=images[1:],
-        duration=round(1000 / fps),
+        duration=duration,
         loop=0,
         optimize=False,
     )
@@ -248,6 +261,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 0
         if not args.scenario:
             parser.error('give a scenario name or path, or --all')
+        if args.animate:
+            gif_frame_ms(args.fps, '--fps')
         from stealth_env.planners import optimal_path
         from stealth_env.scenario import find_scenario, load_scenario
 

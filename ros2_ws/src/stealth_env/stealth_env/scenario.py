@@ -46,8 +46,10 @@ from +x) and radians in the :class:`Scenario`. Example, every field::
 Validation checks the fields' types and ranges, that the start and goals lie in free cells of
 the map, that the start has ``robot_radius`` of clearance, that every goal is reachable from the
 start on the robot's move lattice (:mod:`stealth_env.move_lattice`) and that every light and
-patrol waypoint lies inside the map (a lamp may sit on a wall, as ``stealth_env.lighting``
-allows), and that moving lights' periods and the step fit the phase bins
+patrol waypoint lies inside the map, that every light stands in a free cell (a lamp in a wall
+cell, which ``stealth_env.lighting`` would accept, lights at most the far side of the wall: put
+there by mistake, it would light nothing without a word; patrol waypoints may still cross
+walls), and that moving lights' periods and the step fit the phase bins
 (:mod:`stealth_env.light_cycle`), and that an ``exposure`` footprint has a length and a width
 > 0 (m) (:mod:`stealth_env.exposure`). A scenario whose lights move without ``phase_bins``
 loads with a warning: the state does not say where the lights are, so the task is not Markov.
@@ -56,6 +58,8 @@ by their tests, not a load-time check.
 """
 
 import dataclasses
+import hashlib
+import json
 import math
 import os
 from pathlib import Path
@@ -158,6 +162,22 @@ class Scenario:
     def goal(self) -> Goal:
         """The goal pursued unless another is asked for."""
         return self.goals[self.default_goal]
+
+
+def content_identity(scenario: Scenario) -> dict[str, str]:
+    """What a policy is learned on, by content, not by name (a scenario file may keep its name
+    and get another map or other lights): SHA-256 of the occupancy grid (cells, resolution,
+    origin) and of the lights (every field, motions included)."""
+    grid = scenario.map
+    shape = json.dumps([list(grid.data.shape), grid.resolution, list(grid.origin)])
+    lights = json.dumps(
+        [[type(light.motion).__name__, dataclasses.asdict(light)] for light in scenario.lights],
+        sort_keys=True,
+    )
+    return {
+        'grid_sha256': hashlib.sha256(shape.encode() + grid.data.tobytes()).hexdigest(),
+        'lights_sha256': hashlib.sha256(lights.encode()).hexdigest(),
+    }
 
 
 # --- finding scenarios --------------------------------------------------------------------------
@@ -362,15 +382,22 @@ def _point_in_free_space(fields: FieldReader, occupancy: OccupancyMap) -> tuple[
     x = fields.number('x', 'a number (m)')
     y = fields.number('y', 'a number (m)')
     _inside(fields, occupancy, x, y, 'a point')
-    col, row = occupancy.world_to_cell(x, y)
-    if occupancy.blocked[row, col]:
-        kind = 'unknown' if occupancy.unknown[row, col] else 'occupied'
+    kind = _blocked_kind(occupancy, x, y)
+    if kind is not None:
         where = fields.prefix.rstrip('.')
         raise fields.error(
             f"{fields.source}: field '{where}': expected a point in a free cell of the map, "
             f'got ({x:g}, {y:g}) in an {kind} cell'
         )
     return x, y
+
+
+def _blocked_kind(occupancy: OccupancyMap, x, y) -> str | None:
+    """'occupied' or 'unknown' when the point's cell is blocked, else None."""
+    col, row = occupancy.world_to_cell(x, y)
+    if not occupancy.blocked[row, col]:
+        return None
+    return 'unknown' if occupancy.unknown[row, col] else 'occupied'
 
 
 def _goals(fields, occupancy, lattice: MoveLattice, numbers) -> dict[str, Goal]:
@@ -416,6 +443,14 @@ def _lights(fields: FieldReader, occupancy: OccupancyMap) -> tuple[Searchlight, 
         x = light.number('x', 'a number (m)')
         y = light.number('y', 'a number (m)')
         _inside(light, occupancy, x, y, 'a light position')
+        kind = _blocked_kind(occupancy, x, y)
+        if kind is not None:  # in a wall a lamp lights little, facing into it nothing at all
+            fields.fail_with(
+                prefix,
+                'a light in a free cell of the map',
+                f'{name!r} at ({x:g}, {y:g}) in an {kind} cell; move it to a free cell or '
+                'remove it',
+            )
         direction = light.number('direction', 'an angle in degrees')
         try:
             lights.append(

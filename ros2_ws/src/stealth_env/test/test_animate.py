@@ -54,3 +54,22 @@ def test_the_command_animates_the_optimum(tmp_path, capsys):
     assert str(out) in captured.out and 'frame 3/3' in captured.err
     assert main(['simple-maze-moving', '--animate', str(tmp_path / 'x.png')]) == 1
     assert 'expected a .gif' in capsys.readouterr().err
+
+
+@pytest.mark.parametrize('fps', ['0', '-1', 'nan', '101'])
+def test_a_frame_rate_that_is_no_rate_is_one_line_before_any_frame(fps, tmp_path, capsys):
+    out = tmp_path / 'x.gif'
+    assert main(['simple-maze-moving', '--animate', str(out), '--fps', fps]) == 1
+    err = capsys.readouterr().err
+    assert err.splitlines() == [
+        f'render: --fps: expected frames per second, a number > 0 and at most 100 (a GIF frame '
+        f'lasts at least 10 ms), got {float(fps):g}'
+    ]  # and no 'frame 1/...' progress: nothing was drawn
+    assert not out.exists()
+
+
+def test_the_library_checks_the_rate_before_drawing(scenario, tmp_path):
+    drawn = []
+    with pytest.raises(ValueError, match='^fps: expected frames per second'):
+        animate_scenario(scenario, tmp_path / 'a.gif', fps=0, progress=lambda *a: drawn.append(a))
+    assert drawn == []

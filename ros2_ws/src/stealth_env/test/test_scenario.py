@@ -1,6 +1,7 @@
 """Scenario files: the shipped four, the format, and one clear error per kind of bad input."""
 
 import copy
+import dataclasses
 import math
 from pathlib import Path
 
@@ -655,3 +656,43 @@ def test_probabilistic_mode_counts_the_bounce_in_the_reward_check(write):
 
     assert_scenario_error(write(change(1000)), "field 'rewards'", 'Raise detection_penalty')
     assert load_scenario(write(change(30000))).bounce.albedo == 0.9
+
+
+def free_cells_lit(scenario, light) -> int:
+    """How many free cells within the light's range it lights (the lighting reference)."""
+    from stealth_env.lighting import point_visibility
+
+    grid = scenario.map
+    lit = 0
+    for row, col in zip(*np.nonzero(~grid.blocked), strict=True):
+        x, y = grid.origin[0] + (col + 0.5) * 0.1, grid.origin[1] + (row + 0.5) * 0.1
+        if math.dist((x, y), (light.x, light.y)) <= light.range:
+            lit += point_visibility(grid.blocked, 0.1, grid.origin, [light], x, y) > 0
+    return lit
+
+
+@pytest.mark.parametrize(
+    ('x', 'y', 'direction', 'kind'),
+    [
+        (4.55, 2.05, 90, 'occupied'),  # deep in the wall
+        (4.05, 2.05, 0, 'occupied'),  # in its westmost column, facing into it
+        (9.05, 7.05, 180, 'unknown'),
+    ],
+)
+def test_a_light_in_a_wall_is_refused_with_its_name_and_position(write, x, y, direction, kind):
+    def change(values):
+        values['lights'][1].update(name='buried', x=x, y=y, direction=direction, fov=60)
+
+    path = write(change)
+    with pytest.raises(ScenarioError) as raised:
+        load_scenario(path)
+    assert str(raised.value) == (
+        f"{path}: field 'lights[1]': expected a light in a free cell of the map, got 'buried' at "
+        f'({x:g}, {y:g}) in an {kind} cell; move it to a free cell or remove it'
+    )
+    # and indeed it lights nothing: the same light, loaded in the open, then put there
+    scenario = load_scenario(write())
+    buried = dataclasses.replace(
+        scenario.lights[1], x=x, y=y, direction=math.radians(direction), fov=math.radians(60)
+    )
+    assert free_cells_lit(scenario, buried) == 0

@@ -27,6 +27,7 @@ from stealth_agent.state_index import StateIndex
 from stealth_env.gym_env import StealthNavEnv, lattice_model
 from stealth_env.planners import LatticeModel, astar, dark_path, follow, value_iteration, walk
 from stealth_env.reward import Outcome
+from stealth_env.scenario import content_identity
 
 # Training episodes per run, per learner: each well past where every seed settled within 5 %
 # (README); Dyna-Q's 20 planning updates make its episodes ~5x dearer and it needs ~1/6 as many.
@@ -191,7 +192,10 @@ def run(spec: RunSpec) -> RunResult:
             policy_path(spec),
             learner,
             index,
-            scenario=parse_description(**env.task.description(spec.slip > 0)).identity(),
+            scenario={
+                **parse_description(**env.task.description(spec.slip > 0)).identity(),
+                **content_identity(env.task.scenario),  # what stealth rollout compares
+            },
             rng=rng,
             extra={'harness': dataclasses.asdict(spec)},
         )

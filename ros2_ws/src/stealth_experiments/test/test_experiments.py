@@ -10,6 +10,7 @@ from stealth_agent.protocol import ProtocolAgent
 from stealth_env.gym_env import lattice_model
 from stealth_env.planners import value_iteration
 from stealth_env.reward import Outcome
+from stealth_env.scenario import content_identity
 from stealth_env.task import StealthTask
 from stealth_experiments import experiments
 from stealth_experiments.harness import (
@@ -76,6 +77,8 @@ def test_the_saved_policy_runs_on_states_the_ros_environment_sends(trained):
     model = lattice_model(SCENARIO)
     task = StealthTask(model.task.scenario)
     check_compatible(policy, num_actions=4, state_dim=2, learner='dyna', scenario_title=task.title)
+    identity = content_identity(task.scenario)  # by content too, for stealth rollout
+    assert {key: policy.scenario[key] for key in identity} == identity
     agent = ProtocolAgent(policy.learner, policy.index, np.random.default_rng(0), learning=False)
     noise = np.random.default_rng(1)
     node, reward, total = model.start, 0.0, 0.0

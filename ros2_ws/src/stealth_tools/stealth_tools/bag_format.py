@@ -21,6 +21,7 @@ import os
 from pathlib import Path
 import time
 
+from mcap.opcode import Opcode
 from mcap.writer import CompressionType, IndexType, Writer
 import yaml
 
@@ -40,6 +41,7 @@ COMPRESSIONS = {
     'none': CompressionType.NONE,
 }
 MCAP_MAGIC = b'\x89MCAP0\r\n'
+_RECORD_HEAD_SIZE = 9  # opcode (1 byte) and length (8 bytes, little-endian)
 _NEVER = 2**63 - 1  # rosbag2's starting_time before the first message
 
 
@@ -62,8 +64,31 @@ def resolve_bag_file(path: str | os.PathLike) -> Path:
         raise BagError(f'{path}: no such file or directory')
     with open(path, 'rb') as stream:
         if stream.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
-            raise BagError(f'{path} is not an MCAP file (bad magic bytes)')
+            raise BagError(
+                f'{path}: not an MCAP file ({path.stat().st_size} bytes, no MCAP magic): nothing '
+                'to play or recover'
+            )
     return path
+
+
+def cut_before_header(path: str | os.PathLike) -> str | None:
+    """The one line to say of an MCAP file that ends before its header record is complete (a
+    recorder stopped as it began): no messages in it, nothing to play, info or recover agree.
+    None for any other file."""
+    path = Path(path)
+    with open(path, 'rb') as stream:
+        head = stream.read(len(MCAP_MAGIC) + _RECORD_HEAD_SIZE)
+    if not head.startswith(MCAP_MAGIC):
+        return None
+    size = path.stat().st_size
+    if len(head) == len(MCAP_MAGIC) + _RECORD_HEAD_SIZE and head[len(MCAP_MAGIC)] == Opcode.HEADER:
+        length = int.from_bytes(head[len(MCAP_MAGIC) + 1 :], 'little')
+        if size >= len(head) + length:
+            return None
+    return (
+        f'{path}: an MCAP file that ends before its header is complete ({size} bytes): it holds '
+        'no messages; nothing to play or recover'
+    )
 
 
 @dataclass(frozen=True)

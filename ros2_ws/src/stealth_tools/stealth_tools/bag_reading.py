@@ -20,7 +20,12 @@ from mcap.reader import SeekingReader, make_reader
 import yaml
 
 from stealth_tools.bag_files import bag_files
-from stealth_tools.bag_format import ROSBAG2_METADATA_NAME, STORAGE_ID, BagError
+from stealth_tools.bag_format import (
+    ROSBAG2_METADATA_NAME,
+    STORAGE_ID,
+    BagError,
+    cut_before_header,
+)
 
 INFO_INDENT = 19  # rosbag2: the longest field name ('Topic information: ') plus one
 
@@ -70,6 +75,8 @@ def open_indexed_reader(stream) -> SeekingReader:
         reason = 'it has no summary section'
     if summary is None or summary.statistics is None:
         name = getattr(stream, 'name', 'the file')
+        if isinstance(name, str) and (empty := cut_before_header(name)):
+            raise BagError(empty)
         raise BagError(
             f'{name} is not a complete MCAP ({reason}): the recording was cut off; '
             f'`stealth bag recover {name}` rebuilds it'
@@ -111,7 +118,10 @@ def _topics(channels: dict, schemas: dict, counts: dict) -> tuple[TopicInfo, ...
 def read_bag_info(path: str | os.PathLike) -> BagInfo:
     """Info of a bag (all its files) from their summaries, or from a salvage scan of a file
     that has none."""
-    infos = [_file_info(file) for file in bag_files(path)]
+    files = bag_files(path)
+    if len(files) == 1 and (empty := cut_before_header(files[0])):
+        raise BagError(empty)  # not 0 messages from 1970: there is no recording
+    infos = [_file_info(file) for file in files]
     return infos[0] if len(infos) == 1 else merge_bag_infos(Path(path), infos)
 
 

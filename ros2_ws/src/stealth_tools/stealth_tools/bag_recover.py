@@ -30,6 +30,7 @@ from stealth_tools.bag_format import (
     MCAP_MAGIC,
     PROFILE,
     BagError,
+    cut_before_header,
     resolve_bag_file,
 )
 
@@ -278,6 +279,8 @@ def recover(
     if compression not in COMPRESSIONS:
         raise BagError(f"unknown compression '{compression}' (choose from zstd, lz4, none)")
     source_path = resolve_bag_file(source)
+    if empty := cut_before_header(source_path):
+        raise BagError(empty)
     output_path = Path(output) if output else default_recovered_path(source_path)
     if output_path.exists():
         raise BagError(f'{output_path} already exists; choose another output with -o')

@@ -70,6 +70,15 @@ def _types_once_published(node, executor, stop, topic: str, timeout: float | Non
     return topic_types(node).get(topic)
 
 
+def _within(timeout: float | None, started: float, wait: float | None = None) -> float | None:
+    """How long a step may wait: `wait` (None: no bound) cut to what is left of `timeout` s
+    since `started` (monotonic), so --timeout bounds the whole command, discovery included."""
+    if timeout is None:
+        return wait
+    left = max(timeout - (time.monotonic() - started), 0.0)
+    return left if wait is None else min(wait, left)
+
+
 def _topic_argument(name: str) -> str:
     """The topic a command-line name stands for (CommandError when it cannot be a topic)."""
     topic = absolute_topic(name)
@@ -147,13 +156,16 @@ def topic_echo(args, stop: threading.Event) -> int:
     topic = _topic_argument(args.topic_name)
     field = [part for part in (args.field or '').split('.') if part]
     truncate = None if args.full_length else args.truncate_length
+    started = time.monotonic()
     with cli_node() as (node, executor):
-        types = _types_once_published(node, executor, stop, topic, args.spin_time)
+        discovery = _within(args.timeout, started, args.spin_time)
+        types = _types_once_published(node, executor, stop, topic, discovery)
         type_name = args.message_type or (types[0] if types else None)
         if type_name is None:
+            waited = args.spin_time if args.timeout is None else min(args.spin_time, args.timeout)
             raise CommandError(
                 f"could not determine the type of '{topic}': nothing published it within "
-                f'{args.spin_time:g} s (pass the type: stealth topic echo {topic} pkg/msg/Type)'
+                f'{waited:g} s (pass the type: stealth topic echo {topic} pkg/msg/Type)'
             )
         received = []
 
@@ -174,7 +186,9 @@ def topic_echo(args, stop: threading.Event) -> int:
             received.append(True)
 
         node.create_subscription(_class_of(type_name), topic, show, _echo_qos(node, topic, args))
-        spin_until(executor, stop, lambda: args.once and bool(received), args.timeout)
+        spin_until(
+            executor, stop, lambda: args.once and bool(received), _within(args.timeout, started)
+        )
     if args.timeout is not None and not received and not stop.is_set():
         raise CommandError(f'no message on {topic} within {args.timeout:g} s')
     return 0
@@ -184,11 +198,13 @@ def topic_hz(args, stop: threading.Event) -> int:
     topic = _topic_argument(args.topic_name)
     with cli_node() as (node, executor):
         started = time.monotonic()
-        types = _types_once_published(node, executor, stop, topic, args.spin_time)
+        discovery = _within(args.timeout, started, args.spin_time)
+        types = _types_once_published(node, executor, stop, topic, discovery)
         if not types:
             print(f'WARNING: topic [{topic}] does not appear to be published yet', flush=True)
-            remaining = None if args.timeout is None else max(args.timeout - args.spin_time, 0)
-            types = _types_once_published(node, executor, stop, topic, remaining)
+            types = _types_once_published(
+                node, executor, stop, topic, _within(args.timeout, started)
+            )
         if not types and args.timeout is not None and not stop.is_set():
             raise CommandError(f'nothing published {topic} within {args.timeout:g} s')
         if not types:

@@ -3,6 +3,7 @@ verbs are exercised in the repository's tests/test_cli.py; the commands stealth_
 its test_commands.py)."""
 
 import argparse
+import os
 import pkgutil
 import sys
 
@@ -75,6 +76,40 @@ def test_bag_info_and_recover(capsys, tmp_path):
     assert out == '/chatter\n'
     status, out, _ = run_cli(capsys, 'bag', 'recover', str(tmp_path / 'run.mcap'))
     assert status == 0 and out.startswith(f'{tmp_path}/run.recovered.mcap: recovered 5 messages')
+
+
+def test_an_mcap_cut_before_its_header_gets_the_same_one_line_from_info_play_and_recover(
+    capsys, tmp_path
+):
+    bag = tmp_path / 'x.mcap'
+    write_bag(bag, chatter_samples(5))
+    os.truncate(bag, 10)  # the magic and two bytes of the header record
+    line = (
+        f'{bag}: an MCAP file that ends before its header is complete (10 bytes): it holds no '
+        'messages; nothing to play or recover\n'
+    )
+    for verb in ('info', 'play', 'recover'):
+        assert run_cli(capsys, 'bag', verb, str(bag)) == (1, '', f'stealth bag {verb}: {line}')
+    assert sorted(tmp_path.iterdir()) == [bag]  # no recovered copy
+    bag.write_bytes(b'0123456789')  # and without even the magic
+    line = f'{bag}: not an MCAP file (10 bytes, no MCAP magic): nothing to play or recover\n'
+    for verb in ('info', 'play', 'recover'):
+        assert run_cli(capsys, 'bag', verb, str(bag)) == (1, '', f'stealth bag {verb}: {line}')
+
+
+def test_a_header_less_file_among_a_recordings_files_is_named_and_skipped(capsys, tmp_path):
+    write_bag(tmp_path / 'recording.mcap', chatter_samples(5))
+    stub = tmp_path / 'recording_1.mcap'  # a recorder restarted and killed as it began
+    write_bag(stub, chatter_samples(2))
+    os.truncate(stub, 12)
+    line = (
+        f'{stub}: an MCAP file that ends before its header is complete (12 bytes): it holds no '
+        'messages; nothing to play or recover'
+    )
+    status, out, err = run_cli(capsys, 'bag', 'info', str(tmp_path))
+    assert status == 0 and 'Messages:          5\n' in out and err == f'warning: {line}\n'
+    status, out, err = run_cli(capsys, 'bag', 'recover', str(tmp_path))
+    assert (status, out, err) == (0, f'{line} (skipped)\n', '')
 
 
 def test_interface_show(capsys):

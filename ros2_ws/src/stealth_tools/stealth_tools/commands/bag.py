@@ -166,10 +166,14 @@ def _add_play(verbs) -> None:
 
 
 def bag_info(args) -> int:
+    from stealth_tools.bag_format import cut_before_header
     from stealth_tools.bag_reading import format_bag_info, read_bag_info
 
     info = read_bag_info(args.bag_path)
     for path in info.unindexed:
+        if empty := cut_before_header(path):  # one file of several: it adds nothing
+            print(f'warning: {empty}', file=sys.stderr)
+            continue
         print(
             f'warning: {path} was not closed (no summary); numbers come from a scan. '
             f'`stealth bag recover {path}` writes an indexed copy.',
@@ -200,6 +204,7 @@ def _add_info(verbs) -> None:
 
 def bag_recover(args) -> int:
     from stealth_tools.bag_files import bag_files
+    from stealth_tools.bag_format import cut_before_header
     from stealth_tools.bag_reading import read_bag_info
     from stealth_tools.bag_recover import recover
 
@@ -210,8 +215,11 @@ def bag_recover(args) -> int:
                 f'{args.bag_path} holds {len(files)} files; -o names the copy of one: '
                 'give that file instead of the directory'
             )
-        files = [f for f in files if not read_bag_info(f).indexed]
-        if not files:
+        empty = [line for line in map(cut_before_header, files) if line]
+        for line in empty:
+            print(f'{line} (skipped)')
+        files = [f for f in files if not cut_before_header(f) and not read_bag_info(f).indexed]
+        if not files and not empty:
             print(f'{args.bag_path}: every file is complete and indexed; nothing to recover')
     for file in files:
         output, report = recover(file, args.output, compression=args.compression)

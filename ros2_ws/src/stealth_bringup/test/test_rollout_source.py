@@ -1,0 +1,100 @@
+"""stealth rollout checks the policy's scenario by content (map and lights), not by its name
+alone, before anything starts (no ROS)."""
+
+from pathlib import Path
+import re
+
+import pytest
+from stealth_agent.learners import make_learner
+from stealth_agent.policy_store import save_policy
+from stealth_agent.state_index import StateIndex
+from stealth_bringup.run_arguments import rollout_parser
+from stealth_bringup.run_config import RunConfigError
+from stealth_bringup.run_plan import make_plan
+from stealth_env.scenario import content_identity, load_scenario
+from stealth_env.task import StealthTask
+
+REPO = Path(__file__).resolve().parents[4]
+MAZE = (REPO / 'scenarios' / 'simple-maze.yaml').read_text()
+
+
+def scenario_copy(directory: Path, text: str = MAZE, map_dir: Path = REPO / 'maps') -> Path:
+    """scenarios/simple-maze.yaml as <directory>/simple-maze.yaml: the same name."""
+    directory.mkdir(parents=True, exist_ok=True)
+    path = directory / 'simple-maze.yaml'
+    path.write_text(text.replace('map: ../maps/', f'map: {map_dir}/'))
+    return path
+
+
+def policy_for(path: Path, scenario_path: Path, content: bool = True) -> Path:
+    """A policy file as a run on that scenario saves it (content: a run that knew the hashes)."""
+    scenario = load_scenario(scenario_path)
+    identity = {'title': StealthTask(scenario, 'easy').title}
+    if content:
+        identity.update(content_identity(scenario))
+    save_policy(path, make_learner('qlearning', 4), StateIndex(), scenario=identity)
+    return path
+
+
+def rollout_plan(policy: Path, scenario: Path, runs_dir: Path):
+    argv = ['--policy', str(policy), '--scenario', str(scenario), '--goal', 'easy']
+    args = rollout_parser().parse_args([*argv, '--runs-dir', str(runs_dir)])
+    return make_plan(args, 'eval', ['stealth', 'rollout', *argv])
+
+
+def test_the_scenario_it_was_trained_on_runs_without_a_word(tmp_path):
+    trained = scenario_copy(tmp_path / 'a')
+    policy = policy_for(tmp_path / 'policy.npz', trained)
+    plan = rollout_plan(policy, scenario_copy(tmp_path / 'b'), tmp_path / 'runs')  # a copy
+    assert plan.notes == []
+
+
+def test_other_lights_under_the_same_name_are_refused(tmp_path):
+    policy = policy_for(tmp_path / 'policy.npz', scenario_copy(tmp_path / 'a'))
+    moved = MAZE.replace('x: 0.75, y: 8.0', 'x: 0.75, y: 8.5')
+    assert moved != MAZE
+    other = scenario_copy(tmp_path / 'b', moved)
+    with pytest.raises(RunConfigError) as error:
+        rollout_plan(policy, other, tmp_path / 'runs')
+    assert str(error.value) == (
+        f"{policy} was trained on scenario 'simple-maze' with different lights than {other} has "
+        'now (the same name, other content): give --scenario the scenario file it was trained '
+        'on, or train a policy on this one'
+    )
+    assert not (tmp_path / 'runs').exists()
+
+
+def test_another_map_under_the_same_name_is_refused(tmp_path):
+    maps = tmp_path / 'maps'
+    maps.mkdir()
+    (maps / 'simple-maze.yaml').write_text((REPO / 'maps' / 'simple-maze.yaml').read_text())
+    image = bytearray((REPO / 'maps' / 'simple-maze.pgm').read_bytes())
+    header = len(re.match(rb'P5\s+\d+\s+\d+\s+\d+\s', image).group(0))
+    wall = image.index(b'\x00', header)  # one wall pixel made free: another map, still valid
+    image[wall] = 254
+    (maps / 'simple-maze.pgm').write_bytes(bytes(image))
+    policy = policy_for(tmp_path / 'policy.npz', scenario_copy(tmp_path / 'a'))
+    other = scenario_copy(tmp_path / 'b', map_dir=maps)
+    with pytest.raises(RunConfigError, match=r"trained on scenario 'simple-maze' with a "
+                       r'different map than .* has now'):  # fmt: skip
+        rollout_plan(policy, other, tmp_path / 'runs')
+
+
+def test_a_policy_saved_before_the_hashes_gets_a_note_that_only_the_name_is_checked(tmp_path):
+    scenario = scenario_copy(tmp_path / 'a')
+    policy = policy_for(tmp_path / 'policy.npz', scenario, content=False)
+    plan = rollout_plan(policy, scenario, tmp_path / 'runs')
+    assert plan.notes == [
+        f'{policy} records no map or lights hash (saved before policies did): only its '
+        f'scenario name is checked, not whether {scenario} still has the map and lights it was '
+        'trained on'
+    ]
+
+
+def test_a_training_run_gives_the_agent_the_hashes_to_save(tmp_path):
+    from stealth_bringup.run_arguments import train_parser
+
+    args = train_parser().parse_args(['--runs-dir', str(tmp_path)])
+    plan = make_plan(args, 'train', ['stealth', 'train'])
+    identity = content_identity(load_scenario('simple-maze'))
+    assert {key: plan.parameters['agent'].values[key] for key in identity} == identity
