@@ -16,6 +16,13 @@ import signal
 import sys
 import time
 
+from stealth_node_kit.full_disk import (
+    EXIT_DISK_FULL,
+    DiskFullError,
+    checked_write,
+    is_disk_full,
+)
+
 from stealth_bringup.episode_tracker import Tracker
 from stealth_bringup.remote_nodes import RemoteNodes
 from stealth_bringup.respawn import Respawner, RespawnPolicy
@@ -77,13 +84,31 @@ class Run:
         self.recording_files = [Path(recorder.values['output'])] if recorder else []
 
     def _fail(self, message: str) -> None:
+        if self.facts.disk_full:  # the run stopped for that: what followed is its consequence
+            return
         self.facts.status, self.facts.message, self.facts.exit_code = 'failed', message, 1
+
+    def disk_full(self, error: DiskFullError) -> None:
+        """A file of the run could not be written for want of space: the one line, and the run
+        stops (the nodes in order, every output that still fits written; exit EXIT_DISK_FULL)."""
+        if self.facts.disk_full:
+            return
+        self.facts.disk_full = str(error)
+        self.facts.status, self.facts.message = 'failed', str(error)
+        self.facts.exit_code = EXIT_DISK_FULL
+        self.say(f'{self.prog}: {error}; stopping')
 
     def execute(self) -> int:
         """The whole run; its exit status."""
         from stealth_bringup.ros_domain import shm_segments
 
-        self.plan.write_params_files()
+        try:
+            with checked_write(self.plan.directory / 'params'):
+                self.plan.write_params_files()
+        except DiskFullError as error:
+            self.disk_full(error)
+            self.report.print_closing({}, self.out)
+            return self.facts.exit_code
         for note in self.plan.notes:
             self.say(f'{self.prog}: {note}')
         self._remove_dead_shm()
@@ -92,10 +117,11 @@ class Run:
         with Signals() as signals:
             self._write_progress()  # a run directory from the start, whatever happens next
             self._run(signals, shm_before)
-            if facts.status == 'failed':
+            if facts.status == 'failed' and not facts.disk_full:  # that line was said already
                 self.say(f'{self.prog}: {facts.message}')
             if self.monitor is not None:
                 facts.paths, facts.late = self.monitor.paths, self.monitor.late
+                facts.first_step = self.monitor.first_step
             facts.remote = {name: node.summary() for name, node in self.remote.items()}
             facts.nodes = dict(self.supervisor.nodes) if self.supervisor else {}
             facts.restarts = [restart.as_dict() for restart in self.respawns.restarts]
@@ -115,12 +141,14 @@ class Run:
             )
 
     def _write_progress(self) -> None:
-        """summary.json as the run stands; a full disk is said, not fatal."""
+        """summary.json as the run stands; a full disk stops the run."""
         if self.plan.mode != 'train':
             return
         self.facts.restarts = [restart.as_dict() for restart in self.respawns.restarts]
         try:
             self.report.write_progress()
+        except DiskFullError as error:
+            self.disk_full(error)
         except OSError as error:
             self.say(f'{self.prog}: could not write summary.json: {error}')
 
@@ -130,8 +158,14 @@ class Run:
         from stealth_bringup.run_outputs import append_episode
 
         self.progress.on_record(record)
+        self.facts.last_episode = time.monotonic()
+        if self.facts.disk_full:  # the run is stopping: the final report writes what fits
+            return
         try:
             append_episode(record, self.plan.file('episodes.csv'))
+        except DiskFullError as error:
+            self.disk_full(error)
+            return
         except OSError as error:
             self.say(f'{self.prog}: could not append to episodes.csv: {error}')
         if record.greedy:
@@ -214,9 +248,15 @@ class Run:
     def _check_processes(self, during: str) -> None:
         """A local node that exited, a remote one that left the graph, a second agent: the run
         cannot go on (RunError)."""
+        if self.facts.disk_full:
+            raise RunError(self.facts.disk_full)
         dead = self.supervisor.dead()
         if dead:
             node = dead[0]
+            if node.process.returncode == EXIT_DISK_FULL:
+                self.crashed.add(node.name)
+                self.disk_full(DiskFullError(self._file_of(node.name)))
+                raise RunError(self.facts.disk_full)
             refusal = self.respawns.refusal(node.name, node.process.returncode)
             if not refusal:
                 self.respawner.restart(node, during)
@@ -228,6 +268,15 @@ class Run:
         if self.remote:
             self.remote.check(self.monitor.node_names(), during)
         self._check_one_agent()
+
+    def _file_of(self, name: str) -> Path:
+        """The file a node writes (what a full disk cost it): the agent's policy, the
+        recorder's recording, else the node's log."""
+        if name == 'agent' and self.plan.mode == 'train':
+            return self.plan.policy_path
+        if name == 'recorder' and self.recording_files:
+            return self.recording_files[-1]
+        return self.plan.directory / 'logs' / f'{name}.log'
 
     def _check_one_agent(self) -> None:
         """Two publishers of the actions: two agents answer every state (RunError), once the
@@ -427,6 +476,9 @@ class Run:
         )
         for name, node in supervisor.nodes.items():
             self.facts.node_exits[name] = node.exit_text()
+            if node.process.returncode == EXIT_DISK_FULL and name not in self.crashed:
+                self.crashed.add(name)  # e.g. the agent's last save, as it was stopped
+                self.disk_full(DiskFullError(self._file_of(name)))
         problems = [n for n in supervisor.unclean() if n.name not in self.crashed]
         if problems:
             for node in problems:
@@ -455,11 +507,15 @@ class Run:
             temporary.unlink(missing_ok=True)
             try:
                 _, report = recover(path, temporary)
-            except BagError as error:
+            except (BagError, OSError) as error:
                 temporary.unlink(missing_ok=True)
+                why = 'the disk is full' if is_disk_full(error) else str(error)
+                self.facts.incomplete[path] = (
+                    f'not closed ({why}): `stealth bag recover {shown}` reads what it holds'
+                )
                 self.say(
                     f'{self.prog}: the recording {shown} was not closed and could not be '
-                    f'recovered ({error}); `stealth bag recover {shown}` tries again'
+                    f'recovered ({why}); `stealth bag recover {shown}` tries again'
                 )
                 continue
             temporary.replace(path)

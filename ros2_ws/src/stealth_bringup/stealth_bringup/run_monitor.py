@@ -106,6 +106,7 @@ class Monitor:
         # of an episode whose environment died before its summary.
         self.steps: dict[int, list[tuple]] = {}
         self.frozen = False  # set when the run ends: later reports are not counted
+        self.first_step: float | None = None  # time.monotonic() of the first step reported
         self.late: list[dict] = []  # summaries that arrived after that
         self._restart_client = None  # rl_env/restart_episode, once a node was respawned
         # Transient local: the reports' writers keep their latest messages, and after a node
@@ -148,6 +149,8 @@ class Monitor:
 
     def _on_step(self, msg) -> None:
         self.last_activity = time.monotonic()
+        if self.first_step is None:
+            self.first_step = self.last_activity
         self.paths.setdefault(msg.episode, []).append((msg.true_pose.x, msg.true_pose.y))
         self.steps.setdefault(msg.episode, []).append(
             (msg.reward, msg.visibility, msg.distance_to_goal, msg.true_pose.x, msg.true_pose.y)
