@@ -503,6 +503,12 @@ class Run:
             if not path.exists() or (not node.killed and node.process.returncode in CLEAN_EXITS):
                 continue
             shown = relative_to_cwd(path)
+            if node.process.returncode == EXIT_DISK_FULL:  # its recovery would not fit either
+                self.facts.incomplete[path] = (
+                    'cut short: the disk is full; '
+                    f'`stealth bag recover {shown}` reads what it holds'
+                )
+                continue
             temporary = path.with_name(f'.{path.name}.recovering')
             temporary.unlink(missing_ok=True)
             try:

@@ -118,7 +118,6 @@ class RunReport:
             optimal_path,
             plot_learning_curve,
             plot_path,
-            write_json,
         )
 
         plan, tracker, facts = self.plan, self.tracker, self.facts
@@ -187,13 +186,28 @@ class RunReport:
         summary = self._summary(records, optimum, files)
         written = {k: Path(v) for k, v in files.items()}
         try:
-            write_json(summary, plan.file('summary.json'))
+            self._write_summary(summary)
         except DiskFullError as error:
             self._refused(error)
             self._say_files(summary)
         else:
             written['summary'] = plan.file('summary.json')
         return written
+
+    def _write_summary(self, summary: dict) -> None:
+        """The final summary.json. Replacing the one written as the run went needs room for
+        both: on a full disk the old one (status 'running', out of date) goes first, then the
+        final one is tried again (DiskFullError if it does not fit either)."""
+        from stealth_bringup.run_outputs import write_json
+
+        path = self.plan.file('summary.json')
+        try:
+            write_json(summary, path)
+        except DiskFullError:
+            if not path.is_file():
+                raise
+            path.unlink()
+            write_json(summary, path)
 
     def _refused(self, error: DiskFullError) -> None:
         """A file a full disk refused: noted as incomplete; the first such is the run's end
@@ -252,7 +266,8 @@ class RunReport:
 
     def _say_files(self, summary: dict) -> None:
         """summary.json could not be written: which files are complete, on the console."""
-        complete = ', '.join(summary['complete_files']) or 'none'
+        shown = relative_to_cwd(self.plan.file('summary.json'))
+        complete = ', '.join(n for n in summary['complete_files'] if n != shown) or 'none'
         self.say(f'{self.prog}: summary.json not written either; complete files: {complete}')
         for name, why in summary['incomplete_files'].items():
             self.say(f'  {name}: {why}')
