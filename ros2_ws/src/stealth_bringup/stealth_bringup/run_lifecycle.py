@@ -103,7 +103,8 @@ class Run:
         from stealth_bringup.ros_domain import shm_segments
 
         try:
-            with checked_write(self.plan.directory / 'params'):
+            params = self.plan.directory / 'params'
+            with checked_write(params, relative_to_cwd(params)):
                 self.plan.write_params_files()
         except DiskFullError as error:
             self.disk_full(error)
@@ -255,7 +256,7 @@ class Run:
             node = dead[0]
             if node.process.returncode == EXIT_DISK_FULL:
                 self.crashed.add(node.name)
-                self.disk_full(DiskFullError(self._file_of(node.name)))
+                self.disk_full(self._full_disk_of(node.name))
                 raise RunError(self.facts.disk_full)
             refusal = self.respawns.refusal(node.name, node.process.returncode)
             if not refusal:
@@ -269,14 +270,15 @@ class Run:
             self.remote.check(self.monitor.node_names(), during)
         self._check_one_agent()
 
-    def _file_of(self, name: str) -> Path:
-        """The file a node writes (what a full disk cost it): the agent's policy, the
-        recorder's recording, else the node's log."""
+    def _full_disk_of(self, name: str) -> DiskFullError:
+        """The file a node that stopped on a full disk could not write: the agent's policy,
+        the recorder's recording, else the node's log."""
+        path = self.plan.directory / 'logs' / f'{name}.log'
         if name == 'agent' and self.plan.mode == 'train':
-            return self.plan.policy_path
-        if name == 'recorder' and self.recording_files:
-            return self.recording_files[-1]
-        return self.plan.directory / 'logs' / f'{name}.log'
+            path = self.plan.policy_path
+        elif name == 'recorder' and self.recording_files:
+            path = self.recording_files[-1]
+        return DiskFullError(path, relative_to_cwd(path))
 
     def _check_one_agent(self) -> None:
         """Two publishers of the actions: two agents answer every state (RunError), once the
@@ -478,7 +480,7 @@ class Run:
             self.facts.node_exits[name] = node.exit_text()
             if node.process.returncode == EXIT_DISK_FULL and name not in self.crashed:
                 self.crashed.add(name)  # e.g. the agent's last save, as it was stopped
-                self.disk_full(DiskFullError(self._file_of(name)))
+                self.disk_full(self._full_disk_of(name))
         problems = [n for n in supervisor.unclean() if n.name not in self.crashed]
         if problems:
             for node in problems:

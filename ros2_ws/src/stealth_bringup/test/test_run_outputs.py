@@ -161,11 +161,10 @@ def test_a_full_disk_keeps_the_old_file_and_leaves_no_partial(tmp_path):
 def test_a_picture_is_replaced_whole_or_not_at_all(tmp_path):
     path = tmp_path / 'learning_curve.png'
     path.write_bytes(b'the old picture')
-    with pytest.raises(DiskFullError, match='learning_curve.png'):
-        with replacing(path) as temporary:
-            assert temporary.suffix == '.png' and temporary.parent == tmp_path
-            temporary.write_bytes(b'half a pic')
-            no_space()
+    with pytest.raises(DiskFullError, match='learning_curve.png'), replacing(path) as temporary:
+        assert temporary.suffix == '.png' and temporary.parent == tmp_path
+        temporary.write_bytes(b'half a pic')
+        no_space()
     assert path.read_bytes() == b'the old picture'
     assert [p.name for p in tmp_path.iterdir()] == ['learning_curve.png']
     with replacing(path) as temporary:

@@ -34,7 +34,9 @@ def test_the_line_names_the_file_the_space_left_and_the_mount_point(tmp_path, mo
     assert os.path.ismount(where) and Path(tmp_path).resolve().is_relative_to(where)
     assert free_space(tmp_path / 'not' / 'yet') == f'12 KiB free on {where}'
     line = disk_full_message(tmp_path / 'episodes.csv', 'runs/x/episodes.csv')
-    assert line == f'the disk is full: could not write runs/x/episodes.csv (12 KiB free on {where})'
+    assert line == (
+        f'the disk is full: could not write runs/x/episodes.csv (12 KiB free on {where})'
+    )
 
 
 def test_a_full_disk_in_the_block_becomes_one_line_naming_the_file(tmp_path):
@@ -45,9 +47,8 @@ def test_a_full_disk_in_the_block_becomes_one_line_naming_the_file(tmp_path):
     assert error.path == target and error.errno == errno.ENOSPC and is_disk_full(error)
     assert str(error).startswith('the disk is full: could not write runs/x/policy.npz (')
     assert 'free on' in str(error) and '\n' not in str(error)
-    with pytest.raises(DiskFullError):  # a quota is as full
-        with checked_write(target):
-            raise OSError(errno.EDQUOT, 'Disk quota exceeded')
+    with pytest.raises(DiskFullError), checked_write(target):  # a quota is as full
+        raise OSError(errno.EDQUOT, 'Disk quota exceeded')
 
 
 def test_other_errors_pass_unchanged(tmp_path):
