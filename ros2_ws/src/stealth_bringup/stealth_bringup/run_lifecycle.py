@@ -122,7 +122,7 @@ class Run:
                 self.say(f'{self.prog}: {facts.message}')
             if self.monitor is not None:
                 facts.paths, facts.late = self.monitor.paths, self.monitor.late
-                facts.first_step = self.monitor.first_step
+                facts.episode_ends = self.monitor.ended
             facts.remote = {name: node.summary() for name, node in self.remote.items()}
             facts.nodes = dict(self.supervisor.nodes) if self.supervisor else {}
             facts.restarts = [restart.as_dict() for restart in self.respawns.restarts]
@@ -159,7 +159,6 @@ class Run:
         from stealth_bringup.run_outputs import append_episode
 
         self.progress.on_record(record)
-        self.facts.last_episode = time.monotonic()
         if self.facts.disk_full:  # the run is stopping: the final report writes what fits
             return
         try:
@@ -357,6 +356,8 @@ class Run:
             self._wait(signals, 'the system', up, deadline, 'during startup')
         if signals.first is not None:
             return
+        if not plan.record:  # the environment is not held: its episodes begin now
+            self.facts.released = time.monotonic()
         self._check_parameter_names(signals)
         if plan.record and signals.first is None:
             recorded = functools.partial(
@@ -365,6 +366,7 @@ class Run:
             self._wait(signals, 'the recording', recorded, deadline, 'during startup')
             if signals.first is None:
                 self._release_first_episode()
+                self.facts.released = time.monotonic()
         self.facts.startup_seconds = time.monotonic() - self.facts.started
         self.say(f'all nodes up after {self.facts.startup_seconds:.1f} s')
         if self.plan.watch_port is not None:

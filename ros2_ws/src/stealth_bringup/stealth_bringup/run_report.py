@@ -30,8 +30,8 @@ class RunFacts:
     startup_seconds: float = math.nan
     training_started: float | None = None  # when the orchestrator began following episodes
     stopped_at: float | None = None
-    first_step: float | None = None  # when the first step of this command was reported
-    last_episode: float | None = None  # when the latest episode of this command completed
+    released: float | None = None  # when the environment could begin its first episode
+    episode_ends: dict[int, float] = dataclasses.field(default_factory=dict)  # sent, by episode
     domain_id: int | None = None
     nodes: dict = dataclasses.field(default_factory=dict)  # supervised nodes by name
     node_exits: dict[str, str] = dataclasses.field(default_factory=dict)
@@ -44,14 +44,25 @@ class RunFacts:
     incomplete: dict[Path, str] = dataclasses.field(default_factory=dict)  # file: what is amiss
 
     def stepping_seconds(self) -> float:
-        """How long the episodes stepped: from the first step (episodes may run before the
-        orchestrator follows them, while it checks the nodes' parameters) to the last episode's
-        end (else the stop, else now); 0 before the first."""
-        starts = [t for t in (self.first_step, self.training_started) if t is not None]
+        """How long the episodes ran: from when the environment could begin (unheld, episodes
+        run while the orchestrator still checks the nodes' parameters, before it follows them)
+        to the last episode's end (else the stop, else now); 0 before that."""
+        starts = [t for t in (self.released, self.training_started) if t is not None]
         if not starts:
             return 0.0
-        end = self.last_episode or self.stopped_at or time.monotonic()
+        end = max(self.episode_ends.values(), default=None) or self.stopped_at or time.monotonic()
         return max(0.0, end - min(starts))
+
+    def steps_per_second(self, records) -> float | None:
+        """The rate `records` (this command's episodes) were stepped at: between the ends of
+        the first and the last whose summary's sending time is known, which holds however late
+        the orchestrator took the reports in; else over stepping_seconds."""
+        timed = sorted((self.episode_ends[r.episode], r.steps) for r in records
+                       if r.episode in self.episode_ends)  # fmt: skip
+        if len(timed) >= 2 and timed[-1][0] > timed[0][0]:
+            return sum(steps for _, steps in timed[1:]) / (timed[-1][0] - timed[0][0])
+        seconds = self.stepping_seconds()
+        return sum(r.steps for r in records) / seconds if seconds > 0 and records else None
 
 
 class RunReport:
@@ -308,8 +319,8 @@ class RunReport:
         greedy = [r for r in records if r.greedy]
         steps = sum(r.steps for r in records)
         first = plan.continued.first_episode if plan.continued is not None else 0
-        steps_here = sum(r.steps for r in records if r.episode >= first)
         run_seconds = facts.stepping_seconds()
+        rate = facts.steps_per_second([r for r in records if r.episode >= first])
         last = tracker.last_greedy()
         seeds = {
             node: plan.parameters[node].values.get('seed')
@@ -380,7 +391,7 @@ class RunReport:
             if math.isfinite(facts.startup_seconds)
             else None,
             'run_s': round(run_seconds, 2),
-            'steps_per_s': round(steps_here / run_seconds, 2) if run_seconds > 0 else None,
+            'steps_per_s': None if rate is None else round(rate, 2),
             'ros_domain_id': facts.domain_id,
             'discovery': plan.discovery,
             # --compose: the simulator ran in the environment's process (nodes.environment).
@@ -453,9 +464,8 @@ class RunReport:
             mix = ', '.join(f'{k.lower()} {v}' for k, v in counts.items() if v)
             steps = sum(r.steps for r in records)
             first = plan.continued.first_episode if plan.continued is not None else 0
-            seconds, rate = facts.stepping_seconds(), ''
-            if seconds > 0:  # this command's steps, in the time they took
-                rate = f' at {sum(r.steps for r in records if r.episode >= first) / seconds:.0f}/s'
+            per_second = facts.steps_per_second([r for r in records if r.episode >= first])
+            rate = '' if per_second is None else f' at {per_second:.0f}/s'
             greedy = sum(r.greedy for r in records)
             lines.append(
                 f'  {len(records)} episodes ({len(records) - greedy} training, {greedy} greedy): '

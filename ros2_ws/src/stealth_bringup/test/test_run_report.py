@@ -3,19 +3,28 @@
 from stealth_bringup.run_report import RunFacts
 
 
-def test_steps_per_second_count_from_the_first_step():
-    # `stealth train --episodes 3`: the three episodes (900 steps) ran from 10 s to 13 s, while
-    # the orchestrator was still checking the nodes' parameters; it began following them at
+class Episode:
+    def __init__(self, episode, steps):
+        self.episode, self.steps = episode, steps
+
+
+def test_steps_per_second_come_from_when_the_episodes_ended():
+    # `stealth train --episodes 3`: three episodes of 300 steps ended at 11, 12 and 13 s, while
+    # the orchestrator was still checking the nodes' parameters; it took their reports in from
     # 20.0 and stopped the nodes at 20.015 (once reported as 900 steps at 59748/s).
     facts = RunFacts(started=0.0, training_started=20.0, stopped_at=20.015)
-    facts.first_step, facts.last_episode = 10.0, 13.0
+    facts.episode_ends = {0: 11.0, 1: 12.0, 2: 13.0}
+    episodes = [Episode(0, 300), Episode(1, 300), Episode(2, 300)]
+    assert facts.steps_per_second(episodes) == 300.0
+    facts.released = 10.0  # the environment was not held
     assert facts.stepping_seconds() == 3.0
-    assert 900 / facts.stepping_seconds() == 300.0
 
 
-def test_without_a_step_report_the_run_counts_from_the_following():
+def test_without_the_ends_the_rate_is_over_the_time_followed():
     facts = RunFacts(started=0.0, training_started=5.0, stopped_at=9.0)
-    assert facts.stepping_seconds() == 4.0  # no episode completed: up to the stop
-    facts.last_episode = 8.0
+    assert facts.stepping_seconds() == 4.0
+    assert facts.steps_per_second([Episode(0, 100), Episode(1, 300)]) == 100.0
+    facts.episode_ends = {1: 8.0}  # one end known: no interval between two
     assert facts.stepping_seconds() == 3.0
-    assert RunFacts(started=0.0).stepping_seconds() == 0.0  # never got to the episodes
+    assert facts.steps_per_second([Episode(0, 100), Episode(1, 300)]) == 400 / 3
+    assert RunFacts(started=0.0).steps_per_second([]) is None  # never got to the episodes
