@@ -243,6 +243,9 @@ class Run:
         try:
             self.supervisor.start(name, command, niceness=NICENESS.get(name, 0), env=env)
         except OSError as error:
+            if is_disk_full(error):  # its log file
+                log = self.plan.directory / 'logs' / f'{name}.log'
+                self.disk_full(DiskFullError(log, relative_to_cwd(log)))
             raise RunError(f'{name}: cannot start {command[0]}: {error.strerror}') from None
 
     def _check_processes(self, during: str) -> None:
