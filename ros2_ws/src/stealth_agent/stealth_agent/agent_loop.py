@@ -20,6 +20,7 @@ import time
 from typing import Protocol
 
 from stealth_interfaces.msg import AgentEpisodeInfo, RLExperimentInfo
+from stealth_node_kit.full_disk import DiskFullError, is_disk_full
 
 from .agent_messages import (
     StateWriters,
@@ -78,6 +79,7 @@ class AgentLoop:
         self.description: EnvDescription | None = None
         self._setup_error = ''
         self._progress = ProgressLog()
+        self.disk_full = False  # a save failed for want of space: no more saves
         self.states_received = 0  # for the shutdown totals, as the environment logs its own
         self.actions_sent = 0
         self._early_state = None  # the latest state before any description
@@ -301,9 +303,11 @@ class AgentLoop:
     # --- policy file -------------------------------------------------------------------------
 
     def save(self, reason: str) -> bool:
-        """Save the learned policy atomically, if learning with a policy file."""
+        """Save the learned policy atomically, if learning with a policy file. A full disk
+        keeps the file saved before and raises DiskFullError: the node stops (EXIT_DISK_FULL)
+        and the orchestrator stops the run, rather than learning on without a saved policy."""
         path = self._ports.param('policy_file')
-        if self.core is None or not self.learning_run or not path:
+        if self.core is None or not self.learning_run or not path or self.disk_full:
             return False
         learner, index = self.core.learner, self.core.index
         log = self._ports.exit_logger()
@@ -320,6 +324,9 @@ class AgentLoop:
                 extra={'seed': self._ports.param('seed'), 'reason': reason},
             )
         except (OSError, ValueError) as error:
+            if is_disk_full(error):
+                self.disk_full = True
+                raise DiskFullError(path) from None
             log.error(f'could not save the policy to {path}: {error}')
             return False
         log.info(

@@ -1,5 +1,9 @@
 """What the agent does with each message (AgentLoop), driven by a fake node: no ROS."""
 
+import errno
+
+import pytest
+from stealth_agent import policy_store
 from stealth_agent.agent_loop import AgentLoop
 from stealth_agent.agent_parameters import PARAMETERS
 from stealth_agent.policy_store import load_policy
@@ -9,6 +13,7 @@ from stealth_interfaces.msg import (
     RLEnvDescription,
     RLStateReward,
 )
+from stealth_node_kit.full_disk import DiskFullError
 
 DEFAULTS = {name: param.default for name, param in PARAMETERS.items()}
 DESCRIPTION = RLEnvDescription(
@@ -247,3 +252,20 @@ def test_the_policy_is_saved_every_save_every_and_at_the_end(tmp_path):
     assert node.told('info', f'saved the policy to {path} (shutdown; 2 episodes')
     node.params['evaluate'] = True  # an evaluation never overwrites the file
     assert not loop.save('shutdown')
+
+
+def test_a_full_disk_keeps_the_policy_saved_before_and_stops_the_agent(tmp_path, monkeypatch):
+    path = tmp_path / 'p.npz'
+    node, loop = started(save_every=1, policy_file=str(path))
+    run_episode(loop)
+    saved = path.read_bytes()
+
+    def no_space(*args, **kwargs):
+        raise OSError(errno.ENOSPC, 'No space left on device')
+
+    monkeypatch.setattr(policy_store.np, 'savez', no_space)
+    with pytest.raises(DiskFullError, match=r'^the disk is full: could not write .*p\.npz \('):
+        run_episode(loop)  # its save: the node stops (EXIT_DISK_FULL), the run with it
+    assert path.read_bytes() == saved and load_policy(path).learner.episodes == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['p.npz']  # no temporary file left
+    assert not loop.save('shutdown')  # no second try at exit

@@ -22,7 +22,10 @@ timeout, and writes the run's outputs.
 Ctrl-C or SIGTERM: the same orderly stop, exit 130 or 143 (a second Ctrl-C kills at once). A
 node that dies: everything else stopped, one line naming the node, how it ended and its last
 log line, exit 1. Bad input (scenario, goal, parameter file, --set, a missing executable) is
-one line and exit 1 before anything starts.
+one line and exit 1 before anything starts. A full disk (a file of the run, or a node's policy
+or recording, that does not fit): one line naming the file and the space left, the run stopped
+as above with what fits written (summary.json lists the complete and incomplete files, the
+last policy saved whole is kept), exit 4; the node that hit it is not restarted.
 
 Here: the two commands; their command lines are run_arguments', what they are asked to do is
 checked and laid out by run_plan. The run itself: run_lifecycle (the processes, from start to

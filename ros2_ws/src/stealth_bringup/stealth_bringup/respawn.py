@@ -6,10 +6,11 @@ A node that dies during a run is started again in the same domain with the same 
 most `limit` times per node, each time after a longer wait (RESPAWN_DELAYS), so a node that
 keeps crashing costs seconds, not a busy loop. A node that exits with code 2 said it cannot
 start with its parameters (stealth_node_kit's EXIT_CANNOT_START): the same parameters would
-fail the same way, so it is not restarted. What each restart is given on top of its parameters,
-and what it is told afterwards, is node-specific: the agent resumes from its checkpoint, the
-environment continues the episode numbering, the simulator's episode is aborted and the
-recorder writes a new file of the recording.
+fail the same way, so it is not restarted; nor is one that exits with EXIT_DISK_FULL (4): its
+file would not fit the next time either (run_lifecycle stops the run). What each restart is
+given on top of its parameters, and what it is told afterwards, is node-specific: the agent
+resumes from its checkpoint, the environment continues the episode numbering, the simulator's
+episode is aborted and the recorder writes a new file of the recording.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import time
 
+from stealth_node_kit.full_disk import EXIT_DISK_FULL
 from stealth_tools.bag_files import next_recording_file
 
 from stealth_bringup.episode_tracker import unfinished_fields
@@ -67,6 +69,8 @@ class RespawnPolicy:
             return 'not restarted: it does not run on this host'
         if returncode == EXIT_CANNOT_START:
             return 'not restarted: it cannot start with these parameters'
+        if returncode == EXIT_DISK_FULL:
+            return 'not restarted: the disk is full'
         done = self.count(node)
         if done >= self.limit:
             return f'not restarted again: it already was {done} times (--respawn {self.limit})'

@@ -16,6 +16,13 @@ import signal
 import sys
 import time
 
+from stealth_node_kit.full_disk import (
+    EXIT_DISK_FULL,
+    DiskFullError,
+    checked_write,
+    is_disk_full,
+)
+
 from stealth_bringup.episode_tracker import Tracker
 from stealth_bringup.remote_nodes import RemoteNodes
 from stealth_bringup.respawn import Respawner, RespawnPolicy
@@ -85,13 +92,32 @@ class Run:
         self.recording_files = [Path(recorder.values['output'])] if recorder else []
 
     def _fail(self, message: str) -> None:
+        if self.facts.disk_full:  # the run stopped for that: what followed is its consequence
+            return
         self.facts.status, self.facts.message, self.facts.exit_code = 'failed', message, 1
+
+    def disk_full(self, error: DiskFullError) -> None:
+        """A file of the run could not be written for want of space: the one line, and the run
+        stops (the nodes in order, every output that still fits written; exit EXIT_DISK_FULL)."""
+        if self.facts.disk_full:
+            return
+        self.facts.disk_full = str(error)
+        self.facts.status, self.facts.message = 'failed', str(error)
+        self.facts.exit_code = EXIT_DISK_FULL
+        self.say(f'{self.prog}: {error}; stopping')
 
     def execute(self) -> int:
         """The whole run; its exit status."""
         from stealth_bringup.ros_domain import shm_segments
 
-        self.plan.write_params_files()
+        try:
+            params = self.plan.directory / 'params'
+            with checked_write(params, relative_to_cwd(params)):
+                self.plan.write_params_files()
+        except DiskFullError as error:
+            self.disk_full(error)
+            self.report.print_closing({}, self.out)
+            return self.facts.exit_code
         for note in self.plan.notes:
             self.say(f'{self.prog}: {note}')
         self._remove_dead_shm()
@@ -100,10 +126,11 @@ class Run:
         with Signals() as signals:
             self._write_progress()  # a run directory from the start, whatever happens next
             self._run(signals, shm_before)
-            if facts.status == 'failed':
+            if facts.status == 'failed' and not facts.disk_full:  # that line was said already
                 self.say(f'{self.prog}: {facts.message}')
             if self.monitor is not None:
                 facts.paths, facts.late = self.monitor.paths, self.monitor.late
+                facts.episode_ends = self.monitor.ended
             facts.remote = {name: node.summary() for name, node in self.remote.items()}
             facts.nodes = dict(self.supervisor.nodes) if self.supervisor else {}
             facts.restarts = [restart.as_dict() for restart in self.respawns.restarts]
@@ -123,12 +150,14 @@ class Run:
             )
 
     def _write_progress(self) -> None:
-        """summary.json as the run stands; a full disk is said, not fatal."""
+        """summary.json as the run stands; a full disk stops the run."""
         if self.plan.mode != 'train':
             return
         self.facts.restarts = [restart.as_dict() for restart in self.respawns.restarts]
         try:
             self.report.write_progress()
+        except DiskFullError as error:
+            self.disk_full(error)
         except OSError as error:
             self.say(f'{self.prog}: could not write summary.json: {error}')
 
@@ -138,8 +167,13 @@ class Run:
         from stealth_bringup.run_outputs import append_episode
 
         self.progress.on_record(record)
+        if self.facts.disk_full:  # the run is stopping: the final report writes what fits
+            return
         try:
             append_episode(record, self.plan.file('episodes.csv'))
+        except DiskFullError as error:
+            self.disk_full(error)
+            return
         except OSError as error:
             self.say(f'{self.prog}: could not append to episodes.csv: {error}')
         if record.greedy:
@@ -217,14 +251,23 @@ class Run:
         try:
             self.supervisor.start(name, command, niceness=NICENESS.get(name, 0), env=env)
         except OSError as error:
+            if is_disk_full(error):  # its log file
+                log = self.plan.directory / 'logs' / f'{name}.log'
+                self.disk_full(DiskFullError(log, relative_to_cwd(log)))
             raise RunError(f'{name}: cannot start {command[0]}: {error.strerror}') from None
 
     def _check_processes(self, during: str) -> None:
         """A local node that exited, a remote one that left the graph, a second agent: the run
         cannot go on (RunError)."""
+        if self.facts.disk_full:
+            raise RunError(self.facts.disk_full)
         dead = self.supervisor.dead()
         if dead:
             node = dead[0]
+            if node.process.returncode == EXIT_DISK_FULL:
+                self.crashed.add(node.name)
+                self.disk_full(self._full_disk_of(node.name))
+                raise RunError(self.facts.disk_full)
             refusal = self.respawns.refusal(node.name, node.process.returncode)
             if not refusal:
                 self.respawner.restart(node, during)
@@ -236,6 +279,16 @@ class Run:
         if self.remote:
             self.remote.check(self.monitor.node_names(), during)
         self._check_one_agent()
+
+    def _full_disk_of(self, name: str) -> DiskFullError:
+        """The file a node that stopped on a full disk could not write: the agent's policy,
+        the recorder's recording, else the node's log."""
+        path = self.plan.directory / 'logs' / f'{name}.log'
+        if name == 'agent' and self.plan.mode == 'train':
+            path = self.plan.policy_path
+        elif name == 'recorder' and self.recording_files:
+            path = self.recording_files[-1]
+        return DiskFullError(path, relative_to_cwd(path))
 
     def _check_one_agent(self) -> None:
         """Two publishers of the actions: two agents answer every state (RunError), once the
@@ -313,6 +366,8 @@ class Run:
             self._wait(signals, 'the system', up, deadline, 'during startup')
         if signals.first is not None:
             return
+        if not plan.record:  # the environment is not held: its episodes begin now
+            self.facts.released = time.monotonic()
         self._check_parameter_names(signals)
         if plan.record and signals.first is None:
             recorded = functools.partial(
@@ -321,6 +376,7 @@ class Run:
             self._wait(signals, 'the recording', recorded, deadline, 'during startup')
             if signals.first is None:
                 self._release_first_episode()
+                self.facts.released = time.monotonic()
         self.facts.startup_seconds = time.monotonic() - self.facts.started
         self.say(f'all nodes up after {self.facts.startup_seconds:.1f} s')
         if self.plan.watch_port is not None:
@@ -434,6 +490,9 @@ class Run:
         )
         for name, node in supervisor.nodes.items():
             self.facts.node_exits[name] = node.exit_text()
+            if node.process.returncode == EXIT_DISK_FULL and name not in self.crashed:
+                self.crashed.add(name)  # e.g. the agent's last save, as it was stopped
+                self.disk_full(self._full_disk_of(name))
         problems = [n for n in supervisor.unclean() if n.name not in self.crashed]
         if problems:
             for node in problems:
@@ -458,15 +517,25 @@ class Run:
             if not path.exists() or (not node.killed and node.process.returncode in CLEAN_EXITS):
                 continue
             shown = relative_to_cwd(path)
+            if node.process.returncode == EXIT_DISK_FULL:  # its recovery would not fit either
+                self.facts.incomplete[path] = (
+                    'cut short: the disk is full; '
+                    f'`stealth bag recover {shown}` reads what it holds'
+                )
+                continue
             temporary = path.with_name(f'.{path.name}.recovering')
             temporary.unlink(missing_ok=True)
             try:
                 _, report = recover(path, temporary)
-            except BagError as error:
+            except (BagError, OSError) as error:
                 temporary.unlink(missing_ok=True)
+                why = 'the disk is full' if is_disk_full(error) else str(error)
+                self.facts.incomplete[path] = (
+                    f'not closed ({why}): `stealth bag recover {shown}` reads what it holds'
+                )
                 self.say(
                     f'{self.prog}: the recording {shown} was not closed and could not be '
-                    f'recovered ({error}); `stealth bag recover {shown}` tries again'
+                    f'recovered ({why}); `stealth bag recover {shown}` tries again'
                 )
                 continue
             temporary.replace(path)

@@ -18,6 +18,7 @@ from stealth_node_kit import rl_contract
 from stealth_bringup.episode_tracker import EpisodeRecord, Tracker, agent_fields, summary_fields
 
 SPIN_PERIOD = 0.1  # s: how long a signal or a dead node can go unnoticed
+PLAUSIBLE_DELAY = 600.0  # s a report may have waited in its queue (sent_at)
 EXIT_SIGNAL = {signal.SIGINT: 130, signal.SIGTERM: 143, signal.SIGHUP: 129}
 GRAPH_TOPICS_IGNORED = {'/rosout', '/parameter_events'}
 # The system is up once they are there.
@@ -81,6 +82,17 @@ def private_ros_context(domain_id: int, discovery: str = 'localhost'):
     return context
 
 
+def sent_at(info: dict, now: float) -> float:
+    """When a message taken at monotonic `now` was published, in monotonic s, from its DDS
+    source timestamp (system clock ns; rclpy's message info); `now` where there is none or it
+    is not plausible (another host's clock ahead, or far behind)."""
+    source = info.get('source_timestamp') if isinstance(info, dict) else None
+    if not source:
+        return now
+    delay = (time.time_ns() - source) / 1e9
+    return now - delay if 0.0 <= delay <= PLAUSIBLE_DELAY else now
+
+
 # --- the monitor node ----------------------------------------------------------------------------
 
 
@@ -106,6 +118,9 @@ class Monitor:
         # of an episode whose environment died before its summary.
         self.steps: dict[int, list[tuple]] = {}
         self.frozen = False  # set when the run ends: later reports are not counted
+        # When each counted episode's summary was sent (monotonic s): a report may wait in its
+        # queue while the orchestrator checks the nodes' parameters, and episodes run meanwhile.
+        self.ended: dict[int, float] = {}
         self.late: list[dict] = []  # summaries that arrived after that
         self._restart_client = None  # rl_env/restart_episode, once a node was respawned
         # Transient local: the reports' writers keep their latest messages, and after a node
@@ -130,11 +145,12 @@ class Monitor:
     def _elapsed(self) -> float:
         return time.monotonic() - self.started
 
-    def _on_summary(self, msg) -> None:
+    def _on_summary(self, msg, info) -> None:
         self.last_activity = time.monotonic()
         if self.frozen:  # the run has ended: an episode after the end or cut short by it
             self.late.append(summary_fields(msg))
             return
+        self.ended.setdefault(int(msg.episode), sent_at(info, self.last_activity))
         for record in self.tracker.add_summary(summary_fields(msg), self._elapsed()):
             self.on_record(record)
 

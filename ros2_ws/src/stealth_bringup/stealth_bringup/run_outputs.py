@@ -9,13 +9,20 @@ logs. No rclpy.
     path.png            plot_paths: the scenario (walls, visibility, cones) with labelled paths:
                         the robot's true path in the last greedy episode and the value-iteration
                         optimum on the move lattice (the harness: every method's path)
+
+Every file is written whole or not at all: into a temporary file beside it, renamed over it
+(the rows of episodes.csv, appended as episodes end, one write each, undone if it fails). A
+full disk is stealth_node_kit.full_disk's DiskFullError naming the file; the file keeps what it
+held before and no temporary file stays.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
+import contextlib
 import csv
 import dataclasses
+import io
 import json
 import math
 import os
@@ -26,9 +33,10 @@ from matplotlib.lines import Line2D
 import numpy as np
 from stealth_env import palette
 from stealth_env.planners import optimal_path  # noqa: F401 - where run_report takes it
+from stealth_node_kit.full_disk import checked_write, remove_quietly
 
 from stealth_bringup.episode_tracker import CSV_FIELDS, OUTCOMES, EpisodeRecord
-from stealth_bringup.run_config import RunConfigError
+from stealth_bringup.run_config import RunConfigError, relative_to_cwd
 
 AVERAGE_WINDOW = 20
 
@@ -47,25 +55,64 @@ def write_csv(rows: Iterable[dict], fields: Sequence[str], path: Path) -> Path:
 
 
 def _replace_atomically(path: Path, write, newline: str | None = None) -> Path:
-    """write(stream) into a temporary file beside `path`, then rename it over `path`."""
+    """write(stream) into a temporary file beside `path`, then rename it over `path`. On any
+    failure the temporary file goes and `path` keeps what it held; a full disk is
+    DiskFullError naming `path`."""
     path = Path(path)
     partial = path.with_name(f'.{path.name}.partial')
-    with open(partial, 'w', newline=newline, encoding='utf-8') as stream:
-        write(stream)
-    os.replace(partial, path)
+    try:
+        with checked_write(path, relative_to_cwd(path)):
+            with open(partial, 'w', newline=newline, encoding='utf-8') as stream:
+                write(stream)
+            os.replace(partial, path)
+    except BaseException:
+        remove_quietly(partial)
+        raise
     return path
 
 
-def append_episode(record: EpisodeRecord, path: Path) -> None:
-    """One more row of episodes.csv (the header first if the file is new), flushed to the OS at
-    once, so a killed orchestrator leaves every episode finished so far."""
+@contextlib.contextmanager
+def replacing(path: Path):
+    """A temporary path beside `path` with its suffix (a picture's format goes by it) to write
+    to by name; renamed over `path` when the block ends, removed if it fails (a full disk:
+    DiskFullError naming `path`), so a torn picture never takes the place of a whole one."""
     path = Path(path)
-    new = not path.exists() or path.stat().st_size == 0
-    with open(path, 'a', newline='', encoding='utf-8') as stream:
-        writer = csv.DictWriter(stream, fieldnames=CSV_FIELDS)
-        if new:
-            writer.writeheader()
-        writer.writerow({k: _csv_value(v) for k, v in record.as_row().items()})
+    temporary = path.with_name(f'.{path.stem}.partial{path.suffix}')
+    try:
+        with checked_write(path, relative_to_cwd(path)):
+            yield temporary
+            if temporary.exists():
+                os.replace(temporary, path)
+    except BaseException:
+        remove_quietly(temporary)
+        raise
+
+
+def append_episode(record: EpisodeRecord, path: Path) -> None:
+    """One more row of episodes.csv (the header first if the file is new), written to the OS
+    in one call, so a killed orchestrator leaves every episode finished so far. A write that
+    fails (a full disk: DiskFullError naming the file) is undone: the file keeps the rows it
+    had, never a torn one."""
+    path = Path(path)
+    with checked_write(path, relative_to_cwd(path)):
+        descriptor = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)
+        try:
+            size = os.lseek(descriptor, 0, os.SEEK_END)
+            stream = io.StringIO(newline='')
+            writer = csv.DictWriter(stream, fieldnames=CSV_FIELDS)
+            if size == 0:
+                writer.writeheader()
+            writer.writerow({k: _csv_value(v) for k, v in record.as_row().items()})
+            rest = memoryview(stream.getvalue().encode('utf-8'))
+            try:
+                while rest:  # a write cut short by a full disk says so at the next call
+                    rest = rest[os.write(descriptor, rest) :]
+            except OSError:
+                with contextlib.suppress(OSError):
+                    os.ftruncate(descriptor, size)
+                raise
+        finally:
+            os.close(descriptor)
 
 
 def read_episodes_csv(path: Path) -> list[EpisodeRecord]:
@@ -274,7 +321,8 @@ def plot_learning_curve(
         twin.set_ylabel('epsilon (training)')
         twin.set_ylim(0, max(0.05, max(e for _, e in epsilons) * 1.15))
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, bbox_inches='tight')
+    with replacing(path) as temporary:
+        fig.savefig(temporary, bbox_inches='tight')
     return path
 
 
@@ -287,23 +335,26 @@ def plot_paths(
     spread: float = 0.0,
     cache_dir: str | os.PathLike | None = None,
 ) -> Path:
-    """The scenario with (points, label) paths, later ones drawn over earlier ones. Paths often
-    share stretches: `spread` (m) shifts neighbouring ones apart so that all of them show."""
+    """The scenario with (points, label) paths, later ones drawn over earlier ones, written
+    whole or not at all (replacing). Paths often share stretches: `spread` (m) shifts
+    neighbouring ones apart so that all of them show."""
     from stealth_env.render import render_scenario
 
     middle = (len(labelled) - 1) / 2
     paths = [
         np.asarray(p, dtype=float) + (k - middle) * spread for k, (p, _) in enumerate(labelled)
     ]
-    return render_scenario(
-        scenario,
-        path,
-        paths=paths,
-        goal=goal,
-        path_labels=[label for _, label in labelled],
-        title=title,
-        cache_dir=cache_dir,
-    )
+    with replacing(path) as temporary:
+        render_scenario(
+            scenario,
+            temporary,
+            paths=paths,
+            goal=goal,
+            path_labels=[label for _, label in labelled],
+            title=title,
+            cache_dir=cache_dir,
+        )
+    return Path(path)
 
 
 def plot_path(

@@ -11,10 +11,11 @@ import math
 from pathlib import Path
 import time
 
+from stealth_node_kit.full_disk import EXIT_DISK_FULL, DiskFullError
 from stealth_tools.bag_files import recording_files
 
 from stealth_bringup.episode_tracker import Tracker
-from stealth_bringup.run_config import relative_to_cwd
+from stealth_bringup.run_config import RunConfigError, relative_to_cwd
 from stealth_bringup.run_plan import RunPlan
 
 
@@ -27,8 +28,10 @@ class RunFacts:
     message: str = ''
     exit_code: int = 1
     startup_seconds: float = math.nan
-    training_started: float | None = None
+    training_started: float | None = None  # when the orchestrator began following episodes
     stopped_at: float | None = None
+    released: float | None = None  # when the environment could begin its first episode
+    episode_ends: dict[int, float] = dataclasses.field(default_factory=dict)  # sent, by episode
     domain_id: int | None = None
     nodes: dict = dataclasses.field(default_factory=dict)  # supervised nodes by name
     node_exits: dict[str, str] = dataclasses.field(default_factory=dict)
@@ -37,6 +40,29 @@ class RunFacts:
     late: list[dict] = dataclasses.field(default_factory=list)  # summaries after the end
     remote: dict[str, dict] = dataclasses.field(default_factory=dict)  # --remote nodes' summary
     restarts: list[dict] = dataclasses.field(default_factory=list)  # respawn.Restart.as_dict()
+    disk_full: str = ''  # the line of the first write a full disk refused (the run stopped)
+    incomplete: dict[Path, str] = dataclasses.field(default_factory=dict)  # file: what is amiss
+
+    def stepping_seconds(self) -> float:
+        """How long the episodes ran: from when the environment could begin (unheld, episodes
+        run while the orchestrator still checks the nodes' parameters, before it follows them)
+        to the last episode's end (else the stop, else now); 0 before that."""
+        starts = [t for t in (self.released, self.training_started) if t is not None]
+        if not starts:
+            return 0.0
+        end = max(self.episode_ends.values(), default=None) or self.stopped_at or time.monotonic()
+        return max(0.0, end - min(starts))
+
+    def steps_per_second(self, records) -> float | None:
+        """The rate `records` (this command's episodes) were stepped at: between the ends of
+        the first and the last whose summary's sending time is known, which holds however late
+        the orchestrator took the reports in; else over stepping_seconds."""
+        timed = sorted((self.episode_ends[r.episode], r.steps) for r in records
+                       if r.episode in self.episode_ends)  # fmt: skip
+        if len(timed) >= 2 and timed[-1][0] > timed[0][0]:
+            return sum(steps for _, steps in timed[1:]) / (timed[-1][0] - timed[0][0])
+        seconds = self.stepping_seconds()
+        return sum(r.steps for r in records) / seconds if seconds > 0 and records else None
 
 
 class RunReport:
@@ -103,8 +129,6 @@ class RunReport:
             optimal_path,
             plot_learning_curve,
             plot_path,
-            write_episodes_csv,
-            write_json,
         )
 
         plan, tracker, facts = self.plan, self.tracker, self.facts
@@ -116,11 +140,12 @@ class RunReport:
             self.say(f'{self.prog}: no value-iteration baseline: {error}')
             optimum_points, optimum = None, None
         if records:
-            files['episodes'] = write_episodes_csv(records, plan.file('episodes.csv'))
+            self._episodes_csv(records, files)
         if records and plan.mode == 'train':
             agent = plan.parameters['agent'].values
             title = f'{plan.title}: {agent.get("agent", "qlearning")}, {len(records)} episodes'
-            curve = plot_learning_curve(
+            curve = self._fitting(
+                plot_learning_curve,
                 records,
                 plan.file('learning_curve.png'),
                 title,
@@ -147,7 +172,8 @@ class RunReport:
                 f'{optimum.total_reward:.1f})'
             )
             try:
-                picture = plot_path(
+                picture = self._fitting(
+                    plot_path,
                     plan.scenario,
                     plan.goal,
                     plan.file('path.png'),
@@ -167,15 +193,101 @@ class RunReport:
                 if animation is not None:
                     files['path_animation'] = animation
         files.update(self._existing_files())
+        self._nodes_incomplete()
         summary = self._summary(records, optimum, files)
-        write_json(summary, plan.file('summary.json'))
         written = {k: Path(v) for k, v in files.items()}
-        written['summary'] = plan.file('summary.json')
+        try:
+            self._write_summary(summary)
+        except DiskFullError as error:
+            self._refused(error)
+            self._say_files(summary)
+        else:
+            written['summary'] = plan.file('summary.json')
         return written
+
+    def _write_summary(self, summary: dict) -> None:
+        """The final summary.json. Replacing the one written as the run went needs room for
+        both: on a full disk the old one (status 'running', out of date) goes first, then the
+        final one is tried again (DiskFullError if it does not fit either)."""
+        from stealth_bringup.run_outputs import write_json
+
+        path = self.plan.file('summary.json')
+        try:
+            write_json(summary, path)
+        except DiskFullError:
+            if not path.is_file():
+                raise
+            path.unlink()
+            write_json(summary, path)
+
+    def _refused(self, error: DiskFullError) -> None:
+        """A file a full disk refused: noted as incomplete; the first such is the run's end
+        (its one line said, exit EXIT_DISK_FULL)."""
+        facts = self.facts
+        facts.incomplete[error.path] = 'not written: the disk is full'
+        if not facts.disk_full:
+            facts.disk_full = str(error)
+            facts.status, facts.message, facts.exit_code = 'failed', str(error), EXIT_DISK_FULL
+            self.say(f'{self.prog}: {error}')
+
+    def _fitting(self, write, *args, **kwargs):
+        """write(*args, **kwargs) of a file that a full disk may refuse: then None (noted)."""
+        try:
+            return write(*args, **kwargs)
+        except DiskFullError as error:
+            self._refused(error)
+            return None
+
+    def _episodes_csv(self, records, files: dict) -> None:
+        """episodes.csv rewritten whole; on a full disk the rows appended during the run stay
+        (the file is only ever replaced by a complete one), counted as incomplete if short."""
+        from stealth_bringup.run_outputs import read_episodes_csv, write_episodes_csv
+
+        path = self.plan.file('episodes.csv')
+        if self._fitting(write_episodes_csv, records, path) is not None:
+            files['episodes'] = path
+            return
+        self.facts.incomplete.pop(path, None)
+        if not path.is_file():
+            return
+        files['episodes'] = path
+        try:
+            kept = len(read_episodes_csv(path))
+        except RunConfigError:
+            kept = 0
+        if kept < len(records):
+            self.facts.incomplete[path] = f'{kept} of {len(records)} episodes: the disk is full'
+
+    def _nodes_incomplete(self) -> None:
+        """The files of nodes that stopped on a full disk: the policy saved before is kept, the
+        recording is cut short."""
+        plan, facts = self.plan, self.facts
+        stopped = {
+            name for name, node in facts.nodes.items()
+            if node.process.returncode == EXIT_DISK_FULL
+        }  # fmt: skip
+        if 'agent' in stopped and plan.mode == 'train':
+            what = 'not saved: the disk is full'
+            if plan.policy_path.is_file():
+                what = 'the last save failed (the disk is full): it holds the one saved before'
+            facts.incomplete[plan.policy_path] = what
+        recordings = recording_files(plan.directory)
+        if 'recorder' in stopped and recordings:
+            facts.incomplete.setdefault(recordings[-1], 'cut short: the disk is full')
+
+    def _say_files(self, summary: dict) -> None:
+        """summary.json could not be written: which files are complete, on the console."""
+        shown = relative_to_cwd(self.plan.file('summary.json'))
+        complete = ', '.join(n for n in summary['complete_files'] if n != shown) or 'none'
+        self.say(f'{self.prog}: summary.json not written either; complete files: {complete}')
+        for name, why in summary['incomplete_files'].items():
+            self.say(f'  {name}: {why}')
 
     def _animate(self, plan, learned, label, optimum_points, optimum_label) -> Path | None:
         """path.gif: the lights moving with the learned path and the optimum, step by step."""
         from stealth_env.render import animate_scenario
+
+        from stealth_bringup.run_outputs import replacing
 
         shown = ((learned, label), (optimum_points, optimum_label))
         paths = [(points, name) for points, name in shown if points is not None]
@@ -183,14 +295,19 @@ class RunReport:
         if optimum_points is not None:
             frames = min(max(len(points) for points, _ in paths), 2 * len(optimum_points))
         try:
-            return animate_scenario(
-                plan.scenario,
-                plan.file('path.gif'),
-                [p for p, _ in paths],
-                [name for _, name in paths],
-                goal=plan.goal,
-                frames=frames,
-            )
+            with replacing(plan.file('path.gif')) as temporary:
+                animate_scenario(
+                    plan.scenario,
+                    temporary,
+                    [p for p, _ in paths],
+                    [name for _, name in paths],
+                    goal=plan.goal,
+                    frames=frames,
+                )
+            return plan.file('path.gif')
+        except DiskFullError as error:
+            self._refused(error)
+            return None
         except Exception as error:  # noqa: BLE001
             self.say(f'{self.prog}: could not draw path.gif: {error}')
             return None
@@ -202,9 +319,8 @@ class RunReport:
         greedy = [r for r in records if r.greedy]
         steps = sum(r.steps for r in records)
         first = plan.continued.first_episode if plan.continued is not None else 0
-        steps_here = sum(r.steps for r in records if r.episode >= first)
-        end = facts.stopped_at or time.monotonic()
-        run_seconds = end - facts.training_started if facts.training_started else 0.0
+        run_seconds = facts.stepping_seconds()
+        rate = facts.steps_per_second([r for r in records if r.episode >= first])
         last = tracker.last_greedy()
         seeds = {
             node: plan.parameters[node].values.get('seed')
@@ -275,7 +391,7 @@ class RunReport:
             if math.isfinite(facts.startup_seconds)
             else None,
             'run_s': round(run_seconds, 2),
-            'steps_per_s': round(steps_here / run_seconds, 2) if run_seconds > 0 else None,
+            'steps_per_s': None if rate is None else round(rate, 2),
             'ros_domain_id': facts.domain_id,
             'discovery': plan.discovery,
             # --compose: the simulator ran in the environment's process (nodes.environment).
@@ -297,6 +413,16 @@ class RunReport:
             'files': {key: relative_to_cwd(value) for key, value in files.items()},
         }
         summary['files']['summary'] = relative_to_cwd(plan.file('summary.json'))
+        # After a full disk: which files hold everything, and what the others miss.
+        incomplete = {relative_to_cwd(path): why for path, why in facts.incomplete.items()}
+        if facts.disk_full and 'logs' in summary['files']:  # written as the disk filled
+            incomplete.setdefault(summary['files']['logs'], 'may miss lines: the disk is full')
+        summary['complete_files'] = [
+            name
+            for name in summary['files'].values()
+            if isinstance(name, str) and name not in incomplete
+        ]
+        summary['incomplete_files'] = incomplete
         if 'recording' in files:
             summary['files']['recording_files'] = [
                 relative_to_cwd(path) for path in recording_files(plan.directory)
@@ -337,9 +463,9 @@ class RunReport:
             counts = tracker.outcome_counts()
             mix = ', '.join(f'{k.lower()} {v}' for k, v in counts.items() if v)
             steps = sum(r.steps for r in records)
-            rate = ''
-            if facts.training_started and facts.stopped_at:
-                rate = f' at {steps / max(1e-9, facts.stopped_at - facts.training_started):.0f}/s'
+            first = plan.continued.first_episode if plan.continued is not None else 0
+            per_second = facts.steps_per_second([r for r in records if r.episode >= first])
+            rate = '' if per_second is None else f' at {per_second:.0f}/s'
             greedy = sum(r.greedy for r in records)
             lines.append(
                 f'  {len(records)} episodes ({len(records) - greedy} training, {greedy} greedy): '

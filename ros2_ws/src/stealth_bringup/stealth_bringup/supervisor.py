@@ -24,6 +24,10 @@ import time
 _PR_SET_PDEATHSIG = 1
 CLEAN_EXITS = (0, -signal.SIGINT, -signal.SIGTERM, 130, 143)
 _LOG_PREFIX = re.compile(r'^\[(\w+)\] \[[0-9.]+\] \[([^\]]+)\]: ')
+_RESTART_MARK = re.compile(r'^--- \w+ started again: ')  # Supervisor.start's, in a log
+_MARKERS = re.compile(r'^\s*[\^~]+[\s\^~]*$')  # a traceback's column markers (3.11+)
+_TRACEBACK = re.compile(r'^Traceback \(most recent call last\):')
+_FRAME = re.compile(r'^\s+File "')
 
 
 def _preexec(niceness: int = 0) -> Callable[[], None]:
@@ -47,7 +51,10 @@ def _preexec(niceness: int = 0) -> Callable[[], None]:
 
 
 def last_line(path: Path, limit: int = 64 * 1024) -> str:
-    """The last non-empty line of a log file, without rcutils' '[LEVEL] [time]' prefix."""
+    """The last message of a log file, without rcutils' '[LEVEL] [time]' prefix: from the
+    latest process only (after the last RESTART_MARK), never a traceback's ^^^ marker line; a
+    log that ends inside a traceback (cut short: its exception line never made it, as on a
+    full disk) says so with the last frame."""
     try:
         with open(path, 'rb') as stream:
             stream.seek(0, os.SEEK_END)
@@ -56,12 +63,22 @@ def last_line(path: Path, limit: int = 64 * 1024) -> str:
             text = stream.read().decode(errors='replace')
     except OSError:
         return ''
-    for line in reversed(text.splitlines()):
-        line = line.strip()
-        if line:
-            match = _LOG_PREFIX.match(line)
-            return f'[{match.group(1)}] {line[match.end() :]}' if match else line
-    return ''
+    lines = [line.rstrip() for line in text.splitlines()]
+    marks = [k for k, line in enumerate(lines) if _RESTART_MARK.match(line)]
+    if marks:  # what the processes before the latest one wrote is not about this one
+        lines = lines[marks[-1] + 1 :]
+    lines = [line for line in lines if line.strip() and not _MARKERS.match(line)]
+    if not lines:
+        return ''
+    line = lines[-1]
+    if line[0].isspace() and any(_TRACEBACK.match(text) for text in lines):
+        frame = next((text.strip() for text in reversed(lines) if _FRAME.match(text)), '')
+        return 'its log ends inside a Python traceback (cut short)' + (
+            f' at {frame}' if frame else ''
+        )
+    line = line.strip()
+    match = _LOG_PREFIX.match(line)
+    return f'[{match.group(1)}] {line[match.end() :]}' if match else line
 
 
 def exit_description(returncode: int) -> str:

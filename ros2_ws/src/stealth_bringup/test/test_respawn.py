@@ -23,6 +23,8 @@ def test_what_is_never_restarted():
     assert policy.refusal('agent', 1) == 'not restarted: it does not run on this host'
     # Exit code 2: the node said it cannot start with these parameters; they have not changed.
     assert policy.refusal('simulator', 2) == 'not restarted: it cannot start with these parameters'
+    # Its file would not fit the next time either (stealth_node_kit.full_disk.EXIT_DISK_FULL).
+    assert policy.refusal('recorder', 4) == 'not restarted: the disk is full'
 
 
 def test_the_delay_stops_growing():

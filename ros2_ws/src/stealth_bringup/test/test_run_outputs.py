@@ -2,23 +2,29 @@
 
 import csv
 import dataclasses
+import errno
 import json
 import math
+import os
 
 import numpy as np
 import pytest
+from stealth_bringup import run_outputs
 from stealth_bringup.episode_tracker import CSV_FIELDS, EpisodeRecord
 from stealth_bringup.run_config import RunConfigError
 from stealth_bringup.run_outputs import (
+    _replace_atomically,
     append_episode,
     moving_average,
     optimal_path,
     plot_learning_curve,
     plot_path,
     read_episodes_csv,
+    replacing,
     write_episodes_csv,
     write_json,
 )
+from stealth_node_kit.full_disk import DiskFullError
 
 
 def record(episode, outcome, greedy=False, reward=-100.0):
@@ -129,3 +135,63 @@ def test_summary_json_is_replaced_whole(tmp_path):
     write_json({'episodes': 2}, path)
     assert json.loads(path.read_text()) == {'episodes': 2}
     assert [p.name for p in tmp_path.iterdir()] == ['summary.json']  # no partial file left
+
+
+# --- a full disk ----------------------------------------------------------------------------
+
+
+def no_space(*args, **kwargs):
+    raise OSError(errno.ENOSPC, 'No space left on device')
+
+
+def test_a_full_disk_keeps_the_old_file_and_leaves_no_partial(tmp_path):
+    path = write_json({'episodes': 1}, tmp_path / 'summary.json')
+
+    def half_then_full(stream):
+        stream.write('{"episodes": ')
+        stream.flush()
+        no_space()
+
+    with pytest.raises(DiskFullError, match=r'^the disk is full: could not write .*summary.json'):
+        _replace_atomically(path, half_then_full)
+    assert json.loads(path.read_text()) == {'episodes': 1}
+    assert [p.name for p in tmp_path.iterdir()] == ['summary.json']
+
+
+def test_a_picture_is_replaced_whole_or_not_at_all(tmp_path):
+    path = tmp_path / 'learning_curve.png'
+    path.write_bytes(b'the old picture')
+    with pytest.raises(DiskFullError, match='learning_curve.png'), replacing(path) as temporary:
+        assert temporary.suffix == '.png' and temporary.parent == tmp_path
+        temporary.write_bytes(b'half a pic')
+        no_space()
+    assert path.read_bytes() == b'the old picture'
+    assert [p.name for p in tmp_path.iterdir()] == ['learning_curve.png']
+    with replacing(path) as temporary:
+        temporary.write_bytes(b'the new picture')
+    assert path.read_bytes() == b'the new picture'
+    assert [p.name for p in tmp_path.iterdir()] == ['learning_curve.png']
+
+
+def test_a_row_a_full_disk_cuts_short_is_undone(tmp_path, monkeypatch):
+    path = tmp_path / 'episodes.csv'
+    append_episode(RECORDS[0], path)
+    before = path.read_bytes()
+    real_write = os.write
+
+    def half_then_full(descriptor, data):  # as the kernel does: part, then ENOSPC
+        if len(data) > 10:
+            return real_write(descriptor, bytes(data[:10]))
+        no_space()
+
+    monkeypatch.setattr(run_outputs.os, 'write', half_then_full)
+    with pytest.raises(DiskFullError, match='could not write .*episodes.csv'):
+        append_episode(RECORDS[1], path)
+    assert path.read_bytes() == before  # the rows written before, never a torn one
+    monkeypatch.setattr(run_outputs.os, 'write', no_space)
+    with pytest.raises(DiskFullError):
+        append_episode(RECORDS[1], tmp_path / 'new.csv')
+    assert (tmp_path / 'new.csv').read_bytes() == b''
+    monkeypatch.setattr(run_outputs.os, 'write', real_write)
+    append_episode(RECORDS[1], path)
+    assert [r.episode for r in read_episodes_csv(path)] == [0, 1]

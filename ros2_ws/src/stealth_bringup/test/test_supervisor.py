@@ -106,3 +106,39 @@ def test_a_restarted_node_keeps_the_dead_ones_log_and_counts_as_killed(superviso
     assert wait_for(lambda: not killed.alive)
     supervisor.start('polite', [sys.executable, '-c', POLITE])
     assert supervisor.any_killed  # an earlier process of a node counts too
+
+
+def test_a_restart_cause_is_a_message_never_a_traceback_marker(tmp_path):
+    log = tmp_path / 'recorder.log'
+    log.write_text(
+        'Traceback (most recent call last):\n'
+        '  File "/x/recorder.py", line 12, in record\n'
+        '    spin_until(executor, stop)\n'
+        '    ~~~~~~~~~~^^^^^^^^^^^^^^^^\n'
+        'OSError: [Errno 28] No space left on device\n'
+        '          ^^^^^^^^\n'
+    )
+    assert last_line(log) == 'OSError: [Errno 28] No space left on device'
+    # Cut short (the disk filled as it was written): said so, with the last frame.
+    log.write_text(
+        'Traceback (most recent call last):\n'
+        '  File "/x/recorder.py", line 12, in record\n'
+        '    spin_until(executor, stop)\n'
+        '    ~~~~~~~~~~^^^^^^^^^^^^^^^^\n'
+    )
+    assert last_line(log) == (
+        'its log ends inside a Python traceback (cut short) at '
+        'File "/x/recorder.py", line 12, in record'
+    )
+
+
+def test_a_restart_cause_comes_from_the_latest_process_only(tmp_path):
+    log = tmp_path / 'agent.log'
+    log.write_text(
+        '[ERROR] [1700000000.1] [agent]: the first one broke\n'
+        '--- agent started again: agent --ros-args\n'
+    )
+    assert last_line(log) == ''  # not the line of the process before
+    with log.open('a') as stream:
+        stream.write('[INFO] [1700000001.2] [agent]: the second one\n')
+    assert last_line(log) == '[INFO] the second one'

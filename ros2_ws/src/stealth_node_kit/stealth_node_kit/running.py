@@ -3,7 +3,8 @@
 Init, build the node, spin until Ctrl-C or an external shutdown, then tidy up and shut down, as
 ros2/demos does. A node that cannot start (bad ``--ros-args``, a parameter out of range, a
 missing scenario) logs one fatal line saying why and the process exits with 2, never with a
-traceback; the orchestrator reports that line.
+traceback; the orchestrator reports that line. A node whose file cannot be written because the
+disk is full (full_disk.DiskFullError) logs that line and exits with EXIT_DISK_FULL (4).
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 import rclpy.node
+
+from stealth_node_kit.full_disk import EXIT_DISK_FULL, DiskFullError
 
 EXIT_CANNOT_START = 2
 SPIN_WAKE = 1.0  # s: the longest the executor waits before it looks at the context again
@@ -69,7 +72,8 @@ def run_node(
     args=None,
     on_exit: Callable[[rclpy.node.Node], None] | None = None,
 ) -> int:
-    """Run one node in this process; the exit code (0, or 2 when it could not start).
+    """Run one node in this process; the exit code (0, 2 when it could not start, or
+    EXIT_DISK_FULL when a DiskFullError left its callbacks or `on_exit`).
 
     `name` names the logger of the fatal line; `on_exit` runs after spinning, before the node
     is destroyed (save a policy, log totals); after Ctrl-C its logging goes to the console only.
@@ -107,10 +111,13 @@ def run_nodes(
         logger.fatal(f'not starting: {_without_source_locations(error)}')
         rclpy.try_shutdown()
         return EXIT_CANNOT_START
+    code = 0
     try:
         spin_until_shutdown(nodes)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except DiskFullError as error:
+        code = _stop_for_full_disk(logger, error)
     except (_rclpy.RCLError, RuntimeError):
         # rclpy's SIGINT handler shuts the context down from another thread: a wait set being
         # built then fails (RCLError), and a message being taken fails to convert (a plain
@@ -120,8 +127,18 @@ def run_nodes(
             raise
     finally:
         if on_exit is not None:
-            on_exit(nodes)
+            try:
+                on_exit(nodes)
+            except DiskFullError as error:
+                code = _stop_for_full_disk(logger, error)
         for node in reversed(nodes):
             node.destroy_node()
         rclpy.try_shutdown()
-    return 0
+    return code
+
+
+def _stop_for_full_disk(logger, error: DiskFullError) -> int:
+    """A node's file could not be written for want of space: one fatal line, and the exit
+    code that tells the orchestrator not to restart it."""
+    logger.fatal(f'{error}; stopping')
+    return EXIT_DISK_FULL

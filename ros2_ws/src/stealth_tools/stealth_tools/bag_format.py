@@ -16,6 +16,7 @@ bag_recover, because reading falls back on recovery's salvage scan.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, field
 import os
 from pathlib import Path
@@ -319,6 +320,15 @@ class BagWriter:
         self._writer.add_metadata(
             ROSBAG2_METADATA_NAME, {'serialized_metadata': dump_yaml(self.metadata())}
         )
+
+    def abandon(self) -> None:
+        """Close the file without finishing it, after a write failed (a full disk): the chunks
+        written before stay for `stealth bag recover`; a failing close says nothing new."""
+        if self.closed:
+            return
+        self.closed = True
+        with contextlib.suppress(OSError):
+            self._stream.close()
 
     def close(self) -> None:
         """Final metadata, summary, indexes and footer; metadata.yaml for a bag directory."""

@@ -32,7 +32,9 @@ when a chunk is closed, ``compression`` of the chunks (zstd, lz4, none),
 
 SIGINT and SIGTERM close the file with summary and indexes; after a SIGKILL at most
 ~max_chunk_duration * 1.5 + batch_period is missing and `stealth bag recover` restores an
-indexed file.
+indexed file. A full disk stops the recorder with one line naming the file and the space left,
+exit code EXIT_DISK_FULL (4): the file keeps the chunks written before, for `stealth bag
+recover`.
 
 ## Batches
 
@@ -48,6 +50,7 @@ time is the clock when the message is taken, so there the recorder takes each at
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 import sys
 import time
@@ -57,6 +60,7 @@ from rclpy.exceptions import InvalidParameterValueException, ParameterException
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from stealth_node_kit.full_disk import EXIT_DISK_FULL, disk_full_message, is_disk_full
 from stealth_node_kit.running import StartupNode
 
 from stealth_tools.bag_format import (
@@ -300,17 +304,28 @@ def record(args: list[str] | None = None, overrides: list[Parameter] | None = No
         try:
             spin_until(executor, stop)
         except OSError as error:
-            print(f'{NODE_NAME}: writing {node.bag.paths.mcap} failed: {error}', file=sys.stderr)
-            status = 1
+            status = _write_failed(node.bag.paths.mcap, 'writing', error)
         finally:
-            try:
-                node.get_logger().info(node.close())
-            except OSError as error:
-                print(f'{NODE_NAME}: closing {node.bag.paths.mcap}: {error}', file=sys.stderr)
-                status = 1
+            if status == EXIT_DISK_FULL:  # closing would only fail the same way
+                node.bag.abandon()
+            else:
+                try:
+                    node.get_logger().info(node.close())
+                except OSError as error:
+                    status = _write_failed(node.bag.paths.mcap, 'closing', error)
             executor.shutdown()
             node.destroy_node()
         return status
+
+
+def _write_failed(path, doing: str, error: OSError) -> int:
+    """One line on stderr; EXIT_DISK_FULL for a full disk (the recorder is then not restarted:
+    a new file would not fit either), else 1."""
+    full = is_disk_full(error)
+    line = f'{disk_full_message(path)}; stopping' if full else f'{doing} {path} failed: {error}'
+    with contextlib.suppress(OSError):  # stderr is a log file, likely on the same full disk
+        print(f'{NODE_NAME}: {line}', file=sys.stderr, flush=True)
+    return EXIT_DISK_FULL if full else 1
 
 
 def main(args: list[str] | None = None) -> int:
