@@ -126,7 +126,7 @@ def sweep(
     """Run what is not finished in ``out`` and write the report: (results.md, its status).
     Interrupted (after the report, marked so) when a signal stopped it."""
     from stealth_experiments.sweep_report import SweepStore, sweep_status, write_report
-    from stealth_experiments.sweep_stop import signals_stop, stop_marked
+    from stealth_experiments.sweep_stop import clean_up, signals_stop
     from stealth_experiments.sweep_trials import objective
 
     store = SweepStore(out)
@@ -149,8 +149,7 @@ def sweep(
                 _run(plan, todo, searches, store, out / 'ray', address, cpus, say)
         except Interrupted as stop:
             interrupted = stop
-            if plan.mode == 'ros' or any(t['mode'] == 'ros' for t in plan.extra):
-                stop_marked(mark, say)
+            clean_up(mark, say, plan.mode == 'ros' or any(t['mode'] == 'ros' for t in plan.extra))
     status = sweep_status(store, len(done) + remaining, interrupted and interrupted.name)
     report = write_report(store, plan.name, settings_text(plan), plots, status)
     if interrupted:

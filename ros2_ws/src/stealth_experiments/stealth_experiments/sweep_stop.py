@@ -7,13 +7,14 @@ its own SIGUSR1 handler (it stops the running trials and returns), and the run t
 Interrupted; anywhere else Interrupted is raised at once, and so is a second signal. Interrupted
 is a KeyboardInterrupt whose exit code is 128 + the signal's number (130 SIGINT, 143 SIGTERM).
 
-A ROS trial's `stealth train` runs in a session of its own, so that it gets one stop signal: the
-SIGTERM of its worker's end (sweep_trials), not also the terminal's Ctrl-C (two signals make it
-kill its nodes at once, and their Fast DDS files stay in /dev/shm). It carries the driver's mark
-(TRIAL_MARK; MARK is set before Ray starts and a local Ray's workers inherit it). After an
-interrupted sweep ``stop_marked`` waits for the marked processes to end their orderly stop
-(SIGKILL after STOP_GRACE), removes their scratch directories and the Fast DDS files of dead
-processes (stealth_bringup's ros_domain.remove_dead_shm, as `stealth doctor` does).
+A ROS trial's `stealth train` runs in a session of its own, so that the terminal's Ctrl-C does
+not reach it as well as the stop of its worker (two signals make it kill its nodes at once), and
+carries the driver's mark (TRIAL_MARK; MARK is set before Ray starts and a local Ray's workers
+inherit it), as do the trials' scratch directories. When Tune stops a trial, Ray ends its worker
+and kills the worker's children; after an interrupted sweep ``clean_up`` waits for what is left
+of the marked processes (their nodes stopping; SIGKILL after STOP_GRACE), and removes the trials'
+scratch directories and the Fast DDS files of dead processes (stealth_bringup's
+ros_domain.remove_dead_shm, as `stealth doctor` does).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import os
 from pathlib import Path
 import shutil
 import signal
+import tempfile
 import threading
 import time
 import uuid
@@ -125,41 +127,45 @@ def tune_run() -> Iterator[None]:
 # --- the ROS trials of an interrupted sweep ------------------------------------------------------
 
 
-def marked(mark: str, proc: Path = Path('/proc')) -> dict[int, str | None]:
-    """{pid: its --runs-dir or None} of this user's processes that carry the mark."""
+def marked(mark: str, proc: Path = Path('/proc')) -> list[int]:
+    """This user's processes that carry the mark (a ROS trial's `stealth train` and nodes)."""
     wanted = f'{TRIAL_MARK}={mark}'.encode()
-    found = {}
+    found = []
     for entry in proc.glob('[0-9]*'):
         with contextlib.suppress(OSError):
-            if wanted not in (entry / 'environ').read_bytes().split(b'\0'):
-                continue
-            words = (entry / 'cmdline').read_bytes().decode(errors='replace').split('\0')
-            runs_dir = words[words.index('--runs-dir') + 1] if '--runs-dir' in words else None
-            found[int(entry.name)] = runs_dir
+            if wanted in (entry / 'environ').read_bytes().split(b'\0'):
+                found.append(int(entry.name))
     return found
 
 
-def stop_marked(mark: str, say: Callable[[str], None], grace: float = STOP_GRACE) -> None:
-    """Wait for the marked ROS trials to end (their worker's end sent them SIGTERM), SIGKILL
-    what is left after ``grace``; then their scratch directories and dead Fast DDS files go."""
-    from stealth_bringup.ros_domain import remove_dead_shm
+def scratch_prefix() -> str:
+    """The prefix of a trial's scratch directory: with its sweep's mark, when it has one."""
+    mark = os.environ.get(MARK)
+    return f'{RUNS_DIR_PREFIX}{mark}-' if mark else RUNS_DIR_PREFIX
 
-    found = marked(mark)
-    runs_dirs = {d for d in found.values() if d and Path(d).name.startswith(RUNS_DIR_PREFIX)}
-    if found:
-        say(f'sweep: waiting for {len(found)} process(es) of ROS trials to stop')
-    deadline = time.monotonic() + grace
-    while found and time.monotonic() < deadline:
-        time.sleep(0.5)
+
+def clean_up(mark: str, say: Callable[[str], None], ros: bool, grace: float = STOP_GRACE):
+    """After an interrupted sweep: the stopped trials' scratch directories go; with ``ros``,
+    their processes are waited for (SIGKILL after ``grace``) and dead Fast DDS files removed."""
+    if ros:
         found = marked(mark)
-    for pid in found:
-        with contextlib.suppress(OSError):
-            os.kill(pid, signal.SIGKILL)
-    if found:
-        say(f'sweep: killed {len(found)} ROS trial process(es) still running after {grace:g} s')
-        time.sleep(1.0)
-    for runs_dir in runs_dirs:
-        shutil.rmtree(runs_dir, ignore_errors=True)
-    removed = remove_dead_shm()
-    if removed:
-        say(f'sweep: removed {len(removed)} Fast DDS file(s) of stopped processes from /dev/shm')
+        if found:
+            say(f'sweep: waiting for {len(found)} process(es) of ROS trials to stop')
+        deadline = time.monotonic() + grace
+        while found and time.monotonic() < deadline:
+            time.sleep(0.5)
+            found = marked(mark)
+        for pid in found:
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGKILL)
+        if found:
+            say(f'sweep: killed {len(found)} ROS trial process(es) left after {grace:g} s')
+            time.sleep(1.0)
+    for scratch in Path(tempfile.gettempdir()).glob(f'{RUNS_DIR_PREFIX}{mark}-*'):
+        shutil.rmtree(scratch, ignore_errors=True)
+    if ros:
+        from stealth_bringup.ros_domain import remove_dead_shm
+
+        removed = remove_dead_shm()
+        if removed:
+            say(f'sweep: removed {len(removed)} Fast DDS file(s) of stopped trials from /dev/shm')

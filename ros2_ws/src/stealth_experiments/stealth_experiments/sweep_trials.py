@@ -34,7 +34,7 @@ import numpy as np
 from stealth_env.reward import Outcome
 
 from stealth_experiments.harness import RunResult, RunSpec, run, settled_within
-from stealth_experiments.sweep_stop import MARK, RUNS_DIR_PREFIX, TRIAL_MARK
+from stealth_experiments.sweep_stop import MARK, TRIAL_MARK, scratch_prefix
 
 SPEED_WEIGHT = 0.01
 ROS_TIMEOUT = 3600.0  # s: a `stealth train` trial that takes longer is failed
@@ -57,7 +57,7 @@ def _run_seed(trial: dict, seed: int, where: dict) -> dict:
         **where,
     }
     try:
-        with tempfile.TemporaryDirectory(prefix=RUNS_DIR_PREFIX) as scratch:
+        with tempfile.TemporaryDirectory(prefix=scratch_prefix()) as scratch:
             runner = _run_ros if trial['mode'] == 'ros' else _run_gym
             result, policy = runner(trial, seed, Path(scratch))
             encoded = base64.b64encode(policy.read_bytes()).decode() if policy else None
