@@ -46,6 +46,9 @@ RAY_ENVIRONMENT = {
     'RAY_DEDUP_LOGS': '0',
     'RAY_USAGE_STATS_ENABLED': '0',
     'RAY_AIR_NEW_OUTPUT': '0',  # no experiment box: the progress lines below say what runs
+    # A worker's end would SIGKILL its children: a ROS trial's `stealth train` gets SIGTERM
+    # instead (sweep_trials._stop_with_parent) and stops its nodes in order.
+    'RAY_kill_child_processes_on_worker_exit': '0',
 }
 DEFAULT_MAX_FAILURES = 2
 # Ray gives a node 30 s (fixed) to register; on a busy host its agents' start-up can miss that.
