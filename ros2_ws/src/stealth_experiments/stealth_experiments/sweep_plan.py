@@ -308,9 +308,10 @@ def _unique(values: list, field: str, fail, show=repr) -> None:
     """A value listed twice would run the same trials twice (and report them once)."""
     seen = set()
     for value in values:
-        if value in seen:
+        key = repr(value)  # a mapping where a value belongs is the next check's to refuse
+        if key in seen:
             fail(field, f'{show(value)} is listed twice (list each once)')
-        seen.add(value)
+        seen.add(key)
 
 
 def _list(value, field, fail) -> list:
