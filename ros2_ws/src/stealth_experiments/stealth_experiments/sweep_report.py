@@ -9,7 +9,8 @@ summarised at the end. No rclpy, no Ray.
     DIR/policies/<trial>-seed<k>.npz   each run's final policy (stealth_agent policy file)
     DIR/results.csv             one row per run: settings, parameters, episodes to 5 % of the
                                 optimum, final greedy return / optimum, score, wall time, host
-    DIR/results.md              the same as a table, the best configuration per scenario, curves
+    DIR/results.md              headed by the status line (complete, failed, interrupted); the
+                                same as a table, the best configuration per scenario, curves
     DIR/curves_<scenario>.png   greedy return against episodes, each learner's best configuration
                                 (mean over seeds with a min-max band; harness_report.plot_curves)
 """
