@@ -6,10 +6,16 @@ trial was retried and the sweep completed; then, one trial's results removed as 
 stopped before it, `--resume` runs that trial alone. Both nodes are stopped at the end (by their
 process ids, never `ray stop`, which would stop every Ray on the machine), also when the test
 fails.
+
+On a local Ray of one CPU: Ctrl-C (SIGINT to the sweep's process group, as a terminal sends it)
+and SIGTERM end a sweep with 130 and 143, its results marked interrupted with the trials done,
+and --resume runs the stopped trial; a ROS trial interrupted leaves no process and no Fast DDS
+file behind; a sweep whose every run failed exits 1.
 """
 
 import contextlib
 import csv
+import json
 import os
 from pathlib import Path
 import signal
@@ -21,7 +27,9 @@ import time
 
 import pytest
 from ros_support import _sourced_environment
+from stealth_bringup.ros_domain import dead_shm_files, shm_segments
 from stealth_experiments.sweep_engine import RAY_ENVIRONMENT
+from stealth_experiments.sweep_stop import RUNS_DIR_PREFIX, TRIAL_MARK
 
 RAY = str(Path(sys.executable).parent / 'ray')
 START_TIMEOUT = 240.0  # s: a Ray node on two loaded cores
@@ -233,3 +241,140 @@ def test_a_sweep_on_two_nodes_survives_a_killed_worker(cluster, tmp_path):
     again = _rows(out)
     assert sorted(r['trial'] for r in again) == sorted(r['trial'] for r in rows)
     assert all(r['status'] == 'ok' for r in again)
+
+
+# --- stopping a sweep, on a local Ray ----------------------------------------------------------
+
+# qlearning's trial ends in seconds; dyna's would take hours: it is the one running when stopped.
+STOPPED = """
+name: stopped
+scenarios: [{scenario: simple-maze, goal: easy}]
+learners: [qlearning, dyna]
+seeds: [0]
+episodes: {qlearning: 20, dyna: 100000}
+eval_every: 10
+"""
+
+
+@pytest.fixture
+def local_env() -> dict:
+    env = dict(_sourced_environment())
+    env.update(RAY_ENVIRONMENT)
+    env['RAY_AUTH_MODE'] = 'disabled'
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    return env
+
+
+def _output_until(process: subprocess.Popen, log, *expected: str) -> str:
+    """The sweep's output once every ``expected`` text is in it (AssertionError if it ended
+    or timed out before)."""
+    deadline = time.monotonic() + SWEEP_TIMEOUT
+    output = ''
+    while time.monotonic() < deadline and process.poll() is None:
+        log.seek(0)
+        output = log.read()
+        if all(text in output for text in expected):
+            return output
+        time.sleep(0.5)
+    raise AssertionError(f'the sweep never said {expected} (exit {process.poll()}):\n{output}')
+
+
+def _status(out: Path) -> dict:
+    return json.loads((out / 'status.json').read_text())
+
+
+def test_ctrl_c_and_sigterm_end_a_sweep_marked_interrupted_and_resume_reruns_the_rest(
+    tmp_path, local_env
+):
+    sweep_file = tmp_path / 'stopped.yaml'
+    sweep_file.write_text(STOPPED)
+    out = tmp_path / 'out'
+    with open(tmp_path / 'sweep.log', 'w+') as log:
+        process = _sweep([str(sweep_file), '--out', str(out), '--cpus', '1'], local_env, log)
+        try:
+            _output_until(process, log, 'trial started: 1/2 done, 1 running')
+        finally:
+            os.killpg(process.pid, signal.SIGINT)  # Ctrl-C: the terminal signals the group
+        code, output = _finish(process, log)
+    assert code == 130, output[-3000:]
+    line = (
+        f'stealth sweep: interrupted by SIGINT: 1 of 2 trials done; `stealth sweep --resume {out}`'
+    )
+    assert line in output, output[-3000:]
+    assert _status(out) == {'status': 'interrupted', 'signal': 'SIGINT', 'trials': 2,
+                            'trials_done': 1, 'trials_failed': 0}  # fmt: skip
+    assert '**Sweep interrupted by SIGINT: 1 of 2 trials done;' in (out / 'results.md').read_text()
+    assert [row['learner'] for row in _rows(out)] == ['qlearning']
+    assert not _scratch(process.pid), 'the stopped trial left its scratch directory'
+
+    # --resume runs the stopped trial again; SIGTERM to the sweep alone stops it too.
+    with open(tmp_path / 'resume.log', 'w+') as log:
+        resumed = _sweep(['--resume', str(out), '--cpus', '1'], local_env, log)
+        try:
+            _output_until(resumed, log, '1 trial(s) already finished', '1 to run',
+                          'trial started: 0/1 done, 1 running')  # fmt: skip
+        finally:
+            os.kill(resumed.pid, signal.SIGTERM)
+        code, output = _finish(resumed, log)
+    assert code == 143, output[-3000:]
+    assert 'stealth sweep: interrupted by SIGTERM: 1 of 2 trials done' in output, output[-3000:]
+    assert _status(out)['signal'] == 'SIGTERM'
+
+
+def _scratch(sweep_pid: int) -> list[Path]:
+    """The scratch directories of a sweep's trials (sweep_stop.scratch_prefix)."""
+    return list(Path(tempfile.gettempdir()).glob(f'{RUNS_DIR_PREFIX}{sweep_pid}-*'))
+
+
+def _marked(sweep_pid: int) -> list[int]:
+    """Processes of the sweep's ROS trials (sweep_stop's mark begins with the driver's pid)."""
+    prefix = f'{TRIAL_MARK}={sweep_pid}-'.encode()
+    found = []
+    for entry in Path('/proc').glob('[0-9]*'):
+        with contextlib.suppress(OSError):
+            if any(v.startswith(prefix) for v in (entry / 'environ').read_bytes().split(b'\0')):
+                found.append(int(entry.name))
+    return found
+
+
+def test_an_interrupted_ros_trial_leaves_no_process_and_no_shared_memory(tmp_path, local_env):
+    sweep_file = tmp_path / 'ros.yaml'
+    sweep_file.write_text(
+        'scenarios: [{scenario: simple-maze, goal: easy}]\nlearners: [dyna]\nseeds: [0]\n'
+        'episodes: 400\neval_every: 10\nmode: ros\n'
+    )
+    out = tmp_path / 'out'
+    before = shm_segments()
+    with open(tmp_path / 'sweep.log', 'w+') as log:
+        process = _sweep([str(sweep_file), '--out', str(out), '--cpus', '1'], local_env, log)
+        try:
+            deadline = time.monotonic() + SWEEP_TIMEOUT
+            while len(_marked(process.pid)) < 4 and time.monotonic() < deadline:  # `stealth
+                time.sleep(0.5)  # train` and its three nodes
+            assert len(_marked(process.pid)) >= 4, 'the ROS trial never started its nodes'
+        finally:
+            os.killpg(process.pid, signal.SIGINT)
+        code, output = _finish(process, log)
+    assert code == 130, output[-3000:]
+    assert 'interrupted by SIGINT: 0 of 1 trials done' in output, output[-3000:]
+    assert _marked(process.pid) == [], 'processes of the ROS trial are still running'
+    assert not _scratch(process.pid), 'the stopped trial left its scratch directory'
+    left = set(dead_shm_files()) & (shm_segments() - before)
+    assert not left, f'Fast DDS files of the stopped trial left in /dev/shm: {sorted(left)}'
+    assert _status(out)['status'] == 'interrupted'
+
+
+def test_a_sweep_whose_every_run_failed_exits_1(tmp_path, local_env):
+    sweep_file = tmp_path / 'failing.yaml'
+    sweep_file.write_text(  # a ROS trial has no slip: the trial fails at once
+        'scenarios: [{scenario: simple-maze, goal: easy}]\nlearners: [dyna]\nseeds: [0]\n'
+        'episodes: 10\nmode: ros\nslip: 0.1\n'
+    )
+    out = tmp_path / 'out'
+    with open(tmp_path / 'sweep.log', 'w+') as log:
+        process = _sweep([str(sweep_file), '--out', str(out), '--cpus', '1'], local_env, log)
+        code, output = _finish(process, log)
+    assert code == 1, output[-3000:]
+    assert 'stealth sweep: failed: every run failed (1 of 1 trials done);' in output, output
+    assert _status(out)['status'] == 'failed'
+    assert _rows(out)[0]['error'].startswith('ValueError: a ROS trial has no slip')

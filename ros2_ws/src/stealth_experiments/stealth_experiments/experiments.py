@@ -44,6 +44,7 @@ from stealth_experiments.harness import (
     MOVING_EPISODES,
     baselines,
     default_budget,
+    scenario_argument,
     tuned_config,
 )
 from stealth_experiments.harness_report import write_results
@@ -81,7 +82,9 @@ def evaluate(
     plots: bool = True,
     progress: bool = True,
 ) -> list[dict]:
-    """Run the grid and write every report into ``out``; returns the CSV rows."""
+    """Run the grid and write every report into ``out``; returns the CSV rows. Scenario paths
+    are relative to the current directory (harness.scenario_argument), made absolute here."""
+    scenarios = [scenario_argument(scenario, Path.cwd()) for scenario in scenarios]
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     models = {scenario: lattice_model(scenario, goal) for scenario in scenarios}
@@ -138,7 +141,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         '--scenarios',
         nargs='+',
         default=list(DEFAULT_SCENARIOS),
-        help='scenario names or YAML paths (default: %(default)s)',
+        help='scenario names (on the scenario search path) or YAML paths (a relative path is '
+        'relative to the current directory) (default: %(default)s)',
     )
     parser.add_argument(
         '--learners',
@@ -201,9 +205,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             jobs=args.jobs,
             plots=not args.no_plots,
         )
-    except (OSError, ValueError) as error:
+    except (OSError, RuntimeError, ValueError) as error:
         print(f'experiments: {error}', file=sys.stderr)
         return 1
+    except KeyboardInterrupt as stop:  # sweep_stop.Interrupted: SIGINT or SIGTERM
+        print(f'experiments: interrupted; nothing written to {args.out}', file=sys.stderr)
+        return getattr(stop, 'exit_code', 130)
     print(args.out / 'results.md')
     return 0
 

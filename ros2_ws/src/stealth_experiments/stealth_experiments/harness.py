@@ -225,6 +225,17 @@ def policy_path(spec: RunSpec) -> Path:
     return Path(spec.policy_dir) / name
 
 
+def scenario_argument(entry: str, base: Path) -> str:
+    """A scenario as a trial takes it, wherever it runs (Ray starts trials in a directory of its
+    own): a name (no '/', no .yaml) stays a name, looked up on the scenario search path; a path
+    relative to ``base`` becomes absolute. The one rule of `experiments` and `stealth sweep`:
+    ``base`` is the current directory on the command line, the sweep file's inside one."""
+    path = Path(entry)
+    if path.suffix not in ('.yaml', '.yml') and len(path.parts) == 1:
+        return str(entry)
+    return str((Path(base) / path).resolve())  # an absolute path stays itself
+
+
 def scenario_label(scenario: str) -> str:
     """A scenario's name for tables and file names: 'map1' for 'map1' or 'x/map1.yaml'."""
     return Path(scenario).stem

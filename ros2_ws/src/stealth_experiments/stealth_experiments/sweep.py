@@ -9,6 +9,10 @@ naming the field. Trials run on sweep_engine (Ray Tune), each through sweep_tria
 or `stealth train` in its own ROS domain); their records land in the sweep's directory as they
 end (sweep_report), so a sweep stopped half-way and given to --resume reruns only the rest, and
 the table, best configurations and curves are written at the end.
+
+Ctrl-C or SIGTERM (sweep_stop): the running trials are stopped (a ROS trial's processes waited
+for and their shared memory cleaned), the report written from the finished ones and marked
+interrupted, exit 130 or 143; --resume runs the rest. Exit 1 when every run failed.
 """
 
 from __future__ import annotations
@@ -20,9 +24,11 @@ from pathlib import Path
 import shutil
 import sys
 
-from stealth_experiments.sweep_plan import SweepError, SweepPlan, load_plan
+from stealth_experiments.sweep_plan import MAX_TRIALS, SweepError, SweepPlan, load_plan
+from stealth_experiments.sweep_stop import Interrupted
 
 SAVED_FILE = 'sweep.yaml'
+BASE_FILE = 'sweep_base.txt'  # the sweep file's directory: its relative scenario paths' base
 
 
 def parser() -> argparse.ArgumentParser:
@@ -31,6 +37,11 @@ def parser() -> argparse.ArgumentParser:
         description='Train learners over scenarios, seeds and hyperparameters (grid, random or '
         'Optuna search) on Ray: a local Ray on every core, or a cluster with --address. '
         'Writes results.csv, results.md (best configuration per scenario), curves and policies.',
+        epilog='Scenarios in the sweep file are names (looked up on the scenario search path) or '
+        "YAML paths; a relative path is relative to the sweep file's directory. A sweep has at "
+        f'most {MAX_TRIALS:,} trials (counted before anything starts). Ctrl-C or SIGTERM stops '
+        'the running trials and marks the results interrupted (exit 130 or 143); --resume runs '
+        'the rest. Exit 1 when every run failed.',
     )
     p.add_argument('config', nargs='?', metavar='SWEEP.yaml', help='the sweep file')
     p.add_argument(
@@ -42,7 +53,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument(
         '--resume',
         metavar='DIR',
-        help='continue the sweep in DIR: its finished trials are kept, the rest run',
+        help='continue the sweep in DIR: its finished trials are kept; the rest (those not run, '
+        'stopped by an interruption, or failed) run',
     )
     p.add_argument(
         '--out',
@@ -76,7 +88,10 @@ def _load(args) -> SweepPlan:
                 f'--resume {args.resume}: {args.config} differs from the sweep file it was '
                 f'started with ({saved}); leave SWEEP.yaml out to resume that one'
             )
-        return load_plan(saved)
+        base = Path(args.resume) / BASE_FILE
+        return load_plan(
+            saved, base.read_text(encoding='utf-8').strip() if base.is_file() else None
+        )
     if not args.config:
         raise SweepError('give a sweep file (SWEEP.yaml) or --resume DIR')
     return load_plan(args.config)
@@ -105,10 +120,13 @@ def _values(spec) -> str:
     return f'{spec.low:g} to {spec.high:g}{" (log)" if spec.log else ""}'
 
 
-def sweep(plan: SweepPlan, out: Path, *, address=None, cpus=None, plots=True, say=print) -> Path:
-    """Run what is not finished in ``out`` and write the report; returns results.md."""
-    from stealth_experiments.sweep_engine import Engine
-    from stealth_experiments.sweep_report import SweepStore, write_report
+def sweep(
+    plan: SweepPlan, out: Path, *, address=None, cpus=None, plots=True, say=print
+) -> tuple[Path, dict]:
+    """Run what is not finished in ``out`` and write the report: (results.md, its status).
+    Interrupted (after the report, marked so) when a signal stopped it."""
+    from stealth_experiments.sweep_report import SweepStore, sweep_status, write_report
+    from stealth_experiments.sweep_stop import clean_up, signals_stop
     from stealth_experiments.sweep_trials import objective
 
     store = SweepStore(out)
@@ -124,18 +142,34 @@ def sweep(plan: SweepPlan, out: Path, *, address=None, cpus=None, plots=True, sa
             searches.append((group, base, plan.trials - len(mine), seen))
     remaining = len(todo) + sum(budget for *_, budget, _ in searches)
     say(f'sweep: {plan.name}: {len(done)} trial(s) already finished in {out}, {remaining} to run')
-    if remaining:
-        storage = out / 'ray'
-        options = {'cpus_per_trial': plan.cpus_per_trial, 'max_failures': plan.max_failures}
-        with Engine(address, cpus, say) as engine:
-            engine.run_fixed(todo, store.add, storage, **options)
-            for group, base, budget, seen in searches:
-                say(f'sweep: optuna search on {group.label}: {budget} trial(s), {len(seen)} known')
-                engine.run_search(
-                    base, plan.optuna_space(), budget, seen, store.add, storage,
-                    seed=plan.seed, **options,
-                )  # fmt: skip
-    return write_report(store, plan.name, settings_text(plan), plots)
+    interrupted = None
+    with signals_stop() as mark:
+        try:
+            if remaining:
+                _run(plan, todo, searches, store, out / 'ray', address, cpus, say)
+        except Interrupted as stop:
+            interrupted = stop
+            clean_up(mark, say, plan.mode == 'ros' or any(t['mode'] == 'ros' for t in plan.extra))
+    status = sweep_status(store, len(done) + remaining, interrupted and interrupted.name)
+    report = write_report(store, plan.name, settings_text(plan), plots, status)
+    if interrupted:
+        interrupted.report, interrupted.status = report, status
+        raise interrupted
+    return report, status
+
+
+def _run(plan, todo, searches, store, storage, address, cpus, say) -> None:
+    from stealth_experiments.sweep_engine import Engine
+
+    options = {'cpus_per_trial': plan.cpus_per_trial, 'max_failures': plan.max_failures}
+    with Engine(address, cpus, say) as engine:
+        engine.run_fixed(todo, store.add, storage, **options)
+        for group, base, budget, seen in searches:
+            say(f'sweep: optuna search on {group.label}: {budget} trial(s), {len(seen)} known')
+            engine.run_search(
+                base, plan.optuna_space(), budget, seen, store.add, storage,
+                seed=plan.seed, **options,
+            )  # fmt: skip
 
 
 def _group_trials(records: list[dict], base: dict) -> dict[str, list[dict]]:
@@ -166,10 +200,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     if not args.resume:
         shutil.copyfile(plan.path, out / SAVED_FILE)
+        (out / BASE_FILE).write_text(f'{plan.path.parent.resolve()}\n', encoding='utf-8')
     say = (lambda line: None) if args.quiet else (lambda line: print(line, flush=True))
     try:
-        report = sweep(plan, out, address=args.address, cpus=args.cpus,
-                       plots=not args.no_plots, say=say)  # fmt: skip
+        report, status = sweep(plan, out, address=args.address, cpus=args.cpus,
+                               plots=not args.no_plots, say=say)  # fmt: skip
+    except Interrupted as stop:
+        from stealth_experiments.sweep_report import status_line
+
+        if stop.status is not None:
+            print(stop.report)
+            print(f'{prog}: {status_line(stop.status, out)}', file=sys.stderr)
+        else:
+            print(f'{prog}: interrupted by {stop.name}; finished trials are kept: --resume {out}',
+                  file=sys.stderr)  # fmt: skip
+        return stop.exit_code
     except KeyboardInterrupt:
         print(f'{prog}: interrupted; finished trials are kept: --resume {out}', file=sys.stderr)
         return 130
@@ -177,6 +222,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f'{prog}: {error}; finished trials are kept: --resume {out}', file=sys.stderr)
         return 1
     print(report)
+    if status['status'] == 'failed':
+        from stealth_experiments.sweep_report import status_line
+
+        print(f'{prog}: {status_line(status, out)}', file=sys.stderr)
+        return 1
     return 0
 
 

@@ -15,20 +15,25 @@ is under the sweep's directory, and each node writes its trials' bookkeeping the
 
 Progress: a line whenever a trial starts, ends or is retried: done / running / failed of the
 total, the best objective so far and an ETA from the mean trial time and the concurrency.
+SIGINT and SIGTERM (sweep_stop): Tune stops the running trials and the run raises Interrupted;
+a trial stopped so is not recorded (it is not done: --resume runs it).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+import contextlib
 import logging
 import os
 from pathlib import Path
+import signal
 import socket
 import tempfile
 import time
 
 from tqdm import tqdm
 
+from stealth_experiments import sweep_stop
 from stealth_experiments.harness import DEFAULT_EVAL_EVERY, RunResult, RunSpec, default_budget, run
 from stealth_experiments.sweep_trials import objective, run_trial
 
@@ -41,10 +46,16 @@ RAY_ENVIRONMENT = {
     'RAY_DEDUP_LOGS': '0',
     'RAY_USAGE_STATS_ENABLED': '0',
     'RAY_AIR_NEW_OUTPUT': '0',  # no experiment box: the progress lines below say what runs
+    # A worker's end would SIGKILL its children: a ROS trial's `stealth train` gets SIGTERM
+    # instead (sweep_trials._stop_with_parent) and stops its nodes in order.
+    'RAY_kill_child_processes_on_worker_exit': '0',
 }
 DEFAULT_MAX_FAILURES = 2
 # Ray gives a node 30 s (fixed) to register; on a busy host its agents' start-up can miss that.
 START_ATTEMPTS = 3
+# The HTTP/2 connection preface and an empty SETTINGS frame: a gRPC server (a Ray head's GCS)
+# answers with a SETTINGS frame (type 4) of its own; anything else is not a Ray head.
+HTTP2_HELLO = b'PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n' + bytes([0, 0, 0, 4, 0, 0, 0, 0, 0])
 
 
 class EngineError(RuntimeError):
@@ -52,20 +63,37 @@ class EngineError(RuntimeError):
 
 
 def check_address(address: str, timeout: float = 5.0) -> None:
-    """One line (EngineError) when nothing listens at a Ray head's HOST:PORT."""
+    """One line (EngineError), within about ``timeout`` s, when no Ray head answers at HOST:PORT:
+    nothing listens, or what does is not a gRPC server (Ray would retry it for minutes)."""
     host, _, port = address.rpartition(':')
     if address == 'auto':
         return
     if not host or not port.isdigit():
         raise EngineError(f'--address {address}: expected HOST:PORT of a Ray head (ray start)')
+    hint = 'start one with `ray start --head --port PORT` or leave --address out'
     try:
-        with socket.create_connection((host, int(port)), timeout=timeout):
-            pass
+        connection = socket.create_connection((host, int(port)), timeout=timeout)
     except OSError as error:
         raise EngineError(
-            f'--address {address}: no Ray head answers there ({error.strerror or error}); '
-            'start one with `ray start --head --port PORT` or leave --address out'
+            f'--address {address}: no Ray head answers there ({error.strerror or error}); {hint}'
         ) from None
+    answer = b''
+    with connection, contextlib.suppress(OSError):  # a timeout or a reset: what came so far
+        connection.sendall(HTTP2_HELLO)
+        while len(answer) < 9:
+            chunk = connection.recv(64)
+            if not chunk:
+                break
+            answer += chunk
+    if len(answer) < 9 or answer[3] != 4:
+        first = answer.splitlines()[0][:40].decode(errors='replace') if answer.strip() else ''
+        said = (
+            f'answered {first!r} to a gRPC hello' if first else f'no gRPC answer in {timeout:g} s'
+        )
+        raise EngineError(
+            f'--address {address}: something listens there but it is not a Ray head ({said}); '
+            f'{hint}'
+        )
 
 
 class Engine:
@@ -94,7 +122,11 @@ class Engine:
                     logging_level=logging.WARNING,
                     ignore_reinit_error=True,
                 )
+                sweep_stop.claim_signals()  # ray.init took SIGTERM
                 break
+            except sweep_stop.Interrupted:
+                ray.shutdown()
+                raise
             except Exception as error:  # Ray raises a bare Exception when a node is slow
                 ray.shutdown()  # what this attempt started goes
                 first = str(error).splitlines()[0] if str(error) else type(error).__name__
@@ -228,8 +260,11 @@ class Engine:
                 verbose=0,
             ),
         )
-        tuner.fit()
-        watcher.finish()
+        with sweep_stop.tune_run():
+            try:
+                tuner.fit()
+            finally:
+                watcher.finish()
 
 
 def _dirname(trial) -> str:
@@ -312,7 +347,8 @@ class _Progress:
 
             def on_trial_complete(self, iteration, trials, trial, **info):
                 self.running.discard(trial.trial_id)
-                self._line('finished')
+                stopped = trial.trial_id not in self.recorded and sweep_stop.requested()
+                self._line('stopped' if stopped else 'finished')
 
             def on_trial_recover(self, iteration, trials, trial, **info):
                 self.retries += 1
@@ -321,7 +357,7 @@ class _Progress:
 
             def on_trial_error(self, iteration, trials, trial, **info):
                 self.running.discard(trial.trial_id)
-                if trial.trial_id not in self.recorded:
+                if trial.trial_id not in self.recorded and not sweep_stop.requested():
                     self.recorded.add(trial.trial_id)
                     self.sink(_lost_records(trial.config, _first_line(trial.get_error())))
                     self.done += 1
@@ -347,9 +383,12 @@ class _Progress:
                 return _duration(max(waves * mean, 0.0))
 
             def finish(self) -> None:
+                signum = sweep_stop.requested()
+                stopped = f'interrupted by {signal.Signals(signum).name}: ' if signum else ''
                 if self.say is not None:
                     self.say(
-                        f'sweep: {self.done}/{self.total} trials done, {self.failed} failed, '
+                        f'sweep: {stopped}{self.done}/{self.total} trials done, '
+                        f'{self.failed} failed, '
                         f'{self.retries} retried, in {_duration(time.monotonic() - self.started)}'
                     )
 
@@ -454,6 +493,7 @@ def run_specs(specs, *, jobs: int, progress: bool = True):
 
     say = print if progress else (lambda line: None)
     with (
+        sweep_stop.signals_stop(),
         tempfile.TemporaryDirectory(prefix='stealth-eval-') as storage,
         Engine(None, jobs, say) as engine,
     ):

@@ -3,7 +3,8 @@
 A sweep file (YAML; docs/sweeps/example.yaml) names what to train and how::
 
     name: example                 # default: the file's stem
-    scenarios:                    # names or YAML paths; or {scenario: map1, goal: easy}
+    scenarios:                    # names, or YAML paths relative to this file; or
+                                  # {scenario: map1, goal: easy}
       - simple-maze
     goal: easy                    # default goal of every scenario listed by name only
     learners: [qlearning, dyna]
@@ -26,7 +27,13 @@ random trials have one seed each; an optuna trial evaluates its configuration on
 objective is the mean over them, ``sweep_trials.objective``). Grid and random trials, and extra
 ones, are laid out here with ids that depend only on their settings, so a resumed sweep knows
 which are done; optuna trials are suggested by the search as it goes. Every problem is one
-SweepError naming the file, the field and what was expected.
+SweepError naming the file, the field and what was expected: a value listed twice (a learner, a
+seed, a scenario, a parameter value) too, and a sweep of more than MAX_TRIALS trials (counted
+from the lists, before any trial is laid out).
+
+Scenario paths (anything with a '/' or a .yaml ending; harness.scenario_argument) are relative to
+the sweep file's directory and made absolute here, once: the trials get them as they are, in
+whatever directory Ray starts them.
 """
 
 from __future__ import annotations
@@ -42,7 +49,13 @@ from typing import Any
 import numpy as np
 from stealth_agent.learners import canonical_learner_name
 
-from stealth_experiments.harness import DEFAULT_EVAL_EVERY, PARAMETERS, configured, scenario_label
+from stealth_experiments.harness import (
+    DEFAULT_EVAL_EVERY,
+    PARAMETERS,
+    configured,
+    scenario_argument,
+    scenario_label,
+)
 
 MODES = ('gym', 'ros')
 SEARCHES = ('grid', 'random', 'optuna')
@@ -52,6 +65,9 @@ TOP_LEVEL = (
     'search', 'trials', 'seed', 'params', 'extra', 'cpus_per_trial', 'max_failures',
 )  # fmt: skip
 EXTRA_FIELDS = ('mode', 'scenario', 'goal', 'learner', 'seed', 'episodes', 'params')
+# Trials a sweep may have: a grid of more is refused before Ray starts (Tune lays every trial
+# out in the driver's memory first; 300,000 took minutes and a gigabyte before the first ran).
+MAX_TRIALS = 10_000
 
 
 class SweepError(ValueError):
@@ -98,6 +114,23 @@ class SweepPlan:
     extra: tuple[dict, ...]
     cpus_per_trial: float
     max_failures: int
+
+    def trial_count(self) -> tuple[int, str]:
+        """(trials, how that count is made) from the lists alone, without laying them out."""
+        groups = f'{len(self.groups)} scenario x learner group(s)'
+        if self.search == 'grid':
+            combos = math.prod(len(values) for values in self.params.values())
+            count = len(self.groups) * combos * len(self.seeds)
+            how = f'{groups} x {combos:,} parameter combination(s) x {len(self.seeds)} seed(s)'
+        elif self.search == 'random':
+            count = len(self.groups) * self.trials * len(self.seeds)
+            how = f'{groups} x {self.trials:,} sample(s) x {len(self.seeds)} seed(s)'
+        else:
+            count = len(self.groups) * self.trials
+            how = f'{groups} x {self.trials:,} trial(s)'
+        if self.extra:
+            how += f' + {len(self.extra)} extra'
+        return count + len(self.extra), how
 
     def fixed_trials(self) -> list[dict]:
         """Every trial laid out in advance: grid or random ones, then the extra ones."""
@@ -177,8 +210,10 @@ def make_trial(mode, scenario, goal, learner, seeds, episodes, eval_every, slip,
 # --- reading the file ---------------------------------------------------------------------------
 
 
-def load_plan(path: str | Path) -> SweepPlan:
-    """The checked plan of a sweep file; SweepError naming the field otherwise."""
+def load_plan(path: str | Path, base: str | Path | None = None) -> SweepPlan:
+    """The checked plan of a sweep file; SweepError naming the field otherwise. ``base``: the
+    directory its scenario paths are relative to (default: the file's own; --resume reads a
+    copy, whose paths are relative to where the original was)."""
     path = Path(path)
     try:
         import yaml
@@ -190,10 +225,12 @@ def load_plan(path: str | Path) -> SweepPlan:
         where = getattr(error, 'problem_mark', None)
         line = f' (line {where.line + 1})' if where is not None else ''
         raise SweepError(f'sweep file {path}: not valid YAML{line}') from None
-    return parse_plan(data, path)
+    return parse_plan(data, path, base)
 
 
-def parse_plan(data: Any, path: Path) -> SweepPlan:
+def parse_plan(data: Any, path: Path, base: str | Path | None = None) -> SweepPlan:
+    base = Path(path).parent if base is None else Path(base)
+
     def fail(field: str, problem: str):
         raise SweepError(f'sweep file {path}: {field}: {problem}')
 
@@ -207,9 +244,11 @@ def parse_plan(data: Any, path: Path) -> SweepPlan:
         learners = [canonical_learner_name(name) for name in learners]
     except ValueError as error:
         fail('learners', str(error))
+    _unique(learners, 'learners', fail)
     seeds = _list(data.get('seeds', [0]), 'seeds', fail)
     if not all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in seeds):
         fail('seeds', f'expected whole numbers >= 0, got {seeds}')
+    _unique(seeds, 'seeds', fail)
     mode = data.get('mode', 'gym')
     if mode not in MODES:
         fail('mode', f'expected one of {", ".join(MODES)}, got {mode!r}')
@@ -224,9 +263,10 @@ def parse_plan(data: Any, path: Path) -> SweepPlan:
     params = _params(data.get('params') or {}, search, fail)
     episodes = data.get('episodes', 300)
     scenarios = [
-        _scenario(entry, data.get('goal'), f'scenarios[{i}]', fail)
+        _scenario(entry, data.get('goal'), f'scenarios[{i}]', fail, base)
         for i, entry in enumerate(_list(data.get('scenarios'), 'scenarios', fail))
     ]
+    _unique(scenarios, 'scenarios', fail, lambda s: f'{s[0]}{f" (goal {s[1]})" if s[1] else ""}')
     groups = tuple(
         Group(scenario, goal, learner, _budget(episodes, learner, fail))
         for scenario, goal in scenarios
@@ -250,10 +290,28 @@ def parse_plan(data: Any, path: Path) -> SweepPlan:
     )
     if not plan.cpus_per_trial > 0:
         fail('cpus_per_trial', f'expected a number > 0, got {data["cpus_per_trial"]!r}')
-    extra = [
-        _extra(entry, plan, f'extra[{i}]', fail) for i, entry in enumerate(data.get('extra') or [])
-    ]
+    extra = data.get('extra') or []
+    if not isinstance(extra, list):
+        fail('extra', f'expected a list of trials, got {extra!r}')
+    count, how = dataclasses.replace(plan, extra=tuple(extra)).trial_count()
+    if count > MAX_TRIALS:
+        raise SweepError(
+            f'sweep file {path}: {count:,} trials ({how}), more than the {MAX_TRIALS:,} a sweep '
+            'may have: list fewer scenarios, learners, seeds or parameter values (or fewer '
+            'trials), or split it into several sweep files'
+        )
+    extra = [_extra(entry, plan, f'extra[{i}]', fail, base) for i, entry in enumerate(extra)]
     return dataclasses.replace(plan, extra=tuple(extra))
+
+
+def _unique(values: list, field: str, fail, show=repr) -> None:
+    """A value listed twice would run the same trials twice (and report them once)."""
+    seen = set()
+    for value in values:
+        key = repr(value)  # a mapping where a value belongs is the next check's to refuse
+        if key in seen:
+            fail(field, f'{show(value)} is listed twice (list each once)')
+        seen.add(key)
 
 
 def _list(value, field, fail) -> list:
@@ -278,7 +336,7 @@ def _budget(episodes, learner: str, fail) -> int:
     return _whole(episodes, 'episodes', fail, 1)
 
 
-def _scenario(entry, default_goal, field, fail) -> tuple[str, str | None]:
+def _scenario(entry, default_goal, field, fail, base: Path) -> tuple[str, str | None]:
     from stealth_env.scenario import load_scenario
 
     goal = default_goal
@@ -287,14 +345,17 @@ def _scenario(entry, default_goal, field, fail) -> tuple[str, str | None]:
         if unknown or 'scenario' not in entry:
             fail(field, f'expected {{scenario: NAME, goal: GOAL}}, got {entry!r}')
         entry, goal = entry['scenario'], entry.get('goal', default_goal)
+    given, entry = str(entry), scenario_argument(str(entry), base)
     try:
-        scenario = load_scenario(str(entry))
+        scenario = load_scenario(entry)
     except (OSError, ValueError) as error:
-        fail(field, str(error))
+        relative = entry != given and not Path(given).is_absolute()
+        where = f" ({given} is relative to the sweep file's directory)" if relative else ''
+        fail(field, f'{error}{where}')
     if goal is not None and goal not in scenario.goals:
         fail(f'{field}.goal', f'{scenario.name} has no goal {goal!r} (it has: '
              f'{", ".join(scenario.goals)})')  # fmt: skip
-    return str(entry), goal
+    return entry, goal
 
 
 def _params(data, search: str, fail) -> dict[str, list | Range]:
@@ -310,6 +371,7 @@ def _params(data, search: str, fail) -> dict[str, list | Range]:
         if isinstance(spec, list):
             if not spec:
                 fail(field, 'empty list of values')
+            _unique(spec, field, fail)
             values = spec
         elif isinstance(spec, dict):
             if search == 'grid':
@@ -334,7 +396,7 @@ def _params(data, search: str, fail) -> dict[str, list | Range]:
     return params
 
 
-def _extra(entry, plan: SweepPlan, field, fail) -> dict:
+def _extra(entry, plan: SweepPlan, field, fail, base: Path) -> dict:
     if not isinstance(entry, dict):
         fail(field, f'expected a mapping of {", ".join(EXTRA_FIELDS)}, got {entry!r}')
     for key in entry:
@@ -352,6 +414,7 @@ def _extra(entry, plan: SweepPlan, field, fail) -> dict:
         None,
         f'{field}.scenario',
         fail,
+        base,
     )
     params = _params(entry.get('params') or {}, 'grid', lambda f, p: fail(f'{field}.{f}', p))
     seed = _whole(entry.get('seed', 0), f'{field}.seed', fail, 0)

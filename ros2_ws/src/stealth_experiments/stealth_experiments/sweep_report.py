@@ -2,11 +2,15 @@
 summarised at the end. No rclpy, no Ray.
 
     DIR/sweep.yaml              the sweep file as given (what --resume reruns)
+    DIR/sweep_base.txt          the directory its relative scenario paths are relative to
+    DIR/status.json             complete, failed (every run) or interrupted (by which signal),
+                                and how many of the sweep's trials are done and failed
     DIR/trials/<trial>.json     each finished trial's records (sweep_trials), one per seed
     DIR/policies/<trial>-seed<k>.npz   each run's final policy (stealth_agent policy file)
     DIR/results.csv             one row per run: settings, parameters, episodes to 5 % of the
                                 optimum, final greedy return / optimum, score, wall time, host
-    DIR/results.md              the same as a table, the best configuration per scenario, curves
+    DIR/results.md              headed by the status line (complete, failed, interrupted); the
+                                same as a table, the best configuration per scenario, curves
     DIR/curves_<scenario>.png   greedy return against episodes, each learner's best configuration
                                 (mean over seeds with a min-max band; harness_report.plot_curves)
 """
@@ -208,8 +212,49 @@ def write_curves(out: Path, records: list[dict], best: list[dict]) -> list[Path]
     return written
 
 
-def write_report(store: SweepStore, title: str, settings: str, plots: bool = True) -> Path:
-    """results.csv, results.md and the curves from every record kept so far."""
+def sweep_status(store: SweepStore, total: int, signal_name: str | None = None) -> dict:
+    """What status.json says: the trials done (every one with records) and failed of ``total``,
+    and complete, failed (every run did) or interrupted."""
+    by_trial: dict[str, list[dict]] = {}
+    for record in store.records():
+        by_trial.setdefault(record['trial'], []).append(record)
+    failed = sum(any(r['status'] != 'ok' for r in rs) for rs in by_trial.values())
+    runs = [r for rs in by_trial.values() for r in rs]
+    status = 'complete'
+    if signal_name:
+        status = 'interrupted'
+    elif runs and all(r['status'] != 'ok' for r in runs):
+        status = 'failed'
+    return {
+        'status': status,
+        'signal': signal_name,
+        'trials': max(total, len(by_trial)),
+        'trials_done': len(by_trial),
+        'trials_failed': failed,
+    }
+
+
+def status_line(status: dict, out: Path) -> str:
+    """The sweep's outcome in one line (results.md, and the console when it is not complete)."""
+    counts = f'{status["trials_done"]} of {status["trials"]} trials done'
+    failed = f', {status["trials_failed"]} failed' if status['trials_failed'] else ''
+    if status['status'] == 'interrupted':
+        return (
+            f'interrupted by {status["signal"]}: {counts}{failed}; `stealth sweep --resume '
+            f'{out}` runs the rest'
+        )
+    if status['status'] == 'failed':
+        return f'failed: every run failed ({counts}); the error column of results.md says why'
+    return f'complete: {counts}{failed}'
+
+
+def write_report(
+    store: SweepStore, title: str, settings: str, plots: bool = True, status: dict | None = None
+) -> Path:
+    """results.csv, results.md (headed by the ``status`` line) and the curves from every
+    record kept so far; status.json."""
+    if status is not None:
+        write_json(status, store.out / 'status.json')
     records = store.records()
     param_names = sorted({name for r in records for name in r['settings']['params']})
     rows = [row(r, param_names) for r in records]
@@ -219,8 +264,9 @@ def write_report(store: SweepStore, title: str, settings: str, plots: bool = Tru
     failed = sum(r['status'] != 'ok' for r in records)
     hosts = sorted({r['host'] for r in records if r.get('host')})
     nodes = sorted({r['node'] for r in records if r.get('node')})
+    headline = f'**Sweep {status_line(status, store.out)}.**\n\n' if status else ''
     text = (
-        f'# Sweep {title}\n\n{settings}\n\n{len(records)} runs ({failed} failed) on '
+        f'# Sweep {title}\n\n{headline}{settings}\n\n{len(records)} runs ({failed} failed) on '
         f'{len(nodes)} Ray node(s), host(s) {", ".join(hosts) or "-"}.\n\n'
         f'## Best configuration per scenario\n\nscore: greedy return relative to the optimum '
         f'(1 = optimal) minus 0.01 x the fraction of the budget spent before staying within 5 % '

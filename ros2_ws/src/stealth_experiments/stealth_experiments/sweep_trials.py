@@ -34,6 +34,7 @@ import numpy as np
 from stealth_env.reward import Outcome
 
 from stealth_experiments.harness import RunResult, RunSpec, run, settled_within
+from stealth_experiments.sweep_stop import MARK, TRIAL_MARK, scratch_prefix
 
 SPEED_WEIGHT = 0.01
 ROS_TIMEOUT = 3600.0  # s: a `stealth train` trial that takes longer is failed
@@ -56,7 +57,7 @@ def _run_seed(trial: dict, seed: int, where: dict) -> dict:
         **where,
     }
     try:
-        with tempfile.TemporaryDirectory(prefix='stealth-sweep-') as scratch:
+        with tempfile.TemporaryDirectory(prefix=scratch_prefix()) as scratch:
             runner = _run_ros if trial['mode'] == 'ros' else _run_gym
             result, policy = runner(trial, seed, Path(scratch))
             encoded = base64.b64encode(policy.read_bytes()).decode() if policy else None
@@ -125,7 +126,9 @@ def _stop_with_parent() -> None:
     leaves no ROS nodes behind (Linux prctl PR_SET_PDEATHSIG).
 
     A Ray worker runs a trial in a thread with SIGINT blocked; a child inherits the mask, and
-    its nodes then ignored the SIGINT that stops them (the run ended "did not stop cleanly")."""
+    its nodes then ignored the SIGINT that stops them (the run ended "did not stop cleanly").
+    The child runs in a session of its own (sweep_stop: one stop signal, not the terminal's
+    Ctrl-C as well), marked as its sweep's."""
     libc = ctypes.CDLL(None, use_errno=True)
     libc.signal.argtypes = [ctypes.c_int, ctypes.c_void_p]
     for number in (signal.SIGINT, signal.SIGTERM):
@@ -142,11 +145,15 @@ def _run_ros(trial: dict, seed: int, scratch: Path):
         raise ValueError('a ROS trial has no slip (the simulator moves as it moves)')
     started = time.perf_counter()
     log = scratch / 'stealth-train.log'
+    env = dict(os.environ)
+    mark = env.pop(MARK, None)
+    if mark:
+        env[TRIAL_MARK] = mark
     with open(log, 'w', encoding='utf-8') as stream:
         finished = subprocess.run(
             ros_command(trial, seed, scratch), stdout=stream, stderr=subprocess.STDOUT,
-            stdin=subprocess.DEVNULL, timeout=ROS_TIMEOUT, check=False,
-            preexec_fn=_stop_with_parent,
+            stdin=subprocess.DEVNULL, timeout=ROS_TIMEOUT, check=False, env=env,
+            preexec_fn=_stop_with_parent, start_new_session=True,
         )  # fmt: skip
     run_dir = scratch / 'run'
     summary_file = run_dir / 'summary.json'

@@ -2,10 +2,19 @@
 records, and the report written from records (what --resume reads back)."""
 
 import json
+from pathlib import Path
 
 import pytest
+from stealth_env.scenario import find_scenario
+from stealth_experiments import experiments
 from stealth_experiments.harness import configured, tuned_config
-from stealth_experiments.sweep_plan import SweepError, make_trial, parse_plan
+from stealth_experiments.sweep_plan import (
+    MAX_TRIALS,
+    SweepError,
+    load_plan,
+    make_trial,
+    parse_plan,
+)
 from stealth_experiments.sweep_report import SweepStore, best_configurations, write_report
 from stealth_experiments.sweep_trials import objective, record_result, ros_command, run_trial
 
@@ -65,6 +74,11 @@ def test_optuna_lays_out_only_the_extra_trials():
         ({'colour': 'red'}, 'colour: unknown field'),
         ({'extra': [{'mode': 'ros', 'learner': 'q', 'params': {'alpha': [0.1, 0.2]}}]},
          'extra[0].params.alpha: an extra trial takes one value'),
+        ({'learners': ['q', 'dyna', 'qlearning']}, "learners: 'qlearning' is listed twice"),
+        ({'seeds': [0, 1, 0]}, 'seeds: 0 is listed twice'),
+        ({'scenarios': ['simple-maze', 'map1', 'simple-maze']},
+         'scenarios: simple-maze is listed twice'),
+        ({'params': {'alpha': [0.5, 1.0, 0.5]}}, 'params.alpha: 0.5 is listed twice'),
     ],
 )  # fmt: skip
 def test_bad_input_is_one_line_naming_the_field(fields, expected):
@@ -116,3 +130,85 @@ def test_runs_become_records_and_the_report_and_resume_read_them(tmp_path):
     assert '## Best configuration per scenario' in text and 'failed: ValueError' in text
     assert (tmp_path / 'results.csv').read_text().count('\n') == 4  # header + 3 runs
     assert (tmp_path / 'curves_simple-maze.png').stat().st_size > 10_000
+
+
+def test_a_sweep_of_more_than_max_trials_is_refused_from_its_lists_alone():
+    """10^12 combinations: refused at once (laying them out would never end), with the count and
+    how it is made; a sweep just under the limit is accepted."""
+    values = [round(0.01 * k, 2) for k in range(1, 101)]
+    huge = dict.fromkeys(('alpha', 'epsilon', 'gamma', 'initial_value'), values)
+    huge['n_planning'] = list(range(1, 101))
+    huge['epsilon_decay'] = list(range(1, 101))
+    with pytest.raises(SweepError) as error:
+        plan('big.yaml', params=huge)
+    message = str(error.value)
+    assert (
+        '4,000,000,000,000 trials (2 scenario x learner group(s) x 1,000,000,000,000 ' in message
+    )
+    assert f'more than the {MAX_TRIALS:,} a sweep may have' in message and '\n' not in message
+    with pytest.raises(SweepError, match='20,000 trials'):
+        plan(search='random', trials=5000, params={'alpha': {'low': 0.1, 'high': 1.0}})
+    with pytest.raises(SweepError, match='10,002 trials'):
+        plan(search='optuna', trials=5001, params={'alpha': {'low': 0.1, 'high': 1.0}})
+    under = plan(params={'alpha': values})
+    assert under.trial_count()[0] == 2 * 100 * 2 <= MAX_TRIALS
+
+
+def _scenario_copy(directory: Path) -> Path:
+    """map1's scenario file in ``directory`` (its map given by absolute path)."""
+    original = find_scenario('map1')
+    text = original.read_text().replace(
+        'map: ../maps/map1.yaml', f'map: {(original.parent / "../maps/map1.yaml").resolve()}'
+    )
+    directory.mkdir(parents=True, exist_ok=True)
+    (directory / 'map1.yaml').write_text(text)
+    return directory / 'map1.yaml'
+
+
+def test_scenario_paths_in_a_sweep_file_are_relative_to_it_and_made_absolute(
+    tmp_path, monkeypatch
+):
+    scenario = _scenario_copy(tmp_path / 'scenarios')
+    sweeps = tmp_path / 'sweeps'
+    sweeps.mkdir()
+    (sweeps / 'mine.yaml').write_text(
+        'scenarios: [../scenarios/map1.yaml, simple-maze]\nlearners: [dyna]\n'
+        'extra: [{scenario: ../scenarios/map1.yaml, learner: q, episodes: 5}]\n'
+    )
+    monkeypatch.chdir(tmp_path / 'scenarios')  # elsewhere: the sweep file's directory counts
+    loaded = load_plan(sweeps / 'mine.yaml')
+    assert [g.scenario for g in loaded.groups] == [str(scenario), 'simple-maze']
+    assert loaded.extra[0]['scenario'] == str(scenario)
+    assert all(t['scenario'] in (str(scenario), 'simple-maze') for t in loaded.fixed_trials())
+    # A path relative to the current directory, not to the sweep file, is refused by name.
+    (sweeps / 'cwd.yaml').write_text('scenarios: [map1.yaml]\nlearners: [dyna]\n')
+    with pytest.raises(SweepError) as error:
+        load_plan(sweeps / 'cwd.yaml')
+    message = str(error.value)
+    assert message.startswith(f'sweep file {sweeps / "cwd.yaml"}: scenarios[0]: ')
+    assert "map1.yaml is relative to the sweep file's directory" in message
+    # --resume reads a copy elsewhere, with the original's directory as the base.
+    (tmp_path / 'out').mkdir()
+    copy = tmp_path / 'out' / 'sweep.yaml'
+    copy.write_bytes((sweeps / 'mine.yaml').read_bytes())
+    assert load_plan(copy, sweeps).groups[0].scenario == str(scenario)
+
+
+def test_scenario_paths_on_the_experiments_command_line_are_relative_to_the_current_directory(
+    tmp_path, monkeypatch
+):
+    """Made absolute before the grid is handed to Ray (whose trials run in a directory of their
+    own: a relative path failed there)."""
+    _scenario_copy(tmp_path / 'here')
+    monkeypatch.chdir(tmp_path)
+    handed = []
+
+    def run_grid(scenarios, *args, **kwargs):
+        handed.extend(scenarios)
+        raise RuntimeError('run x failed: stop here')
+
+    monkeypatch.setattr(experiments, 'run_grid', run_grid)
+    code = experiments.main(['--scenarios', 'here/map1.yaml', 'simple-maze', '--learners', 'dyna',
+                             '--seeds', '0', '--out', str(tmp_path / 'out')])  # fmt: skip
+    assert code == 1  # the RuntimeError is one line, not a traceback
+    assert handed == [str(tmp_path / 'here' / 'map1.yaml'), 'simple-maze']
