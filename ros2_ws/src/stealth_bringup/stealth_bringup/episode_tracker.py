@@ -17,16 +17,16 @@ import dataclasses
 import itertools
 import math
 
-from stealth_env.reward import Outcome
+from stealth_env.reward import EpisodeOutcome
 
 # The names of the core's outcome enum, whose values are EpisodeSummary's constants.
-OUTCOMES = tuple(outcome.name for outcome in Outcome)
+OUTCOMES = tuple(outcome.name for outcome in EpisodeOutcome)
 PROGRESS_WINDOW = 20  # episodes over which the progress bar's rates and means are taken
 
 
 def outcome_name(value: int) -> str:
     try:
-        return Outcome(value).name
+        return EpisodeOutcome(value).name
     except ValueError:
         return f'OUTCOME_{value}'
 
@@ -36,7 +36,7 @@ class EpisodeRecord:
     """One finished episode: the environment's summary and the agent's report, joined."""
 
     episode: int
-    outcome: str  # an Outcome's name: SUCCESS, DETECTED, TIMEOUT or ABORTED
+    outcome: str  # an EpisodeOutcome's name: SUCCESS, DETECTED, TIMEOUT or ABORTED
     steps: int
     total_reward: float
     peak_visibility: float
@@ -53,7 +53,7 @@ class EpisodeRecord:
 
     @property
     def success(self) -> bool:
-        return self.outcome == Outcome.SUCCESS.name
+        return self.outcome == EpisodeOutcome.SUCCESS.name
 
     def as_row(self) -> dict:
         return dataclasses.asdict(self)
@@ -96,7 +96,7 @@ def unfinished_fields(episode: int, steps: list, start: tuple[float, float]) -> 
     points = [tuple(start), *((x, y) for *_, x, y in steps)]
     return {
         'episode': int(episode),
-        'outcome': Outcome.ABORTED.name,
+        'outcome': EpisodeOutcome.ABORTED.name,
         'steps': len(steps),
         'total_reward': float(sum(step[0] for step in steps)),
         'peak_visibility': float(max((step[1] for step in steps), default=0.0)),
@@ -149,7 +149,7 @@ class Tracker:
         if episode in self._done:
             return []
         self._summaries[episode] = fields
-        if fields['outcome'] == Outcome.ABORTED.name and episode not in self._agent:
+        if fields['outcome'] == EpisodeOutcome.ABORTED.name and episode not in self._agent:
             return self._complete(episode, UNREPORTED, wall_time)
         return self._try(episode, wall_time)
 
@@ -246,7 +246,7 @@ class Tracker:
                 f'in a row (episodes {", ".join(map(str, episodes))})'
             )
         if evaluating:
-            reached = self.outcome_counts()[Outcome.SUCCESS.name]
+            reached = self.outcome_counts()[EpisodeOutcome.SUCCESS.name]
             return f'{self.budget} greedy episodes: {reached} reached the goal'
         message = f'episode budget of {self.budget} spent'
         if self.streak_goal:

@@ -107,7 +107,7 @@ from stealth_env.episode_flow import (
     progress_line,
 )
 from stealth_env.log_throttle import Throttle
-from stealth_env.reward import Outcome
+from stealth_env.reward import EpisodeOutcome
 from stealth_env.robot import MoveEnd, Robot
 from stealth_env.scenario import ScenarioError, load_scenario
 from stealth_env.scene_publisher import ScenePublisher
@@ -447,8 +447,8 @@ class EnvironmentNode(StartupNode):
     def _publish_summary(self, summary, stamp=None) -> None:
         self.agent.publish_summary(summary, stamp or time_msg(self._sim_time))
         self.get_logger().debug(
-            f'episode {summary.episode}: {Outcome(summary.outcome).name} after {summary.steps} '
-            f'steps, return {summary.total_reward:.2f}'
+            f'episode {summary.episode}: {EpisodeOutcome(summary.outcome).name} after '
+            f'{summary.steps} steps, return {summary.total_reward:.2f}'
         )
         self._window.append(summary)
         if self.log_every and len(self._window) >= self.log_every:

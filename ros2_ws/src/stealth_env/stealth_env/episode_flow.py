@@ -78,7 +78,7 @@ import math
 from typing import NamedTuple
 
 from stealth_env.exposure import heading_angle
-from stealth_env.reward import Outcome
+from stealth_env.reward import EpisodeOutcome
 from stealth_env.task import (
     WAIT,
     EpisodeStats,
@@ -153,12 +153,14 @@ class Counts:
     episodes_started: int = 0
     episodes_withdrawn: int = 0  # first state sent, but the agent went away before acting
     off_schedule: int = 0  # steps that ended in another phase than their slot's (too slow)
-    outcomes: Counter = dataclasses.field(default_factory=Counter)  # by Outcome name
+    outcomes: Counter = dataclasses.field(default_factory=Counter)  # by EpisodeOutcome name
 
     def describe(self) -> str:
         ended = sum(self.outcomes.values())
         names = ', '.join(
-            f'{o.name.lower()} {self.outcomes[o.name]}' for o in Outcome if self.outcomes[o.name]
+            f'{o.name.lower()} {self.outcomes[o.name]}'
+            for o in EpisodeOutcome
+            if self.outcomes[o.name]
         )
         withdrawn = self.episodes_withdrawn
         return (
@@ -177,7 +179,7 @@ class Counts:
 
 def progress_line(window: list[EpisodeSummaryFields]) -> str:
     """The log line about the episodes of `window` (the node logs one every ``log_every``)."""
-    outcomes = Counter(Outcome(s.outcome).name.lower() for s in window)
+    outcomes = Counter(EpisodeOutcome(s.outcome).name.lower() for s in window)
     names = ', '.join(f'{name} {outcomes[name]}' for name in sorted(outcomes))
     mean_return = sum(s.total_reward for s in window) / len(window)
     mean_steps = sum(s.steps for s in window) / len(window)
@@ -277,7 +279,7 @@ class EpisodeFlow:
             self.counts.episodes_started -= 1
             self.counts.episodes_withdrawn += 1
         elif self.in_episode:
-            summary = self._end(Outcome.ABORTED)
+            summary = self._end(EpisodeOutcome.ABORTED)
         self.phase = EpisodePhase.WAITING
         self.token += 1  # an answer still on its way is stale now
         return summary
@@ -456,12 +458,12 @@ class EpisodeFlow:
     def _aborted(self, reason: str) -> Aborted:
         """End the episode ABORTED: its terminal state (a copy of the last) counts as sent."""
         self.counts.states_sent += 1
-        return Aborted(self.state, self._end(Outcome.ABORTED), reason)
+        return Aborted(self.state, self._end(EpisodeOutcome.ABORTED), reason)
 
-    def _end(self, outcome: Outcome) -> EpisodeSummaryFields:
+    def _end(self, outcome: EpisodeOutcome) -> EpisodeSummaryFields:
         self.phase = EpisodePhase.ENDED
         self.action = None
-        self.counts.outcomes[Outcome(outcome).name] += 1
+        self.counts.outcomes[EpisodeOutcome(outcome).name] += 1
         return self.stats.summary(outcome)
 
     def _on_map(self, x: float, y: float) -> tuple[float, float]:

@@ -29,7 +29,7 @@ import numpy as np
 
 from stealth_env import palette
 from stealth_env.planners import PERPENDICULAR, LatticeModel
-from stealth_env.reward import Outcome
+from stealth_env.reward import EpisodeOutcome
 from stealth_env.scenario import Scenario, find_scenario, load_scenario
 from stealth_env.task import EpisodeStats, StealthTask, StepJudgement
 from stealth_env.visibility import scenario_visibility
@@ -199,7 +199,7 @@ class StealthNavEnv(gym.Env):
         judgement = self.task.judge(x, y, self._steps * self.step_seconds, self._steps, visibility)
         self._judgements.append(judgement)
         outcome = judgement.outcome
-        timed_out = outcome is Outcome.TIMEOUT
+        timed_out = outcome is EpisodeOutcome.TIMEOUT
         info = {
             'pose': (x, y),
             'visibility': judgement.visibility,

@@ -52,7 +52,7 @@ FRAME_GOAL = (123, 50, 148)  # GOAL
 
 # --- the plots of runs and experiments (matplotlib colours) -------------------------------------
 
-OUTCOMES = {  # by stealth_env.reward.Outcome name: an episode's bar in the learning curve
+OUTCOMES = {  # by stealth_env.reward.EpisodeOutcome name: an episode's bar in the learning curve
     'SUCCESS': START,
     'DETECTED': '#d7191c',
     'TIMEOUT': '#fdae61',

@@ -43,7 +43,7 @@ import numpy as np
 from stealth_env import exposure
 from stealth_env.move_lattice import ACTIONS, Node
 from stealth_env.reward import (
-    Outcome,
+    EpisodeOutcome,
     detection_probability,
     detection_reward,
     step_reward,
@@ -264,7 +264,7 @@ def _step_peaks(task: StealthTask, points, ends, t0, t1, yaw, after) -> np.ndarr
 class PathResult(NamedTuple):
     """A path (node indices from the start) walked through the task, as an episode would be."""
 
-    outcome: Outcome | None  # None: the path ended before anything ended the episode
+    outcome: EpisodeOutcome | None  # None: the path ended before anything ended the episode
     total_reward: float  # undiscounted, rewards after the first state
     steps: int
     peak_visibility: float
@@ -274,7 +274,7 @@ class PathResult(NamedTuple):
 
     @property
     def detected(self) -> bool:
-        return self.outcome is Outcome.DETECTED
+        return self.outcome is EpisodeOutcome.DETECTED
 
 
 def walk(model: LatticeModel, path: Sequence[int]) -> PathResult:

@@ -33,7 +33,7 @@ class RewardError(ValueError):
     """Reward weights or step inputs that are invalid or make the task ill-posed."""
 
 
-class Outcome(enum.IntEnum):
+class EpisodeOutcome(enum.IntEnum):
     """How an episode ended; the values are stealth_interfaces/EpisodeSummary's constants."""
 
     SUCCESS = 0
@@ -80,7 +80,7 @@ class RewardWeights:
 class StepResult(NamedTuple):
     reward: float
     terminal: bool
-    outcome: Outcome | None  # None while the episode goes on
+    outcome: EpisodeOutcome | None  # None while the episode goes on
 
 
 def success_reward(distance: float, goal_radius: float, weights: RewardWeights) -> float:
@@ -147,12 +147,14 @@ def step_outcome(
     goal_radius = _finite('goal_radius', goal_radius, positive=True)
     detection_threshold = _finite('detection_threshold', detection_threshold, positive=True)
     if is_detected(visibility, detection_threshold, detection_mode, rng):
-        return StepResult(detection_reward(distance, weights), True, Outcome.DETECTED)
+        return StepResult(detection_reward(distance, weights), True, EpisodeOutcome.DETECTED)
     if distance <= goal_radius:
-        return StepResult(success_reward(distance, goal_radius, weights), True, Outcome.SUCCESS)
+        return StepResult(
+            success_reward(distance, goal_radius, weights), True, EpisodeOutcome.SUCCESS
+        )
     reward = step_reward(visibility, distance, weights)
     if timed_out:
-        return StepResult(reward, True, Outcome.TIMEOUT)
+        return StepResult(reward, True, EpisodeOutcome.TIMEOUT)
     return StepResult(reward, False, None)
 
 

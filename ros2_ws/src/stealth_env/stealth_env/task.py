@@ -49,7 +49,7 @@ Decisions:
   fill a table once with ``visibility`` and pass the value to ``judge``.
 - **Judging** is ``reward.step_outcome`` with the goal's own radius: detection first (in
   'probabilistic' mode drawn from ``task.rng``), then the goal, then an ordinary step, which is
-  terminal with ``Outcome.TIMEOUT`` when ``step_index`` (actions taken so far, this one
+  terminal with ``EpisodeOutcome.TIMEOUT`` when ``step_index`` (actions taken so far, this one
   included, from 1) reaches ``step_limit``.
 - **Episode statistics** follow stealth_interfaces/EpisodeSummary: the return sums the rewards
   after the first state (undiscounted); peak and accumulated visibility are over the judged
@@ -68,7 +68,7 @@ import numpy as np
 
 from stealth_env import exposure
 from stealth_env.move_lattice import ACTIONS, MoveLattice
-from stealth_env.reward import Outcome, detection_reward, step_outcome, success_reward
+from stealth_env.reward import EpisodeOutcome, detection_reward, step_outcome, success_reward
 from stealth_env.scenario import Goal, Scenario
 from stealth_env.visibility import PointVisibility, scenario_point_visibility
 
@@ -85,7 +85,7 @@ class StepJudgement(NamedTuple):
 
     reward: float
     terminal: bool
-    outcome: Outcome | None  # None while the episode goes on
+    outcome: EpisodeOutcome | None  # None while the episode goes on
     visibility: float  # total visibility at the judged pose (unitless)
     distance_to_goal: float  # from the judged pose to the goal point (m)
     detected: bool
@@ -95,7 +95,7 @@ class EpisodeSummaryFields(NamedTuple):
     """stealth_interfaces/EpisodeSummary without its header, field for field."""
 
     episode: int
-    outcome: int  # an Outcome value
+    outcome: int  # an EpisodeOutcome value
     steps: int
     total_reward: float
     peak_visibility: float
@@ -130,11 +130,11 @@ class EpisodeStats:
         self.x, self.y = float(x), float(y)
         self.final_distance_to_goal = judgement.distance_to_goal
 
-    def summary(self, outcome: Outcome | int) -> EpisodeSummaryFields:
+    def summary(self, outcome: EpisodeOutcome | int) -> EpisodeSummaryFields:
         """EpisodeSummary's fields for an episode that ended with ``outcome``."""
         return EpisodeSummaryFields(
             episode=self.episode,
-            outcome=int(Outcome(outcome)),
+            outcome=int(EpisodeOutcome(outcome)),
             steps=self.steps,
             total_reward=self.total_reward,
             peak_visibility=self.peak_visibility,
@@ -425,7 +425,7 @@ class StealthTask:
             result.outcome,
             float(visibility),
             distance,
-            result.outcome is Outcome.DETECTED,
+            result.outcome is EpisodeOutcome.DETECTED,
         )
 
     def start_episode(self, x: float, y: float, episode: int = 0) -> EpisodeStats:

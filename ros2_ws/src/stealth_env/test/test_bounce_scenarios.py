@@ -16,7 +16,7 @@ from stealth_env.bounce import point_bounce, received_light, wall_emitters
 from stealth_env.gym_env import lattice_model
 from stealth_env.lighting import point_visibility
 from stealth_env.planners import LatticeModel, follow, value_iteration, walk
-from stealth_env.reward import Outcome
+from stealth_env.reward import EpisodeOutcome
 from stealth_env.scenario import load_scenario, scenario_paths
 from stealth_env.task import StealthTask
 
@@ -51,7 +51,7 @@ def test_the_bounce_changes_the_optimal_route(solved):
     assert route != direct_route
     assert with_bounce.optimal_return != without.optimal_return
     own = walk(model, route)
-    assert own.outcome is Outcome.SUCCESS and not own.detected
+    assert own.outcome is EpisodeOutcome.SUCCESS and not own.detected
     old = walk(model, direct_route)  # the direct-light optimum, judged with the bounce
     assert old.detected, 'the route that is best without the bounce should be seen with it'
     assert old.peak_visibility >= model.task.scenario.detection_threshold
@@ -60,7 +60,7 @@ def test_the_bounce_changes_the_optimal_route(solved):
 def test_without_the_bounce_the_old_route_was_unseen(solved):
     _, _, (direct_model, _, direct_route) = solved
     result = walk(direct_model, direct_route)
-    assert result.outcome is Outcome.SUCCESS and not result.detected
+    assert result.outcome is EpisodeOutcome.SUCCESS and not result.detected
 
 
 def test_the_planners_judge_with_the_bounce_as_the_reference_does(solved):

@@ -25,7 +25,7 @@ from stealth_env.env_messages import (
 )
 from stealth_env.episode_flow import EpisodeFlow, PlanarPose
 from stealth_env.markers import WallMap, scene_markers, searchlight_fields
-from stealth_env.reward import Outcome
+from stealth_env.reward import EpisodeOutcome
 from stealth_env.scenario import load_scenario
 from stealth_env.task import EpisodeSummaryFields, StealthTask
 from stealth_env.topic_moves import MoveGoal, go_to, hold_goal
@@ -104,11 +104,13 @@ def test_step_info_of_a_step_report(maze):
 
 
 def test_the_episode_summary():
-    fields = EpisodeSummaryFields(7, Outcome.DETECTED, 12, -3.5, 1.2, 4.0, 5.5, math.inf, 'hard')
+    fields = EpisodeSummaryFields(
+        7, EpisodeOutcome.DETECTED, 12, -3.5, 1.2, 4.0, 5.5, math.inf, 'hard'
+    )
     message = summary_msg(fields, time_msg(10.0))
     assert (message.episode, message.outcome, message.steps, message.goal) == (
         7,
-        Outcome.DETECTED,
+        EpisodeOutcome.DETECTED,
         12,
         'hard',
     )

@@ -14,7 +14,7 @@ from stealth_env.episode_flow import (
     agent_connected,
     progress_line,
 )
-from stealth_env.reward import Outcome
+from stealth_env.reward import EpisodeOutcome
 from stealth_env.scenario import load_scenario
 from stealth_env.task import WAIT, EpisodeSummaryFields, StealthTask
 from stealth_env.topic_moves import MoveGoal, go_to, hold_goal
@@ -91,7 +91,7 @@ def test_the_state_is_the_estimate_and_the_judgement_the_true_pose(map1):
     flow = started(task, judge_on='estimate')
     report = step(flow, 0, lit, dark)
     assert report.judged == lit and report.judgement.detected and report.terminal
-    assert report.summary.outcome == Outcome.DETECTED
+    assert report.summary.outcome == EpisodeOutcome.DETECTED
     # EpisodeSummary's distances stay the true pose's.
     assert report.summary.final_distance_to_goal == pytest.approx(
         task.distance_to_goal(dark.x, dark.y)
@@ -149,11 +149,11 @@ def test_goal_ends_the_episode_and_the_experiment_info_starts_the_next(map1):
     goal = PlanarPose(map1.goals['easy'].x, map1.goals['easy'].y)
     first = step(flow, 3, PlanarPose(3.0, 2.5))
     last = step(flow, 0, goal)
-    assert last.terminal and last.judgement.outcome is Outcome.SUCCESS
+    assert last.terminal and last.judgement.outcome is EpisodeOutcome.SUCCESS
     summary = last.summary
     assert (summary.episode, summary.outcome, summary.steps, summary.goal) == (
         0,
-        Outcome.SUCCESS,
+        EpisodeOutcome.SUCCESS,
         2,
         'easy',
     )
@@ -174,7 +174,7 @@ def test_the_step_limit_times_out(map1):
     pose = PlanarPose(2.5, 2.5)
     reports = [step(flow, 0, pose) for _ in range(3)]
     assert [r.terminal for r in reports] == [False, False, True]
-    assert reports[-1].summary.outcome == Outcome.TIMEOUT
+    assert reports[-1].summary.outcome == EpisodeOutcome.TIMEOUT
     assert flow.experiment_info() is None
 
 
@@ -184,7 +184,7 @@ def test_a_failed_move_aborts_with_a_terminal_copy_of_the_last_state(map1):
     assert flow.accept_action(1) is None
     aborted = flow.abort(flow.token, 'rejected')
     assert aborted.state == report.state and aborted.reason == 'rejected'
-    assert (aborted.summary.outcome, aborted.summary.steps) == (Outcome.ABORTED, 1)
+    assert (aborted.summary.outcome, aborted.summary.steps) == (EpisodeOutcome.ABORTED, 1)
     assert flow.phase is EpisodePhase.ENDED and flow.experiment_info() is None
     counts = flow.counts
     assert counts.states_sent == 3 and counts.outcomes == {'ABORTED': 1}
@@ -200,7 +200,7 @@ def test_an_agent_that_goes_away_aborts_the_running_episode_only(map1):
     assert flow.accept_action(0) is None
     token = flow.token
     summary = flow.agent_lost()
-    assert summary.outcome == Outcome.ABORTED and flow.phase is EpisodePhase.WAITING
+    assert summary.outcome == EpisodeOutcome.ABORTED and flow.phase is EpisodePhase.WAITING
     pose = PlanarPose(2.5, 3.0)
     assert flow.finish_move(token, pose, pose, 1.0) is None  # the move's answer is stale
     assert flow.agent_lost() is None
@@ -264,7 +264,7 @@ def test_a_restarted_robot_aborts_the_episode_whatever_it_waited_for(map1):
     report = step(flow, 0, PlanarPose(2.5, 3.0))
     aborted = flow.interrupt('the simulator was restarted')
     assert aborted.state == report.state and aborted.reason == 'the simulator was restarted'
-    assert (aborted.summary.episode, aborted.summary.outcome) == (0, Outcome.ABORTED)
+    assert (aborted.summary.episode, aborted.summary.outcome) == (0, EpisodeOutcome.ABORTED)
     assert flow.phase is EpisodePhase.ENDED and flow.experiment_info() is None
     # During a move: its answer, if it ever comes, is stale.
     token, _ = flow.begin_reset()
@@ -345,7 +345,7 @@ def test_a_first_state_left_unanswered_ends_aborted_before_its_first_step(map1):
     first, token = flow.state, flow.token
     aborted = flow.unanswered('no first action')
     assert aborted.state == first and aborted.reason == 'no first action'
-    assert (aborted.summary.outcome, aborted.summary.steps) == (Outcome.ABORTED, 0)
+    assert (aborted.summary.outcome, aborted.summary.steps) == (EpisodeOutcome.ABORTED, 0)
     assert flow.phase is EpisodePhase.ENDED and flow.experiment_info() is None
     assert flow.accept_action(0) is not None  # the late answer is dropped, not executed
     assert flow.token != token and flow.counts.states_sent == 2
@@ -454,9 +454,9 @@ def test_the_progress_line_sums_up_its_episodes():
         return EpisodeSummaryFields(episode, outcome, steps, total_reward, 0.0, 0.0, 0.0, 0.0, '')
 
     window = [
-        summary(4, Outcome.SUCCESS, 10.0, 20),
-        summary(5, Outcome.DETECTED, -5.0, 7),
-        summary(6, Outcome.SUCCESS, 4.0, 30),
+        summary(4, EpisodeOutcome.SUCCESS, 10.0, 20),
+        summary(5, EpisodeOutcome.DETECTED, -5.0, 7),
+        summary(6, EpisodeOutcome.SUCCESS, 4.0, 30),
     ]
     assert progress_line(window) == (
         'episodes 4-6: detected 1, success 2; mean return 3.00, mean steps 19.0'

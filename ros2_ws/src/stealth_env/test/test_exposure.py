@@ -14,7 +14,7 @@ from stealth_env.exposure import Footprint
 from stealth_env.gym_env import StealthNavEnv
 from stealth_env.lighting import point_light_visibilities
 from stealth_env.planners import LatticeModel, dark_path, follow, value_iteration, walk
-from stealth_env.reward import Outcome
+from stealth_env.reward import EpisodeOutcome
 from stealth_env.scenario import ScenarioError, load_scenario
 from stealth_env.task import StealthTask
 from stealth_env.visibility import PointVisibility
@@ -160,7 +160,9 @@ def test_the_option_changes_the_optimal_route(models):
     with_exposure, without = models
     best, path, result = _optimal(with_exposure)
     best_plain, path_plain, result_plain = _optimal(without)
-    assert result.outcome is Outcome.SUCCESS and result_plain.outcome is Outcome.SUCCESS
+    assert (
+        result.outcome is EpisodeOutcome.SUCCESS and result_plain.outcome is EpisodeOutcome.SUCCESS
+    )
     assert best.optimal_return > best_plain.optimal_return
     assert result.steps < result_plain.steps
     nodes = [with_exposure.nodes[with_exposure.node_of(i)] for i in path]
@@ -238,7 +240,7 @@ def test_a_turn_in_the_light_is_judged_on_the_headings_it_sweeps():
 def test_dark_path_and_astar_run_on_headings(models):
     model, _ = models
     path = dark_path(model)
-    assert path is not None and walk(model, path).outcome is Outcome.SUCCESS
+    assert path is not None and walk(model, path).outcome is EpisodeOutcome.SUCCESS
 
 
 def test_the_gym_env_has_the_heading_and_the_turns():
@@ -288,7 +290,7 @@ def test_exposure_combines_with_moving_lights():
             assert model.step_visibility[i, action] == pytest.approx(expected, abs=1e-12)
     best = value_iteration(model)
     result = walk(model, follow(model, lambda i: int(best.policy[i])))
-    assert result.outcome is Outcome.SUCCESS
+    assert result.outcome is EpisodeOutcome.SUCCESS
 
 
 def test_the_episode_flow_states_the_heading_and_judges_with_the_judged_yaw():

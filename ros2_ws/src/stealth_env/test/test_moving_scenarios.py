@@ -14,7 +14,7 @@ import pytest
 from stealth_env.gym_env import lattice_model
 from stealth_env.light_cycle import lattice_step_seconds
 from stealth_env.planners import astar, dark_path, follow, value_iteration, walk
-from stealth_env.reward import Outcome
+from stealth_env.reward import EpisodeOutcome
 from stealth_env.scenario import load_scenario, scenario_paths
 from stealth_env.searchlight import PatrolMotion, SweepMotion
 
@@ -69,12 +69,12 @@ def test_with_timing_a_covert_route_exists(model):
     threshold = model.task.scenario.detection_threshold
     optimum = value_iteration(model)
     best = walk(model, follow(model, lambda i: int(optimum.policy[i])))
-    assert best.outcome is Outcome.SUCCESS and best.peak_visibility < threshold
+    assert best.outcome is EpisodeOutcome.SUCCESS and best.peak_visibility < threshold
     assert best.total_reward == pytest.approx(optimum.optimal_return)
     dark = walk(model, dark_path(model))
-    assert dark.outcome is Outcome.SUCCESS and dark.peak_visibility < threshold
+    assert dark.outcome is EpisodeOutcome.SUCCESS and dark.peak_visibility < threshold
     assert dark.total_reward <= optimum.optimal_return + 1e-9
-    assert walk(model, astar(model)).outcome is Outcome.DETECTED
+    assert walk(model, astar(model)).outcome is EpisodeOutcome.DETECTED
 
 
 def test_the_optimal_route_is_seen_when_walked_at_another_time(model):

@@ -17,7 +17,7 @@ from stealth_env.planners import (
     value_iteration,
     walk,
 )
-from stealth_env.reward import Outcome
+from stealth_env.reward import EpisodeOutcome
 from stealth_env.scenario import load_scenario, scenario_paths
 
 SHIPPED = [path.stem for path in scenario_paths()]
@@ -93,7 +93,7 @@ def test_value_iteration_beats_every_path_and_its_own_path_earns_it(model):
     optimum = value_iteration(model)
     assert optimum.converged and optimum.gamma == 1.0
     own = walk(model, follow(model, lambda i: int(optimum.policy[i])))
-    assert own.outcome is Outcome.SUCCESS
+    assert own.outcome is EpisodeOutcome.SUCCESS
     assert own.total_reward == pytest.approx(optimum.optimal_return)
     for path in (astar(model), dark_path(model, 0.0), dark_path(model, 1000.0)):
         assert walk(model, path).total_reward <= optimum.optimal_return + 1e-9
@@ -146,9 +146,9 @@ def test_every_shipped_scenario_is_a_stealth_problem_the_planners_solve(name):
     threshold = model.task.scenario.detection_threshold
     optimum = value_iteration(model)
     best = walk(model, follow(model, lambda i: int(optimum.policy[i])))
-    assert best.outcome is Outcome.SUCCESS and best.peak_visibility < threshold
+    assert best.outcome is EpisodeOutcome.SUCCESS and best.peak_visibility < threshold
     assert best.total_reward == pytest.approx(optimum.optimal_return)
     if name != 'map1-exposure':  # there exposure makes the straight way through the door covert
-        assert walk(model, astar(model)).outcome is Outcome.DETECTED
+        assert walk(model, astar(model)).outcome is EpisodeOutcome.DETECTED
     dark = walk(model, dark_path(model))
-    assert dark.outcome is Outcome.SUCCESS and dark.peak_visibility < threshold
+    assert dark.outcome is EpisodeOutcome.SUCCESS and dark.peak_visibility < threshold

@@ -8,7 +8,7 @@ import re
 import numpy as np
 import pytest
 from stealth_env.reward import (
-    Outcome,
+    EpisodeOutcome,
     RewardError,
     RewardWeights,
     check_well_posed,
@@ -38,7 +38,7 @@ def test_outcomes_match_the_message_constants():
     text = (MSG_DIR / 'EpisodeSummary.msg').read_text()
     constants = dict(re.findall(r'^uint8 (\w+)=(\d+)', text, flags=re.MULTILINE))
     assert {name: int(value) for name, value in constants.items()} == {
-        outcome.name: outcome.value for outcome in Outcome
+        outcome.name: outcome.value for outcome in EpisodeOutcome
     }
 
 
@@ -51,21 +51,21 @@ def test_an_ordinary_step_by_hand():
 
 
 def test_reaching_the_goal_by_hand():
-    assert step_outcome(0.1, 0.2, **RULES) == (100.0 + 20.0 * 0.3, True, Outcome.SUCCESS)
+    assert step_outcome(0.1, 0.2, **RULES) == (100.0 + 20.0 * 0.3, True, EpisodeOutcome.SUCCESS)
     assert step_outcome(0.0, 0.5, **RULES).reward == 100.0  # on the rim
     assert step_outcome(0.0, 0.0, **RULES).reward == 110.0  # on the point
 
 
 def test_being_detected_by_hand():
-    assert step_outcome(0.6, 3.0, **RULES) == (-(200.0 + 5.0 * 3.0), True, Outcome.DETECTED)
+    assert step_outcome(0.6, 3.0, **RULES) == (-(200.0 + 5.0 * 3.0), True, EpisodeOutcome.DETECTED)
     assert step_outcome(2.5, 0.0, **RULES).reward == -200.0
 
 
 def test_detection_wins_over_the_goal_and_the_goal_over_the_time_limit():
-    assert step_outcome(0.9, 0.1, **RULES).outcome == Outcome.DETECTED
-    assert step_outcome(0.1, 0.1, **RULES, timed_out=True).outcome == Outcome.SUCCESS
+    assert step_outcome(0.9, 0.1, **RULES).outcome == EpisodeOutcome.DETECTED
+    assert step_outcome(0.1, 0.1, **RULES, timed_out=True).outcome == EpisodeOutcome.SUCCESS
     timeout = step_outcome(0.3, 4.0, **RULES, timed_out=True)
-    assert timeout == (-6.0, True, Outcome.TIMEOUT)
+    assert timeout == (-6.0, True, EpisodeOutcome.TIMEOUT)
 
 
 def test_the_original_formula_paid_for_being_caught_near_the_goal_and_this_one_does_not():
@@ -102,7 +102,7 @@ def test_probabilistic_detection_draws_from_the_generator():
     result = step_outcome(
         5.0, 3.0, **RULES, detection_mode='probabilistic', rng=np.random.default_rng(0)
     )
-    assert result.outcome == Outcome.DETECTED  # p = 1 - 2**(-5/0.6) > 0.99
+    assert result.outcome == EpisodeOutcome.DETECTED  # p = 1 - 2**(-5/0.6) > 0.99
 
 
 def test_probabilistic_detection_needs_a_generator_and_modes_are_checked():

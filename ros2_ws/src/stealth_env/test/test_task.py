@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from stealth_env.lighting import point_visibility
-from stealth_env.reward import Outcome, detection_reward, step_reward, success_reward
+from stealth_env.reward import EpisodeOutcome, detection_reward, step_reward, success_reward
 from stealth_env.scenario import load_scenario
 from stealth_env.task import EpisodeSummaryFields, StealthTask
 
@@ -179,14 +179,16 @@ def test_an_ordinary_step_pays_the_step_reward(task, map1):
 
 def test_the_goal_ends_the_episode_with_success(task, map1):
     judgement = task.judge(18.0, 14.5, 0.0, 7)
-    assert judgement.outcome is Outcome.SUCCESS and judgement.terminal
+    assert judgement.outcome is EpisodeOutcome.SUCCESS and judgement.terminal
     assert judgement.reward == success_reward(0.0, 0.5, map1.rewards)
 
 
 def test_a_lit_pose_is_detected(task):
     x, y = lit_node_point(task)
     judgement = task.judge(x, y, 0.0, 3)
-    assert judgement.outcome is Outcome.DETECTED and judgement.detected and judgement.terminal
+    assert (
+        judgement.outcome is EpisodeOutcome.DETECTED and judgement.detected and judgement.terminal
+    )
     assert judgement.visibility >= task.scenario.detection_threshold
 
 
@@ -194,12 +196,12 @@ def test_the_step_limit_times_out(task, map1):
     x, y = map1.start[:2]
     assert not task.judge(x, y, 0.0, map1.step_limit - 1).terminal
     judgement = task.judge(x, y, 0.0, map1.step_limit)
-    assert judgement.outcome is Outcome.TIMEOUT and judgement.terminal
+    assert judgement.outcome is EpisodeOutcome.TIMEOUT and judgement.terminal
 
 
 def test_a_given_visibility_is_used_as_is(task, map1):
     x, y = map1.start[:2]
-    assert task.judge(x, y, 0.0, 1, visibility=0.5).outcome is Outcome.DETECTED
+    assert task.judge(x, y, 0.0, 1, visibility=0.5).outcome is EpisodeOutcome.DETECTED
 
 
 @pytest.mark.parametrize('bad', [0, -1, 1.0, True])
@@ -240,9 +242,9 @@ def test_episode_stats_accumulate_what_episode_summary_reports(task, map1):
     judgements = [task.judge(x, y, 0.0, i) for i, (x, y) in enumerate(poses, start=1)]
     for (x, y), judgement in zip(poses, judgements, strict=True):
         stats.add(x, y, judgement)
-    summary = stats.summary(Outcome.TIMEOUT)
+    summary = stats.summary(EpisodeOutcome.TIMEOUT)
     assert summary.episode == 4 and summary.goal == 'hard' and summary.steps == 3
-    assert summary.outcome == Outcome.TIMEOUT == 2
+    assert summary.outcome == EpisodeOutcome.TIMEOUT == 2
     assert summary.total_reward == pytest.approx(sum(j.reward for j in judgements))
     assert summary.accumulated_visibility == pytest.approx(sum(j.visibility for j in judgements))
     assert summary.peak_visibility == max(j.visibility for j in judgements)
@@ -251,7 +253,7 @@ def test_episode_stats_accumulate_what_episode_summary_reports(task, map1):
 
 
 def test_a_fresh_episode_summary_is_at_the_start(task):
-    summary = task.start_episode(2.5, 2.5).summary(Outcome.ABORTED)
+    summary = task.start_episode(2.5, 2.5).summary(EpisodeOutcome.ABORTED)
     assert (summary.steps, summary.total_reward, summary.path_length) == (0, 0.0, 0.0)
     assert summary.final_distance_to_goal == pytest.approx(math.hypot(15.5, 12.0))
 

@@ -26,7 +26,7 @@ from stealth_agent.schedules import Schedule
 from stealth_agent.state_index import StateIndex
 from stealth_env.gym_env import StealthNavEnv, lattice_model
 from stealth_env.planners import LatticeModel, astar, dark_path, follow, value_iteration, walk
-from stealth_env.reward import Outcome
+from stealth_env.reward import EpisodeOutcome
 from stealth_env.scenario import content_identity
 
 # Training episodes per run, per learner: each well past where every seed settled within 5 %
@@ -120,7 +120,7 @@ class RunResult:
     spec: RunSpec
     optimum: float
     train_returns: np.ndarray  # (episodes,)
-    train_outcomes: np.ndarray  # (episodes,) Outcome values
+    train_outcomes: np.ndarray  # (episodes,) EpisodeOutcome values
     eval_at: np.ndarray  # episodes trained before each greedy evaluation
     eval_returns: np.ndarray  # mean greedy return at each
     episodes_to_within: int | None
@@ -180,7 +180,7 @@ def run(spec: RunSpec) -> RunResult:
     for episode in range(spec.episodes):
         result, info = play_episode(env, agent, seed=spec.seed if episode == 0 else None)
         returns.append(result.reward)
-        outcomes.append(Outcome[info['outcome']])
+        outcomes.append(EpisodeOutcome[info['outcome']])
         steps += result.actions
         if (episode + 1) % spec.eval_every == 0 or episode + 1 == spec.episodes:
             tries = [_greedy_rollout(evaluator, greedy, spec.seed + k) for k in range(rollouts)]
@@ -215,7 +215,7 @@ def run(spec: RunSpec) -> RunResult:
 
 def _greedy_rollout(env: StealthNavEnv, greedy: ProtocolAgent, seed: int) -> dict:
     _, info = play_episode(env, greedy, seed=seed)
-    summary = env.stats.summary(Outcome[info['outcome']])
+    summary = env.stats.summary(EpisodeOutcome[info['outcome']])
     return {**summary._asdict(), 'points': env.trajectory}
 
 

@@ -15,7 +15,7 @@ import numpy as np
 from stealth_bringup.run_outputs import plot_paths, write_csv
 from stealth_env import palette
 from stealth_env.planners import LatticeModel
-from stealth_env.reward import Outcome
+from stealth_env.reward import EpisodeOutcome
 
 from stealth_experiments.harness import BASELINES, WITHIN, Baseline, RunResult, scenario_label
 
@@ -44,13 +44,13 @@ RESULTS_FIELDS = (
 
 
 def _outcome_name(value) -> str:
-    return '' if value is None else Outcome(value).name
+    return '' if value is None else EpisodeOutcome(value).name
 
 
 def run_row(result: RunResult, goal: str) -> dict:
     final, spec = result.final, result.spec
 
-    def rate(outcome: Outcome) -> float:
+    def rate(outcome: EpisodeOutcome) -> float:
         return float(np.mean(result.train_outcomes == outcome))
 
     return {
@@ -60,9 +60,9 @@ def run_row(result: RunResult, goal: str) -> dict:
         'seed': spec.seed,
         'episodes': spec.episodes,
         'optimal_return': result.optimum,
-        'success_rate': rate(Outcome.SUCCESS),
-        'detection_rate': rate(Outcome.DETECTED),
-        'timeout_rate': rate(Outcome.TIMEOUT),
+        'success_rate': rate(EpisodeOutcome.SUCCESS),
+        'detection_rate': rate(EpisodeOutcome.DETECTED),
+        'timeout_rate': rate(EpisodeOutcome.TIMEOUT),
         'train_mean_return': float(result.train_returns.mean()),
         'greedy_outcome': _outcome_name(final['outcome']),
         'greedy_return': float(result.eval_returns[-1]),
@@ -88,9 +88,9 @@ def baseline_row(scenario: str, goal: str, optimum: float, baseline: Baseline) -
         'seed': '',
         'episodes': '',
         'optimal_return': optimum,
-        'success_rate': float(outcome == Outcome.SUCCESS),
-        'detection_rate': float(outcome == Outcome.DETECTED),
-        'timeout_rate': float(outcome == Outcome.TIMEOUT),
+        'success_rate': float(outcome == EpisodeOutcome.SUCCESS),
+        'detection_rate': float(outcome == EpisodeOutcome.DETECTED),
+        'timeout_rate': float(outcome == EpisodeOutcome.TIMEOUT),
         'train_mean_return': '',
         'greedy_outcome': _outcome_name(outcome) if found else 'no path',
         'greedy_return': summary.get('total_reward', ''),

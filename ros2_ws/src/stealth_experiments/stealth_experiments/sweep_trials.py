@@ -31,7 +31,7 @@ import tempfile
 import time
 
 import numpy as np
-from stealth_env.reward import Outcome
+from stealth_env.reward import EpisodeOutcome
 
 from stealth_experiments.harness import RunResult, RunSpec, run, settled_within
 from stealth_experiments.sweep_stop import MARK, TRIAL_MARK, scratch_prefix
@@ -173,7 +173,7 @@ def _run_ros(trial: dict, seed: int, scratch: Path):
     eval_returns = [float(g['total_reward']) for g in greedy]
     last = greedy[-1]
     final = {
-        'outcome': Outcome[last['outcome']],
+        'outcome': EpisodeOutcome[last['outcome']],
         'steps': int(last['steps']),
         'total_reward': float(last['total_reward']),
         'peak_visibility': float(last['peak_visibility']),
@@ -185,7 +185,7 @@ def _run_ros(trial: dict, seed: int, scratch: Path):
         _spec(trial, seed),
         optimum,
         np.array([float(t['total_reward']) for t in training]),
-        np.array([Outcome[t['outcome']] for t in training], dtype=np.int8),
+        np.array([EpisodeOutcome[t['outcome']] for t in training], dtype=np.int8),
         np.array(eval_at),
         np.array(eval_returns),
         settled_within(eval_at, eval_returns, optimum),
@@ -247,7 +247,7 @@ def record_result(record: dict) -> RunResult:
     settings = record['settings']
     spec = _spec({**settings, 'seeds': [record['seed']]}, record['seed'])
     final = dict(record['final'])
-    final['outcome'] = None if final.get('outcome') is None else Outcome(final['outcome'])
+    final['outcome'] = None if final.get('outcome') is None else EpisodeOutcome(final['outcome'])
     final['points'] = None if record['points'] is None else np.array(record['points'])
     return RunResult(
         spec,

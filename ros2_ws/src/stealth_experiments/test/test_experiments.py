@@ -9,7 +9,7 @@ from stealth_agent.policy_store import check_compatible, load_policy
 from stealth_agent.protocol import ProtocolAgent
 from stealth_env.gym_env import lattice_model
 from stealth_env.planners import value_iteration
-from stealth_env.reward import Outcome
+from stealth_env.reward import EpisodeOutcome
 from stealth_env.scenario import content_identity
 from stealth_env.task import StealthTask
 from stealth_experiments import experiments
@@ -57,7 +57,7 @@ def test_a_run_learns_the_optimal_path(trained):
     assert len(trained.train_returns) == len(trained.train_outcomes) == 150
     assert trained.eval_at.tolist() == list(range(10, 151, 10))
     assert trained.episodes_to_within is not None and trained.episodes_to_within <= 150
-    assert trained.final['outcome'] == Outcome.SUCCESS
+    assert trained.final['outcome'] == EpisodeOutcome.SUCCESS
     assert trained.final['total_reward'] == pytest.approx(trained.eval_returns[-1])
     assert trained.final['points'].shape == (trained.final['steps'] + 1, 2)
 
@@ -93,7 +93,7 @@ def test_the_saved_policy_runs_on_states_the_ros_environment_sends(trained):
         total += reward
         if judgement.terminal:
             break
-    assert judgement.outcome is Outcome.SUCCESS
+    assert judgement.outcome is EpisodeOutcome.SUCCESS
     assert total == pytest.approx(trained.final['total_reward'])
 
 
