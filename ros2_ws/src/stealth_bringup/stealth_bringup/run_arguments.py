@@ -5,7 +5,12 @@ a user can ask for, checked for form only; what it means is run_plan's. No rclpy
 from __future__ import annotations
 
 import argparse
-import math
+
+from stealth_tools.commands.arguments import (
+    non_negative_int,
+    positive_float,
+    positive_int,
+)
 
 from stealth_bringup.ros_domain import DISCOVERY_RANGES
 
@@ -25,37 +30,6 @@ REMOTE_NODES = ('simulator', 'environment', 'agent')
 COMMAND_OF_MODE = {'train': 'train', 'eval': 'rollout'}
 
 
-def _whole_number(text: str) -> int:
-    try:
-        return int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'{text!r} is not a whole number') from None
-
-
-def _positive_int(text: str) -> int:
-    value = _whole_number(text)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f'{text} is not a positive integer')
-    return value
-
-
-def _non_negative_int(text: str) -> int:
-    value = _whole_number(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f'{text} is negative')
-    return value
-
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'{text!r} is not a number') from None
-    if not value > 0 or not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f'{text} is not a positive number')
-    return value
-
-
 def _common_options(parser: argparse.ArgumentParser, evaluating: bool = False) -> None:
     parser.add_argument(
         '--runs-dir',
@@ -73,7 +47,7 @@ def _common_options(parser: argparse.ArgumentParser, evaluating: bool = False) -
     )  # fmt: skip
     parser.add_argument(
         '--seed',
-        type=_non_negative_int,
+        type=non_negative_int,
         metavar='S',
         help='seed of the simulator, the environment and the agent (default: their files)',
     )
@@ -112,14 +86,14 @@ def _common_options(parser: argparse.ArgumentParser, evaluating: bool = False) -
     )
     parser.add_argument(
         '--startup-timeout',
-        type=_positive_float,
+        type=positive_float,
         default=STARTUP_TIMEOUT,
         metavar='S',
         help='seconds for every node to come up (default: %(default)s)',
     )
     parser.add_argument(
         '--stall-timeout',
-        type=_positive_float,
+        type=positive_float,
         default=STALL_TIMEOUT,
         metavar='S',
         help='give up when no step happens for S seconds (default: %(default)s)',
@@ -150,7 +124,7 @@ def _common_options(parser: argparse.ArgumentParser, evaluating: bool = False) -
     )
     parser.add_argument(
         '--respawn',
-        type=_non_negative_int,
+        type=non_negative_int,
         default=0 if evaluating else DEFAULT_RESPAWN,
         metavar='N',
         help='restart a node that dies up to N times (each after a longer wait: 0.5, 1, 2, 4, '
@@ -160,7 +134,7 @@ def _common_options(parser: argparse.ArgumentParser, evaluating: bool = False) -
     )
     parser.add_argument(
         '--join-timeout',
-        type=_positive_float,
+        type=positive_float,
         default=JOIN_TIMEOUT,
         metavar='S',
         help='seconds a --remote node has to join the run (default: %(default)s)',
@@ -188,7 +162,7 @@ def train_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         '--episodes',
-        type=_positive_int,
+        type=positive_int,
         metavar='N',
         help='episode budget, greedy evaluations included (default: '
         f"{DEFAULT_EPISODES}); with --resume the new total, the run's earlier episodes "
@@ -196,14 +170,14 @@ def train_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         '--eval-every',
-        type=_non_negative_int,
+        type=non_negative_int,
         metavar='M',
         help='every M-th episode is a greedy evaluation, no exploration and no learning '
         f"(0 = never; default: {DEFAULT_EVAL_EVERY}, with --resume the run's)",
     )
     parser.add_argument(
         '--success-streak',
-        type=_non_negative_int,
+        type=non_negative_int,
         metavar='K',
         help='stop once K greedy evaluations in a row reached the goal (0 = run the whole '
         f"budget; default: {DEFAULT_STREAK}, with --resume the run's)",
@@ -239,7 +213,7 @@ def rollout_parser() -> argparse.ArgumentParser:
     parser.add_argument('--goal', help="goal (default: the run's or the policy file's)")
     parser.add_argument(
         '--episodes',
-        type=_positive_int,
+        type=positive_int,
         default=DEFAULT_EVAL_EPISODES,
         metavar='N',
         help='episodes to run (default: %(default)s)',

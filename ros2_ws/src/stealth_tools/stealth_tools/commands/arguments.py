@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable
 import importlib
+import math
 
 QOS_PROFILES = (
     'unknown',
@@ -23,29 +24,54 @@ DURABILITIES = ('system_default', 'transient_local', 'volatile', 'best_available
 HISTORIES = ('system_default', 'keep_last', 'keep_all')
 
 
+def whole_number(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{text!r} is not a whole number') from None
+
+
+def number(text: str) -> float:
+    """A finite number."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{text!r} is not a number') from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f'{text} is not a finite number')
+    return value
+
+
 def positive_float(text: str) -> float:
-    value = float(text)
+    value = number(text)
     if value <= 0:
-        raise argparse.ArgumentTypeError(f'{text} is not positive')
+        raise argparse.ArgumentTypeError(f'{text} is not a positive number')
     return value
 
 
 def non_negative_float(text: str) -> float:
-    value = float(text)
+    value = number(text)
     if value < 0:
         raise argparse.ArgumentTypeError(f'{text} is negative')
     return value
 
 
 def positive_int(text: str) -> int:
-    value = int(text)
+    value = whole_number(text)
     if value <= 0:
-        raise argparse.ArgumentTypeError(f'{text} is not positive')
+        raise argparse.ArgumentTypeError(f'{text} is not a positive integer')
+    return value
+
+
+def non_negative_int(text: str) -> int:
+    value = whole_number(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f'{text} is negative')
     return value
 
 
 def port(text: str) -> int:
-    value = int(text)
+    value = whole_number(text)
     if not 1 <= value <= 65535:
         raise argparse.ArgumentTypeError(f'{text} is not a TCP port (1-65535)')
     return value
