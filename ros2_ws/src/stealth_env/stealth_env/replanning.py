@@ -59,13 +59,14 @@ class SensedReplanner:
         weight: float = DEFAULT_DARK_PATH_WEIGHT,
     ):
         if unknown not in UNKNOWN_RULES:
-            raise ValueError(f'unknown: expected one of {", ".join(UNKNOWN_RULES)}, got {unknown!r}')
+            rules = ', '.join(UNKNOWN_RULES)
+            raise ValueError(f'unknown: expected one of {rules}, got {unknown!r}')
         scenario = model.task.scenario
         self.unknown = unknown
         self.weight = float(weight)
         self.threshold = float(scenario.detection_threshold)
         self.step = float(scenario.step_distance)
-        self.can_wait = WAIT < model.num_actions and model.task.action_names[WAIT] == 'wait'
+        self.can_wait = model.num_actions > WAIT and model.task.action_names[WAIT] == 'wait'
         self.sensing = sensing = Sensing(model, scenario.sensing_range)
         n = sensing.n
         moves = model.successors[:n, :4] % n

@@ -353,7 +353,7 @@ def _sensing_range(fields: FieldReader, occupancy: OccupancyMap) -> float:
     """How far the robot senses the lights on the sensed track: > 0, at most the diagonal."""
     x_min, y_min, x_max, y_max = occupancy.bounds
     diagonal = math.hypot(x_max - x_min, y_max - y_min)
-    expected = f'a number > 0 (m) and at most the map\'s diagonal, {diagonal:g} m'
+    expected = f"a number > 0 (m) and at most the map's diagonal, {diagonal:g} m"
     return fields.number(
         'sensing_range',
         expected,

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from stealth_env.gym_env import StealthNavEnv
 from stealth_env.planners import follow, value_iteration, walk
-from stealth_env.reward import Outcome
 from stealth_env.replanning import SensedReplanner, lamp_reach, play
+from stealth_env.reward import Outcome
 from stealth_env.task import WAIT, StealthTask
 
 # The shipped scenarios whose lights stand still (their easy goals must be reached unseen).

@@ -125,9 +125,7 @@ def test_memory_takes_the_new_value_of_a_moving_light():
     assert np.array_equal(sensor.memory.node_light[nodes], model.visibility[nodes])
     for layer in range(1, model.cycle_bins):
         sensor.sense(layer * n + node, layer)
-        assert np.array_equal(
-            sensor.memory.node_light[nodes], model.visibility[layer * n + nodes]
-        )
+        assert np.array_equal(sensor.memory.node_light[nodes], model.visibility[layer * n + nodes])
         assert np.all(sensor.memory.node_step[nodes] == layer)
 
 
