@@ -68,6 +68,7 @@ class Sensing:
         self.move_from = np.concatenate(starts)
         self.move_direction = np.concatenate(directions)
         self.move_to = np.concatenate(ends)
+        self._back = np.where(self.move_direction == UP, DOWN, LEFT)  # the move from its end
         # Every cell a move's samples fall in (its two ends included), as indices into cells.
         samples = max(int(model.task.step_samples), 1)
         fractions = np.linspace(0.0, 1.0, samples + 1)
@@ -88,6 +89,8 @@ class Sensing:
         nodes = np.asarray(model.nodes, dtype=np.int64).reshape(-1, 2)
         self.grid_col = nodes[:, 0] - lattice.i_min
         self.grid_row = nodes[:, 1] - lattice.j_min
+        channel = (self.move_direction == RIGHT).astype(np.int64)
+        self._move_at = (channel, self.grid_row[self.move_from], self.grid_col[self.move_from])
 
     def _flat_cells(self, xs, ys) -> np.ndarray:
         frame = self.frame
@@ -126,15 +129,15 @@ class Sensing:
         moves = moves_near[in_sight[self.move_cell[moves_near]].all(axis=1)]
         return nodes, moves
 
-    def truth(self, place: int) -> tuple[np.ndarray, np.ndarray]:
-        """(node values (n,), move values (moves,)): the light on every node and move at the
-        layer (bin and heading) of ``place``, what the robot senses where it sees."""
+    def truth(self, place: int, nodes=slice(None), moves=slice(None)):
+        """(node values, move values): the light on the nodes and moves (indices; default
+        all) at the layer (bin and heading) of ``place``, what the robot senses where it sees."""
         model = self.model
         layer = place - model.node_of(place)
-        node_values = model.visibility[layer : layer + self.n]
+        node_values = model.visibility[layer : layer + self.n][nodes]
         step = model.step_visibility
-        forward = step[layer + self.move_from, self.move_direction]
-        back = step[layer + self.move_to, np.where(self.move_direction == UP, DOWN, LEFT)]
+        forward = step[layer + self.move_from[moves], self.move_direction[moves]]
+        back = step[layer + self.move_to[moves], self._back[moves]]
         return node_values, np.maximum(forward, back)
 
     def grid(self, node_values: np.ndarray, fill: float = NO_PLACE) -> np.ndarray:
@@ -147,9 +150,7 @@ class Sensing:
     def move_grid(self, move_values: np.ndarray, fill: float = NO_PLACE) -> np.ndarray:
         """(2, rows, cols) float32: [0] the move up from each node, [1] the move right."""
         out = np.full((2, *self.shape), fill, dtype=np.float32)
-        channel = (self.move_direction == RIGHT).astype(np.int64)
-        start = self.move_from
-        out[channel, self.grid_row[start], self.grid_col[start]] = move_values
+        out[self._move_at] = move_values
         return out
 
 
@@ -206,8 +207,8 @@ class Sensor:
         moves) in sight, their values stored in the memory."""
         sensing = self.sensing
         nodes, moves = sensing.visible(sensing.model.node_of(place))
-        node_values, move_values = sensing.truth(place)
-        self.memory.update(nodes, node_values[nodes], moves, move_values[moves], step)
+        node_values, move_values = sensing.truth(place, nodes, moves)
+        self.memory.update(nodes, node_values, moves, move_values, step)
         return nodes, moves
 
 
