@@ -89,6 +89,8 @@ class StealthNavEnv(gym.Env):
     - ``moves``: ``(2, rows, cols)``: the most light along the move up ([0], to row + 1) and
       right ([1], to col + 1) from each node, last sensed; -1 never sensed, -2 no such move.
 
+    Light values are at most 1 per light (plus a bound of the bounced light): the spaces' high.
+
     ``env.sensor.memory`` also keeps the step each value was sensed at (a moving light's old
     value may be stale). ``sensing.flat_observation`` flattens it in the documented order.
     Rewards, detection and episode ends are the full track's.
