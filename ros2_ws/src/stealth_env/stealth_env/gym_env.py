@@ -208,6 +208,8 @@ class StealthNavEnv(gym.Env):
         self._path = [self._node]
         self._judgements = []
         self._episode += 1
+        if self.sensor is not None:
+            self.sensor.reset()  # each episode starts knowing no light
         x, y = self._points[self._node]
         info = {
             'pose': (x, y),

@@ -220,3 +220,17 @@ def test_the_sensed_track_judges_as_the_full_track():
         if a[2] or a[3]:
             full.reset()
             sensed.reset()
+
+
+def test_each_episode_starts_knowing_no_light(env):
+    unwrapped = env.unwrapped
+    first, _ = env.reset(seed=0)
+    for action in np.random.default_rng(2).integers(4, size=40).tolist():
+        _, _, terminated, truncated, _ = env.step(action)
+        if terminated or truncated:
+            break
+    assert np.count_nonzero(unwrapped.sensor.memory.node_step > 0) > 0
+    again, _ = env.reset(seed=0)
+    assert np.all(unwrapped.sensor.memory.node_step <= 0)
+    assert np.array_equal(again['light'], first['light'])
+    assert np.array_equal(again['moves'], first['moves'])
