@@ -198,9 +198,26 @@ class Sensor:
     def __init__(self, model, sensing_range: float | None = None):
         self.sensing = Sensing(model, sensing_range)
         self.memory = SensedMemory.empty(self.sensing)
+        self._index: dict | None = None  # node (i, j) -> its index
 
     def reset(self) -> None:
         self.memory = SensedMemory.empty(self.sensing)
+
+    def place_of(self, x: float, y: float, t: float = 0.0, yaw: float = 0.0) -> int:
+        """The model place of a pose (x, y, yaw) at time t (s): the nearest valid node, the
+        bin t falls in, the heading nearest yaw (what a caller outside the Gym env, such as the
+        ROS environment node, passes to ``sense``)."""
+        model = self.sensing.model
+        task, lattice = model.task, model.task.lattice
+        node = lattice.point_to_node(x, y)
+        if not lattice.is_valid(node):
+            node = lattice.nearest_valid_node(x, y)
+        if self._index is None:
+            self._index = {tuple(k): i for i, k in enumerate(model.nodes)}
+        features = task.features_at(t, yaw)
+        cycle_bin = int(features[0]) if task.timing is not None else 0
+        heading = int(features[-1]) if task.footprint is not None else 0
+        return (heading * model.cycle_bins + cycle_bin) * self.sensing.n + self._index[node]
 
     def sense(self, place: int, step: int) -> tuple[np.ndarray, np.ndarray]:
         """Sense from ``place`` (a model place: node, bin, heading) at ``step``: the (nodes,

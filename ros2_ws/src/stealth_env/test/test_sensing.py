@@ -234,3 +234,19 @@ def test_each_episode_starts_knowing_no_light(env):
     assert np.all(unwrapped.sensor.memory.node_step <= 0)
     assert np.array_equal(again['light'], first['light'])
     assert np.array_equal(again['moves'], first['moves'])
+
+
+@pytest.mark.parametrize('scenario', ['map1', 'map1-moving', 'map1-exposure'])
+def test_the_place_of_a_pose_is_the_gym_envs_place(scenario):
+    env = StealthNavEnv(scenario, track='sensed')
+    sensor, task = env.sensor, env.task
+    env.reset(seed=0)
+    yaw = task.scenario.start[2]
+    for action in np.random.default_rng(6).integers(4, size=60).tolist():
+        _, _, terminated, truncated, info = env.step(action)
+        t = info['steps'] * task.step_seconds
+        if task.footprint is not None:
+            yaw = float(env.model.heading_of(env.node)) * math.pi / 2
+        assert sensor.place_of(*info['pose'], t, yaw) == env.node
+        if terminated or truncated:
+            break
