@@ -21,7 +21,16 @@ move lattice (``planners.LatticeModel``), so a sensed value is exactly a value t
 ``Sensing`` says what is in sight from each node (traced on first use, then cached per node:
 a robot revisits the same few hundred nodes). ``SensedMemory`` keeps, for every node and move,
 the **last value sensed and the step it was sensed at** (-1 and -1 before it is ever sensed):
-lights move, so an old value may be stale, and its age says how stale. Plain Python + numpy.
+lights move, so an old value may be stale, and its age says how stale. ``Sensor`` holds both
+for one episode::
+
+    sensor = Sensor(model)                       # model: planners.LatticeModel of the task
+    sensor.reset()                               # at each episode's start
+    nodes, moves = sensor.sense(place, step)     # place: the Gym env's node, or
+    place = sensor.place_of(x, y, t, yaw)        # from a pose (the ROS environment node)
+    sensor.memory.node_light, sensor.memory.node_step  # what is remembered, and since when
+
+Plain Python + numpy.
 """
 
 from __future__ import annotations
