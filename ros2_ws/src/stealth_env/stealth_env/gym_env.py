@@ -28,14 +28,17 @@ from matplotlib.colors import to_rgb
 import numpy as np
 
 from stealth_env import palette
+from stealth_env.bounce import bounce_bound
 from stealth_env.planners import PERPENDICULAR, LatticeModel
 from stealth_env.reward import EpisodeOutcome
 from stealth_env.scenario import Scenario, find_scenario, load_scenario
+from stealth_env.sensing import NO_PLACE, Sensor
 from stealth_env.task import EpisodeStats, StealthTask, StepJudgement
 from stealth_env.visibility import scenario_visibility
 
 ENV_ID = 'StealthNav-v0'
 DEFAULT_SCENARIO = 'map1'
+TRACKS = ('full', 'sensed')  # the lights known to the agent; sensed where it has seen them
 
 
 class StealthNavEnv(gym.Env):
@@ -70,6 +73,28 @@ class StealthNavEnv(gym.Env):
     each light then weighed by how much of the robot it sees (``stealth_env.exposure``). Each
     step takes the scenario's ``step_seconds``; an episode starts at phase 0.
 
+    ### The sensed track (``track='sensed'``)
+
+    The robot knows the floor plan but not the lights (``stealth_env.sensing``): it senses the
+    light on the lattice nodes and moves in its line of sight within the scenario's
+    ``sensing_range`` (default 8 m) and remembers the last value of each. The observation is a
+    ``Dict`` (every array float32 unless said; grids over the move lattice, ``[row, col] =
+    [j - j_min, i - i_min]`` for node ``start + (i, j) * step_distance``, row 0 southernmost):
+
+    - ``state``: the full track's observation above (``[x, y]`` and any phase and heading);
+    - ``lit``: ``MultiBinary(1)``, int8: 1 when the light on the robot (the visibility the judge
+      used for the last step; at reset, at the start) reaches the detection threshold;
+    - ``light``: ``(rows, cols)``: the last light sensed at each node, -1 never sensed, -2 no
+      valid node there (wall, or too close to one: the floor plan is known);
+    - ``moves``: ``(2, rows, cols)``: the most light along the move up ([0], to row + 1) and
+      right ([1], to col + 1) from each node, last sensed; -1 never sensed, -2 no such move.
+
+    Light values are at most 1 per light (plus a bound of the bounced light): the spaces' high.
+
+    ``env.sensor.memory`` also keeps the step each value was sensed at (a moving light's old
+    value may be stale). ``sensing.flat_observation`` flattens it in the documented order.
+    Rewards, detection and episode ends are the full track's.
+
     ## Rewards
 
     Those of the scenario (``stealth_env.reward``), with d the distance to the goal point and v
@@ -95,7 +120,8 @@ class StealthNavEnv(gym.Env):
     ## Arguments
 
     ```python
-    gym.make('StealthNav-v0', scenario='map1', goal=None, slip=0.0, render_mode=None)
+    gym.make('StealthNav-v0', scenario='map1', goal=None, slip=0.0, render_mode=None,
+             track='full')
     ```
 
     - ``scenario``: a shipped scenario's name, a scenario YAML path, or a loaded ``Scenario``.
@@ -103,6 +129,8 @@ class StealthNavEnv(gym.Env):
     - ``slip``: probability in [0, 1] of moving sideways instead.
     - ``render_mode``: 'ansi' (a text picture of the lattice) or 'rgb_array' (the map at one
       pixel per map cell: visibility heat, walls, the path so far, the robot).
+    - ``track``: 'full' (the lights known: the observation is the state) or 'sensed' (the
+      lights sensed as the robot goes: the Dict above).
 
     ## Version History
 
@@ -117,7 +145,10 @@ class StealthNavEnv(gym.Env):
         goal: str | None = None,
         slip: float = 0.0,
         render_mode: str | None = None,
+        track: str = 'full',
     ):
+        if track not in TRACKS:
+            raise ValueError(f'track: expected one of {", ".join(TRACKS)}, got {track!r}')
         if render_mode is not None and render_mode not in self.metadata['render_modes']:
             raise ValueError(f'render_mode: expected one of ansi, rgb_array, got {render_mode!r}')
         if not 0.0 <= slip <= 1.0:
@@ -138,6 +169,11 @@ class StealthNavEnv(gym.Env):
         self.observation_space = spaces.Box(
             np.array(low, dtype=np.float32), np.array(high, dtype=np.float32), dtype=np.float32
         )
+        self.track = track
+        self.sensor: Sensor | None = None
+        if track == 'sensed':
+            self.sensor = Sensor(self.model)
+            self.observation_space = _sensed_space(self.observation_space, self.sensor)
         self._node = self.model.start
         self._steps = 0
         self._path = [self._node]  # node indices since the start
@@ -172,6 +208,8 @@ class StealthNavEnv(gym.Env):
         self._path = [self._node]
         self._judgements = []
         self._episode += 1
+        if self.sensor is not None:
+            self.sensor.reset()  # each episode starts knowing no light
         x, y = self._points[self._node]
         info = {
             'pose': (x, y),
@@ -181,7 +219,7 @@ class StealthNavEnv(gym.Env):
             'outcome': None,
             'steps': 0,
         }
-        return self.model.states[self._node].copy(), info
+        return self._observation(info['visibility']), info
 
     def step(self, action):
         if not self.action_space.contains(action):
@@ -208,8 +246,23 @@ class StealthNavEnv(gym.Env):
             'outcome': None if outcome is None else outcome.name,
             'steps': self._steps,
         }
-        observation = self.model.states[node].copy()
+        observation = self._observation(judgement.visibility)
         return observation, judgement.reward, judgement.terminal and not timed_out, timed_out, info
+
+    def _observation(self, visibility: float):
+        """The state at the robot's place; on the sensed track, with what it senses there."""
+        state = self.model.states[self._node].copy()
+        if self.sensor is None:
+            return state
+        self.sensor.sense(self._node, self._steps)
+        memory, sensing = self.sensor.memory, self.sensor.sensing
+        lit = visibility >= self.scenario.detection_threshold
+        return {
+            'state': state,
+            'lit': np.array([lit], dtype=np.int8),
+            'light': sensing.grid(memory.node_light),
+            'moves': sensing.move_grid(memory.move_light),
+        }
 
     # --- rendering ------------------------------------------------------------------------------
 
@@ -264,6 +317,22 @@ class StealthNavEnv(gym.Env):
         radius = max(self.scenario.robot_radius / occupancy.resolution, 2.0)
         _disc(image, *pixel(*self._points[self._node]), radius, palette.FRAME_ROBOT)
         return image
+
+
+def _sensed_space(state: spaces.Box, sensor: Sensor) -> spaces.Dict:
+    """The sensed track's observation space (see the class docstring)."""
+    shape = sensor.sensing.shape
+    scenario = sensor.sensing.model.task.scenario
+    n_lights = len(scenario.lights)  # each light gives at most 1, plus what the walls bounce
+    most = n_lights + bounce_bound(scenario.bounce, scenario.map.resolution, n_lights)
+    return spaces.Dict(
+        {
+            'state': state,
+            'lit': spaces.MultiBinary(1),
+            'light': spaces.Box(NO_PLACE, most, shape, dtype=np.float32),
+            'moves': spaces.Box(NO_PLACE, most, (2, *shape), dtype=np.float32),
+        }
+    )
 
 
 def _scenario_picture(scenario: Scenario) -> np.ndarray:

@@ -42,6 +42,9 @@ from +x) and radians in the :class:`Scenario`. Example, every field::
     bounce: {albedo: 0.3, range: 3.0}  # one-bounce light off the walls (stealth_env.bounce):
                                     # albedo in [0, 1) (default 0: none), range m (default 3);
                                     # static lights only
+    sensing_range: 8.0              # m, how far the robot that does not know the lights senses
+                                    # them (stealth_env.sensing), > 0 and at most the map's
+                                    # diagonal; default 8 (or the diagonal, if shorter)
 
 Validation checks the fields' types and ranges, that the start and goals lie in free cells of
 the map, that the start has ``robot_radius`` of clearance, that every goal is reachable from the
@@ -108,9 +111,11 @@ FIELDS = (
     'rewards',
     'exposure',
     'bounce',
+    'sensing_range',
 )
 LIGHT_FIELDS = ('name', 'x', 'y', 'direction', 'fov', 'range', 'delta', 'soft_edge', 'motion')
 POSITIVE = 'a number > 0'
+DEFAULT_SENSING_RANGE = 8.0  # m: the sensed track's camera (stealth_env.sensing)
 
 
 class ScenarioError(ValueError):
@@ -153,6 +158,7 @@ class Scenario:
     timing: Timing | None = None  # moving lights with phase_bins: the phase state feature
     exposure: Footprint | None = None  # exposure by orientation: the heading state feature
     bounce: Bounce | None = None  # one-bounce light; None: direct light only (albedo 0)
+    sensing_range: float = DEFAULT_SENSING_RANGE  # m, the sensed track's (stealth_env.sensing)
 
     @property
     def has_moving_lights(self) -> bool:
@@ -266,6 +272,7 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
         timing=timing,
         exposure=_exposure(fields, numbers['robot_radius']),
         bounce=bounce,
+        sensing_range=_sensing_range(fields, occupancy),
         **numbers,
     )
 
@@ -340,6 +347,19 @@ def _bounce(fields: FieldReader, lights) -> Bounce | None:
             f'{", ".join(moving)} moving',
         )
     return Bounce(albedo, reach)
+
+
+def _sensing_range(fields: FieldReader, occupancy: OccupancyMap) -> float:
+    """How far the robot senses the lights on the sensed track: > 0, at most the diagonal."""
+    x_min, y_min, x_max, y_max = occupancy.bounds
+    diagonal = math.hypot(x_max - x_min, y_max - y_min)
+    expected = f"a number > 0 (m) and at most the map's diagonal, {diagonal:g} m"
+    return fields.number(
+        'sensing_range',
+        expected,
+        lambda v: 0 < v <= diagonal,
+        min(DEFAULT_SENSING_RANGE, diagonal),
+    )
 
 
 def _load_map(fields: FieldReader, path: Path) -> tuple[Path, OccupancyMap]:

@@ -696,3 +696,21 @@ def test_a_light_in_a_wall_is_refused_with_its_name_and_position(write, x, y, di
         scenario.lights[1], x=x, y=y, direction=math.radians(direction), fov=math.radians(60)
     )
     assert free_cells_lit(scenario, buried) == 0
+
+
+# --- sensing_range (the sensed track) -----------------------------------------------------------
+
+
+def test_sensing_range_defaults_to_8_m_and_takes_a_value(write):
+    assert load_scenario(write()).sensing_range == 8.0
+    assert load_scenario(write(setter('sensing_range', 3.5))).sensing_range == 3.5
+
+
+@pytest.mark.parametrize('value', [0, -2.0, 13.0, 'far'])
+def test_sensing_range_zero_negative_or_beyond_the_map_is_named(write, value):
+    # the small map is 10 x 8 m: its diagonal is 12.8062 m
+    assert_scenario_error(
+        write(setter('sensing_range', value)),
+        "field 'sensing_range'",
+        "expected a number > 0 (m) and at most the map's diagonal, 12.8062 m",
+    )

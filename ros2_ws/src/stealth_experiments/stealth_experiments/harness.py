@@ -26,6 +26,7 @@ from stealth_agent.schedules import Schedule
 from stealth_agent.state_index import StateIndex
 from stealth_env.gym_env import StealthNavEnv, lattice_model
 from stealth_env.planners import LatticeModel, astar, dark_path, follow, value_iteration, walk
+from stealth_env.replanning import SensedReplanner, play
 from stealth_env.reward import EpisodeOutcome
 from stealth_env.scenario import content_identity
 
@@ -40,6 +41,8 @@ MOVING_EPISODES = {'qlearning': 15000, 'sarsa': 15000, 'dyna': 3000}
 DEFAULT_EVAL_EVERY = 10
 WITHIN = 0.05  # of the optimal return
 BASELINES = ('A*', 'Dark Path', 'value iteration')
+# The unknown-light track's baselines (stealth_env.replanning), by the rule for unsensed places.
+SENSED_BASELINES = {'replan (unknown dark)': 'dark', 'replan (unknown lit)': 'lit'}
 # Settings a sweep may vary (RunSpec.params), over tuned_config's: alpha (constant), epsilon (its
 # start; it decays exponentially to 0 with time constant epsilon_decay episodes), gamma,
 # initial_value (initial Q) and n_planning (Dyna-Q's planning updates per step).
@@ -291,3 +294,17 @@ def baselines(model: LatticeModel, slip: float = 0.0) -> tuple[float, list[Basel
             summary['total_reward'] = optimum.optimal_return
         found.append(Baseline(name, summary, seconds))
     return optimum.optimal_return, found
+
+
+def sensed_baselines(scenario: str, goal: str | None = None, seed: int = 0) -> list[Baseline]:
+    """The unknown-light baselines (SENSED_BASELINES): each played as one episode on the Gym
+    env's sensed track, its summary as ``RunResult.final`` (value iteration with full knowledge
+    stays the oracle: ``baselines``)."""
+    found = []
+    for name, unknown in SENSED_BASELINES.items():
+        started = time.perf_counter()
+        env = StealthNavEnv(scenario, goal, track='sensed')
+        summary = play(env, SensedReplanner(env.model, unknown).act, seed=seed)
+        summary['outcome'] = EpisodeOutcome(summary['outcome'])
+        found.append(Baseline(name, summary, time.perf_counter() - started))
+    return found

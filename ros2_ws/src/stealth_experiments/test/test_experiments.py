@@ -16,13 +16,16 @@ from stealth_experiments import experiments
 from stealth_experiments.harness import (
     DEFAULT_EPISODES,
     MOVING_EPISODES,
+    SENSED_BASELINES,
     RunSpec,
     default_budget,
     policy_path,
     run,
+    sensed_baselines,
     settled_within,
     tuned_config,
 )
+from stealth_experiments.harness_report import baseline_row
 
 SCENARIO = 'simple-maze'
 
@@ -156,3 +159,15 @@ def test_the_exposure_variants_are_in_the_grid_at_the_static_budgets(tmp_path):
         value_iteration(lattice_model('map1-exposure')).optimal_return
     )
     assert len(result.final['points']) == result.final['steps'] + 1
+
+
+def test_the_sensed_baselines_play_the_sensed_track_into_the_report_rows():
+    found = sensed_baselines('simple-maze', 'easy')
+    assert [b.name for b in found] == list(SENSED_BASELINES)
+    optimum = value_iteration(lattice_model('simple-maze', 'easy')).optimal_return
+    for baseline in found:
+        assert baseline.summary['outcome'] is EpisodeOutcome.SUCCESS
+        assert len(baseline.summary['points']) == baseline.summary['steps'] + 1
+        row = baseline_row('simple-maze', 'easy', optimum, baseline)
+        assert row['method'] == baseline.name and row['success_rate'] == 1.0
+        assert row['greedy_return'] <= optimum + 1e-9
