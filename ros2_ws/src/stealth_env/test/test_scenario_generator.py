@@ -126,3 +126,14 @@ def test_generate_writes_the_batch_and_a_contact_sheet(tmp_path, capsys):
     assert sorted(p.name for p in out.glob('*.yaml')) == ['gen-0100000.yaml', 'gen-0100001.yaml']
     assert 'validation seed range' in capsys.readouterr().out
     assert sheet.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+def test_the_gym_env_steps_through_a_generated_scenario(tmp_path):
+    from stealth_env.gym_env import StealthNavEnv
+
+    path = generate(2, Options(width=20, height=20, lights=3, moving='mixed')).write(tmp_path)
+    env = StealthNavEnv(path)
+    state, _ = env.reset(seed=0)
+    assert len(state) == 3  # x, y and the phase of the moving lights
+    _, _, terminated, truncated, _ = env.step(3)
+    assert not truncated
