@@ -34,7 +34,7 @@ DOOR_UNITS = 2  # door width in units (1.0 m)
 CORRIDOR_UNITS = 4  # corridor width between wall centre lines (2.0 m)
 ROOM_UNITS = (6, 13)  # room widths along the corridor, [low, high) units (3 to 6 m)
 DEEP_WING_UNITS = 16  # a wing deeper than this (8 m) may be cut into outer and inner rooms
-SIDE_DOOR_CHANCE = 0.4  # a door between neighbouring rooms of a wing
+SIDE_DOOR_CHANCE = 0.7  # a door between neighbouring rooms of a wing
 
 
 @dataclasses.dataclass(frozen=True)

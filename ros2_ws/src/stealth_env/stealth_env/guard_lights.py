@@ -3,8 +3,13 @@
 Guards watch what an intruder must pass: the doors of the room being guarded (the goal's),
 the corridor along its length, the hall where the corridor opens, and other doors. Each light
 is a *post*: a lamp standing in a free cell a little off the walls, aimed at what it watches.
-Posts are taken in an order set by the difficulty (hard: the goal's approach and both corridor
-ends first; easy: no light on the goal's approach), then doors at random, until the count.
+The first post of every difficulty watches the goal's approach: a lamp in the corridor beside
+the corridor door nearest the goal's room, aimed back along the corridor (so the shortest way,
+down the corridor, is seen); then, by difficulty (hard: the goal room's doors and both
+corridor ends; medium: one of the goal room's doors and one corridor end; easy: other doors
+and the hall), then doors at random, until the count. One
+door of the goal's room is never watched from a post aimed at it: a room whose every door is
+watched has no covert way in.
 
 Moving lights (``MOVING``): a sweeping light turns back and forth over a sector centred on its
 post's aim; a patrolling light travels a rail ``PATROL_LENGTH`` m along the corridor (or across
@@ -44,7 +49,7 @@ LIGHT_SIZES = {
 class Post:
     """Where a guard's lamp stands (m) and what it is aimed at (degrees, from +x)."""
 
-    kind: str  # 'goal', 'corridor', 'hall' or 'door'
+    kind: str  # 'approach', 'goal', 'corridor', 'hall' or 'door'
     x: float
     y: float
     direction: float
@@ -121,16 +126,37 @@ def _posts(rng: np.random.Generator, plan: FloorPlan, goal_room: int, difficulty
     """Candidate posts, most important first for the difficulty."""
     corridor = plan.rooms[plan.corridor]
     goal = [_watch_door(rng, plan, door, away_from=goal_room) for door in plan.doors_of(goal_room)]
+    goal = goal[:-1]  # one way in stays unwatched: a room watched at every door has no covert way
     ends = _corridor_posts(rng, plan, corridor)
     hall = [_hall_post(rng, plan)]
     others = [door for door in plan.doors if goal_room not in (door.a, door.b)]
     order = rng.permutation(len(others))
     doors = [_watch_door(rng, plan, others[i]) for i in order]
+    approach = [_approach_post(plan, goal_room)]
     if difficulty == 'hard':
-        return goal + ends + doors + hall
+        return approach + goal + ends + doors + hall
     if difficulty == 'medium':
-        return goal[:1] + ends[:1] + doors + hall + ends[1:] + goal[1:]
-    return doors[:2] + ends[:1] + hall + doors[2:] + ends[1:]
+        return approach + goal[:1] + ends[:1] + doors + hall + ends[1:] + goal[1:]
+    return approach + doors[:2] + hall + doors[2:] + ends
+
+
+def _approach_post(plan: FloorPlan, goal_room: int) -> Post:
+    """A lamp in the corridor beside the door nearest the goal's room, aimed back along the
+    corridor towards the hall: whoever comes down the corridor to that door walks into it."""
+    corridor = plan.rooms[plan.corridor]
+    along_x = corridor.x1 - corridor.x0 >= corridor.y1 - corridor.y0
+    distance = plan.door_distances(goal_room)
+    doors = [d for d in plan.doors[1:] if plan.corridor in (d.a, d.b)]
+    door = min(doors, key=lambda d: distance[d.b if d.a == plan.corridor else d.a])
+    mouth = plan.doors[0].centre
+    (dx, dy), (mx, my) = door.centre, mouth
+    if along_x:
+        y = (corridor.y0 + corridor.y1) / 2 * UNIT + 0.25
+        x = dx + math.copysign(0.75, dx - mx)
+        return Post('approach', x, y, 0.0 if mx > x else 180.0)
+    x = (corridor.x0 + corridor.x1) / 2 * UNIT + 0.25
+    y = dy + math.copysign(0.75, dy - my)
+    return Post('approach', x, y, 90.0 if my > y else 270.0)
 
 
 def _corridor_posts(rng: np.random.Generator, plan: FloorPlan, corridor: Room) -> list[Post]:

@@ -112,11 +112,8 @@ class LatticeModel:
         index = {node: i for i, node in enumerate(nodes)}
         node_points = np.array([lattice.node_to_point(node) for node in nodes], dtype=np.float64)
         directions = task.num_actions
-        moves = np.empty((n, directions), dtype=np.int64)
-        for i, node in enumerate(nodes):
-            for action in range(directions):
-                target = lattice.successor(node, action) if action < len(ACTIONS) else None
-                moves[i, action] = i if target is None else index[target]
+        moves = np.repeat(np.arange(n)[:, None], directions, axis=1)  # waits and turns stay
+        moves[:, : len(ACTIONS)] = lattice.successor_table()
         timing = task.timing
         cycle_bins, headings = task.cycle_bins, task.headings
         advance = 0 if timing is None else timing.bins_per_step
@@ -448,9 +445,12 @@ def value_iteration(
     values = np.zeros(model.size)
     previous = values
     q = np.zeros((model.size, model.num_actions))
+    continues = gamma * goes_on
+    exact_moves = slip == 0.0 and np.array_equal(moves, np.eye(model.num_actions))
     for _ in range(horizon):
-        outcome = immediate + gamma * goes_on * values[model.successors]  # (places, directions)
-        q = outcome @ moves.T  # (places, actions)
+        outcome = immediate + continues * values[model.successors]  # (places, directions)
+        # Without slip, each action goes where it says: q is the outcome itself (bit for bit).
+        q = outcome if exact_moves else outcome @ moves.T  # (places, actions)
         previous, values = values, q.max(axis=1)
     # Places that cannot reach the goal keep losing value with every step of horizon; what
     # matters is whether the step limit binds from the start.

@@ -137,3 +137,15 @@ def test_the_gym_env_steps_through_a_generated_scenario(tmp_path):
     assert len(state) == 3  # x, y and the phase of the moving lights
     _, _, terminated, truncated, _ = env.step(3)
     assert not truncated
+
+
+@pytest.mark.parametrize('name', ['map1', 'lgfloor', 'simple-maze'])
+def test_the_successor_table_is_successor_for_every_node(name):
+    lattice = MoveLattice.from_scenario(load_scenario(name))
+    nodes = list(lattice.valid_nodes())
+    index = {node: i for i, node in enumerate(nodes)}
+    expected = [
+        [i if (t := lattice.successor(node, a)) is None else index[t] for a in range(4)]
+        for i, node in enumerate(nodes)
+    ]
+    assert lattice.successor_table().tolist() == expected
