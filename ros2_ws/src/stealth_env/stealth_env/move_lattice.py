@@ -192,6 +192,24 @@ class MoveLattice:
         """The nodes one valid move away, in action order (up, down, left, right)."""
         return [(node[0] + d[0], node[1] + d[1]) for _, d in ACTIONS if self.can_move(node, d)]
 
+    def reachable(self, start_node: Node) -> np.ndarray:
+        """(shape) bool, like ``node_mask``: the nodes some path of valid moves leads to from
+        start_node (none when it is not valid); ``bfs`` for every goal at once, in numpy."""
+        reach = np.zeros(self.shape, dtype=bool)
+        if not self.is_valid(start_node):
+            return reach
+        reach[start_node[0] - self.i_min, start_node[1] - self.j_min] = True
+        right, up = self.right_moves, self.up_moves
+        while True:
+            grown = reach.copy()
+            grown[1:, :] |= reach[:-1, :] & right
+            grown[:-1, :] |= reach[1:, :] & right
+            grown[:, 1:] |= reach[:, :-1] & up
+            grown[:, :-1] |= reach[:, 1:] & up
+            if np.array_equal(grown, reach):
+                return reach
+            reach = grown
+
     def successor_table(self) -> np.ndarray:
         """(valid nodes, ACTIONS) int: the index (in ``valid_nodes``' order) of each action's
         successor from each valid node, the node's own index where the move is blocked; what

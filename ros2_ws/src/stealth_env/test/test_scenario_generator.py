@@ -149,3 +149,16 @@ def test_the_successor_table_is_successor_for_every_node(name):
         for i, node in enumerate(nodes)
     ]
     assert lattice.successor_table().tolist() == expected
+
+
+@pytest.mark.parametrize('name', ['map1', 'lgfloor', 'floorplan'])
+def test_reachable_is_what_bfs_reaches(name):
+    lattice = MoveLattice.from_scenario(load_scenario(name))
+    reach = lattice.reachable((0, 0))
+    found = set()
+    lattice.bfs((0, 0), goal=lambda node: found.add(node) and False)  # visits every node
+    expected = np.zeros(lattice.shape, dtype=bool)
+    for i, j in found:
+        expected[i - lattice.i_min, j - lattice.j_min] = True
+    assert (reach == expected).all() and reach.sum() > 100
+    assert not lattice.reachable((10**6, 0)).any()
