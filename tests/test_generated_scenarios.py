@@ -21,3 +21,12 @@ def test_a_generated_scenario_trains_through_ros(system, tmp_path):  # noqa: F81
     summary = json.loads((run / 'summary.json').read_text())
     assert summary['episodes'] >= 2, summary  # the budget's episodes ran, greedy ones too
     assert 'gen-0000011' in json.dumps(summary)
+
+
+def test_the_harness_trains_on_a_generated_scenario(tmp_path):
+    from stealth_env.scenario_generator import Options, generate
+    from stealth_experiments.harness import RunSpec, run
+
+    path = generate(12, Options(width=20, height=20, lights=2)).write(tmp_path)
+    result = run(RunSpec(str(path), 'qlearning', seed=0, episodes=4, eval_every=2))
+    assert result.optimum > 0 and len(result.train_returns) == 4
