@@ -87,8 +87,8 @@ def parser() -> argparse.ArgumentParser:
     make.add_argument(
         '--difficulty',
         default='medium',
-        help=f"{', '.join(DIFFICULTIES)} (default medium): the lights' reach, whether they "
-        "guard the goal's approach, and (hard) a covert route >= 1.1 x the shortest",
+        help=f"{', '.join(DIFFICULTIES)} (default medium): the lights' reach and how many "
+        "guard the goal's approach; hard also wants a covert route >= 1.1 x the shortest",
     )
     make.add_argument('--contact-sheet', type=Path, help='also draw the batch to this PNG')
     sheet = verbs.add_parser('sheet', help='draw the scenarios of a directory on one PNG')

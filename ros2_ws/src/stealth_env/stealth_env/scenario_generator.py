@@ -21,7 +21,8 @@ Decisions:
   nodes seen at some phase of the lights, and ``detour``, the covert route's steps over the
   shortest route's. Each difficulty sets the lights' size (``guard_lights.LIGHT_SIZES``: easy
   4-6 m and 30-50 degrees, medium 5-8 m and 40-60, hard 7-10 m and 50-80), which lights guard
-  the goal's approach (easy: none; medium: one door; hard: every door and both corridor ends),
+  the goal's approach (all: the corridor beside the goal's way in; medium: also one door of
+  the goal's room and a corridor end; hard: all but one of its doors and both corridor ends),
   and requires ``DIFFICULTY_RULES``: a band of ``lit`` and a least ``detour`` (hard: the covert
   route at least 1.1 x the shortest). Both measures go into the file's header. (Measured at
   30 x 30 m, 4 lights: lit about 1 % easy, 2-3 % medium, 4-5 % hard.)

@@ -162,3 +162,12 @@ def test_reachable_is_what_bfs_reaches(name):
         expected[i - lattice.i_min, j - lattice.j_min] = True
     assert (reach == expected).all() and reach.sum() > 100
     assert not lattice.reachable((10**6, 0)).any()
+
+
+def test_sheet_draws_a_directory_and_names_an_empty_one(tmp_path, capsys):
+    generate(4, Options(width=20, height=20, lights=2)).write(tmp_path / 'gen')
+    assert main(['sheet', str(tmp_path / 'gen'), '--out', str(tmp_path / 'sheet.png')]) == 0
+    assert (tmp_path / 'sheet.png').stat().st_size > 1000
+    (tmp_path / 'empty').mkdir()
+    assert main(['sheet', str(tmp_path / 'empty'), '--out', str(tmp_path / 'x.png')]) == 1
+    assert 'contact sheet: no scenario YAMLs to draw' in capsys.readouterr().err
