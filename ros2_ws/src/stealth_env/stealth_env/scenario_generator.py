@@ -33,6 +33,7 @@ Decisions:
 from __future__ import annotations
 
 import dataclasses
+import math
 from pathlib import Path
 import tempfile
 
@@ -42,7 +43,13 @@ from stealth_sim.occupancy_map import save_map
 from stealth_env.floor_plan import DEFAULT_RESOLUTION, UNIT, FloorPlan, generate_floor_plan
 from stealth_env.guard_lights import MOVING, PHASE_BINS, STEP_SECONDS, place_lights
 from stealth_env.planners import LatticeModel, astar, follow, value_iteration, walk
-from stealth_env.reward import Outcome
+from stealth_env.reward import (
+    Outcome,
+    RewardError,
+    RewardWeights,
+    check_well_posed,
+    undetected_visibility_bound,
+)
 from stealth_env.scenario import DIFFICULTIES, Scenario, load_scenario
 from stealth_env.task import StealthTask
 
@@ -65,7 +72,7 @@ DIFFICULTY_RULES = {
     'medium': (0.0, 1.0, 1.0),
     'hard': (0.0, 1.0, 1.1),
 }
-REWARDS = (  # map1's weights: well posed on every generated size (tests prove it)
+REWARDS = (  # map1's weights; detection_penalty raised where the building needs (_penalty)
     ('goal_reward', 1000.0),
     ('goal_distance_weight', 100.0),
     ('detection_penalty', 1000.0),
@@ -74,6 +81,7 @@ REWARDS = (  # map1's weights: well posed on every generated size (tests prove i
     ('distance_weight', 0.05),
     ('time_cost', 0.0),
 )
+PENALTY_STEP = 500.0  # detection_penalty rises by this until the rewards are well posed
 
 
 class GenerationError(ValueError):
@@ -286,8 +294,29 @@ def _scenario_text(name, map_file, start, goal, lights, options: Options) -> str
             )
         lines.append(f'  - {{{fields}, motion: {{type: {motion["type"]}, {detail}}}}}')
     lines.append('rewards:')
-    lines += [f'  {key}: {value}' for key, value in REWARDS]
+    penalty = _penalty(options)
+    lines += [
+        f'  {key}: {penalty if key == "detection_penalty" else value}' for key, value in REWARDS
+    ]
     return '\n'.join(lines) + '\n'
+
+
+def _penalty(options: Options) -> float:
+    """The least detection_penalty, from REWARDS' up in PENALTY_STEPs, that makes getting
+    caught never pay in this building (``reward.check_well_posed``, as load_scenario checks):
+    a long undetected episode in a big building with many lights may cost more than 1000."""
+    weights = dict(REWARDS)
+    while True:
+        try:
+            check_well_posed(
+                RewardWeights(**weights),
+                max_distance=math.hypot(options.width, options.height),
+                max_visibility=undetected_visibility_bound('threshold', THRESHOLD, options.lights),
+                max_steps=STEPS_PER_METRE * (options.width + options.height),
+            )
+            return weights['detection_penalty']
+        except RewardError:
+            weights['detection_penalty'] += PENALTY_STEP
 
 
 def _with_header(text: str, seed: int, options: Options, proof: Proof) -> str:

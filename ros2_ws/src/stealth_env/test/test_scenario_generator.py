@@ -171,3 +171,12 @@ def test_sheet_draws_a_directory_and_names_an_empty_one(tmp_path, capsys):
     (tmp_path / 'empty').mkdir()
     assert main(['sheet', str(tmp_path / 'empty'), '--out', str(tmp_path / 'x.png')]) == 1
     assert 'contact sheet: no scenario YAMLs to draw' in capsys.readouterr().err
+
+
+def test_rewards_are_well_posed_in_the_largest_building_with_most_lights(tmp_path):
+    from stealth_env.scenario_generator import _penalty
+
+    assert _penalty(Options()) == 1000.0  # map1's where it suffices
+    big = Options(width=60, height=40, lights=8, difficulty='easy')
+    assert _penalty(big) > 1000.0
+    load_scenario(generate(1_000_000, big).write(tmp_path))  # load_scenario checks it
