@@ -12,7 +12,8 @@ door of the goal's room is never watched from a post aimed at it: a room whose e
 watched has no covert way in.
 
 Moving lights (``MOVING``): a sweeping light turns back and forth over a sector centred on its
-post's aim; a patrolling light travels a rail ``PATROL_LENGTH`` m along the corridor (or across
+post's aim; a patrolling light travels a rail (``RAIL_LENGTHS``: 6 m, or 3 m where 6 do not fit)
+along the corridor (or across
 the hall) and back. Every period is ``PERIOD`` s, so the lights' joint cycle is ``PERIOD`` s,
 split into ``PHASE_BINS`` bins of ``STEP_SECONDS`` s: exact under ``stealth_env.light_cycle``'s
 rules (each period and the step a whole number of bins) with the shipped moving scenarios'
@@ -33,8 +34,7 @@ MOVING = ('none', 'sweeping', 'patrolling', 'mixed')
 PERIOD = 24.0  # s: every moving light's period, so the joint cycle
 PHASE_BINS = 8
 STEP_SECONDS = 3.0  # s per move or wait: one bin
-PATROL_LENGTH = 6.0  # m: a rail walked at 0.5 m/s, there and back in PERIOD
-PATROL_SPEED = 2 * PATROL_LENGTH / PERIOD
+RAIL_LENGTHS = (6.0, 3.0)  # m: the rails a patrol may have, the longest that fits
 INSET = 0.35  # m from a wall's centre line to a lamp (the wall's face is 0.1 m from it)
 MIN_SPACING = 1.5  # m between two lamps
 # Per difficulty: (range low, high) m and (fov low, high) degrees of the lights.
@@ -54,6 +54,7 @@ class Post:
     y: float
     direction: float
     rail: tuple[float, float] | None = None  # where a patrol from here goes (m), if anywhere
+    rail_length: float = 0.0  # m, one of RAIL_LENGTHS
 
 
 def place_lights(
@@ -105,7 +106,7 @@ def _motions(rng: np.random.Generator, posts: list[Post], moving: str) -> list[d
             motions[i] = {
                 'type': 'patrol',
                 'waypoints': [[round(end[0], 3), round(end[1], 3)]],
-                'speed': PATROL_SPEED,
+                'speed': 2 * posts[i].rail_length / PERIOD,  # 0.5 or 0.25 m/s: exact
             }
     if moving in ('sweeping', 'mixed'):
         still = [i for i, motion in enumerate(motions) if motion is None]
@@ -167,12 +168,13 @@ def _corridor_posts(rng: np.random.Generator, plan: FloorPlan, corridor: Room) -
     middle += 0.25  # on a lattice line: a rail down the corridor's middle
     posts = []
     for end, aim in ((low * UNIT + INSET, 0.0), (high * UNIT - INSET, 180.0)):
-        length = min(PATROL_LENGTH, (high - low) * UNIT - 2 * INSET)
+        length = _rail_length((high - low) * UNIT - 2 * INSET)
         target = end + (length if aim == 0.0 else -length)
         if along_x:
-            post = Post('corridor', end, middle, aim, (target, middle))
+            post = Post('corridor', end, middle, aim, (target, middle) if length else None, length)
         else:
-            post = Post('corridor', middle, end, aim + 90.0, (middle, target))
+            rail = (middle, target) if length else None
+            post = Post('corridor', middle, end, aim + 90.0, rail, length)
         posts.append(post)
     if rng.random() < 0.5:
         posts.reverse()
@@ -180,13 +182,21 @@ def _corridor_posts(rng: np.random.Generator, plan: FloorPlan, corridor: Room) -
 
 
 def _hall_post(rng: np.random.Generator, plan: FloorPlan) -> Post:
-    """A lamp in a corner of the hall aimed at the corridor's mouth, on a rail along the wall."""
+    """A lamp in a corner of the hall aimed at the corridor's mouth, on a rail along the wall
+    towards the hall's other side."""
     hall = plan.rooms[plan.hall]
     mouth = plan.doors[0].centre  # the corridor's mouth
     corners = _corners(hall)
     x, y = corners[int(rng.integers(len(corners)))]
-    rail_x = x + math.copysign(min(PATROL_LENGTH, (hall.x1 - hall.x0) * UNIT - 1), mouth[0] - x)
-    return Post('hall', x, y, _aim(x, y, *mouth), (rail_x, y))
+    length = _rail_length((hall.x1 - hall.x0) * UNIT - 2 * INSET)
+    inwards = 1.0 if x < (hall.x0 + hall.x1) / 2 * UNIT else -1.0
+    rail = (x + inwards * length, y) if length else None
+    return Post('hall', x, y, _aim(x, y, *mouth), rail, length)
+
+
+def _rail_length(room: float) -> float:
+    """The longest of RAIL_LENGTHS within ``room`` m; 0 when none fits."""
+    return next((length for length in RAIL_LENGTHS if length <= room), 0.0)
 
 
 def _watch_door(

@@ -180,3 +180,12 @@ def test_rewards_are_well_posed_in_the_largest_building_with_most_lights(tmp_pat
     big = Options(width=60, height=40, lights=8, difficulty='easy')
     assert _penalty(big) > 1000.0
     load_scenario(generate(1_000_000, big).write(tmp_path))  # load_scenario checks it
+
+
+def test_a_patrol_on_a_short_rail_keeps_the_cycle_exact(tmp_path):
+    # seed 1,000,001's hall is too narrow for a 6 m rail: its patrol takes the 3 m one
+    generated = generate(1_000_001, Options(lights=4, moving='patrolling', difficulty='easy'))
+    scenario = load_scenario(generated.write(tmp_path))
+    speeds = {light.motion.speed for light in scenario.lights if light.motion is not None}
+    assert speeds and speeds <= {0.5, 0.25}
+    assert scenario.timing.cycle == 24.0
