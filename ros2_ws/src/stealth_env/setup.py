@@ -22,5 +22,6 @@ setup(
             'render = stealth_env.render:main',
             'env_node = stealth_env.env_node:main',
         ],
+        'stealth.commands': ['stealth_env = stealth_env.commands:COMMANDS'],
     },
 )

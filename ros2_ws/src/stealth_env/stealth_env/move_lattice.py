@@ -192,6 +192,43 @@ class MoveLattice:
         """The nodes one valid move away, in action order (up, down, left, right)."""
         return [(node[0] + d[0], node[1] + d[1]) for _, d in ACTIONS if self.can_move(node, d)]
 
+    def reachable(self, start_node: Node) -> np.ndarray:
+        """(shape) bool, like ``node_mask``: the nodes some path of valid moves leads to from
+        start_node (none when it is not valid); ``bfs`` for every goal at once, in numpy."""
+        reach = np.zeros(self.shape, dtype=bool)
+        if not self.is_valid(start_node):
+            return reach
+        reach[start_node[0] - self.i_min, start_node[1] - self.j_min] = True
+        right, up = self.right_moves, self.up_moves
+        while True:
+            grown = reach.copy()
+            grown[1:, :] |= reach[:-1, :] & right
+            grown[:-1, :] |= reach[1:, :] & right
+            grown[:, 1:] |= reach[:, :-1] & up
+            grown[:, :-1] |= reach[:, 1:] & up
+            if np.array_equal(grown, reach):
+                return reach
+            reach = grown
+
+    def successor_table(self) -> np.ndarray:
+        """(valid nodes, ACTIONS) int: the index (in ``valid_nodes``' order) of each action's
+        successor from each valid node, the node's own index where the move is blocked; what
+        ``successor`` gives, for every node at once."""
+        a, b = np.nonzero(self.node_mask)
+        index = np.full(self.shape, -1, dtype=np.int64)
+        own = np.arange(a.size)
+        index[a, b] = own
+        table = np.repeat(own[:, None], len(ACTIONS), axis=1)
+        for action, (_, (di, dj)) in enumerate(ACTIONS):
+            ta, tb = a + di, b + dj
+            inside = (ta >= 0) & (ta < self.shape[0]) & (tb >= 0) & (tb < self.shape[1])
+            la, lb = np.minimum(a, ta)[inside], np.minimum(b, tb)[inside]
+            moves = self.right_moves if dj == 0 else self.up_moves
+            allowed = np.zeros(a.size, dtype=bool)
+            allowed[inside] = moves[la, lb] & (index[ta[inside], tb[inside]] >= 0)
+            table[allowed, action] = index[ta[allowed], tb[allowed]]
+        return table
+
     def valid_nodes(self) -> Iterator[Node]:
         for a, b in zip(*np.nonzero(self.node_mask), strict=True):
             yield (int(a) + self.i_min, int(b) + self.j_min)

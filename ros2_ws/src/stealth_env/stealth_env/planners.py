@@ -112,11 +112,8 @@ class LatticeModel:
         index = {node: i for i, node in enumerate(nodes)}
         node_points = np.array([lattice.node_to_point(node) for node in nodes], dtype=np.float64)
         directions = task.num_actions
-        moves = np.empty((n, directions), dtype=np.int64)
-        for i, node in enumerate(nodes):
-            for action in range(directions):
-                target = lattice.successor(node, action) if action < len(ACTIONS) else None
-                moves[i, action] = i if target is None else index[target]
+        moves = np.repeat(np.arange(n)[:, None], directions, axis=1)  # waits and turns stay
+        moves[:, : len(ACTIONS)] = lattice.successor_table()
         timing = task.timing
         cycle_bins, headings = task.cycle_bins, task.headings
         advance = 0 if timing is None else timing.bins_per_step
@@ -421,12 +418,14 @@ def step_terms(model: LatticeModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]
         p_detected = np.vectorize(lambda v: detection_probability(v, threshold))(visibility)
     distance = model.distance[model.successors]
     at_goal = model.goal[model.successors]
-    caught = np.vectorize(lambda d: detection_reward(d, weights))(distance)
+    # The reward functions are sums and products of their arguments: given arrays, they give
+    # each element what they give the element as a float, bit for bit, at numpy's speed.
+    caught = detection_reward(distance, weights)
     radius = model.task.goal.radius
     safe = np.where(
         at_goal,
-        np.vectorize(lambda d: success_reward(d, radius, weights))(distance),
-        np.vectorize(lambda v, d: step_reward(v, d, weights))(visibility, distance),
+        success_reward(distance, radius, weights),
+        step_reward(visibility, distance, weights),
     )
     return p_detected, caught, safe
 
@@ -448,9 +447,15 @@ def value_iteration(
     values = np.zeros(model.size)
     previous = values
     q = np.zeros((model.size, model.num_actions))
+    continues = gamma * goes_on
+    exact_moves = slip == 0.0 and np.array_equal(moves, np.eye(model.num_actions))
+    successors = model.successors
     for _ in range(horizon):
-        outcome = immediate + gamma * goes_on * values[model.successors]  # (places, directions)
-        q = outcome @ moves.T  # (places, actions)
+        outcome = np.take(values, successors)  # (places, directions), then in place:
+        outcome *= continues
+        outcome += immediate  # immediate + continues * values[successors]
+        # Without slip, each action goes where it says: q is the outcome itself (bit for bit).
+        q = outcome if exact_moves else outcome @ moves.T  # (places, actions)
         previous, values = values, q.max(axis=1)
     # Places that cannot reach the goal keep losing value with every step of horizon; what
     # matters is whether the step limit binds from the start.

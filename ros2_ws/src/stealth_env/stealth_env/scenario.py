@@ -427,13 +427,16 @@ def _goals(fields, occupancy, lattice: MoveLattice, numbers) -> dict[str, Goal]:
     if not goal_fields.values:
         fields.fail('goals', expected, {})
     goals = {}
+    reachable = None  # the lattice nodes reachable from the start, found once when needed
     for difficulty in (d for d in DIFFICULTIES if goal_fields.has(d)):
         one = goal_fields.mapping(difficulty, 'a mapping {x, y} (m), optionally radius (m)')
         one.reject_unknown(('x', 'y', 'radius'))
         x, y = _point_in_free_space(one, occupancy)
         radius = one.number('radius', f'{POSITIVE} (m)', lambda v: v > 0, numbers['goal_radius'])
-        targets = set(lattice.nodes_within(x, y, radius))
-        if lattice.bfs((0, 0), goal=targets.__contains__) is None:
+        targets = lattice.nodes_within(x, y, radius)
+        if reachable is None:
+            reachable = lattice.reachable((0, 0))
+        if not any(reachable[i - lattice.i_min, j - lattice.j_min] for i, j in targets):
             where = f"{fields.source}: field 'goals.{difficulty}'"
             raise ScenarioError(
                 f'{where}: expected a goal reachable from the start by moves of '
