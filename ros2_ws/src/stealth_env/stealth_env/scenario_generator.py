@@ -44,7 +44,7 @@ from stealth_env.floor_plan import DEFAULT_RESOLUTION, UNIT, FloorPlan, generate
 from stealth_env.guard_lights import MOVING, PHASE_BINS, STEP_SECONDS, place_lights
 from stealth_env.planners import LatticeModel, astar, follow, value_iteration, walk
 from stealth_env.reward import (
-    Outcome,
+    EpisodeOutcome,
     RewardError,
     RewardWeights,
     check_well_posed,
@@ -199,12 +199,12 @@ def prove(scenario: Scenario, difficulty: str, tries: int = 1) -> tuple[Proof | 
     shortest = astar(model)
     if shortest is None:
         return None, 'goal unreachable'
-    if walk(model, shortest).outcome is not Outcome.DETECTED:
+    if walk(model, shortest).outcome is not EpisodeOutcome.DETECTED:
         return None, 'shortest route unseen'
     optimum = value_iteration(model)
     route = follow(model, lambda i: int(optimum.policy[i]))
     result = walk(model, route)
-    if result.outcome is not Outcome.SUCCESS:
+    if result.outcome is not EpisodeOutcome.SUCCESS:
         return None, 'no covert route'
     seen = model.seen.reshape(model.layers, len(model.nodes)).any(axis=0)
     proof = Proof(
