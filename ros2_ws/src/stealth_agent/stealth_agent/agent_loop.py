@@ -27,6 +27,8 @@ from .agent_messages import (
     description_from_msg,
     episode_info,
     experiment_info,
+    keyed_description,
+    keyed_state,
     outcome_ending,
     outcome_name,
     reported_reward,
@@ -98,7 +100,8 @@ class AgentLoop:
         """An RLEnvDescription."""
         log = self._ports.get_logger()
         try:
-            description = description_from_msg(msg)
+            features = self._ports.param('state_features')
+            description = keyed_description(description_from_msg(msg), features)
         except BadInputError as error:
             log.error(f'{error}; description ignored, waiting for a usable one')
             return
@@ -168,6 +171,7 @@ class AgentLoop:
         none)."""
         log = self._ports.get_logger()
         self.states_received += 1
+        msg.state = keyed_state(msg.state, self._ports.param('state_features'))
         if self._state_writers.new_writer(sequence):
             note = self._drop_episode() if self.core is not None else ''
             if note:
