@@ -101,10 +101,14 @@ class AgentLoop:
         log = self._ports.get_logger()
         try:
             features = self._ports.param('state_features')
-            description = keyed_description(description_from_msg(msg), features)
+            described = description_from_msg(msg)
+            description = keyed_description(described, features)
         except BadInputError as error:
             log.error(f'{error}; description ignored, waiting for a usable one')
             return
+        length = len(described.min_state_range)
+        if self.core is None and features and length > features:
+            log.info(f"the table keys on the state's first {features} of {length} features")
         if self.core is not None:
             self._description_again(description)
             return
