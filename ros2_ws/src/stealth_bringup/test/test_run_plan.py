@@ -169,7 +169,7 @@ def test_the_sensed_track_keys_the_agents_table_on_the_full_tracks_state(
     scenario, features, tmp_path
 ):
     plan = plan_of('--scenario', scenario, runs_dir=tmp_path)
-    assert 'state_features' not in plan.parameters['agent'].values  # full: every feature
+    assert plan.parameters['agent'].values['state_features'] == 0  # full: every feature
     plan = plan_of('--scenario', scenario, '--set', 'environment.track=sensed', runs_dir=tmp_path)
     assert plan.parameters['environment'].values['track'] == 'sensed'
     assert plan.parameters['agent'].values['state_features'] == features
