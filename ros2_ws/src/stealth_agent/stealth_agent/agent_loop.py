@@ -27,6 +27,8 @@ from .agent_messages import (
     description_from_msg,
     episode_info,
     experiment_info,
+    keyed_description,
+    keyed_state,
     outcome_ending,
     outcome_name,
     reported_reward,
@@ -98,10 +100,15 @@ class AgentLoop:
         """An RLEnvDescription."""
         log = self._ports.get_logger()
         try:
-            description = description_from_msg(msg)
+            features = self._ports.param('state_features')
+            described = description_from_msg(msg)
+            description = keyed_description(described, features)
         except BadInputError as error:
             log.error(f'{error}; description ignored, waiting for a usable one')
             return
+        length = len(described.min_state_range)
+        if self.core is None and features and length > features:
+            log.info(f"the table keys on the state's first {features} of {length} features")
         if self.core is not None:
             self._description_again(description)
             return
@@ -168,6 +175,7 @@ class AgentLoop:
         none)."""
         log = self._ports.get_logger()
         self.states_received += 1
+        msg.state = keyed_state(msg.state, self._ports.param('state_features'))
         if self._state_writers.new_writer(sequence):
             note = self._drop_episode() if self.core is not None else ''
             if note:

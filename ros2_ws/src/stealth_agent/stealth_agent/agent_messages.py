@@ -5,6 +5,8 @@ numbers of the states) and what it publishes at the end of an episode (RLExperim
 AgentEpisodeInfo), so that the node only moves messages.
 """
 
+import dataclasses
+
 import numpy as np
 from stealth_interfaces.msg import (
     AgentEpisodeInfo,
@@ -14,8 +16,11 @@ from stealth_interfaces.msg import (
 )
 
 from .learners import TabularLearner
-from .protocol import Ending, EnvDescription, EpisodeResult, parse_description
+from .protocol import BadInputError, Ending, EnvDescription, EpisodeResult, parse_description
 
+# A table keyed on longer states would hold a long key per visited state (the environment's
+# sensed track sends thousands of features, nearly all new at each step).
+MAX_KEYED_FEATURES = 256
 FLOAT32_MAX = float(np.finfo(np.float32).max)
 OUTCOME_NAMES = {
     EpisodeSummary.SUCCESS: 'success',
@@ -50,6 +55,32 @@ def description_from_msg(msg: RLEnvDescription) -> EnvDescription:
         msg.episodic,
         msg.title,
     )
+
+
+def keyed_description(description: EnvDescription, features: int) -> EnvDescription:
+    """The description as the table sees it: the ranges of the state's first `features`
+    features (0: all; agent parameter state_features). BadInputError for a state too long to
+    key a table on."""
+    if features:
+        return dataclasses.replace(
+            description,
+            min_state_range=description.min_state_range[:features],
+            max_state_range=description.max_state_range[:features],
+        )
+    length = len(description.min_state_range)
+    if length > MAX_KEYED_FEATURES:
+        raise BadInputError(
+            f'environment description: the state has {length} features (the sensed track?), '
+            f'more than a table can key on ({MAX_KEYED_FEATURES}); set the agent parameter '
+            'state_features to the leading features to key on (stealth train does for '
+            'environment.track sensed)'
+        )
+    return description
+
+
+def keyed_state(state, features: int):
+    """The part of a state the table keys on (state_features; 0: all of it)."""
+    return state[:features] if features else state
 
 
 def outcome_name(outcome: int) -> str:

@@ -58,6 +58,15 @@ PARAMETERS = {
         bounds=(0.0, 1e12),
         read_only=True,
     ),
+    'state_features': Param(
+        0,
+        "Key the table on the state's first this many features only; 0 = all. The "
+        "environment's sensed track sends the full track's state first (x, y, any phase and "
+        'heading), then thousands of sensed values no table can key on: stealth train sets this '
+        "to the full state's length for environment.track sensed.",
+        bounds=(0, 1_000_000),
+        read_only=True,
+    ),
     'policy_file': Param(
         '', 'Policy file (.npz) to save to and load from; empty = none.', read_only=True
     ),

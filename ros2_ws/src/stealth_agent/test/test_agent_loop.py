@@ -269,3 +269,38 @@ def test_a_full_disk_keeps_the_policy_saved_before_and_stops_the_agent(tmp_path,
     assert path.read_bytes() == saved and load_policy(path).learner.episodes == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ['p.npz']  # no temporary file left
     assert not loop.save('shutdown')  # no second try at exit
+
+
+# A sensed-track environment: [x], then 299 sensed values (-1: never sensed).
+SENSED = RLEnvDescription(
+    num_actions=2,
+    min_state_range=[0.0, *[-2.0] * 299],
+    max_state_range=[9.0, *[3.0] * 299],
+    title='corridor',
+)
+
+
+def sensed_state(x, sensed, reward=-1.0, terminal=False):
+    return RLStateReward(state=[x, *[sensed] * 299], reward=reward, terminal=terminal)
+
+
+def test_a_state_too_long_to_key_a_table_on_is_refused_in_one_line():
+    node = FakeNode()
+    loop = AgentLoop(node, clock=Clock())
+    loop.on_description(SENSED)
+    (line,) = node.told('error', 'the state has 300 features (the sensed track?)')
+    assert 'set the agent parameter state_features' in line and '\n' not in line
+    assert loop.core is None
+
+
+def test_state_features_keys_the_table_on_the_leading_features():
+    node = FakeNode(state_features=1)
+    loop = AgentLoop(node, clock=Clock())
+    loop.on_description(SENSED)
+    assert node.told('info', "the table keys on the state's first 1 of 300 features")
+    assert node.told('info', 'state ranges [0.0]..[9.0]')
+    for step, sensed in enumerate((-1.0, 0.5, 0.7)):  # what was sensed changes, x does not
+        loop.on_state(sensed_state(0.0, sensed), None)
+        assert len(node.actions) == step + 1
+    loop.on_state(sensed_state(1.0, 0.2, 10.0, terminal=True), None)
+    assert len(loop.core.index) == 1 and not node.told('error', '')

@@ -271,8 +271,10 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
     if args.watch:  # real time, and the simulator's topics at a rate a viewer shows smoothly
         run_values['simulator'].update(real_time_factor=1.0, publish_rate=WATCH_PUBLISH_RATE)
         run_values['environment']['publish_plan'] = True  # the optimum, for the 3D view
-    elif _robot_interface(sources, run_values, overrides) == 'topics':
+    elif _environment_value(sources, run_values, overrides, 'robot_interface') == 'topics':
         run_values['simulator'].update(TOPICS_SIMULATOR)
+    if _environment_value(sources, run_values, overrides, 'track') == 'sensed':
+        run_values['agent']['state_features'] = sensed_state_features(scenario, goal)
     # Read the files before creating anything, so a bad one stops us with nothing to undo.
     parameters = {
         node: effective_parameters(node, sources[node], run_values[node], overrides.get(node, {}))
@@ -419,12 +421,23 @@ def _check_port_free(bridge: NodeParameters) -> None:
             raise RunConfigError(f'bridge: cannot listen on {address}:{port}: {error}') from None
 
 
-def _robot_interface(sources, run_values, overrides) -> str:
-    """The environment's effective robot_interface (issue 13: topics mode)."""
+def _environment_value(sources, run_values, overrides, name: str):
+    """The environment's effective value of parameter `name` (robot_interface: issue 13's
+    topics mode; track), its table's default when nothing sets it."""
+    from stealth_env.env_parameters import PARAMETERS
+
     environment = effective_parameters(
         'environment',
         sources['environment'],
         run_values['environment'],
         overrides.get('environment', {}),
     )
-    return environment.values.get('robot_interface', 'service')
+    return environment.values.get(name, PARAMETERS[name].default)
+
+
+def sensed_state_features(scenario, goal: str) -> int:
+    """The full track's state length (x, y, any phase and heading): what the tabular agent keys
+    on when the environment sends the sensed track's states (agent parameter state_features)."""
+    from stealth_env.task import StealthTask
+
+    return len(StealthTask(scenario, goal).state_features)

@@ -162,3 +162,19 @@ def test_compose_refuses_what_one_process_cannot_be(argv, message, tmp_path):
     with pytest.raises(RunConfigError, match=message):
         plan_of('--compose', *argv, runs_dir=tmp_path / 'runs')
     assert not (tmp_path / 'runs').exists()
+
+
+@pytest.mark.parametrize(('scenario', 'features'), [('simple-maze', 2), ('map1-exposure', 3)])
+def test_the_sensed_track_keys_the_agents_table_on_the_full_tracks_state(
+    scenario, features, tmp_path
+):
+    plan = plan_of('--scenario', scenario, runs_dir=tmp_path)
+    assert plan.parameters['agent'].values['state_features'] == 0  # full: every feature
+    plan = plan_of('--scenario', scenario, '--set', 'environment.track=sensed', runs_dir=tmp_path)
+    assert plan.parameters['environment'].values['track'] == 'sensed'
+    assert plan.parameters['agent'].values['state_features'] == features
+    plan = plan_of(
+        '--scenario', scenario, '--set', 'environment.track=sensed', '--set',
+        'agent.state_features=1', runs_dir=tmp_path,
+    )  # fmt: skip
+    assert plan.parameters['agent'].values['state_features'] == 1

@@ -1,7 +1,9 @@
 """The environment's side of the RL loop with its agent: the topics of
 ``stealth_node_kit.rl_contract`` it publishes (the description, states, step info, episode
 summaries) and hears (actions, experiment info), and whether an agent is there to be sent a
-first state (:func:`stealth_env.episode_flow.agent_connected` over the ROS graph).
+first state (:func:`stealth_env.episode_flow.agent_connected` over the ROS graph). On the sensed
+track (a ``sensed_track.SensedTrack``) the description and every RLStateReward carry what the
+robot sensed (its layout: ``stealth_env.sensed_track``); StepInfo keeps the full track's state.
 """
 
 from __future__ import annotations
@@ -43,10 +45,13 @@ TOPICS = {
 
 
 class AgentLink:
-    """The RL topics on `node`; `on_action` and `on_experiment_info` get the agent's messages."""
+    """The RL topics on `node`; `on_action` and `on_experiment_info` get the agent's messages;
+    `sensed`: the SensedTrack of track sensed (None: the full track)."""
 
-    def __init__(self, node, on_action, on_experiment_info):
+    def __init__(self, node, on_action, on_experiment_info, sensed=None):
         self.node = node
+        self.sensed = sensed
+        self._last_state: list | None = None  # the last sensed state sent (an abort repeats it)
         self._description_pub = node.create_publisher(
             RLEnvDescription, TOPICS['description'], rl_contract.DESCRIPTION_QOS
         )
@@ -118,18 +123,32 @@ class AgentLink:
     # --- publishing -----------------------------------------------------------------------------
 
     def publish_description(self, fields: dict) -> None:
+        if self.sensed is not None:
+            fields = self.sensed.description(fields)
         self._description_pub.publish(description_msg(fields))
 
-    def publish_state(self, state, reward: float = 0.0, terminal: bool = False) -> None:
-        """A first state (reward 0), or an abort's terminal state (reward 0)."""
+    def publish_state(self, state, reward: float = 0.0, terminal: bool = False, start=None):
+        """A first state (reward 0; `start`: the start pose (x, y, yaw)), or an abort's terminal
+        state (reward 0: the last state again)."""
+        if self.sensed is not None:
+            if start is not None:
+                self._last_state = self.sensed.first_state(state, start)
+            state = self._last_state
         self._state_pub.publish(state_reward_msg(state, reward, terminal))
 
-    def publish_step(self, report, stamp, truth_known: bool = True) -> None:
-        """A step's RLStateReward, and its StepInfo while someone subscribes (as the simulator
-        does with its periodic topics: built only when wanted)."""
+    def publish_step(self, report, stamp, truth_known: bool = True, t: float = 0.0) -> None:
+        """A step's RLStateReward (`t`: the episode's time of its judgement), and its StepInfo
+        while someone subscribes (as the simulator does with its periodic topics: built only
+        when wanted)."""
         state = list(report.state)
         reward = float32(report.reward)
-        self._state_pub.publish(state_reward_msg(state, reward, report.terminal))
+        sent = state
+        if self.sensed is not None:
+            visibility = report.judgement.visibility
+            sent = self._last_state = self.sensed.step_state(
+                state, report.judged, t, report.step, visibility
+            )
+        self._state_pub.publish(state_reward_msg(sent, reward, report.terminal))
         if self._step_pub.get_subscription_count():
             self._step_pub.publish(step_info_msg(report, state, reward, stamp, truth_known))
 

@@ -3,8 +3,9 @@
 Plain functions over message classes (no node, no rclpy), so what the environment publishes can
 be checked without a running ROS graph: the simulator's ExecuteMove request for a move;
 RLEnvDescription, RLStateReward, StepInfo and EpisodeSummary of the RL loop; SearchlightArray,
-the scene's MarkerArray, the visibility OccupancyGrid and the planned Path; and the check of the
-simulator's map against the scenario's. Every stamped message is in frame ``map``.
+the scene's MarkerArray, the visibility and sensed-light OccupancyGrids and the planned Path;
+and the check of the simulator's map against the scenario's. Every stamped message is in
+frame ``map``.
 """
 
 from __future__ import annotations
@@ -185,15 +186,23 @@ def _colour(rgba) -> ColorRGBA:
 
 def visibility_grid_msg(occupancy, levels: np.ndarray, t: float) -> OccupancyGrid:
     """The lit area (``markers.visibility_levels``) at time t on the map's grid, as a costmap."""
+    return grid_msg(levels, occupancy.resolution, occupancy.origin, t)
+
+
+def grid_msg(levels: np.ndarray, resolution: float, origin, t: float) -> OccupancyGrid:
+    """OccupancyGrid of (rows, cols) int8 levels (row 0 the bottom, as /map) with these cells
+    (m) from origin (x, y, yaw) of the map frame, stamped t: the visibility grid, and the sensed
+    track's ``sensed_light`` (one cell per lattice node, -1 unknown)."""
+    levels = np.ascontiguousarray(levels, dtype=np.int8)
     grid = OccupancyGrid()
     grid.header.stamp, grid.header.frame_id = time_msg(t), MAP_FRAME
     grid.info.map_load_time = grid.header.stamp
-    grid.info.resolution = float(occupancy.resolution)
-    grid.info.width, grid.info.height = occupancy.width, occupancy.height
-    x, y, yaw = occupancy.origin
+    grid.info.resolution = float(resolution)
+    grid.info.height, grid.info.width = levels.shape
+    x, y, yaw = origin
     grid.info.origin.position.x, grid.info.origin.position.y = float(x), float(y)
     grid.info.origin.orientation = yaw_quaternion(yaw)
-    grid.data = array.array('b', levels.tobytes())  # rows from the bottom, as /map
+    grid.data = array.array('b', levels.tobytes())
     return grid
 
 

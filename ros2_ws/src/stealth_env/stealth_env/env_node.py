@@ -24,7 +24,8 @@ dropped silently).
   visibility as a percentage of the detection threshold), again every ``marker_period`` while
   lights move or when a new viewer subscribes; with ``publish_plan`` (on under ``stealth train
   --watch``), ``planned_path`` (nav_msgs/Path): value iteration's optimum on the move lattice,
-  once;
+  once; with ``track: sensed`` (the robot that does not know the lights: the states carry what
+  it sensed, layout in ``stealth_env.sensed_track``), ``sensed_light`` (nav_msgs/OccupancyGrid).
 * subscribes ``rl_agent/rl_action`` (RLAction) and ``rl_agent/rl_experiment_info``
   (RLExperimentInfo); reads the simulator's latched ``map`` once to check it is the scenario's
   (an error line if not).
@@ -111,6 +112,7 @@ from stealth_env.reward import EpisodeOutcome
 from stealth_env.robot import MoveEnd, Robot
 from stealth_env.scenario import ScenarioError, load_scenario
 from stealth_env.scene_publisher import ScenePublisher
+from stealth_env.sensed_track import SensedTrack
 from stealth_env.service_robot import ServiceRobot, Teleport
 from stealth_env.task import StealthTask
 from stealth_env.topic_moves import Pose
@@ -171,9 +173,10 @@ class EnvironmentNode(StartupNode):
         self._reset_failed_log = Throttle(RESET_FAILED_LOG_PERIOD)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
 
-        self.agent = AgentLink(self, self._on_action, self._on_experiment_info)
+        sensed = SensedTrack(self.task) if values['track'] == 'sensed' else None
+        self.agent = AgentLink(self, self._on_action, self._on_experiment_info, sensed)
         self.scene = ScenePublisher(
-            self, self.scenario, self.task.goal.name, self._scene_time, self._steady
+            self, self.scenario, self.task.goal.name, self._scene_time, self._steady, sensed
         )
         self.robot = self._make_robot(values)
         self.create_service(RestartEpisode, rl_contract.RESTART_EPISODE, self._on_restart_episode)
@@ -352,7 +355,8 @@ class EnvironmentNode(StartupNode):
         state = self.flow.reset_done(token, self._sim_time)
         if state is None:
             return  # stale: the agent went away meanwhile
-        self.agent.publish_state(state)
+        self.agent.publish_state(state, start=self.scenario.start)
+        self.scene.publish_sensed(self._sim_time)
         self._first_state_at = time.monotonic()
         self.get_logger().debug(f'episode {self.flow.episode} started at state {list(state)}')
 
@@ -405,7 +409,8 @@ class EnvironmentNode(StartupNode):
             self.get_logger().info(
                 f'move {report.action} of episode {report.episode}, step {report.step}: {message}'
             )
-        self.agent.publish_step(report, stamp, truth_known)
+        self.agent.publish_step(report, stamp, truth_known, self.flow.episode_time(t))
+        self.scene.publish_sensed(t)
         if report.summary is not None:
             self._publish_summary(report.summary, stamp)
 

@@ -8,9 +8,15 @@ from stealth_env.episode_flow import JUDGE_ON
 from stealth_env.topic_moves import Limits, TopicConfig
 
 ROBOT_INTERFACES = ('service', 'topics')
+TRACKS = ('full', 'sensed')  # as gym_env.TRACKS (not imported: that pulls in gymnasium)
 RESET_MODES = ('teleport', 'drive')
 # The string parameters with a fixed set of values (the node refuses any other).
-CHOICES = {'judge_on': JUDGE_ON, 'robot_interface': ROBOT_INTERFACES, 'reset_mode': RESET_MODES}
+CHOICES = {
+    'judge_on': JUDGE_ON,
+    'robot_interface': ROBOT_INTERFACES,
+    'reset_mode': RESET_MODES,
+    'track': TRACKS,
+}
 
 PARAMETERS = {
     'scenario': Param(
@@ -21,6 +27,11 @@ PARAMETERS = {
     ),
     'goal': Param('', "Goal pursued: easy, medium or hard; '' = the scenario's default.",
                   read_only=True),
+    'track': Param(
+        'full', "What the agent is told: 'full' (the state; the lights known) or 'sensed' (the "
+        'lights unknown: the state, then what the robot sensed so far, stealth_env.sensed_track; '
+        'the sensed field also on sensed_light).', read_only=True,
+    ),
     'judge_on': Param(
         'true',
         "Pose that visibility, detection and the goal are judged on: 'true' (the lights see "

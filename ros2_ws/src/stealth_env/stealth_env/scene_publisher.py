@@ -1,6 +1,6 @@
-"""The environment's scene for RViz and Foxglove: the searchlights, their markers, the lit area
-and the planned path, all transient local (frame ``map``); and the check that the simulator's
-latched ``map`` is the scenario's.
+"""The environment's scene for RViz and Foxglove: the searchlights, their markers, the lit area,
+the planned path and, on the sensed track, the light sensed so far, all transient local (frame
+``map``); and the check that the simulator's latched ``map`` is the scenario's.
 
 Static lights go out once (and again to a new viewer: a volatile one gets nothing from transient
 local); moving lights again every ``marker_period`` of wall time, drawn at the episode's clock.
@@ -18,6 +18,7 @@ from stealth_node_kit.qos import kept_qos
 from visualization_msgs.msg import MarkerArray
 
 from stealth_env.env_messages import (
+    grid_msg,
     map_mismatch,
     marker_array_msg,
     path_msg,
@@ -32,15 +33,18 @@ TOPICS = {
     'markers': 'searchlight_markers',
     'visibility_grid': 'visibility_grid',
     'planned_path': 'planned_path',
+    'sensed_light': 'sensed_light',
     'map': 'map',
 }
 
 
 class ScenePublisher:
     """The scene's publishers on `node`. `scene_time`: the lights' time to draw them at (s of
-    the episode's clock); `clock`: the clock of the ``marker_period`` timer."""
+    the episode's clock); `clock`: the clock of the ``marker_period`` timer; `sensed`: the
+    SensedTrack of track sensed (``sensed_light``), or None."""
 
-    def __init__(self, node, scenario, goal: str, scene_time: Callable[[], float], clock):
+    def __init__(self, node, scenario, goal: str, scene_time: Callable[[], float], clock,
+                 sensed=None):  # fmt: skip
         self.node = node
         self.scenario = scenario
         self.goal = goal
@@ -56,6 +60,9 @@ class ScenePublisher:
             'markers': (self._publisher(MarkerArray, 'markers'), self._markers),
             'visibility_grid': (self._publisher(OccupancyGrid, 'visibility_grid'), self._grid),
         }
+        self._sensed = None  # (publisher, SensedTrack) on the sensed track
+        if sensed is not None:
+            self._sensed = (self._publisher(OccupancyGrid, 'sensed_light'), sensed)
         node.create_subscription(
             OccupancyGrid, TOPICS['map'], self._check_map, LATCHED_QOS,
             event_callbacks=QUIET_SUBSCRIPTION,
@@ -94,6 +101,17 @@ class ScenePublisher:
         publisher = self._publisher(Path, 'planned_path')
         points, _ = optimal_path(self.scenario, self.goal)
         publisher.publish(path_msg(points))
+
+    def publish_sensed(self, t: float) -> None:
+        """sensed_light (nav_msgs/OccupancyGrid): the light sensed so far at each lattice node
+        (one cell per node), 0-100 of the detection threshold, -1 never sensed or no node; at
+        each state sent, built only while someone subscribes."""
+        if self._sensed is None:
+            return
+        publisher, track = self._sensed
+        if publisher.get_subscription_count():
+            resolution, x, y = track.grid_geometry()
+            publisher.publish(grid_msg(track.levels(), resolution, (x, y, 0.0), t))
 
     def _lights(self, t: float) -> SearchlightArray:
         return searchlight_array_msg(self.scenario.lights, t)

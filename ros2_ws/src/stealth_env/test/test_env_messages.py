@@ -11,6 +11,7 @@ from stealth_env.env_messages import (
     MARKER_KINDS,
     description_msg,
     float32,
+    grid_msg,
     map_mismatch,
     marker_array_msg,
     move_request,
@@ -155,6 +156,16 @@ def test_the_visibility_grid_and_the_planned_path(maze):
         (2.0, 1.5),
     ]
     assert plan.header.frame_id == MAP_FRAME and plan.poses[0].pose.orientation.w == 1.0
+
+
+def test_a_grid_of_levels_keeps_its_rows_cells_origin_and_unknowns():
+    levels = np.array([[-1, 0, 100], [50, -1, -1]], dtype=np.int8)  # row 0 the southernmost
+    grid = grid_msg(levels, 0.5, (-0.25, -0.75, 0.0), 2.0)
+    assert (grid.info.width, grid.info.height, grid.info.resolution) == (3, 2, 0.5)
+    assert list(grid.data) == [-1, 0, 100, 50, -1, -1]
+    origin = grid.info.origin
+    assert (origin.position.x, origin.position.y, origin.orientation.w) == (-0.25, -0.75, 1.0)
+    assert grid.header.frame_id == MAP_FRAME and grid.header.stamp == time_msg(2.0)
 
 
 def test_the_simulators_map_is_checked_against_the_scenarios(maze):

@@ -1,0 +1,81 @@
+"""The environment node's sensed track (no rclpy): the state it sends is the Gym env's sensed
+observation, flattened, for the same moves; its description and its sensed_light levels."""
+
+import numpy as np
+import pytest
+from stealth_env.gym_env import StealthNavEnv
+from stealth_env.sensed_track import SensedTrack
+from stealth_env.sensing import NO_PLACE, flat_observation
+
+ACTIONS = [3, 3, 0, 0, 3, 1, 2, 0]
+
+
+def poses_and_states(scenario: str):
+    """(Gym env, its flat observations, the node's states) along ACTIONS, the node judging the
+    Gym env's poses at its times (a robot that reaches every node exactly)."""
+    env = StealthNavEnv(scenario, track='sensed')
+    track = SensedTrack(env.task, env.model)
+    observation, _ = env.reset(seed=0)
+    expected = [flat_observation(observation)]
+    sent = [track.first_state(env.model.states[env.node], env.scenario.start)]
+    yaw = env.scenario.start[2]
+    for step, action in enumerate(ACTIONS, start=1):
+        if action < 4:  # the heading a move leaves the robot with (exposure scenarios)
+            yaw = {0: np.pi / 2, 1: -np.pi / 2, 2: np.pi, 3: 0.0}[action]
+        observation, _, terminated, truncated, info = env.step(action)
+        expected.append(flat_observation(observation))
+        state = env.model.states[env.node]
+        t = step * env.step_seconds
+        sent.append(track.step_state(state, (*info['pose'], yaw), t, step, info['visibility']))
+        if terminated or truncated:
+            break
+    return env, track, expected, sent
+
+
+@pytest.mark.parametrize('scenario', ['map1', 'map1-moving', 'map1-exposure'])
+def test_the_state_is_the_gym_envs_flat_sensed_observation(scenario):
+    env, track, expected, sent = poses_and_states(scenario)
+    for step, (want, got) in enumerate(zip(expected, sent, strict=True)):
+        got = np.asarray(got, dtype=np.float32)
+        assert len(got) == track.length == len(want), step
+        np.testing.assert_array_equal(got, want, err_msg=f'step {step}')
+
+
+def test_each_episode_starts_knowing_no_light():
+    env, track, _, sent = poses_and_states('map1')
+    k = len(env.task.state_features)
+    assert (np.asarray(sent[-1][k + 1 :]) >= 0).any()
+    again = track.first_state(env.model.states[env.model.start], env.scenario.start)
+    assert again == sent[0]
+
+
+def test_the_description_gives_every_feature_a_range():
+    env, track, _, _ = poses_and_states('map1')
+    fields = track.task.description(stochastic=True)
+    described = track.description(fields)
+    low, high = described['min_state_range'], described['max_state_range']
+    assert len(low) == len(high) == track.length
+    k = len(fields['min_state_range'])
+    assert low[:k] == fields['min_state_range'] and high[:k] == fields['max_state_range']
+    assert (low[k], high[k]) == (0.0, 1.0)
+    space = env.observation_space
+    assert set(low[k + 1 :]) == {NO_PLACE} and set(high[k + 1 :]) == {space['light'].high.max()}
+    assert described['num_states'] == fields['num_states']
+
+
+def test_sensed_light_levels_are_unknown_or_a_share_of_the_threshold():
+    env, track, _, _ = poses_and_states('map1')
+    levels = track.levels()
+    light = env.sensor.sensing.grid(env.sensor.memory.node_light)
+    assert levels.shape == light.shape and levels.dtype == np.int8
+    known = light >= 0
+    assert known.any() and (levels[~known] == -1).all()
+    assert levels[known].min() >= 0 and levels[known].max() <= 100
+    expected = np.minimum(np.rint(light[known] / env.scenario.detection_threshold * 100), 100)
+    np.testing.assert_array_equal(levels[known], expected)
+    resolution, x, y = track.grid_geometry()
+    lattice = env.task.lattice
+    assert resolution == env.scenario.step_distance
+    assert (x + resolution / 2, y + resolution / 2) == pytest.approx(
+        lattice.node_to_point((lattice.i_min, lattice.j_min))
+    )
