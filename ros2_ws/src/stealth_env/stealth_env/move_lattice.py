@@ -19,6 +19,7 @@ and the environment build on the same lattice so that all of them agree on what 
 from collections import deque
 from collections.abc import Callable, Iterator
 import math
+import weakref
 
 import numpy as np
 from stealth_sim.occupancy_map import OccupancyMap
@@ -33,6 +34,9 @@ ACTIONS: tuple[tuple[str, Node], ...] = (
 )
 _DELTAS = frozenset(delta for _, delta in ACTIONS)
 _CHUNK = 4096  # nodes per vectorised footprint check, to bound memory on fine lattices
+# Each scenario's lattice, built once (load_scenario builds it to check the start; every task
+# of the scenario reuses it): keyed by the scenario object, dropped with it.
+_SCENARIO_LATTICES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 class MoveLattice:
@@ -74,8 +78,29 @@ class MoveLattice:
 
     @classmethod
     def from_scenario(cls, scenario) -> 'MoveLattice':
-        """The lattice of a ``stealth_env.scenario.Scenario``: anchored at its start."""
-        return cls(scenario.map, scenario.start[:2], scenario.step_distance, scenario.robot_radius)
+        """The lattice of a ``stealth_env.scenario.Scenario``: anchored at its start; built
+        once per scenario object (the lattice is never changed after it is built)."""
+        lattice = _SCENARIO_LATTICES.get(scenario)
+        if lattice is None or not lattice.fits(scenario):
+            lattice = cls(
+                scenario.map, scenario.start[:2], scenario.step_distance, scenario.robot_radius
+            )
+            lattice.share_with(scenario)
+        return lattice
+
+    def fits(self, scenario) -> bool:
+        """Whether this is the lattice of the scenario: its map, start, step and radius."""
+        return (
+            self.map is scenario.map
+            and self.anchor == (float(scenario.start[0]), float(scenario.start[1]))
+            and self.step == float(scenario.step_distance)
+            and self.robot_radius == float(scenario.robot_radius)
+        )
+
+    def share_with(self, scenario) -> None:
+        """Make this the lattice ``from_scenario`` gives for the scenario (when it fits)."""
+        if self.fits(scenario):
+            _SCENARIO_LATTICES[scenario] = self
 
     # --- geometry ---------------------------------------------------------------------------
 

@@ -259,7 +259,7 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
             'an exposure field too',
         )
     rewards = _rewards(fields, occupancy, numbers, len(lights), bounce)
-    return Scenario(
+    scenario = Scenario(
         name=name,
         path=path,
         map_path=map_path,
@@ -275,6 +275,8 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
         sensing_range=_sensing_range(fields, occupancy),
         **numbers,
     )
+    lattice.share_with(scenario)  # its tasks need not build it again
+    return scenario
 
 
 def _exposure(fields: FieldReader, robot_radius: float) -> Footprint | None:

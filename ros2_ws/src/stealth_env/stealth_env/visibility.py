@@ -69,6 +69,7 @@ def corner_maps(blocked: np.ndarray) -> np.ndarray:
 (LINE, NEG_STEPS, HALF, ERROR, STRAIGHT_ERROR, DIAGONAL_ERROR) = range(6)
 (STRAIGHT_MOVE, DIAGONAL_MOVE, INDEX, CORNER_INDEX) = range(6, 10)
 COMPACT_EVERY = 16  # steps between dropping lines already blocked
+UNKNOWN, CLEAR, BLOCKED = 0, 1, 2  # a cell in a lamp's sight memo (PointVisibility)
 
 
 def _occluded(blocked: np.ndarray, corners: np.ndarray, lamp, cols, rows) -> np.ndarray:
@@ -212,8 +213,10 @@ class PointVisibility:
     lights few cells, and traces many cells in one ``_occluded`` call). Keying by the lamp's
     cell serves every kind of light: static and sweeping lights (only the direction changes)
     reuse the blocks of their one cell, patrolling lights those of the cells they pass; the
-    least recently used blocks beyond ``max_tiles`` are dropped. ``blocked`` must not change
-    afterwards.
+    least recently used blocks beyond ``max_tiles`` are dropped. Above the blocks, each lamp
+    cell keeps a memo of every cell's line of sight traced so far (one int8 per map cell, the
+    ``max_lamps`` most recently used lamp cells), so a cell is traced once per lamp cell
+    however many calls ask for it. ``blocked`` must not change afterwards.
 
     With a ``footprint`` (``exposure.Footprint``), a point asked for with the robot's heading
     has each light's value multiplied by the exposure factor before the lights are added
@@ -237,17 +240,21 @@ class PointVisibility:
         max_tiles: int = 4096,
         footprint: exposure.Footprint | None = None,
         bounce: Bounce | None = None,
+        max_lamps: int = 64,
     ):
         self.frame = GridFrame.of(blocked, resolution, origin)
         self.footprint = footprint
         self.blocked = blocked
         self.lights = tuple(lights)
         self.max_tiles = max_tiles
+        self.max_lamps = max_lamps
         self.bounce = _active(bounce)
         if self.bounce is not None:
             check_static(self.lights)
         self._corners: np.ndarray | None = None
         self._tiles: OrderedDict[tuple[int, int, int, int], np.ndarray] = OrderedDict()
+        # Per lamp cell, per map cell: UNKNOWN, CLEAR or BLOCKED line of sight (_occluded_cells).
+        self._sight: OrderedDict[tuple[int, int], np.ndarray] = OrderedDict()
         self._sources: _BounceSources | None = None
 
     def light_visibilities(
@@ -346,20 +353,38 @@ class PointVisibility:
             if np.any(lit):
                 width = frame.width
                 cells = np.unique(rows[lit] * width + cols[lit])
-                if len(cells) <= self.FEW_CELLS:  # a move's samples: the block cache
-                    occluded = np.array(
-                        [not self.line_of_sight(lamp, (c % width, c // width))
-                         for c in cells.tolist()],
-                        dtype=bool,
-                    )  # fmt: skip
-                else:
-                    occluded = _occluded(
-                        self.blocked, self._corners, lamp, cells % width, cells // width
-                    )
-                dark = np.isin(rows * width + cols, cells[occluded])
+                dark = np.isin(rows * width + cols, cells[self._occluded_cells(lamp, cells)])
                 value = np.where(lit & dark, 0.0, value)
             per_light.append((value, dx, dy))
         return per_light
+
+    def _occluded_cells(self, lamp: tuple[int, int], cells: np.ndarray) -> np.ndarray:
+        """Whether the line from the lamp's cell to each cell (flat indices, unique) is blocked:
+        from the lamp's sight memo, tracing only the cells it does not know yet (few through
+        the block cache, many in one ``_occluded`` call). The memo is why a lattice model's
+        step samples cost one trace per light rather than one per sample and light."""
+        sight = self._sight.get(lamp)
+        if sight is None:
+            sight = np.full(self.blocked.size, UNKNOWN, dtype=np.int8)
+            self._sight[lamp] = sight
+            if len(self._sight) > self.max_lamps:
+                self._sight.popitem(last=False)
+        else:
+            self._sight.move_to_end(lamp)
+        known = sight[cells]
+        new = cells[known == UNKNOWN]
+        if new.size:
+            width = self.frame.width
+            if new.size <= self.FEW_CELLS:  # a move's samples: the block cache
+                occluded = np.array(
+                    [not self.line_of_sight(lamp, (c % width, c // width)) for c in new.tolist()],
+                    dtype=bool,
+                )
+            else:
+                occluded = _occluded(self.blocked, self._corners, lamp, new % width, new // width)
+            sight[new] = np.where(occluded, BLOCKED, CLEAR)
+            known = sight[cells]
+        return known == BLOCKED
 
     def _bounce(self, xs, ys, cols, rows) -> np.ndarray:
         """The bounced light at points (1-D arrays) in cells (cols, rows): for each point, the
