@@ -456,13 +456,22 @@ def value_iteration(
     continues = gamma * goes_on
     exact_moves = slip == 0.0 and np.array_equal(moves, np.eye(model.num_actions))
     successors = model.successors
+    if exact_moves:
+        # Without slip, each action goes where it says: q is the outcome itself (bit for bit).
+        # Laid out (directions, places), the max over actions is an elementwise maximum of
+        # contiguous rows, several times faster than a max along short rows.
+        successors, continues, immediate = (
+            np.ascontiguousarray(a.T) for a in (successors, continues, immediate)
+        )
+        q = q.T
     for _ in range(horizon):
         outcome = np.take(values, successors)  # (places, directions), then in place:
         outcome *= continues
         outcome += immediate  # immediate + continues * values[successors]
-        # Without slip, each action goes where it says: q is the outcome itself (bit for bit).
         q = outcome if exact_moves else outcome @ moves.T  # (places, actions)
-        previous, values = values, q.max(axis=1)
+        previous, values = values, q.max(axis=0 if exact_moves else 1)
+    if exact_moves:
+        q = np.ascontiguousarray(q.T)
     # Places that cannot reach the goal keep losing value with every step of horizon; what
     # matters is whether the step limit binds from the start.
     converged = bool(abs(values[model.start] - previous[model.start]) <= 1e-9)
