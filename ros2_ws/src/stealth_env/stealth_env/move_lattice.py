@@ -138,14 +138,23 @@ class MoveLattice:
         return self.anchor[0] + ii * self.step, self.anchor[1] + jj * self.step
 
     def _footprints_clear(self) -> np.ndarray:
-        """Per node: no blocked cell within the robot's radius (or under its centre)."""
+        """Per node: no blocked cell within the robot's radius (or under its centre). Only the
+        nodes with a blocked cell in their window of cells get the exact test: the others are
+        clear whatever the distances."""
         xs, ys = self._node_points()
         u, v = self._grid_coordinates(xs.ravel(), ys.ravel())
         radius = self.robot_radius / self.map.resolution
         reach = math.ceil(radius) + 1
         offsets = np.arange(-reach, reach + 1)
         d_col, d_row = (o.ravel() for o in np.meshgrid(offsets, offsets, indexing='ij'))
-        clear = np.empty(u.size, dtype=bool)
+        base_col, base_row = np.floor(u).astype(np.int64), np.floor(v).astype(np.int64)
+        near_wall = _count_in_box(
+            self._blocked_sums, base_row - reach, base_row + reach,
+            base_col - reach, base_col + reach,
+        ) > 0  # fmt: skip
+        clear = np.ones(u.size, dtype=bool)
+        exact = np.flatnonzero(near_wall)
+        u, v = u[exact], v[exact]
         for start in range(0, u.size, _CHUNK):
             cu, cv = u[start : start + _CHUNK, None], v[start : start + _CHUNK, None]
             cols = np.floor(cu).astype(np.int64) + d_col
@@ -154,7 +163,9 @@ class MoveLattice:
             gap_v = np.maximum(np.maximum(rows - cv, cv - (rows + 1)), 0.0)
             distance_squared = gap_u * gap_u + gap_v * gap_v
             touched = (distance_squared < radius * radius) | (distance_squared == 0.0)
-            clear[start : start + _CHUNK] = ~(touched & self._blocked[rows, cols]).any(axis=1)
+            clear[exact[start : start + _CHUNK]] = ~(touched & self._blocked[rows, cols]).any(
+                axis=1
+            )
         return clear.reshape(self.shape)
 
     def _sweeps_clear(self, horizontal: bool) -> np.ndarray:

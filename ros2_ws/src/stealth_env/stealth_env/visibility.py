@@ -253,7 +253,7 @@ class PointVisibility:
             check_static(self.lights)
         self._corners: np.ndarray | None = None
         self._tiles: OrderedDict[tuple[int, int, int, int], np.ndarray] = OrderedDict()
-        # Per lamp cell, per map cell: UNKNOWN, CLEAR or BLOCKED line of sight (_occluded_cells).
+        # Per lamp cell, per map cell: UNKNOWN, CLEAR or BLOCKED line of sight (_sight_of).
         self._sight: OrderedDict[tuple[int, int], np.ndarray] = OrderedDict()
         self._sources: _BounceSources | None = None
 
@@ -346,23 +346,22 @@ class PointVisibility:
         for light in lights_at(self.lights, t):
             lamp = frame.cell_of(light.x, light.y, what=f'searchlight {light.name!r}')
             dx, dy = xs - light.x, ys - light.y
-            value = np.where(
-                dx * dx + dy * dy > light.range * light.range, 0.0, light_intensity(light, dx, dy)
-            )
+            near = dx * dx + dy * dy <= light.range * light.range
+            value = np.zeros(np.shape(dx))  # intensities of the points in range only
+            value[near] = light_intensity(light, dx[near], dy[near])
             lit = value > 0.0
             if np.any(lit):
-                width = frame.width
-                cells = np.unique(rows[lit] * width + cols[lit])
-                dark = np.isin(rows * width + cols, cells[self._occluded_cells(lamp, cells)])
-                value = np.where(lit & dark, 0.0, value)
+                flat = rows[lit] * frame.width + cols[lit]
+                sight = self._sight_of(lamp, np.unique(flat))
+                value[lit] = np.where(sight[flat] == BLOCKED, 0.0, value[lit])
             per_light.append((value, dx, dy))
         return per_light
 
-    def _occluded_cells(self, lamp: tuple[int, int], cells: np.ndarray) -> np.ndarray:
-        """Whether the line from the lamp's cell to each cell (flat indices, unique) is blocked:
-        from the lamp's sight memo, tracing only the cells it does not know yet (few through
-        the block cache, many in one ``_occluded`` call). The memo is why a lattice model's
-        step samples cost one trace per light rather than one per sample and light."""
+    def _sight_of(self, lamp: tuple[int, int], cells: np.ndarray) -> np.ndarray:
+        """The lamp cell's sight memo (flat, per map cell: UNKNOWN, CLEAR or BLOCKED), with
+        the cells given (flat indices, unique) known: only those it did not know yet are
+        traced (few through the block cache, many in one ``_occluded`` call). The memo is why
+        a lattice model's step samples cost one trace per light, not one per sample and light."""
         sight = self._sight.get(lamp)
         if sight is None:
             sight = np.full(self.blocked.size, UNKNOWN, dtype=np.int8)
@@ -371,8 +370,7 @@ class PointVisibility:
                 self._sight.popitem(last=False)
         else:
             self._sight.move_to_end(lamp)
-        known = sight[cells]
-        new = cells[known == UNKNOWN]
+        new = cells[sight[cells] == UNKNOWN]
         if new.size:
             width = self.frame.width
             if new.size <= self.FEW_CELLS:  # a move's samples: the block cache
@@ -383,8 +381,7 @@ class PointVisibility:
             else:
                 occluded = _occluded(self.blocked, self._corners, lamp, new % width, new // width)
             sight[new] = np.where(occluded, BLOCKED, CLEAR)
-            known = sight[cells]
-        return known == BLOCKED
+        return sight
 
     def _bounce(self, xs, ys, cols, rows) -> np.ndarray:
         """The bounced light at points (1-D arrays) in cells (cols, rows): for each point, the
