@@ -80,7 +80,10 @@ class MoveLattice:
     def from_scenario(cls, scenario) -> 'MoveLattice':
         """The lattice of a ``stealth_env.scenario.Scenario``: anchored at its start; built
         once per scenario object (the lattice is never changed after it is built)."""
-        lattice = _SCENARIO_LATTICES.get(scenario)
+        try:
+            lattice = _SCENARIO_LATTICES.get(scenario)
+        except TypeError:  # not weakly referable (a stand-in for a scenario): never shared
+            lattice = None
         if lattice is None or not lattice.fits(scenario):
             lattice = cls(
                 scenario.map, scenario.start[:2], scenario.step_distance, scenario.robot_radius
@@ -100,7 +103,10 @@ class MoveLattice:
     def share_with(self, scenario) -> None:
         """Make this the lattice ``from_scenario`` gives for the scenario (when it fits)."""
         if self.fits(scenario):
-            _SCENARIO_LATTICES[scenario] = self
+            try:
+                _SCENARIO_LATTICES[scenario] = self
+            except TypeError:  # not weakly referable: built for each caller
+                pass
 
     # --- geometry ---------------------------------------------------------------------------
 
