@@ -18,6 +18,7 @@ and the environment build on the same lattice so that all of them agree on what 
 
 from collections import deque
 from collections.abc import Callable, Iterator
+import contextlib
 import math
 import weakref
 
@@ -103,10 +104,8 @@ class MoveLattice:
     def share_with(self, scenario) -> None:
         """Make this the lattice ``from_scenario`` gives for the scenario (when it fits)."""
         if self.fits(scenario):
-            try:
+            with contextlib.suppress(TypeError):  # not weakly referable: built for each caller
                 _SCENARIO_LATTICES[scenario] = self
-            except TypeError:  # not weakly referable: built for each caller
-                pass
 
     # --- geometry ---------------------------------------------------------------------------
 
