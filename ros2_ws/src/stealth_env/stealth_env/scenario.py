@@ -225,7 +225,14 @@ def find_scenario(name_or_path: str | os.PathLike) -> Path:
 def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
     """Load and validate a scenario by name or path; ScenarioError on any problem."""
     path = find_scenario(name_or_path)
-    fields = FieldReader(path, read_yaml_mapping(path, ScenarioError, 'scenario'), ScenarioError)
+    return scenario_from_fields(path, read_yaml_mapping(path, ScenarioError, 'scenario'))
+
+
+def scenario_from_fields(path: Path, values: dict) -> Scenario:
+    """``load_scenario`` of the file at ``path`` whose YAML reads as ``values`` (its map is
+    read from disk, relative to path): for a caller that holds the mapping already, such as
+    the generator proving the scenario it writes without parsing the text back."""
+    fields = FieldReader(path, values, ScenarioError)
     fields.reject_unknown(FIELDS)
     name = fields.string('name', 'a non-empty string', default=path.stem)
     map_path, occupancy = _load_map(fields, path)
