@@ -35,7 +35,9 @@ def run(report=print) -> dict:
     report(
         f'  generation + proof: {count / proven:.1f} scenarios/s ({proven:.2f} s, {tries} tries)'
     )
-    report(f'  generation + proof per CPU second: {count / cpu:.1f} scenarios (a loaded machine)')
+    report(
+        f'  generation + proof: {count / cpu:.1f} scenarios per CPU second ({cpu:.2f} s of CPU)'
+    )
     ratio = proven / drawn
     report(f'  proof cost ratio (proven / generation alone): {ratio:.1f}x (goal: >= 20 proven/s)')
     return {
