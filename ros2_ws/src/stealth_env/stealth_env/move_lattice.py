@@ -18,7 +18,9 @@ and the environment build on the same lattice so that all of them agree on what 
 
 from collections import deque
 from collections.abc import Callable, Iterator
+import contextlib
 import math
+import weakref
 
 import numpy as np
 from stealth_sim.occupancy_map import OccupancyMap
@@ -33,6 +35,9 @@ ACTIONS: tuple[tuple[str, Node], ...] = (
 )
 _DELTAS = frozenset(delta for _, delta in ACTIONS)
 _CHUNK = 4096  # nodes per vectorised footprint check, to bound memory on fine lattices
+# Each scenario's lattice, built once (load_scenario builds it to check the start; every task
+# of the scenario reuses it): keyed by the scenario object, dropped with it.
+_SCENARIO_LATTICES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 class MoveLattice:
@@ -74,8 +79,33 @@ class MoveLattice:
 
     @classmethod
     def from_scenario(cls, scenario) -> 'MoveLattice':
-        """The lattice of a ``stealth_env.scenario.Scenario``: anchored at its start."""
-        return cls(scenario.map, scenario.start[:2], scenario.step_distance, scenario.robot_radius)
+        """The lattice of a ``stealth_env.scenario.Scenario``: anchored at its start; built
+        once per scenario object (the lattice is never changed after it is built)."""
+        try:
+            lattice = _SCENARIO_LATTICES.get(scenario)
+        except TypeError:  # not weakly referable (a stand-in for a scenario): never shared
+            lattice = None
+        if lattice is None or not lattice.fits(scenario):
+            lattice = cls(
+                scenario.map, scenario.start[:2], scenario.step_distance, scenario.robot_radius
+            )
+            lattice.share_with(scenario)
+        return lattice
+
+    def fits(self, scenario) -> bool:
+        """Whether this is the lattice of the scenario: its map, start, step and radius."""
+        return (
+            self.map is scenario.map
+            and self.anchor == (float(scenario.start[0]), float(scenario.start[1]))
+            and self.step == float(scenario.step_distance)
+            and self.robot_radius == float(scenario.robot_radius)
+        )
+
+    def share_with(self, scenario) -> None:
+        """Make this the lattice ``from_scenario`` gives for the scenario (when it fits)."""
+        if self.fits(scenario):
+            with contextlib.suppress(TypeError):  # not weakly referable: built for each caller
+                _SCENARIO_LATTICES[scenario] = self
 
     # --- geometry ---------------------------------------------------------------------------
 
@@ -113,14 +143,23 @@ class MoveLattice:
         return self.anchor[0] + ii * self.step, self.anchor[1] + jj * self.step
 
     def _footprints_clear(self) -> np.ndarray:
-        """Per node: no blocked cell within the robot's radius (or under its centre)."""
+        """Per node: no blocked cell within the robot's radius (or under its centre). Only the
+        nodes with a blocked cell in their window of cells get the exact test: the others are
+        clear whatever the distances."""
         xs, ys = self._node_points()
         u, v = self._grid_coordinates(xs.ravel(), ys.ravel())
         radius = self.robot_radius / self.map.resolution
         reach = math.ceil(radius) + 1
         offsets = np.arange(-reach, reach + 1)
         d_col, d_row = (o.ravel() for o in np.meshgrid(offsets, offsets, indexing='ij'))
-        clear = np.empty(u.size, dtype=bool)
+        base_col, base_row = np.floor(u).astype(np.int64), np.floor(v).astype(np.int64)
+        near_wall = _count_in_box(
+            self._blocked_sums, base_row - reach, base_row + reach,
+            base_col - reach, base_col + reach,
+        ) > 0  # fmt: skip
+        clear = np.ones(u.size, dtype=bool)
+        exact = np.flatnonzero(near_wall)
+        u, v = u[exact], v[exact]
         for start in range(0, u.size, _CHUNK):
             cu, cv = u[start : start + _CHUNK, None], v[start : start + _CHUNK, None]
             cols = np.floor(cu).astype(np.int64) + d_col
@@ -129,7 +168,9 @@ class MoveLattice:
             gap_v = np.maximum(np.maximum(rows - cv, cv - (rows + 1)), 0.0)
             distance_squared = gap_u * gap_u + gap_v * gap_v
             touched = (distance_squared < radius * radius) | (distance_squared == 0.0)
-            clear[start : start + _CHUNK] = ~(touched & self._blocked[rows, cols]).any(axis=1)
+            clear[exact[start : start + _CHUNK]] = ~(touched & self._blocked[rows, cols]).any(
+                axis=1
+            )
         return clear.reshape(self.shape)
 
     def _sweeps_clear(self, horizontal: bool) -> np.ndarray:

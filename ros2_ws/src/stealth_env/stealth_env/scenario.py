@@ -225,7 +225,14 @@ def find_scenario(name_or_path: str | os.PathLike) -> Path:
 def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
     """Load and validate a scenario by name or path; ScenarioError on any problem."""
     path = find_scenario(name_or_path)
-    fields = FieldReader(path, read_yaml_mapping(path, ScenarioError, 'scenario'), ScenarioError)
+    return scenario_from_fields(path, read_yaml_mapping(path, ScenarioError, 'scenario'))
+
+
+def scenario_from_fields(path: Path, values: dict) -> Scenario:
+    """``load_scenario`` of the file at ``path`` whose YAML reads as ``values`` (its map is
+    read from disk, relative to path): for a caller that holds the mapping already, such as
+    the generator proving the scenario it writes without parsing the text back."""
+    fields = FieldReader(path, values, ScenarioError)
     fields.reject_unknown(FIELDS)
     name = fields.string('name', 'a non-empty string', default=path.stem)
     map_path, occupancy = _load_map(fields, path)
@@ -259,7 +266,7 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
             'an exposure field too',
         )
     rewards = _rewards(fields, occupancy, numbers, len(lights), bounce)
-    return Scenario(
+    scenario = Scenario(
         name=name,
         path=path,
         map_path=map_path,
@@ -275,6 +282,8 @@ def load_scenario(name_or_path: str | os.PathLike) -> Scenario:
         sensing_range=_sensing_range(fields, occupancy),
         **numbers,
     )
+    lattice.share_with(scenario)  # its tasks need not build it again
+    return scenario
 
 
 def _exposure(fields: FieldReader, robot_radius: float) -> Footprint | None:

@@ -4,7 +4,9 @@
 in the hall, sets the goal in the room farthest from it (most doors away, then farthest in
 metres), posts the lights (``stealth_env.guard_lights``) and writes the nav2 map (PGM + YAML,
 ``stealth_sim.occupancy_map.save_map``) and the scenario YAML that ``load_scenario`` reads. The
-files are loaded back with ``load_scenario`` and the scenario is *proven* on its move lattice
+scenario is read back as written (``scenario.scenario_from_fields``: the written map, and the
+fields the text is written from, which is what YAML reads from it, so the text is not parsed
+again) and *proven* on its move lattice
 (``stealth_env.planners``): the value-iteration optimum reaches the goal unseen within the step
 limit (a covert route exists), and the shortest route ignoring the lights (A*) is seen (the
 scenario is not trivial), and the difficulty's measure holds (``DIFFICULTY_RULES``). Otherwise
@@ -50,7 +52,7 @@ from stealth_env.reward import (
     check_well_posed,
     undetected_visibility_bound,
 )
-from stealth_env.scenario import DIFFICULTIES, Scenario, load_scenario
+from stealth_env.scenario import DIFFICULTIES, Scenario, scenario_from_fields
 from stealth_env.task import StealthTask
 
 SEED_RANGES = {  # inclusive; None: no upper end
@@ -176,9 +178,9 @@ def generate(seed: int, options: Options = Options()) -> Generated:
     failures: dict[str, int] = {}
     with tempfile.TemporaryDirectory(prefix='stealth-generate-') as work:
         for tries in range(1, MAX_TRIES + 1):
-            candidate = _draw(rng, seed, name, options)
-            path = candidate.write(work)
-            proof, failure = prove(load_scenario(path), options.difficulty, tries)
+            candidate, fields = _draw_fields(rng, seed, name, options)
+            path = candidate.write(work)  # proven as written: its map, and its fields unparsed
+            proof, failure = prove(scenario_from_fields(path, fields), options.difficulty, tries)
             if proof is not None:
                 return dataclasses.replace(candidate, proof=proof, scenario_text=_with_header(
                     candidate.scenario_text, seed, options, proof
@@ -224,6 +226,11 @@ def prove(scenario: Scenario, difficulty: str, tries: int = 1) -> tuple[Proof | 
 
 def _draw(rng: np.random.Generator, seed: int, name: str, options: Options) -> Generated:
     """One candidate: building, start, goal and lights (not yet proven)."""
+    return _draw_fields(rng, seed, name, options)[0]
+
+
+def _draw_fields(rng, seed: int, name: str, options: Options) -> tuple[Generated, dict]:
+    """``_draw``, and the scenario file's fields as YAML reads them (``_scenario_fields``)."""
     plan = generate_floor_plan(rng, options.width, options.height, DEFAULT_RESOLUTION)
     start = plan.rooms[plan.hall].centre
     goal_room = _farthest_room(plan, start)
@@ -232,8 +239,10 @@ def _draw(rng: np.random.Generator, seed: int, name: str, options: Options) -> G
     with tempfile.TemporaryDirectory(prefix='stealth-map-') as work:
         yaml_path = save_map(plan.occupancy_map(), Path(work) / name)
         map_files = {p.name: p.read_bytes() for p in sorted(Path(work).iterdir())}
-    text = _scenario_text(name, yaml_path.name, start, goal, lights, options)
-    return Generated(seed, name, text, map_files, Proof(0.0, 1, 1, 0.0, 0))
+    fields = _scenario_fields(name, yaml_path.name, start, goal, lights, options)
+    return Generated(
+        seed, name, _scenario_text(fields), map_files, Proof(0.0, 1, 1, 0.0, 0)
+    ), fields
 
 
 def _farthest_room(plan: FloorPlan, start: tuple[float, float]) -> int:
@@ -248,57 +257,85 @@ def _farthest_room(plan: FloorPlan, start: tuple[float, float]) -> int:
     return max(rooms, key=key)
 
 
-def _number(value: float) -> str:
-    return f'{value:g}' if float(value) != int(value) else f'{int(value)}'
+def _value(value: float):
+    """A number as the scenario file writes it and YAML reads it back: whole numbers as ints,
+    others to 6 significant digits (``:g``; a float where that has a decimal point, which YAML
+    needs, else the text, as YAML reads it). ``str`` of such a float is the same text for every
+    number below 1e6, far beyond a building's metres, degrees and speeds."""
+    if float(value) == int(value):
+        return int(value)
+    text = f'{value:g}'
+    return float(text) if '.' in text else text
 
 
-def _scenario_text(name, map_file, start, goal, lights, options: Options) -> str:
-    """The scenario YAML, field by field in the shipped scenarios' order."""
-    moving = any('motion' in light for light in lights)
-    lines = [
-        f'name: {name}',
-        f'map: maps/{map_file}',
-        f'start: {{x: {_number(start[0])}, y: {_number(start[1])}, yaw: 0}}',
-        'goals:',
-        f'  {options.difficulty}: {{x: {_number(goal[0])}, y: {_number(goal[1])}}}',
-        f'default_goal: {options.difficulty}',
-        f'robot_radius: {ROBOT_RADIUS}',
-        f'step_distance: {UNIT}',
-        f'state_cell: {UNIT}',
-        f'goal_radius: {GOAL_RADIUS}',
-        f'detection_threshold: {THRESHOLD}',
-        'detection_mode: threshold',
-        f'step_limit: {STEPS_PER_METRE * (options.width + options.height)}',
-    ]
-    if moving:
-        lines += [f'phase_bins: {PHASE_BINS}', f'step_seconds: {STEP_SECONDS}']
-    lines.append('lights:')
+def _scenario_fields(name, map_file, start, goal, lights, options: Options) -> dict:
+    """The scenario file's fields, as ``load_scenario`` reads them from the file's YAML (the
+    text is written from them: ``_scenario_text``), in the shipped scenarios' order."""
+    fields = {
+        'name': name,
+        'map': f'maps/{map_file}',
+        'start': {'x': _value(start[0]), 'y': _value(start[1]), 'yaw': 0},
+        'goals': {options.difficulty: {'x': _value(goal[0]), 'y': _value(goal[1])}},
+        'default_goal': options.difficulty,
+        'robot_radius': ROBOT_RADIUS,
+        'step_distance': UNIT,
+        'state_cell': UNIT,
+        'goal_radius': GOAL_RADIUS,
+        'detection_threshold': THRESHOLD,
+        'detection_mode': 'threshold',
+        'step_limit': STEPS_PER_METRE * (options.width + options.height),
+    }
+    if any('motion' in light for light in lights):
+        fields.update(phase_bins=PHASE_BINS, step_seconds=STEP_SECONDS)
+    fields['lights'] = []
     for light in lights:
-        fields = ', '.join(
-            f'{key}: {_number(light[key]) if key != "name" else light[key]}'
-            for key in ('name', 'x', 'y', 'direction', 'fov', 'range', 'delta')
+        entry = {'name': light['name']}
+        entry.update(
+            (key, _value(light[key])) for key in ('x', 'y', 'direction', 'fov', 'range', 'delta')
         )
         motion = light.get('motion')
-        if motion is None:
-            lines.append(f'  - {{{fields}}}')
-            continue
-        if motion['type'] == 'sweep':
-            detail = ', '.join(
-                f'{key}: {_number(motion[key])}'
+        if motion is not None and motion['type'] == 'sweep':
+            entry['motion'] = {'type': 'sweep'} | {
+                key: _value(motion[key])
                 for key in ('min_direction', 'max_direction', 'angular_speed')
-            )
-        else:
+            }
+        elif motion is not None:
             (x, y), = motion['waypoints']  # fmt: skip
-            detail = (
-                f'waypoints: [[{_number(x)}, {_number(y)}]], speed: {_number(motion["speed"])}'
-            )
-        lines.append(f'  - {{{fields}, motion: {{type: {motion["type"]}, {detail}}}}}')
-    lines.append('rewards:')
+            entry['motion'] = {
+                'type': motion['type'],
+                'waypoints': [[_value(x), _value(y)]],
+                'speed': _value(motion['speed']),
+            }
+        fields['lights'].append(entry)
     penalty = _penalty(options)
-    lines += [
-        f'  {key}: {penalty if key == "detection_penalty" else value}' for key, value in REWARDS
-    ]
+    fields['rewards'] = {
+        key: penalty if key == 'detection_penalty' else value for key, value in REWARDS
+    }
+    return fields
+
+
+def _scenario_text(fields: dict) -> str:
+    """The scenario YAML of ``_scenario_fields``: goals and rewards as block mappings, lights
+    as a block sequence, everything within them in flow style."""
+    lines = []
+    for key, value in fields.items():
+        if key in ('goals', 'rewards'):
+            lines += [f'{key}:', *(f'  {k}: {_flow(v)}' for k, v in value.items())]
+        elif key == 'lights':
+            lines += ['lights:', *(f'  - {_flow(light)}' for light in value)]
+        else:
+            lines.append(f'{key}: {_flow(value)}')
     return '\n'.join(lines) + '\n'
+
+
+def _flow(value) -> str:
+    """A value in YAML flow style: mappings in braces, lists in brackets, numbers and names
+    as ``str`` writes them."""
+    if isinstance(value, dict):
+        return '{' + ', '.join(f'{key}: {_flow(item)}' for key, item in value.items()) + '}'
+    if isinstance(value, list):
+        return '[' + ', '.join(_flow(item) for item in value) + ']'
+    return str(value)
 
 
 def _penalty(options: Options) -> float:

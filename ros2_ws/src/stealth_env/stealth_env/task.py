@@ -233,6 +233,17 @@ class StealthTask:
         position = (self._centre(x, self._anchor[0]), self._centre(y, self._anchor[1]))
         return position + self.features_at(t, yaw)
 
+    def positions_of(self, xs, ys) -> np.ndarray:
+        """(k, 2): the (x, y) of ``state_of`` for arrays of points, in the same float64
+        arithmetic (so equal to it bit for bit)."""
+        return np.column_stack(
+            [self._centres(xs, self._anchor[0]), self._centres(ys, self._anchor[1])]
+        )
+
+    def _centres(self, values, anchor: float) -> np.ndarray:
+        steps = np.floor((np.asarray(values, dtype=np.float64) - anchor) / self.cell + 0.5)
+        return anchor + steps * self.cell
+
     def features_at(self, t: float, yaw: float = 0.0) -> tuple[float, ...]:
         """The extra state features at time t (s) and yaw (rad): (), (phase,), (heading,) or
         (phase, heading)."""

@@ -69,6 +69,7 @@ def corner_maps(blocked: np.ndarray) -> np.ndarray:
 (LINE, NEG_STEPS, HALF, ERROR, STRAIGHT_ERROR, DIAGONAL_ERROR) = range(6)
 (STRAIGHT_MOVE, DIAGONAL_MOVE, INDEX, CORNER_INDEX) = range(6, 10)
 COMPACT_EVERY = 16  # steps between dropping lines already blocked
+UNKNOWN, CLEAR, BLOCKED = 0, 1, 2  # a cell in a lamp's sight memo (PointVisibility)
 
 
 def _occluded(blocked: np.ndarray, corners: np.ndarray, lamp, cols, rows) -> np.ndarray:
@@ -212,8 +213,10 @@ class PointVisibility:
     lights few cells, and traces many cells in one ``_occluded`` call). Keying by the lamp's
     cell serves every kind of light: static and sweeping lights (only the direction changes)
     reuse the blocks of their one cell, patrolling lights those of the cells they pass; the
-    least recently used blocks beyond ``max_tiles`` are dropped. ``blocked`` must not change
-    afterwards.
+    least recently used blocks beyond ``max_tiles`` are dropped. Above the blocks, each lamp
+    cell keeps a memo of every cell's line of sight traced so far (one int8 per map cell, the
+    ``max_lamps`` most recently used lamp cells), so a cell is traced once per lamp cell
+    however many calls ask for it. ``blocked`` must not change afterwards.
 
     With a ``footprint`` (``exposure.Footprint``), a point asked for with the robot's heading
     has each light's value multiplied by the exposure factor before the lights are added
@@ -237,17 +240,21 @@ class PointVisibility:
         max_tiles: int = 4096,
         footprint: exposure.Footprint | None = None,
         bounce: Bounce | None = None,
+        max_lamps: int = 64,
     ):
         self.frame = GridFrame.of(blocked, resolution, origin)
         self.footprint = footprint
         self.blocked = blocked
         self.lights = tuple(lights)
         self.max_tiles = max_tiles
+        self.max_lamps = max_lamps
         self.bounce = _active(bounce)
         if self.bounce is not None:
             check_static(self.lights)
         self._corners: np.ndarray | None = None
         self._tiles: OrderedDict[tuple[int, int, int, int], np.ndarray] = OrderedDict()
+        # Per lamp cell, per map cell: UNKNOWN, CLEAR or BLOCKED line of sight (_sight_of).
+        self._sight: OrderedDict[tuple[int, int], np.ndarray] = OrderedDict()
         self._sources: _BounceSources | None = None
 
     def light_visibilities(
@@ -339,27 +346,42 @@ class PointVisibility:
         for light in lights_at(self.lights, t):
             lamp = frame.cell_of(light.x, light.y, what=f'searchlight {light.name!r}')
             dx, dy = xs - light.x, ys - light.y
-            value = np.where(
-                dx * dx + dy * dy > light.range * light.range, 0.0, light_intensity(light, dx, dy)
-            )
+            near = dx * dx + dy * dy <= light.range * light.range
+            value = np.zeros(np.shape(dx))  # intensities of the points in range only
+            value[near] = light_intensity(light, dx[near], dy[near])
             lit = value > 0.0
             if np.any(lit):
-                width = frame.width
-                cells = np.unique(rows[lit] * width + cols[lit])
-                if len(cells) <= self.FEW_CELLS:  # a move's samples: the block cache
-                    occluded = np.array(
-                        [not self.line_of_sight(lamp, (c % width, c // width))
-                         for c in cells.tolist()],
-                        dtype=bool,
-                    )  # fmt: skip
-                else:
-                    occluded = _occluded(
-                        self.blocked, self._corners, lamp, cells % width, cells // width
-                    )
-                dark = np.isin(rows * width + cols, cells[occluded])
-                value = np.where(lit & dark, 0.0, value)
+                flat = rows[lit] * frame.width + cols[lit]
+                sight = self._sight_of(lamp, np.unique(flat))
+                value[lit] = np.where(sight[flat] == BLOCKED, 0.0, value[lit])
             per_light.append((value, dx, dy))
         return per_light
+
+    def _sight_of(self, lamp: tuple[int, int], cells: np.ndarray) -> np.ndarray:
+        """The lamp cell's sight memo (flat, per map cell: UNKNOWN, CLEAR or BLOCKED), with
+        the cells given (flat indices, unique) known: only those it did not know yet are
+        traced (few through the block cache, many in one ``_occluded`` call). The memo is why
+        a lattice model's step samples cost one trace per light, not one per sample and light."""
+        sight = self._sight.get(lamp)
+        if sight is None:
+            sight = np.full(self.blocked.size, UNKNOWN, dtype=np.int8)
+            self._sight[lamp] = sight
+            if len(self._sight) > self.max_lamps:
+                self._sight.popitem(last=False)
+        else:
+            self._sight.move_to_end(lamp)
+        new = cells[sight[cells] == UNKNOWN]
+        if new.size:
+            width = self.frame.width
+            if new.size <= self.FEW_CELLS:  # a move's samples: the block cache
+                occluded = np.array(
+                    [not self.line_of_sight(lamp, (c % width, c // width)) for c in new.tolist()],
+                    dtype=bool,
+                )
+            else:
+                occluded = _occluded(self.blocked, self._corners, lamp, new % width, new // width)
+            sight[new] = np.where(occluded, BLOCKED, CLEAR)
+        return sight
 
     def _bounce(self, xs, ys, cols, rows) -> np.ndarray:
         """The bounced light at points (1-D arrays) in cells (cols, rows): for each point, the
