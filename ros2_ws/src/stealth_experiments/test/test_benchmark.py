@@ -7,7 +7,7 @@ import math
 
 import pytest
 from stealth_env.gym_env import lattice_model
-from stealth_env.planners import value_iteration
+from stealth_env.planners import step_terms, value_iteration
 from stealth_experiments import benchmark
 from stealth_experiments.benchmark_methods import (
     COLUMNS,
@@ -48,13 +48,14 @@ def test_regret_is_0_at_the_optimum_1_at_the_floor_and_nan_without_a_span():
 
 def test_the_floor_is_being_detected_at_the_first_step():
     model = lattice_model(SCENARIO, 'hard')
+    _, caught, _ = step_terms(model)  # the planners' reward of being detected on each move
+    floor = floor_of(model)
+    assert floor == pytest.approx(caught[model.start].min())  # the worst first move
     weights = model.task.scenario.rewards
     start_distance = float(model.distance[model.start])
-    floor = floor_of(model)
-    # detected one step from the start: the penalty and the distance still to go from there
     caught_here = -(weights.detection_penalty + weights.detection_distance_weight * start_distance)
-    step = model.task.scenario.step_distance
     # one move (at most a diagonal) changes the distance still to go by at most a step's
+    step = model.task.scenario.step_distance
     assert abs(floor - caught_here) <= weights.detection_distance_weight * step * 1.5 + 1e-9
     assert floor < value_iteration(model).optimal_return
 
