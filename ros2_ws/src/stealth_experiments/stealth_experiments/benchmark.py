@@ -136,7 +136,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f'{PROG}: {error}', file=sys.stderr)
         return 1
     say = _say
-    args.out.mkdir(parents=True, exist_ok=True)
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        print(f'{PROG}: --out {args.out}: cannot be made ({error.strerror or error})',
+              file=sys.stderr)  # fmt: skip
+        return 1
     if args.scenarios:
         cases = [file_case(entry, Path.cwd()) for entry in args.scenarios]
     else:
@@ -164,10 +169,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     rows = collect(laid, done)
     elapsed = time.monotonic() - started
     settings = _settings(args, methods, len(laid), elapsed)
-    write_csv(args.out / 'results.csv', rows)
-    summary = write_summary(args.out / 'summary.md', rows, settings, note)
-    if not args.no_plots:
-        write_plot(args.out / 'benchmark.png', rows)
+    try:
+        write_csv(args.out / 'results.csv', rows)
+        summary = write_summary(args.out / 'summary.md', rows, settings, note)
+        if not args.no_plots:
+            write_plot(args.out / 'benchmark.png', rows)
+    except OSError as error:
+        print(f'{PROG}: cannot write the results to {args.out} ({error.strerror or error})',
+              file=sys.stderr)  # fmt: skip
+        return 1
     failed = sum(r['status'] == 'failed' for r in rows)
     print(summary)
     if code:

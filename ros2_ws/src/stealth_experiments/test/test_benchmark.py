@@ -200,3 +200,11 @@ def test_each_kind_of_method_runs_a_trial_on_a_shipped_scenario(tmp_path):
     played = run_case(_trial('policy', policy=str(policy_path(spec))))
     assert played[0]['status'] == 'ok', played[0]['error']
     assert played[0]['track'] == 'full' and played[0]['regret'] >= 0.0
+
+
+def test_an_output_directory_that_cannot_be_made_is_one_line(tmp_path, capsys):
+    blocker = tmp_path / 'a-file'
+    blocker.write_text('')
+    assert benchmark.main(['simple-maze', '--out', str(blocker / 'out')]) == 1
+    _, err = capsys.readouterr()
+    assert err == f'stealth benchmark: --out {blocker / "out"}: cannot be made (Not a directory)\n'
