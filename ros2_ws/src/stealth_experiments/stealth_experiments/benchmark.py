@@ -168,7 +168,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         note += ' interrupted.'
     rows = collect(laid, done)
     elapsed = time.monotonic() - started
-    settings = _settings(args, methods, len(laid), elapsed)
+    settings = _settings(args, methods, len(laid), elapsed, len(cases))
     try:
         write_csv(args.out / 'results.csv', rows)
         summary = write_summary(args.out / 'summary.md', rows, settings, note)
@@ -259,7 +259,7 @@ def collect(laid: list[dict], done: dict[str, list[dict]]) -> list[dict]:
     return rows
 
 
-def _settings(args, methods: list[str], count: int, elapsed: float) -> str:
+def _settings(args, methods: list[str], count: int, elapsed: float, cases: int) -> str:
     learners = [m for m in methods if m in LEARNERS]
     budget = ''
     if learners:
@@ -278,7 +278,8 @@ def _settings(args, methods: list[str], count: int, elapsed: float) -> str:
     where = 'one after another' if args.jobs <= 1 else f'local Ray, {args.jobs} CPUs'
     return (
         f'Tracks: {", ".join(args.tracks)}. Methods: {", ".join(methods)}.{budget} Seed '
-        f'{args.seed}. {count} trials in {elapsed:.0f} s ({where}).'
+        f'{args.seed}. {count} trials in {elapsed:.0f} s ({where}): '
+        f'{cases * 60 / max(elapsed, 1e-9):.1f} scenario goals/min.'
     )
 
 
