@@ -120,7 +120,7 @@ def test_ctrl_c_writes_the_trials_done_and_marks_the_rest_interrupted(tmp_path):
             deadline = time.monotonic() + TIMEOUT
             while time.monotonic() < deadline and process.poll() is None:
                 log.seek(0)
-                if '1/2 [' in log.read():  # the progress bar: the first trial done
+                if 'benchmark: trial finished: 1/2 done' in log.read():
                     break
                 time.sleep(0.5)
         finally:

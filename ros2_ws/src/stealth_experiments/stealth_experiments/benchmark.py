@@ -5,7 +5,7 @@
 The scenarios (``benchmark_plan``: a named set, generated test scenarios and the shipped maps'
 goals, or files), the methods and their tracks (``benchmark_methods``), one trial per scenario,
 goal and method on a local Ray over ``--jobs`` CPUs (``sweep_engine``, with a progress line per
-trial) or, with ``--jobs 1``, one after another in this process without Ray (a progress bar).
+trial) or, with ``--jobs 1``, one after another in this process without Ray (a line per trial).
 Written to ``--out`` (``benchmark_report``): results.csv, summary.md, benchmark.png.
 
 A scenario that cannot be read is named (one line) and its rows are marked failed; a method
@@ -22,8 +22,6 @@ from pathlib import Path
 import sys
 import tempfile
 import time
-
-from tqdm import tqdm
 
 from stealth_experiments import sweep_stop
 from stealth_experiments.benchmark_methods import (
@@ -45,6 +43,7 @@ from stealth_experiments.benchmark_plan import (
 )
 from stealth_experiments.benchmark_report import write_csv, write_plot, write_summary
 from stealth_experiments.harness import DEFAULT_EPISODES, MOVING_EPISODES
+from stealth_experiments.sweep_engine import _duration
 
 PROG = 'stealth benchmark'
 DEFAULT_OUT = Path('runs/benchmark')
@@ -211,13 +210,15 @@ def run_trials(laid: list[dict], done: dict, *, jobs: int, say: Callable[[str], 
     runnable = [t for t in laid if not t['error']]
     with sweep_stop.signals_stop():
         if jobs <= 1 or len(runnable) <= 1:
-            bar = tqdm(total=len(runnable), desc='benchmark', unit='trial')
-            try:
-                for trial in runnable:
-                    done[trial['id']] = run_case(trial)
-                    bar.update()
-            finally:
-                bar.close()
+            started = time.monotonic()
+            for k, trial in enumerate(runnable, start=1):
+                done[trial['id']] = run_case(trial)
+                failed = sum(r['status'] != 'ok' for rows in done.values() for r in rows)
+                mean = (time.monotonic() - started) / k
+                say(
+                    f'benchmark: trial finished: {k}/{len(runnable)} done ({trial["id"]}), '
+                    f'{failed} row(s) failed, ETA {_duration(mean * (len(runnable) - k))}'
+                )
             return
         from stealth_experiments.sweep_engine import Engine
 
