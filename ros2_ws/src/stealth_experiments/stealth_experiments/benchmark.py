@@ -145,7 +145,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         cases = [file_case(entry, Path.cwd()) for entry in args.scenarios]
     else:
         cache = args.cache or args.out / 'scenarios'
-        cases = set_cases(args.set or 'test', args.count, cache, say)
+        cases = set_cases(args.set or 'test', args.count, cache)
     for case in cases:
         if case.error:
             where = '' if case.error.startswith(case.file) else f'{case.file}: '

@@ -64,7 +64,7 @@ def shipped_cases() -> list[Case]:
     return cases
 
 
-def generated_cases(count: int, cache: Path, say=print) -> list[Case]:
+def generated_cases(count: int, cache: Path) -> list[Case]:
     """The first ``count`` generated test scenarios, written to (or found in) ``cache``."""
     cache = Path(cache)
     cases = []
@@ -73,8 +73,7 @@ def generated_cases(count: int, cache: Path, say=print) -> list[Case]:
         if not path.is_file():
             try:
                 generated = generate(seed, Options())
-            except GenerationError as error:
-                say(f'benchmark: test seed {seed}: {_one_line(error)}; its rows are failed')
+            except GenerationError as error:  # `stealth benchmark` names it, rows failed
                 cases.append(Case(str(path), path.stem, None, str(path), _one_line(error)))
                 continue
             path = generated.write(cache)
@@ -95,13 +94,13 @@ def file_case(entry: str, base: Path) -> Case:
     return Case(scenario, label, goal, file)
 
 
-def set_cases(name: str, count: int, cache: Path, say=print) -> list[Case]:
+def set_cases(name: str, count: int, cache: Path) -> list[Case]:
     """The cases of a named set (module docstring)."""
     if name not in SETS:
         raise ValueError(f'--set: expected one of {", ".join(SETS)}, got {name!r}')
     cases = []
     if name in ('test', 'generated'):
-        cases += generated_cases(count, cache, say)
+        cases += generated_cases(count, cache)
     if name in ('test', 'shipped'):
         cases += shipped_cases()
     return cases

@@ -4,6 +4,7 @@ one trial of each kind on a shipped scenario."""
 
 import csv
 import math
+from pathlib import Path
 
 import pytest
 from stealth_env.gym_env import lattice_model
@@ -18,7 +19,7 @@ from stealth_experiments.benchmark_methods import (
     regret,
     run_case,
 )
-from stealth_experiments.benchmark_plan import Case, file_case, trials
+from stealth_experiments.benchmark_plan import Case, file_case, generated_cases, set_cases, trials
 from stealth_experiments.benchmark_report import summarise, write_csv, write_summary
 from stealth_experiments.harness import RunSpec, policy_path, run
 
@@ -208,3 +209,19 @@ def test_an_output_directory_that_cannot_be_made_is_one_line(tmp_path, capsys):
     assert benchmark.main(['simple-maze', '--out', str(blocker / 'out')]) == 1
     _, err = capsys.readouterr()
     assert err == f'stealth benchmark: --out {blocker / "out"}: cannot be made (Not a directory)\n'
+
+
+def test_the_test_set_generates_test_seeds_once_and_names_a_broken_cached_file(tmp_path):
+    cache = tmp_path / 'cache'
+    cases = generated_cases(2, cache)
+    assert [c.label for c in cases] == ['gen-1000000', 'gen-1000001']
+    assert all(not c.error and c.goal and Path(c.scenario).is_absolute() for c in cases)
+    written = (cache / 'gen-1000000.yaml').stat().st_mtime_ns
+    assert generated_cases(1, cache)[0] == cases[0]  # found in the cache, not generated again
+    assert (cache / 'gen-1000000.yaml').stat().st_mtime_ns == written
+    (cache / 'gen-1000001.yaml').write_text('not: [yaml\n')
+    broken = generated_cases(2, cache)[1]
+    assert broken.error.startswith(str(cache / 'gen-1000001.yaml')) and 'YAML' in broken.error
+    shipped = [(c.label, c.goal) for c in set_cases('test', 1, cache)[1:]]
+    assert shipped[:3] == [('simple-maze', goal) for goal in ('easy', 'medium', 'hard')]
+    assert len(shipped) == 12
