@@ -64,3 +64,4 @@ STREAK = START  # where the greedy success streak that ended the run began
 PLOT_INK = 'black'  # edges, epsilon, and the optimum of the experiments' plots
 PLOT_PAPER = 'white'  # the fill of the greedy-evaluation legend mark
 LEARNERS = {'qlearning': PATHS[0], 'sarsa': PATHS[1], 'dyna': PATHS[2]}
+TRACKS = {'full': PATHS[0], 'sensed': PATHS[1]}  # the benchmark's bars of each track

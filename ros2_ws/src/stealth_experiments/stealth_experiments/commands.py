@@ -1,4 +1,4 @@
-"""The command stealth_experiments adds to stealth_tools' `stealth` command.
+"""The commands stealth_experiments adds to stealth_tools' `stealth` command.
 
 setup.py registers COMMANDS in the entry-point group `stealth.commands`, which `stealth` reads
 to build its command line (see stealth_bringup's commands); the function is imported only when
@@ -10,5 +10,10 @@ COMMANDS = {
         'stealth_experiments.sweep',
         'main',
         'Sweep learners x scenarios x seeds x hyperparameters on Ray (local or a cluster).',
+    ),
+    'benchmark': (
+        'stealth_experiments.benchmark',
+        'main',
+        'Benchmark planners, replanners, learners and a policy on a test set, both tracks.',
     ),
 }

@@ -1,8 +1,9 @@
 """The experiment engine: trials on Ray Tune, on a local Ray (every core) or an existing cluster
-(`ray start`), for `stealth sweep` and `make compare` alike. No rclpy.
+(`ray start`), for `stealth sweep`, `make compare` and `stealth benchmark` alike. No rclpy.
 
     engine = Engine(address=None, num_cpus=None, say=print)   # ray.init: local or the cluster
     engine.run_fixed(trials, on_records, storage)             # laid-out trials (grid, random)
+    engine.run_fixed(trials, on_records, storage, runner=f)   # trials run by f(trial) -> records
     engine.run_search(group_trial, space, budget, seen, on_records, storage)   # optuna
 
 Each Tune trial is one ``sweep_trials`` trial, given ``cpus_per_trial`` CPUs (1: one trial per
@@ -166,14 +167,22 @@ class Engine:
         max_failures: int = DEFAULT_MAX_FAILURES,
         max_concurrent: int | None = None,
         progress: bool = True,
+        runner: Callable[[dict], list[dict]] | None = None,
+        label: str = 'sweep',
     ) -> None:
-        """Every trial once (retried on a lost worker); records to ``on_records`` as they end."""
+        """Every trial once (retried on a lost worker); records to ``on_records`` as they end.
+        runner: what runs a trial where Tune placed it (a module-level function of the trial
+        dict, returning records with 'trial' and 'status'); None: ``sweep_trials.run_trial``,
+        scored by its objective. label: the progress lines' first word."""
         if not trials:
             return
         from ray import tune
 
+        trainable = _fixed_trainable
+        if runner is not None:
+            trainable = tune.with_parameters(_runner_trainable, runner=runner)
         self._fit(
-            tune.with_resources(_fixed_trainable, {'cpu': cpus_per_trial}),
+            tune.with_resources(trainable, {'cpu': cpus_per_trial}),
             {'trial': tune.grid_search(list(trials))},
             tune.TuneConfig(
                 num_samples=1,
@@ -187,6 +196,7 @@ class Engine:
             cpus_per_trial,
             max_failures,
             progress,
+            label,
         )
 
     def run_search(
@@ -242,11 +252,11 @@ class Engine:
         )
 
     def _fit(self, trainable, space, tune_config, total, on_records, storage, cpus_per_trial,
-             max_failures, progress) -> None:  # fmt: skip
+             max_failures, progress, label='sweep') -> None:  # fmt: skip
         from ray import tune
 
         watcher = _Progress(
-            total, on_records, self.say if progress else None, self.cpus / cpus_per_trial
+            total, on_records, self.say if progress else None, self.cpus / cpus_per_trial, label
         )
         tuner = tune.Tuner(
             trainable,
@@ -288,6 +298,12 @@ def _fixed_trainable(config: dict) -> None:
     tune.report({'objective': objective(records), 'records': records})
 
 
+def _runner_trainable(config: dict, runner) -> None:
+    from ray import tune
+
+    tune.report({'records': runner(config['trial'])})
+
+
 def _search_trainable(config: dict, base: dict) -> None:
     from ray import tune
 
@@ -316,8 +332,9 @@ class _Progress:
         from ray import tune
 
         class Progress(tune.Callback):
-            def __init__(self, total, sink, say, slots):
+            def __init__(self, total, sink, say, slots, label='sweep'):
                 self.total, self.sink, self.say, self.slots = total, sink, say, max(slots, 1)
+                self.label = label
                 self.started = time.monotonic()
                 self.done = self.failed = self.retries = 0
                 self.running: set[str] = set()
@@ -371,7 +388,7 @@ class _Progress:
                 best = f', best {self.best[0]:.3f} ({self.best[1]})' if self.best else ''
                 retried = f', {self.retries} retried' if self.retries else ''
                 self.say(
-                    f'sweep: trial {event}: {self.done}/{self.total} done, {running} '
+                    f'{self.label}: trial {event}: {self.done}/{self.total} done, {running} '
                     f'running, {self.failed} failed{retried}{best}, ETA {self.eta()}'
                 )
 
@@ -387,7 +404,7 @@ class _Progress:
                 stopped = f'interrupted by {signal.Signals(signum).name}: ' if signum else ''
                 if self.say is not None:
                     self.say(
-                        f'sweep: {stopped}{self.done}/{self.total} trials done, '
+                        f'{self.label}: {stopped}{self.done}/{self.total} trials done, '
                         f'{self.failed} failed, '
                         f'{self.retries} retried, in {_duration(time.monotonic() - self.started)}'
                     )
@@ -411,7 +428,7 @@ def _lost_records(config: dict, error: str) -> list[dict]:
             'host': '',
             'node': '',
         }
-        for seed in trial['seeds']
+        for seed in trial.get('seeds', [None])
     ]
 
 

@@ -1,21 +1,24 @@
-"""The command stealth_experiments adds to `stealth`, found the way `stealth` finds it: through
+"""The commands stealth_experiments adds to `stealth`, found the way `stealth` finds it: through
 the entry-point group its setup.py registers."""
 
+import pytest
 from stealth_experiments.commands import COMMANDS
 from stealth_tools import cli
 
 
-def test_stealth_finds_sweep():
+def test_stealth_finds_sweep_and_benchmark():
     added = cli.added_commands()
     assert {name: added[name] for name in COMMANDS} == COMMANDS
-    assert cli.build_parser().description.endswith(' and sweep.')
+    assert set(COMMANDS) == {'sweep', 'benchmark'}
+    assert cli.build_parser().description.endswith(', sweep and benchmark.')
 
 
-def test_sweep_has_help(capsys):
+@pytest.mark.parametrize('command', ['sweep', 'benchmark'])
+def test_each_command_has_help(capsys, command):
     try:
-        status = cli.main(['sweep', '--help'])
+        status = cli.main([command, '--help'])
     except SystemExit as exit_:
         status = exit_.code
     out, _ = capsys.readouterr()
     assert status == 0
-    assert out.startswith('usage: stealth sweep ')
+    assert out.startswith(f'usage: stealth {command} ')

@@ -1,0 +1,288 @@
+"""`stealth benchmark`: methods x scenarios x tracks, on the Ray engine of the sweeps.
+
+    stealth benchmark --set test --count 20 --out runs/benchmark      # or scenario files
+
+The scenarios (``benchmark_plan``: a named set, generated test scenarios and the shipped maps'
+goals, or files), the methods and their tracks (``benchmark_methods``), one trial per scenario,
+goal and method on a local Ray over ``--jobs`` CPUs (``sweep_engine``, with a progress line per
+trial) or, with ``--jobs 1``, one after another in this process without Ray (a line per trial).
+Written to ``--out`` (``benchmark_report``): results.csv, summary.md, benchmark.png.
+
+A scenario that cannot be read is named (one line) and its rows are marked failed; a method
+that raises on a scenario fails its row only. SIGINT or SIGTERM (``sweep_stop``): the trials
+done are written, the rest marked interrupted, and the exit status is 130 (143).
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable, Sequence
+import os
+from pathlib import Path
+import sys
+import tempfile
+import time
+
+from stealth_experiments import sweep_stop
+from stealth_experiments.benchmark_methods import (
+    LEARNERS,
+    METHODS,
+    TRACKS,
+    failed_row,
+    method_name,
+    run_case,
+)
+from stealth_experiments.benchmark_plan import (
+    DEFAULT_COUNT,
+    SETS,
+    SHIPPED,
+    TEST_SEED,
+    file_case,
+    set_cases,
+    trials,
+)
+from stealth_experiments.benchmark_report import write_csv, write_plot, write_summary
+from stealth_experiments.harness import DEFAULT_EPISODES, MOVING_EPISODES
+from stealth_experiments.sweep_engine import _duration
+
+PROG = 'stealth benchmark'
+DEFAULT_OUT = Path('runs/benchmark')
+DEFAULT_METHODS = tuple(m for m in METHODS if m != 'policy')
+
+
+def parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog=PROG,
+        description='Benchmark the planners, the replanning baselines, the tabular learners and '
+        'a learned policy on a test set of scenarios, on the full-knowledge and the sensed '
+        'track: results.csv, summary.md (success rate, normalised regret, path and exposure '
+        "against value iteration's optimum) and benchmark.png.",
+        epilog='Tracks per method: value iteration (the oracle) and A* on both; Dark Path, the '
+        'learners and policy on the full track only; the replanners on the sensed track only. '
+        f'Test scenarios are generated from seed {TEST_SEED:,} on (the test range) into the '
+        'cache once. A scenario that cannot be read is named and its rows marked failed; the '
+        'rest run. Ctrl-C or SIGTERM writes what is done, marks the rest interrupted and exits '
+        '130 (143). Exit 1 when no row ran.',
+    )
+    p.add_argument(
+        'scenarios',
+        nargs='*',
+        metavar='SCENARIO',
+        help='scenario names or YAML paths, each at its default goal (instead of --set)',
+    )
+    p.add_argument(
+        '--set',
+        choices=SETS,
+        help=f'a named set: test (--count generated test scenarios + every goal of '
+        f'{", ".join(SHIPPED)}), shipped, generated (default: test, unless scenarios are given)',
+    )
+    p.add_argument(
+        '--count',
+        type=int,
+        default=DEFAULT_COUNT,
+        help='generated test scenarios in the set (default: %(default)s)',
+    )
+    p.add_argument(
+        '--cache',
+        type=Path,
+        help='where generated test scenarios are written and reused (default: OUT/scenarios)',
+    )
+    p.add_argument(
+        '--tracks', nargs='+', choices=TRACKS, default=list(TRACKS), help='default: both'
+    )
+    p.add_argument(
+        '--methods',
+        nargs='+',
+        metavar='METHOD',
+        help='default: all but policy (policy too with --policy): vi, astar, dark-path, '
+        'replan-dark, replan-lit, ' + ', '.join(LEARNERS) + ', policy',
+    )
+    p.add_argument(
+        '--episodes',
+        type=int,
+        help="the learners' training budget per scenario, in episodes (default: the harness's, "
+        + ', '.join(f'{name} {n}' for name, n in DEFAULT_EPISODES.items())
+        + '; where lights move '
+        + ', '.join(f'{name} {n}' for name, n in MOVING_EPISODES.items())
+        + ')',
+    )
+    p.add_argument('--seed', type=int, default=0, help="learners' and episodes' seed (default 0)")
+    p.add_argument('--policy', type=Path, help='a learned policy file (method policy)')
+    p.add_argument(
+        '--jobs',
+        type=int,
+        default=os.cpu_count() or 1,
+        help='CPUs of the local Ray the trials go to; 1: one after another in this process, no '
+        'Ray (default: the CPU count, %(default)s)',
+    )
+    p.add_argument(
+        '--out', type=Path, default=DEFAULT_OUT, help='output directory (default: %(default)s)'
+    )
+    p.add_argument('--no-plots', action='store_true', help='skip benchmark.png')
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    p = parser()
+    args = p.parse_args(argv)
+    if args.scenarios and args.set:
+        p.error('give scenarios or --set, not both')
+    if args.count < 1 or args.jobs < 1 or (args.episodes is not None and args.episodes < 1):
+        p.error('--count, --jobs and --episodes must be >= 1')
+    try:
+        methods = _methods(args)
+    except ValueError as error:
+        print(f'{PROG}: {error}', file=sys.stderr)
+        return 1
+    say = _say
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        print(f'{PROG}: --out {args.out}: cannot be made ({error.strerror or error})',
+              file=sys.stderr)  # fmt: skip
+        return 1
+    if args.scenarios:
+        cases = [file_case(entry, Path.cwd()) for entry in args.scenarios]
+    else:
+        cache = args.cache or args.out / 'scenarios'
+        cases = set_cases(args.set or 'test', args.count, cache)
+    for case in cases:
+        if case.error:
+            where = '' if case.error.startswith(case.file) else f'{case.file}: '
+            say(f'{PROG}: {where}{case.error}; its rows are marked failed')
+    laid = trials(
+        cases, methods, args.tracks, episodes=args.episodes, seed=args.seed,
+        policy=str(args.policy.resolve()) if args.policy else None,
+    )  # fmt: skip
+    say(f'benchmark: {len(cases)} scenario goals x {len(methods)} methods: {len(laid)} trials')
+    started = time.monotonic()
+    done: dict[str, list[dict]] = {}
+    note, code = '', 0
+    try:
+        run_trials(laid, done, jobs=args.jobs, say=say)
+    except KeyboardInterrupt as stop:  # sweep_stop.Interrupted
+        name = getattr(stop, 'name', 'SIGINT')
+        code = getattr(stop, 'exit_code', 130)
+        note = f'Interrupted by {name}: {len(done)} of {len(laid)} trials done; the rest marked'
+        note += ' interrupted.'
+    rows = collect(laid, done)
+    elapsed = time.monotonic() - started
+    settings = _settings(args, methods, len(laid), elapsed, len(cases))
+    try:
+        write_csv(args.out / 'results.csv', rows)
+        summary = write_summary(args.out / 'summary.md', rows, settings, note)
+        if not args.no_plots:
+            write_plot(args.out / 'benchmark.png', rows)
+    except OSError as error:
+        print(f'{PROG}: cannot write the results to {args.out} ({error.strerror or error})',
+              file=sys.stderr)  # fmt: skip
+        return 1
+    failed = sum(r['status'] == 'failed' for r in rows)
+    print(summary)
+    if code:
+        print(f'{PROG}: {note} Partial results in {args.out}', file=sys.stderr)
+        return code
+    if failed:
+        print(f'{PROG}: {failed} of {len(rows)} rows failed (see {summary})', file=sys.stderr)
+    return 1 if rows and failed == len(rows) else 0
+
+
+def _say(line: str) -> None:
+    print(line, flush=True)
+
+
+def _methods(args) -> list[str]:
+    names = [method_name(m) for m in args.methods] if args.methods else list(DEFAULT_METHODS)
+    if args.policy and 'policy' not in names:
+        names.append('policy')
+    if 'policy' in names:
+        if not args.policy:
+            raise ValueError('--methods policy needs --policy FILE')
+        from stealth_agent.policy_store import load_policy
+
+        load_policy(args.policy)  # PolicyFileError (a ValueError) naming the file
+    return list(dict.fromkeys(names))
+
+
+def run_trials(laid: list[dict], done: dict, *, jobs: int, say: Callable[[str], None]) -> None:
+    """Each trial's rows into ``done`` (by trial id) as it ends; trials of unreadable
+    scenarios are not run. Raises sweep_stop.Interrupted on SIGINT or SIGTERM."""
+    runnable = [t for t in laid if not t['error']]
+    with sweep_stop.signals_stop():
+        if jobs <= 1 or len(runnable) <= 1:
+            started = time.monotonic()
+            for k, trial in enumerate(runnable, start=1):
+                done[trial['id']] = run_case(trial)
+                failed = sum(r['status'] != 'ok' for rows in done.values() for r in rows)
+                mean = (time.monotonic() - started) / k
+                say(
+                    f'benchmark: trial finished: {k}/{len(runnable)} done ({trial["id"]}), '
+                    f'{failed} row(s) failed, ETA {_duration(mean * (len(runnable) - k))}'
+                )
+            return
+        from stealth_experiments.sweep_engine import Engine
+
+        def keep(records: list[dict]) -> None:
+            if records:
+                done[records[0]['trial']] = records
+
+        with (
+            tempfile.TemporaryDirectory(prefix='stealth-benchmark-') as storage,
+            Engine(None, jobs, say) as engine,
+        ):
+            engine.run_fixed(runnable, keep, Path(storage), runner=run_case, label='benchmark')
+
+
+def collect(laid: list[dict], done: dict[str, list[dict]]) -> list[dict]:
+    """The rows of every trial in order: those that ran, failed rows of unreadable scenarios and
+    of trials whose worker was lost, interrupted rows of trials not done."""
+    rows = []
+    for trial in laid:
+        found = done.get(trial['id'])
+        if found and all('track' in r for r in found):
+            rows += found
+            continue
+        if trial['error']:
+            status, error = 'failed', trial['error']
+        elif found:  # a lost worker's record (sweep_engine): no rows, its error
+            status, error = 'failed', found[0].get('error', 'no result came back')
+        else:
+            status, error = 'interrupted', 'not run: the benchmark was interrupted'
+        for track in trial['tracks']:
+            base = {
+                'scenario': trial['label'],
+                'goal': trial['goal'] or '',
+                'track': track,
+                'method': trial['method'],
+                'file': trial['file'],
+            }
+            rows.append(failed_row(base, error, status))
+    return rows
+
+
+def _settings(args, methods: list[str], count: int, elapsed: float, cases: int) -> str:
+    learners = [m for m in methods if m in LEARNERS]
+    budget = ''
+    if learners:
+        if args.episodes:
+            budget = f' Learners trained {args.episodes} episodes per scenario goal'
+        else:
+            budget = (
+                " Learners trained for the harness's budget ("
+                + ', '.join(
+                    f'{m} {DEFAULT_EPISODES[m]}, {MOVING_EPISODES[m]} where lights move'
+                    for m in learners
+                )
+                + ') per scenario goal'
+            )
+        budget += ', then one greedy episode.'
+    where = 'one after another' if args.jobs <= 1 else f'local Ray, {args.jobs} CPUs'
+    return (
+        f'Tracks: {", ".join(args.tracks)}. Methods: {", ".join(methods)}.{budget} Seed '
+        f'{args.seed}. {count} trials in {elapsed:.0f} s ({where}): '
+        f'{cases * 60 / max(elapsed, 1e-9):.1f} scenario goals/min.'
+    )
+
+
+if __name__ == '__main__':
+    sys.exit(main())

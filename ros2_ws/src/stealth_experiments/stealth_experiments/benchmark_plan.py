@@ -1,0 +1,148 @@
+"""What a benchmark runs: its scenarios (a named set or files), their goals, and the trials
+(one per scenario, goal and method, over the method's tracks). No Ray, no rclpy.
+
+Sets (``SETS``):
+
+- ``test``: ``count`` generated test scenarios, seeds ``TEST_SEED``, ``TEST_SEED + 1``, ...
+  (``scenario_generator.SEED_RANGES``' test range, never used for tuning), generated on the fly
+  with the generator's default options into a cache directory (a scenario already there is
+  reused: the generator is deterministic per seed), plus every goal of the shipped maps;
+- ``shipped``: every goal of the shipped maps (``SHIPPED``) only;
+- ``generated``: the generated test scenarios only.
+
+Scenarios given by name or file instead are run at their default goal. A scenario that cannot
+be read (or generated) is a case with its ``error``: the benchmark names the file, marks its
+rows failed and goes on with the rest.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+import re
+
+from stealth_env.scenario import find_scenario, load_scenario
+from stealth_env.scenario_generator import (
+    SEED_RANGES,
+    GenerationError,
+    Options,
+    generate,
+    scenario_name,
+)
+
+from stealth_experiments.benchmark_methods import METHODS, TRACKS
+from stealth_experiments.harness import scenario_argument, scenario_label
+
+SHIPPED = ('simple-maze', 'map1', 'lgfloor', 'floorplan')  # the shipped maps (static lights)
+SETS = ('test', 'shipped', 'generated')
+TEST_SEED = SEED_RANGES['test'][0]
+DEFAULT_COUNT = 20
+
+
+@dataclasses.dataclass(frozen=True)
+class Case:
+    """One scenario and goal of the benchmark; ``error`` says why it cannot be run."""
+
+    scenario: str  # a name on the search path or an absolute path, as a trial takes it
+    label: str  # its name in the tables
+    goal: str | None  # None: unknown (the scenario could not be read)
+    file: str  # the scenario file, for the messages and the rows
+    error: str = ''
+
+
+def shipped_cases() -> list[Case]:
+    """Every goal of every shipped map."""
+    cases = []
+    for name in SHIPPED:
+        try:
+            scenario = load_scenario(name)
+        except (OSError, ValueError) as error:
+            cases.append(Case(name, name, None, name, _one_line(error)))
+            continue
+        file = str(find_scenario(name))
+        cases += [Case(name, name, goal, file) for goal in scenario.goals]
+    return cases
+
+
+def generated_cases(count: int, cache: Path) -> list[Case]:
+    """The first ``count`` generated test scenarios, written to (or found in) ``cache``."""
+    cache = Path(cache)
+    cases = []
+    for seed in range(TEST_SEED, TEST_SEED + count):
+        path = cache / f'{scenario_name(seed)}.yaml'
+        if not path.is_file():
+            try:
+                generated = generate(seed, Options())
+            except GenerationError as error:  # `stealth benchmark` names it, rows failed
+                cases.append(Case(str(path), path.stem, None, str(path), _one_line(error)))
+                continue
+            path = generated.write(cache)
+        cases.append(file_case(str(path), Path.cwd()))
+    return cases
+
+
+def file_case(entry: str, base: Path) -> Case:
+    """A scenario given by name or path (relative to ``base``), at its default goal; a case
+    with its error when it cannot be read."""
+    scenario = scenario_argument(entry, base)
+    label = scenario_label(scenario)
+    try:
+        file = str(find_scenario(scenario))
+        goal = load_scenario(file).default_goal
+    except (OSError, ValueError) as error:
+        return Case(scenario, label, None, entry, _one_line(error))
+    return Case(scenario, label, goal, file)
+
+
+def set_cases(name: str, count: int, cache: Path) -> list[Case]:
+    """The cases of a named set (module docstring)."""
+    if name not in SETS:
+        raise ValueError(f'--set: expected one of {", ".join(SETS)}, got {name!r}')
+    cases = []
+    if name in ('test', 'generated'):
+        cases += generated_cases(count, cache)
+    if name in ('test', 'shipped'):
+        cases += shipped_cases()
+    return cases
+
+
+def trials(
+    cases: list[Case],
+    methods: list[str],
+    tracks: list[str],
+    *,
+    episodes: int | None = None,
+    seed: int = 0,
+    policy: str | None = None,
+) -> list[dict]:
+    """One trial per case and method that runs on one of ``tracks`` at least, in that order."""
+    laid = []
+    for case in cases:
+        for method in methods:
+            mine = [track for track in TRACKS if track in tracks and track in METHODS[method]]
+            if not mine:
+                continue
+            laid.append({
+                'id': trial_id(case, method),
+                'scenario': case.scenario,
+                'label': case.label,
+                'goal': case.goal,
+                'file': case.file,
+                'error': case.error,
+                'method': method,
+                'tracks': mine,
+                'episodes': episodes,
+                'seed': seed,
+                'policy': policy,
+            })  # fmt: skip
+    return laid
+
+
+def trial_id(case: Case, method: str) -> str:
+    words = [case.label, case.goal or 'default', re.sub(r'[^A-Za-z0-9]+', '-', method).strip('-')]
+    return '-'.join(words)
+
+
+def _one_line(error: Exception) -> str:
+    lines = [line for line in str(error).splitlines() if line.strip()]
+    return lines[0] if lines else type(error).__name__

@@ -1,0 +1,138 @@
+"""`stealth benchmark` end to end, as a user runs it: two small shipped scenarios and an
+unreadable file one after another (--jobs 1), then on a local Ray of two CPUs; and Ctrl-C in
+the middle, which writes the trials done, marks the rest interrupted and exits 130."""
+
+import csv
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+
+from ros_support import _sourced_environment
+from stealth_experiments.sweep_engine import RAY_ENVIRONMENT
+
+TIMEOUT = 420.0  # s, on two loaded cores (a local Ray's start included)
+REQUIRED = (
+    'scenario', 'goal', 'track', 'method', 'success', 'detected', 'return', 'vi_return',
+    'path_length', 'vi_path_length', 'exposure', 'seconds',
+)  # fmt: skip
+
+
+def _env() -> dict:
+    env = dict(_sourced_environment())
+    env.update(RAY_ENVIRONMENT)
+    env['RAY_AUTH_MODE'] = 'disabled'
+    return env
+
+
+def _benchmark(args, log) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, '-m', 'stealth_tools.cli', 'benchmark', *args],
+        env=_env(), stdout=log, stderr=subprocess.STDOUT, start_new_session=True,
+    )  # fmt: skip
+
+
+def _finish(process, log) -> tuple[int | None, str]:
+    try:
+        process.wait(timeout=TIMEOUT)
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGKILL)
+        process.wait()
+    log.seek(0)
+    return process.returncode, log.read()
+
+
+def _rows(out: Path) -> list[dict]:
+    with open(out / 'results.csv', encoding='utf-8') as stream:
+        reader = csv.DictReader(stream)
+        assert set(REQUIRED) <= set(reader.fieldnames)
+        return list(reader)
+
+
+def test_a_benchmark_one_after_another_names_an_unreadable_scenario_and_runs_the_rest(tmp_path):
+    broken = tmp_path / 'broken.yaml'
+    broken.write_text('not: [yaml\n')
+    out = tmp_path / 'out'
+    with open(tmp_path / 'log', 'w+') as log:
+        process = _benchmark(
+            ['simple-maze', 'map1', str(broken), '--jobs', '1', '--episodes', '20',
+             '--out', str(out)], log,
+        )  # fmt: skip
+        code, output = _finish(process, log)
+    assert code == 0, output[-3000:]
+    assert f'stealth benchmark: {broken}: YAML syntax error' in output, output[-3000:]
+    assert 'its rows are marked failed' in output
+    rows = _rows(out)
+    # per scenario: value iteration and A* on both tracks, Dark Path and 3 learners on the
+    # full one, the 2 replanners on the sensed one
+    assert len(rows) == 3 * 10
+    ran = [r for r in rows if r['scenario'] in ('simple-maze', 'map1')]
+    assert {r['status'] for r in ran} == {'ok'}
+    assert {(r['method'], r['track']) for r in ran if r['scenario'] == 'map1'} == {
+        ('value iteration', 'full'), ('value iteration', 'sensed'), ('A*', 'full'),
+        ('A*', 'sensed'), ('Dark Path', 'full'), ('replan (unknown dark)', 'sensed'),
+        ('replan (unknown lit)', 'sensed'), ('qlearning', 'full'), ('sarsa', 'full'),
+        ('dyna', 'full'),
+    }  # fmt: skip
+    oracle = [r for r in ran if r['method'] == 'value iteration']
+    assert all(r['success'] == 'True' and r['return'] == r['vi_return'] for r in oracle)
+    failed = [r for r in rows if r['scenario'] == 'broken']
+    assert len(failed) == 10 and {r['status'] for r in failed} == {'failed'}
+    summary = (out / 'summary.md').read_text()
+    assert '## Track: full' in summary and '## Track: sensed' in summary
+    assert 'Learners trained 20 episodes per scenario goal' in summary
+    assert (out / 'benchmark.png').stat().st_size > 10_000
+    assert 'stealth benchmark: 10 of 30 rows failed' in output
+
+
+def test_a_benchmark_on_a_local_ray(tmp_path):
+    out = tmp_path / 'out'
+    with open(tmp_path / 'log', 'w+') as log:
+        process = _benchmark(
+            ['simple-maze', 'map1', '--jobs', '2', '--methods', 'vi', 'replan-dark',
+             '--no-plots', '--out', str(out)], log,
+        )  # fmt: skip
+        code, output = _finish(process, log)
+    assert code == 0, output[-3000:]
+    assert 'engine: a local Ray is up' in output
+    assert 'benchmark: trial finished: 4/4 done, 0 running, 0 failed' in output, output[-3000:]
+    rows = _rows(out)
+    assert sorted((r['scenario'], r['method'], r['track']) for r in rows) == [
+        ('map1', 'replan (unknown dark)', 'sensed'), ('map1', 'value iteration', 'full'),
+        ('map1', 'value iteration', 'sensed'), ('simple-maze', 'replan (unknown dark)', 'sensed'),
+        ('simple-maze', 'value iteration', 'full'), ('simple-maze', 'value iteration', 'sensed'),
+    ]  # fmt: skip
+    assert {r['status'] for r in rows} == {'ok'}
+    assert not (out / 'benchmark.png').exists()
+
+
+def test_ctrl_c_writes_the_trials_done_and_marks_the_rest_interrupted(tmp_path):
+    out = tmp_path / 'out'
+    with open(tmp_path / 'log', 'w+') as log:
+        # a learner with a budget it will not finish: Ctrl-C comes while it trains
+        process = _benchmark(
+            ['simple-maze', '--jobs', '1', '--methods', 'vi', 'qlearning',
+             '--episodes', '10000000', '--out', str(out)], log,
+        )  # fmt: skip
+        try:
+            deadline = time.monotonic() + TIMEOUT
+            while time.monotonic() < deadline and process.poll() is None:
+                log.seek(0)
+                if 'benchmark: trial finished: 1/2 done' in log.read():
+                    break
+                time.sleep(0.5)
+        finally:
+            os.killpg(process.pid, signal.SIGINT)  # Ctrl-C: the terminal signals the group
+        code, output = _finish(process, log)
+    assert code == 130, output[-3000:]
+    line = 'stealth benchmark: Interrupted by SIGINT: 1 of 2 trials done; the rest marked'
+    assert line in output, output[-3000:]
+    rows = _rows(out)
+    assert [(r['method'], r['track'], r['status']) for r in rows] == [
+        ('value iteration', 'full', 'ok'),
+        ('value iteration', 'sensed', 'ok'),
+        ('qlearning', 'full', 'interrupted'),
+    ]
+    assert '**Interrupted by SIGINT: 1 of 2 trials done' in (out / 'summary.md').read_text()
