@@ -145,9 +145,15 @@ class Monitor:
     def _elapsed(self) -> float:
         return time.monotonic() - self.started
 
+    def _ended(self) -> bool:
+        """The run has ended, or its end criterion holds and the run loop has yet to see it:
+        one spin can take in the reports of several fast episodes, and those after the
+        budget or the streak are not the run's."""
+        return self.frozen or self.tracker.stop_reason() is not None
+
     def _on_summary(self, msg, info) -> None:
         self.last_activity = time.monotonic()
-        if self.frozen:  # the run has ended: an episode after the end or cut short by it
+        if self._ended():  # an episode after the end, or cut short by it
             self.late.append(summary_fields(msg))
             return
         self.ended.setdefault(int(msg.episode), sent_at(info, self.last_activity))
@@ -156,7 +162,7 @@ class Monitor:
 
     def _on_agent_info(self, msg) -> None:
         self.last_activity = time.monotonic()
-        if self.frozen:
+        if self._ended():
             return
         fields = agent_fields(msg)
         for record in self.tracker.add_agent_info(int(msg.episode), fields, self._elapsed()):

@@ -18,3 +18,34 @@ def test_without_a_plausible_source_timestamp_it_counts_from_now():
     assert sent_at({'source_timestamp': time.time_ns() + 5 * 10**9}, now) == now  # clock ahead
     late = time.time_ns() - int((PLAUSIBLE_DELAY + 60) * 1e9)
     assert sent_at({'source_timestamp': late}, now) == now
+
+
+def _reports_of_three_fast_episodes_in_one_spin(budget: int):
+    """The handlers of the monitor, fed what one spin can take in: three episodes' reports."""
+    import types
+
+    from stealth_bringup.episode_tracker import Tracker
+    from stealth_bringup.run_monitor import Monitor
+    from stealth_interfaces.msg import AgentEpisodeInfo, EpisodeSummary
+
+    counted = []
+    monitor = types.SimpleNamespace(
+        frozen=False, late=[], ended={}, last_activity=0.0, tracker=Tracker(budget=budget)
+    )
+    monitor.on_record = counted.append
+    monitor._elapsed = lambda: 1.0
+    monitor._ended = lambda: Monitor._ended(monitor)
+    for episode in range(3):
+        Monitor._on_summary(
+            monitor, EpisodeSummary(episode=episode, outcome=EpisodeSummary.TIMEOUT), {}
+        )
+        Monitor._on_agent_info(monitor, AgentEpisodeInfo(episode=episode))
+    return counted, monitor.late
+
+
+def test_reports_after_the_budget_are_not_the_runs_even_within_one_spin():
+    counted, late = _reports_of_three_fast_episodes_in_one_spin(budget=2)
+    assert [record.episode for record in counted] == [0, 1]
+    assert [summary['episode'] for summary in late] == [2]  # summary.json's not_counted
+    counted, late = _reports_of_three_fast_episodes_in_one_spin(budget=5)
+    assert [record.episode for record in counted] == [0, 1, 2] and late == []
