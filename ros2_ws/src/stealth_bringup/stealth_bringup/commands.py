@@ -22,11 +22,6 @@ COMMANDS = {
         'eval_main',
         'The old name of `stealth rollout` (says so on stderr, then runs it).',
     ),
-    'render': (
-        'stealth_env.render',
-        'main',
-        'Render a scenario (walls, visibility heatmap, cones, goals, paths) to PNG.',
-    ),
     'doctor': (
         'stealth_bringup.doctor',
         'main',

@@ -6,11 +6,11 @@ from stealth_bringup.commands import COMMANDS
 from stealth_tools import cli
 
 
-def test_stealth_finds_train_rollout_eval_render_and_doctor_in_this_order():
+def test_stealth_finds_train_rollout_eval_and_doctor_in_this_order():
     added = cli.added_commands()
-    assert list(added)[:5] == ['train', 'rollout', 'eval', 'render', 'doctor']
+    assert list(added)[:4] == ['train', 'rollout', 'eval', 'doctor']
     assert {name: added[name] for name in COMMANDS} == COMMANDS
-    assert ', plus train, rollout, eval, render, doctor' in cli.build_parser().description
+    assert ', plus train, rollout, eval, doctor' in cli.build_parser().description
 
 
 @pytest.mark.parametrize('command', list(COMMANDS))
@@ -21,7 +21,7 @@ def test_every_added_command_has_help(capsys, command):
         status = exit_.code
     out, _ = capsys.readouterr()
     assert status == 0
-    assert 'usage:' in out or command == 'render'
+    assert 'usage:' in out
 
 
 def test_the_old_name_eval_says_it_is_now_rollout_and_runs_rollout(capsys):

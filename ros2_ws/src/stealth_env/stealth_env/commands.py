@@ -6,6 +6,11 @@ its command runs, so `stealth --help` stays fast.
 """
 
 COMMANDS = {
+    'render': (
+        'stealth_env.render',
+        'main',
+        'Render a scenario (walls, visibility heatmap, cones, goals, paths) to PNG.',
+    ),
     'scenarios': (
         'stealth_env.scenario_commands',
         'main',
