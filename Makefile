@@ -20,12 +20,15 @@ hash_files = $(shell cat $(1) 2>/dev/null | sha256sum | cut -c1-16)
 VENV_INPUTS := requirements.in requirements.lock scripts/fix_ros_wheels.py
 VENV_STAMP := $(STAMPS)/venv-$(call hash_files,$(VENV_INPUTS))
 WS_SOURCES := $(shell find ros2_ws/src -type f -not -path '*/__pycache__/*' -not -name '*.pyc' | LC_ALL=C sort)
-# tf2_msgs has no PyPI wheel: ros2_ws/src/vendor/tf2_msgs builds it, unless an underlay on
-# AMENT_PREFIX_PATH (a sourced /opt/ros/jazzy, say) already has it; then that one is used.
-UNDERLAY_TF2_MSGS := $(firstword $(foreach prefix,$(subst :, ,$(AMENT_PREFIX_PATH)),\
-	$(if $(filter $(WS)/install $(WS)/install/%,$(prefix)),,$(wildcard $(prefix)/share/tf2_msgs))))
-SKIP_PACKAGES := $(if $(UNDERLAY_TF2_MSGS),--packages-skip tf2_msgs)
-BUILD_STAMP := $(STAMPS)/build-$(shell (echo $(VENV_STAMP) $(UNDERLAY_TF2_MSGS); printf '%s\n' $(WS_SOURCES); cat $(WS_SOURCES)) | sha256sum | cut -c1-16)
+# tf2_msgs and nav2_msgs have no PyPI wheel: ros2_ws/src/vendor builds them, unless an underlay
+# on AMENT_PREFIX_PATH (a sourced /opt/ros/jazzy, say) already has one; then that one is used.
+VENDORED := tf2_msgs nav2_msgs
+underlay_of = $(firstword $(foreach prefix,$(subst :, ,$(AMENT_PREFIX_PATH)),\
+	$(if $(filter $(WS)/install $(WS)/install/%,$(prefix)),,$(wildcard $(prefix)/share/$(1)))))
+UNDERLAY_VENDORED := $(foreach pkg,$(VENDORED),$(call underlay_of,$(pkg)))
+SKIPPED_VENDORED := $(notdir $(UNDERLAY_VENDORED))
+SKIP_PACKAGES := $(if $(SKIPPED_VENDORED),--packages-skip $(SKIPPED_VENDORED))
+BUILD_STAMP := $(STAMPS)/build-$(shell (echo $(VENV_STAMP) $(UNDERLAY_VENDORED); printf '%s\n' $(WS_SOURCES); cat $(WS_SOURCES)) | sha256sum | cut -c1-16)
 
 .PHONY: help setup venv build test test-packages test-system lint format clean distclean
 
@@ -63,7 +66,7 @@ build: $(BUILD_STAMP) ## colcon build the workspace (symlink install)
 
 $(BUILD_STAMP): $(VENV_STAMP)
 	@echo "setup: colcon build ros2_ws"
-	@$(if $(UNDERLAY_TF2_MSGS),echo "setup: using $(UNDERLAY_TF2_MSGS) (vendored tf2_msgs skipped)" && rm -rf $(WS)/build/tf2_msgs $(WS)/install/tf2_msgs,true)
+	@$(foreach dir,$(UNDERLAY_VENDORED),echo "setup: using $(dir) (vendored $(notdir $(dir)) skipped)" && rm -rf $(WS)/build/$(notdir $(dir)) $(WS)/install/$(notdir $(dir)) &&) true
 	@cd $(WS) && $(ROS_ENV) && colcon build --symlink-install $(SKIP_PACKAGES) \
 		--event-handlers status- --cmake-args -DBUILD_TESTING=OFF -Wno-dev
 	@# The simulator's compiled move: numba compiles it once per machine into its cache, here
