@@ -23,6 +23,7 @@ LAYERS = (
     'stealth_sim',
     'stealth_env',
     'stealth_agent',
+    'stealth_nav2',
     'stealth_tools',
     'stealth_bringup',
     'stealth_experiments',
@@ -33,6 +34,15 @@ MAY_IMPORT = {
     'stealth_sim': {'stealth_interfaces', 'stealth_node_kit'},
     'stealth_env': {'stealth_interfaces', 'stealth_node_kit', 'stealth_sim'},
     'stealth_agent': {'stealth_interfaces', 'stealth_node_kit'},
+    # Nav2's interfaces over the environment's core (planners, light model) and the agent's
+    # policies (the learned policy as a planner id).
+    'stealth_nav2': {
+        'stealth_interfaces',
+        'stealth_node_kit',
+        'stealth_sim',
+        'stealth_env',
+        'stealth_agent',
+    },
     'stealth_tools': {'stealth_interfaces', 'stealth_node_kit'},
     'stealth_bringup': set(LAYERS) - {'stealth_bringup', 'stealth_experiments'},
     'stealth_experiments': {'stealth_env', 'stealth_agent', 'stealth_tools', 'stealth_bringup'},

@@ -1,0 +1,1 @@
+"""stealth-nav behind Nav2's own interfaces (planner server, navigator, exposure mask)."""
