@@ -19,7 +19,7 @@ settles which way it turns at the stamp).
     scene = scene_from_scenario('lgfloor')          # SceneError: one line naming the problem
     source = SceneSource()                           # or SceneSource(scene) for a fixed scene
     source.update_map(grid_msg); source.update_lights(lights_msg)
-    scene = source.current()                         # SceneMissing names what has not arrived
+    scene = source.current()                         # SceneMissingError names what has not arrived
     scene.blocked, scene.resolution, scene.origin, scene.lights, scene.identity()
 """
 
@@ -46,7 +46,7 @@ class SceneError(ValueError):
     """A scene that cannot be used; the message names the file or message and the field."""
 
 
-class SceneMissing(SceneError):
+class SceneMissingError(SceneError):
     """Part of the scene has not arrived yet; ``missing`` names the parts ('map', 'lights')."""
 
     def __init__(self, missing: tuple[str, ...], message: str):
@@ -188,6 +188,8 @@ def _light_at_zero(light, t: float) -> Searchlight:
             # back; at t = 0 the wave is on its ccw half (a Searchlight starts turning ccw).
             for along in (offset, 2 * span - offset):
                 back = (along - motion.angular_speed * t) % (2 * span)
+                if back >= 2 * span * (1 - 1e-12):  # just below a whole lap: rounding
+                    back = 0.0
                 if back <= span * (1 + 1e-9):
                     break
             fields['direction'] = motion.min_direction + min(back, span)
@@ -214,7 +216,7 @@ class SceneSource:
     """The current scene: fixed (from a scenario file) or the latest map and lights messages.
 
     ``current()`` gives the scene, built again only when a message changed it, or raises
-    ``SceneMissing`` naming what has not arrived; a bad message raises SceneError from
+    ``SceneMissingError`` naming what has not arrived; a bad message raises SceneError from
     ``update_*`` and leaves the previous scene in place.
     """
 
@@ -250,7 +252,7 @@ class SceneSource:
                 ('lights', f'nothing on {self.lights_topic} (stealth_interfaces/SearchlightArray)')
             )
         if missing:
-            raise SceneMissing(
+            raise SceneMissingError(
                 tuple(name for name, _ in missing),
                 f'no scene yet: {"; ".join(text for _, text in missing)}; publish it (the '
                 'environment node does) or start with -p scenario:=<scenario.yaml>',

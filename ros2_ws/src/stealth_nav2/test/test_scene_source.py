@@ -7,18 +7,17 @@ import numpy as np
 import pytest
 from stealth_env.env_messages import searchlight_array_msg
 from stealth_env.scenario import content_identity, load_scenario
-from stealth_node_kit.conversions import time_msg, yaw_quaternion
-from stealth_sim.occupancy_map import to_occupancy_grid_data
-
 from stealth_nav2.scene_source import (
     SceneError,
-    SceneMissing,
+    SceneMissingError,
     SceneSource,
     lights_from_message,
     map_from_message,
     scene_from_messages,
     scene_from_scenario,
 )
+from stealth_node_kit.conversions import yaw_quaternion
+from stealth_sim.occupancy_map import to_occupancy_grid_data
 
 
 def grid_message(occupancy, frame='map', yaw=0.0) -> OccupancyGrid:
@@ -102,12 +101,12 @@ def test_a_bad_light_is_named():
 def test_source_names_what_is_missing_then_gives_the_scene():
     scenario = load_scenario('simple-maze')
     source = SceneSource(map_topic='/map', lights_topic='searchlights')
-    with pytest.raises(SceneMissing) as caught:
+    with pytest.raises(SceneMissingError) as caught:
         source.current()
     assert caught.value.missing == ('map', 'lights')
     assert '/map' in str(caught.value) and 'searchlights' in str(caught.value)
     source.update_map(grid_message(scenario.map))
-    with pytest.raises(SceneMissing) as caught:
+    with pytest.raises(SceneMissingError) as caught:
         source.current()
     assert caught.value.missing == ('lights',)
     source.update_lights(searchlight_array_msg(scenario.lights, 0.0))
