@@ -58,8 +58,9 @@ from stealth_node_kit.qos import kept_qos
 from stealth_node_kit.running import StartupNode, run_node
 from tf2_msgs.msg import TFMessage
 
-from stealth_nav2.covert_planning import CovertPlanner, PlanError, Pose, densify
+from stealth_nav2.covert_planning import CovertPlanner, Pose, densify
 from stealth_nav2.frame_tree import FrameError, FrameTree
+from stealth_nav2.plan_errors import PlanError
 from stealth_nav2.planner_parameters import PARAMETERS, task_numbers
 from stealth_nav2.policy_behaviour import read_policy
 from stealth_nav2.scene_source import SceneError, SceneSource, scene_from_scenario

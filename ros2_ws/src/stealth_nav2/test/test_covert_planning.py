@@ -12,12 +12,12 @@ from stealth_env.scenario import load_scenario
 from stealth_env.task import StealthTask
 from stealth_nav2.covert_planning import (
     CovertPlanner,
-    PlanError,
     Pose,
     TaskNumbers,
     densify,
     scenario_of,
 )
+from stealth_nav2.plan_errors import PlanError
 from stealth_nav2.scene_source import Scene, scene_from_scenario
 
 
@@ -216,7 +216,8 @@ def test_a_scene_without_a_scenario_plans_with_the_task_numbers():
     scenario = load_scenario('simple-maze')
     scene = Scene(map=scenario.map, lights=scenario.lights, source='topics')
     numbers = TaskNumbers(robot_radius=scenario.robot_radius, step_limit=300)
-    built = scenario_of(scene, numbers)
+    built = scenario_of(scene, numbers, scenario.start[:2])
+    assert built.start[:2] == scenario.start[:2]
     assert built.step_limit == 300 and built.lights == scenario.lights
     plan = CovertPlanner(numbers).plan(
         scene,
