@@ -1,0 +1,126 @@
+"""Benchmark: planning time per request of the covert planner server's core
+(``stealth_nav2.covert_planning``), against the harness's way to the same optimum.
+
+Per scenario: the scene's lattice model is built once (the server does it at start-up:
+reported apart, as 'scene'); then each goal is asked for from the scenario's start: the first
+request for a goal is *cold* (value iteration for that goal, then following it), every later
+one *warm* (the goal's policy cached: following it only), at several times of the lights'
+cycle where they move. The goals: the scenario's three and up to five other lattice nodes
+(seeded), whatever the answer (a NO_VALID_PATH costs the same planning). The baseline, in the
+same process: ``stealth_env.planners.optimal_path`` (the lattice model and value iteration from
+scratch for one goal, as the harness and the environment's planned path compute it).
+Targets (issue 28): <= 100 ms a request on static lgfloor, <= 1 s where lights move.
+Run: source scripts/ros_env.sh && python bench/bench_nav2_planner.py
+"""
+
+from __future__ import annotations
+
+import os
+import statistics
+import time
+
+import numpy as np
+from stealth_env.planners import optimal_path
+from stealth_nav2.covert_planning import CovertPlanner, Pose
+from stealth_nav2.plan_errors import PlanError
+from stealth_nav2.scene_source import scene_from_scenario
+
+SCENES = (('lgfloor', 0.1), ('lgfloor-moving', 1.0), ('simple-maze-moving', 1.0))
+EXTRA_GOALS = 5
+WARM_REPEATS = 5
+TIMES = (0.0, 5.5, 13.0)  # s of the lights' clock: other start bins where lights move
+
+
+def _goals(scene, planner) -> list[Pose]:
+    goals = [Pose(goal.x, goal.y) for goal in scene.scenario.goals.values()]
+    points = planner._setting.model.points[: len(planner._setting.model.nodes)]
+    rng = np.random.default_rng(0)
+    for i in rng.choice(len(points), min(EXTRA_GOALS, len(points)), replace=False):
+        goals.append(Pose(*map(float, points[i])))
+    return goals
+
+
+def _request(planner, scene, start, goal, t) -> tuple[float, bool]:
+    started = time.perf_counter()
+    try:
+        planner.plan(scene, start, goal, t=t)
+        found = True
+    except PlanError:
+        found = False
+    return time.perf_counter() - started, found
+
+
+def bench_scene(name: str, target: float, report) -> dict:
+    scene = scene_from_scenario(name)
+    planner = CovertPlanner()
+    started = time.perf_counter()
+    planner.prepare(scene)
+    scene_seconds = time.perf_counter() - started
+    start = Pose(*scene.scenario.start)
+    goals = _goals(scene, planner)
+    times = TIMES if scene.has_moving_lights else (0.0,)
+    cold, warm, found = [], [], 0
+    for goal in goals:
+        seconds, ok = _request(planner, scene, start, goal, 0.0)
+        cold.append(seconds)
+        found += ok
+        for _ in range(WARM_REPEATS):
+            for t in times:
+                warm.append(_request(planner, scene, start, goal, t)[0])
+    baseline = min(_timed(lambda: optimal_path(scene.scenario, 'hard')) for _ in range(2))
+    cold_median, warm_median = statistics.median(cold), statistics.median(warm)
+    report(
+        f'{name} ({len(planner._setting.model.nodes)} nodes, {planner._setting.model.size} '
+        f'places; {len(goals)} goals, {found} with a covert path):'
+    )
+    report(f'  scene (lattice model, once at start-up): {scene_seconds * 1e3:.0f} ms')
+    report(
+        f'  cold request (a new goal): median {cold_median * 1e3:.1f} ms, max '
+        f'{max(cold) * 1e3:.1f} ms'
+    )
+    report(
+        f'  warm request (a cached goal, {len(warm)} requests): median '
+        f'{warm_median * 1e3:.2f} ms, max {max(warm) * 1e3:.2f} ms'
+    )
+    report(
+        f'  baseline optimal_path (model + value iteration): {baseline * 1e3:.0f} ms; '
+        f'speed-up cold {baseline / cold_median:.1f}x, warm {baseline / warm_median:.0f}x '
+        f'(target <= {target * 1e3:.0f} ms a request: cold '
+        f'{"met" if max(cold) <= target else "MISSED"}, warm '
+        f'{"met" if max(warm) <= target else "MISSED"})'
+    )
+    key = name.replace('-', '_')
+    return {
+        f'{key}_scene_ms': round(scene_seconds * 1e3, 1),
+        f'{key}_cold_median_ms': round(cold_median * 1e3, 2),
+        f'{key}_cold_max_ms': round(max(cold) * 1e3, 2),
+        f'{key}_warm_median_ms': round(warm_median * 1e3, 3),
+        f'{key}_warm_max_ms': round(max(warm) * 1e3, 3),
+        f'{key}_baseline_ms': round(baseline * 1e3, 1),
+        f'{key}_cold_speedup': round(baseline / cold_median, 2),
+        f'{key}_warm_speedup': round(baseline / warm_median, 1),
+        f'{key}_target_met': bool(max(cold) <= target and max(warm) <= target),
+    }
+
+
+def _timed(call) -> float:
+    started = time.perf_counter()
+    call()
+    return time.perf_counter() - started
+
+
+def run(report=print) -> dict:
+    load = os.getloadavg()
+    report(f'load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} (a shared machine)')
+    figures = {'load_average_1min': round(load[0], 2)}
+    for name, target in SCENES:
+        figures.update(bench_scene(name, target, report))
+    return figures
+
+
+def main() -> None:
+    run()
+
+
+if __name__ == '__main__':
+    main()
