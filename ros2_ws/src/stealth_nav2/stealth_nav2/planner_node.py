@@ -177,6 +177,8 @@ class PlannerServer(StartupNode):
         planner_id = request.planner_id
         goals = list(request.goals) if through else [request.goal]
         try:
+            if not goals:  # Nav2 says so before it looks for the start
+                raise PlanError('NO_VIAPOINTS_GIVEN', 'no goals given: expected at least one pose')
             scene = self._scene()
             start = self._start(request, scene.frame_id)
             targets = [self._in_frame(goal, scene.frame_id, 'goal') for goal in goals]
