@@ -4,9 +4,10 @@ A request (start, goal, planner id, the lights' time) becomes a path of lattice 
 with the time to be there, or a ``PlanError`` carrying Nav2's error name
 (``nav2_msgs/action/ComputePathToPose`` result codes) and one line saying why. Planner ids:
 
-- ``covert`` (the default, ''): value iteration's optimum (``stealth_env.planners``) on the
-  time-expanded lattice where lights move, followed greedily from the start's place (node, bin
-  of the lights' cycle, heading where lights weigh exposure): the path ``optimal_path`` gives.
+- ``covert`` (the default: '' and Nav2's default id ``GridBased`` too): value iteration's
+  optimum (``stealth_env.planners``) on the time-expanded lattice where lights move, followed
+  greedily from the start's place (node, bin of the lights' cycle, heading where lights weigh
+  exposure): the path ``optimal_path`` gives.
 - ``dark_path``: Dark Path (A* with a light cost, never entering a seen step), time-aware.
 - ``astar``: the shortest path, blind to the lights.
 - ``policy``: the greedy actions of a tabular policy saved by ``stealth train``
@@ -59,6 +60,9 @@ from stealth_nav2.scene_source import Scene
 
 PLANNER_IDS = ('covert', 'dark_path', 'astar', 'policy')
 DEFAULT_PLANNER = PLANNER_IDS[0]
+# Nav2's default planner id (nav2_params.yaml's planner_plugins, the default behaviour trees'
+# PlannerSelector): an unchanged Nav2 setup asks for it, and gets the covert optimum.
+PLANNER_ALIASES = {'': DEFAULT_PLANNER, 'GridBased': DEFAULT_PLANNER}
 _SAME_POINT = 1e-6  # m: a request goal this close to a scenario goal is that goal
 
 
@@ -152,11 +156,12 @@ class CovertPlanner:
     ) -> Plan:
         """A path through the goals in order, each leg starting where the last ended (the
         same node, time and heading), as Nav2's planner server joins its legs."""
-        planner_id = planner_id or DEFAULT_PLANNER
+        planner_id = PLANNER_ALIASES.get(planner_id, planner_id)
         if planner_id not in PLANNER_IDS:
             raise PlanError(
                 'INVALID_PLANNER',
-                f'planner id {planner_id!r} is invalid; planner ids are: {" ".join(PLANNER_IDS)}',
+                f'planner id {planner_id!r} is invalid; planner ids are: {" ".join(PLANNER_IDS)}'
+                " (and GridBased, Nav2's default, for covert)",
             )
         if not goals:
             raise PlanError('NO_VIAPOINTS_GIVEN', 'no goals given: expected at least one pose')

@@ -26,6 +26,7 @@ settles which way it turns at the stamp).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import json
 import math
@@ -97,9 +98,10 @@ class Scene:
         (what saved policies carry): equal identities, equal scenes."""
         return content_identity(self)
 
-    @property
+    @functools.cached_property
     def key(self) -> tuple[str, str]:
-        """(grid_sha256, lights_sha256): a cache key that changes with the content."""
+        """(grid_sha256, lights_sha256): a cache key that changes with the content (hashed
+        once: a scene is never changed)."""
         identity = self.identity()
         return identity['grid_sha256'], identity['lights_sha256']
 

@@ -184,9 +184,17 @@ def test_astar_refuses_its_seen_path(lgfloor, planner):
 def test_unknown_planner_id(lgfloor, planner):
     error = error_of(lambda: planner.plan(lgfloor, start_pose(lgfloor), goal_pose(lgfloor), 'x'))
     assert error.code == 'INVALID_PLANNER'
-    assert (
-        str(error) == "planner id 'x' is invalid; planner ids are: covert dark_path astar policy"
+    assert str(error) == (
+        "planner id 'x' is invalid; planner ids are: covert dark_path astar policy (and "
+        "GridBased, Nav2's default, for covert)"
     )
+
+
+@pytest.mark.parametrize('planner_id', ['', 'GridBased'])
+def test_the_default_ids_are_the_covert_optimum(lgfloor, planner, planner_id):
+    plan = planner.plan(lgfloor, start_pose(lgfloor), goal_pose(lgfloor), planner_id)
+    covert = planner.plan(lgfloor, start_pose(lgfloor), goal_pose(lgfloor), 'covert')
+    assert plan.planner_id == 'covert' and np.array_equal(plan.poses, covert.poses)
 
 
 def test_no_goals(lgfloor, planner):
