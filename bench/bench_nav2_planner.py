@@ -33,7 +33,7 @@ TIMES = (0.0, 5.5, 13.0)  # s of the lights' clock: other start bins where light
 
 def _goals(scene, planner) -> list[Pose]:
     goals = [Pose(goal.x, goal.y) for goal in scene.scenario.goals.values()]
-    points = planner._setting.model.points[: len(planner._setting.model.nodes)]
+    points = planner.model.points[: len(planner.model.nodes)]
     rng = np.random.default_rng(0)
     for i in rng.choice(len(points), min(EXTRA_GOALS, len(points)), replace=False):
         goals.append(Pose(*map(float, points[i])))
@@ -70,7 +70,7 @@ def bench_scene(name: str, target: float, report) -> dict:
     baseline = min(_timed(lambda: optimal_path(scene.scenario, 'hard')) for _ in range(2))
     cold_median, warm_median = statistics.median(cold), statistics.median(warm)
     report(
-        f'{name} ({len(planner._setting.model.nodes)} nodes, {planner._setting.model.size} '
+        f'{name} ({len(planner.model.nodes)} nodes, {planner.model.size} '
         f'places; {len(goals)} goals, {found} with a covert path):'
     )
     report(f'  scene (lattice model, once at start-up): {scene_seconds * 1e3:.0f} ms')

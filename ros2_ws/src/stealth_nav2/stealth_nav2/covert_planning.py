@@ -182,6 +182,11 @@ class CovertPlanner:
 
     # --- the scene ------------------------------------------------------------------------
 
+    @property
+    def model(self) -> LatticeModel | None:
+        """The current scene's lattice model (None before the first scene)."""
+        return None if self._setting is None else self._setting.model
+
     def prepare(self, scene: Scene, start: Pose | None = None) -> None:
         """Build the scene's lattice model now (the slow part of a first request); a scene
         from topics needs the start its lattice is anchored at."""
