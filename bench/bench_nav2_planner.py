@@ -10,6 +10,10 @@ cycle where they move. The goals: the scenario's three and up to five other latt
 same process: ``stealth_env.planners.optimal_path`` (the lattice model and value iteration from
 scratch for one goal, as the harness and the environment's planned path compute it).
 Targets (issue 28): <= 100 ms a request on static lgfloor, <= 1 s where lights move.
+
+Then what a Nav2 client sees: ComputePathToPose round trips (send the goal, get the result,
+as nav2_simple_commander's getPath) to a planner_server node in this process on a private
+ROS domain, lgfloor's hard goal (warm), against the core's own time for the same request.
 Run: source scripts/ros_env.sh && python bench/bench_nav2_planner.py
 """
 
@@ -28,6 +32,7 @@ from stealth_nav2.scene_source import scene_from_scenario
 SCENES = (('lgfloor', 0.1), ('lgfloor-moving', 1.0), ('simple-maze-moving', 1.0))
 EXTRA_GOALS = 5
 WARM_REPEATS = 5
+ACTION_TRIPS = 50
 TIMES = (0.0, 5.5, 13.0)  # s of the lights' clock: other start bins where lights move
 
 
@@ -109,12 +114,84 @@ def _timed(call) -> float:
     return time.perf_counter() - started
 
 
+def bench_action(report) -> dict:
+    """Round trips of ComputePathToPose to a planner_server in this process (see the module)."""
+    from nav2_msgs.action import ComputePathToPose
+    import rclpy
+    from rclpy.action import ActionClient
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+    from stealth_bringup.ros_domain import reserved_domain_id
+    from stealth_nav2.planner_node import PlannerServer
+
+    scene = scene_from_scenario('lgfloor')
+    goal_point = scene.scenario.goals['hard']
+    request = ComputePathToPose.Goal(use_start=True)
+    request.start.header.frame_id = request.goal.header.frame_id = 'map'
+    request.start.pose.position.x, request.start.pose.position.y = scene.scenario.start[:2]
+    request.goal.pose.position.x, request.goal.pose.position.y = goal_point.x, goal_point.y
+    with reserved_domain_id() as domain:
+        context = rclpy.Context()
+        rclpy.init(context=context, domain_id=domain)
+        try:
+            server = PlannerServer(
+                context=context, parameter_overrides=[Parameter('scenario', value='lgfloor')]
+            )
+            client_node = rclpy.create_node('bench_planner_client', context=context)
+            executor = SingleThreadedExecutor(context=context)
+            for node in (server, client_node):
+                executor.add_node(node)
+            client = ActionClient(client_node, ComputePathToPose, 'compute_path_to_pose')
+
+            def spin_until(future):
+                while not future.done():
+                    executor.spin_once(timeout_sec=1.0)
+                return future.result()
+
+            def round_trip() -> float:
+                started = time.perf_counter()
+                handle = spin_until(client.send_goal_async(request))
+                spin_until(handle.get_result_async())
+                return time.perf_counter() - started
+
+            while not client.server_is_ready():
+                executor.spin_once(timeout_sec=0.1)
+            round_trip()  # the goal's values, cached
+            trips = [round_trip() for _ in range(ACTION_TRIPS)]
+            core = [
+                _request(server.planner, scene, Pose(*scene.scenario.start), Pose(
+                    goal_point.x, goal_point.y), 0.0)[0]
+                for _ in range(ACTION_TRIPS)
+            ]  # fmt: skip
+            client.destroy()
+            executor.shutdown()
+            client_node.destroy_node()
+            server.destroy_node()
+        finally:
+            context.try_shutdown()
+    trip, own = statistics.median(trips), statistics.median(core)
+    report(
+        f'lgfloor hard goal over the action (warm, {ACTION_TRIPS} round trips): median '
+        f'{trip * 1e3:.1f} ms, max {max(trips) * 1e3:.1f} ms; the core alone {own * 1e3:.2f} ms '
+        f'(the action costs {trip / own:.0f}x the planning)'
+    )
+    return {
+        'action_round_trip_median_ms': round(trip * 1e3, 2),
+        'action_round_trip_max_ms': round(max(trips) * 1e3, 2),
+        'action_over_core_ratio': round(trip / own, 1),
+    }
+
+
 def run(report=print) -> dict:
     load = os.getloadavg()
     report(f'load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} (a shared machine)')
     figures = {'load_average_1min': round(load[0], 2)}
     for name, target in SCENES:
         figures.update(bench_scene(name, target, report))
+    try:
+        figures.update(bench_action(report))
+    except ImportError as error:  # no ROS environment: the core's figures stand alone
+        report(f'action round trips skipped: needs {error.name}, which is not importable')
     return figures
 
 
