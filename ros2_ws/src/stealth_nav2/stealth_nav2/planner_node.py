@@ -6,8 +6,16 @@
 
 It answers as Nav2's ``nav2_planner/planner_server`` does (same node name, actions, result
 codes and path), so bt_navigator or nav2_simple_commander's ``getPath`` /
-``getPathThroughPoses`` call it unchanged; planner ids: covert (default), dark_path, astar,
-policy.
+``getPathThroughPoses`` call it unchanged; planner ids: covert (the default: '' and Nav2's
+default id GridBased too), dark_path, astar, policy.
+
+## Topics
+
+* subscribes ``map`` (nav_msgs/OccupancyGrid, transient local) and ``searchlights``
+  (stealth_interfaces/SearchlightArray, transient local) when no scenario is given;
+  ``amcl_pose`` (geometry_msgs/PoseWithCovarianceStamped, transient local, as AMCL); ``/tf``
+  (tf2_msgs/TFMessage, as tf2_ros's listener).
+* publishes ``plan`` (nav_msgs/Path, depth 1, as Nav2's planner server): each path found.
 
 ## Actions
 
@@ -17,14 +25,6 @@ policy.
   carried into it over /tf (an empty frame is the map's). Success: the path, ``planning_time``
   (wall time). Failure: aborted with Nav2's ``error_code`` and an ``error_msg`` naming the
   reason (the same line is logged as a warning). Cancelled before planning: canceled.
-
-## Topics
-
-* subscribes ``map`` (nav_msgs/OccupancyGrid, transient local) and ``searchlights``
-  (stealth_interfaces/SearchlightArray, transient local) when no scenario is given;
-  ``amcl_pose`` (geometry_msgs/PoseWithCovarianceStamped, transient local, as AMCL); ``/tf``
-  (tf2_msgs/TFMessage, as tf2_ros's listener).
-* publishes ``plan`` (nav_msgs/Path, depth 1, as Nav2's planner server): each path found.
 
 ## Parameters
 
@@ -114,7 +114,7 @@ class PlannerServer(StartupNode):
             self.get_logger().info(
                 f'scene: {scene.source}, lattice model built in '
                 f'{time.perf_counter() - started:.2f} s; planner ids: covert (default), '
-                'dark_path, astar, policy'
+                'dark_path, astar, policy (GridBased: covert)'
             )
         else:
             self.get_logger().info(
