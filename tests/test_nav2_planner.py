@@ -20,7 +20,9 @@ from stealth_env.planners import LatticeModel, optimal_path
 from stealth_env.scenario import load_scenario
 from stealth_env.task import StealthTask
 from stealth_interfaces.msg import SearchlightArray
-from stealth_node_kit.conversions import quaternion_yaw, yaw_quaternion
+from stealth_nav2.covert_planning import CovertPlanner, Pose
+from stealth_nav2.scene_source import scene_from_scenario
+from stealth_node_kit.conversions import quaternion_yaw, seconds, yaw_quaternion
 from stealth_sim.occupancy_map import to_occupancy_grid_data
 from tf2_msgs.msg import TFMessage
 
@@ -220,6 +222,27 @@ def test_lgfloor_hard_goal_is_the_optimum_and_every_error_is_named(client, node_
     client.set_parameter('max_planning_time', 1e-6)
     message = failure(client.get_path(start, stamped(medium.x + 0.5, medium.y)), TO_POSE.TIMEOUT)
     assert 'more than max_planning_time' in message
+
+
+def test_moving_lights_stamp_each_pose_with_when_to_be_there(client, node_processes):
+    """lgfloor-moving: the path from the request's time on the node's clock (less
+    lights_time_offset) is the core's time-aware optimum from that time; pose k is stamped
+    with the request's time plus the wait for the next bin of the lights' cycle plus k steps."""
+    scene = scene_from_scenario('lgfloor-moving')
+    scenario = scene.scenario
+    process = start_planner(node_processes, scenario='lgfloor-moving', lights_time_offset=1000.0)
+    client.wait_for_server(process)
+    hard = scenario.goals['hard']
+    status, result = client.get_path(stamped(*scenario.start), stamped(hard.x, hard.y))
+    assert status == GoalStatus.STATUS_SUCCEEDED, result.error_msg
+    asked = seconds(result.path.header.stamp)
+    stamps = np.array([seconds(p.header.stamp) for p in result.path.poses])
+    t = asked - 1000.0
+    expected = CovertPlanner().plan(scene, Pose(*scenario.start), Pose(hard.x, hard.y), t=t)
+    path = np.array([(p.pose.position.x, p.pose.position.y) for p in result.path.poses])
+    assert np.array_equal(path, expected.poses[:, :2])
+    assert np.allclose(stamps - asked, expected.times, atol=1e-6)
+    assert np.allclose(np.diff(stamps), scenario.timing.step_seconds, atol=1e-6)
 
 
 def test_scene_from_the_map_and_the_lights_topics(client, node_processes):
