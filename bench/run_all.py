@@ -33,6 +33,7 @@ PACKAGES = (
     'stealth_sim',
     'stealth_env',
     'stealth_agent',
+    'stealth_nav2',
     'stealth_bringup',
     'stealth_experiments',
 )
