@@ -1,0 +1,156 @@
+"""System tests of stealth_nav2's exposure_mask node, started with `stealth run` on a private
+domain: the CostmapFilterInfo Nav2's keepout filter reads, the mask's QoS (a subscriber that
+comes late still gets both), its geometry and values, and, on simulated time driven by the
+test's own /clock, a moving scenario's masks following the lights at the clock's time."""
+
+import time
+
+from nav2_msgs.msg import CostmapFilterInfo
+from nav_msgs.msg import OccupancyGrid
+import numpy as np
+import pytest
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from ros_support import REPO_ROOT, SpinningNode
+from rosgraph_msgs.msg import Clock
+from stealth_env.scenario import load_scenario
+from stealth_nav2.exposure_mask import LETHAL, ExposureMask
+from stealth_node_kit.conversions import seconds, time_msg
+
+STEALTH = str(REPO_ROOT / 'ros2_ws/install/stealth_tools/lib/stealth_tools/stealth')
+LATCHED = QoSProfile(
+    depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+)
+STARTED = 'exposure mask of scenario'  # the node's startup line, logged after publishing
+
+
+class MaskClient(SpinningNode):
+    """The costmap's side: the filter info and the mask, subscribed as KeepoutFilter does."""
+
+    def __init__(self, context):
+        super().__init__('mask_test_client', context)
+        self.infos: list[CostmapFilterInfo] = []
+        self.masks: list[OccupancyGrid] = []
+        self.clock = self.node.create_publisher(Clock, '/clock', 10)
+
+    def subscribe(self, mask_topic: str = '/exposure_mask') -> None:
+        self.node.create_subscription(
+            CostmapFilterInfo, '/costmap_filter_info', self.infos.append, LATCHED
+        )
+        self.node.create_subscription(OccupancyGrid, mask_topic, self.masks.append, LATCHED)
+
+    def publish_clock(self, t: float) -> None:
+        self.clock.publish(Clock(clock=time_msg(t)))
+
+
+@pytest.fixture
+def client(node_processes, ros_context):
+    """Set up after (so torn down before) node_processes, which checks for leftovers."""
+    mask_client = MaskClient(ros_context)
+    yield mask_client
+    mask_client.close()
+
+
+def start_mask(node_processes, scenario: str, *params: str):
+    args = [STEALTH, 'run', 'stealth_nav2', 'exposure_mask', '--ros-args']
+    args += ['-p', f'scenario:={scenario}']
+    for param in params:
+        args += ['-p', param]
+    return node_processes.start(
+        args, 'exposure_mask', extra_env={'RCUTILS_LOGGING_BUFFERED_STREAM': '0'}
+    )
+
+
+def wait_for_log(process, text: str, timeout: float = 60.0) -> str:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        output = process.log_path.read_text()
+        if text in output:
+            return output
+        if process.poll() is not None:
+            pytest.fail(f'{process.args} exited early:\n{output}')
+        time.sleep(0.05)
+    pytest.fail(f'no {text!r} within {timeout} s:\n{process.log_path.read_text()}')
+
+
+def latest_stamp(client: MaskClient) -> float:
+    return seconds(client.masks[-1].header.stamp)
+
+
+def values_of(mask: OccupancyGrid) -> np.ndarray:
+    return np.asarray(mask.data, dtype=np.int8).reshape(mask.info.height, mask.info.width)
+
+
+def test_static_scenario_latches_the_filter_info_and_the_mask(client, node_processes):
+    process = start_mask(node_processes, 'simple-maze')
+    wait_for_log(process, STARTED)
+    client.subscribe()  # late: both were published before this subscriber existed
+    assert client.spin_until(lambda: client.infos and client.masks, 30.0), (
+        process.log_path.read_text()
+    )
+    info = client.infos[-1]
+    assert info.type == 0  # keepout
+    assert info.filter_mask_topic == '/exposure_mask'
+    assert (info.base, info.multiplier) == (0.0, 1.0)
+
+    publishers = client.node.get_publishers_info_by_topic('/exposure_mask')
+    assert len(publishers) == 1
+    qos = publishers[0].qos_profile
+    assert qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
+    assert qos.reliability == ReliabilityPolicy.RELIABLE
+
+    scenario = load_scenario('simple-maze')
+    occupancy, mask = scenario.map, client.masks[-1]
+    assert mask.header.frame_id == 'map'
+    assert (mask.info.width, mask.info.height) == (occupancy.width, occupancy.height)
+    assert mask.info.resolution == pytest.approx(occupancy.resolution)
+    origin = mask.info.origin.position
+    assert (origin.x, origin.y) == pytest.approx(occupancy.origin[:2])
+    expected = ExposureMask.of_scenario(scenario).at(0.0)
+    assert np.array_equal(values_of(mask), expected)
+    assert np.count_nonzero(expected == LETHAL) > 0
+
+    client.spin_for(1.5)  # static lights: nothing more is sent
+    assert len(client.masks) == 1
+
+
+def test_moving_scenario_follows_the_lights_on_simulated_time(client, node_processes):
+    process = start_mask(
+        node_processes, 'simple-maze-moving', 'use_sim_time:=true', 'update_rate:=10.0'
+    )
+    wait_for_log(process, STARTED)
+    client.subscribe()
+    assert client.spin_until(lambda: client.masks, 30.0), process.log_path.read_text()
+    assert seconds(client.masks[0].header.stamp) == 0.0  # no /clock yet: simulated time 0
+
+    end, step = 3.0, 0.05
+    for k in range(1, round(end / step) + 1):  # 3 s of simulated time, at its own pace
+        t = k * step
+        client.publish_clock(t)
+        if k % 2 == 0:  # every timer period: wait for the mask of this time
+            assert client.spin_until(lambda t=t: latest_stamp(client) >= t - 1e-6, 20.0), (
+                t,
+                process.log_path.read_text(),
+            )
+        else:
+            client.spin_for(0.01)
+
+    stamps = [seconds(mask.header.stamp) for mask in client.masks]
+    assert stamps == sorted(stamps)
+    assert len(client.masks) >= 5 * end  # >= 5 Hz of simulated time, each one different
+    scenario = load_scenario('simple-maze-moving')
+    model = ExposureMask.of_scenario(scenario)
+    for before, after in zip(client.masks, client.masks[1:], strict=False):
+        assert not np.array_equal(values_of(before), values_of(after))
+    for mask in client.masks[-3:]:  # each the lights at its stamp, the node's clock time
+        assert np.array_equal(values_of(mask), model.at(seconds(mask.header.stamp)))
+
+
+def test_a_missing_scenario_stops_the_node_with_one_line(node_processes):
+    process = node_processes.start(
+        [STEALTH, 'run', 'stealth_nav2', 'exposure_mask', '--ros-args', '-p', 'scenario:=nope'],
+        'exposure_mask_bad',
+    )
+    assert process.wait(60) != 0
+    output = process.log_path.read_text()
+    assert "parameter scenario: scenario 'nope': not found" in output
+    assert 'Traceback' not in output
