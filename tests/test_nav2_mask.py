@@ -10,11 +10,16 @@ from nav_msgs.msg import OccupancyGrid
 import numpy as np
 import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message, serialize_message
 from ros_support import REPO_ROOT, SpinningNode
 from rosgraph_msgs.msg import Clock
+from stealth_env.env_messages import searchlight_array_msg
 from stealth_env.scenario import load_scenario
+from stealth_interfaces.msg import SearchlightArray
 from stealth_nav2.exposure_mask import LETHAL, ExposureMask
+from stealth_nav2.scene_source import scene_from_messages
 from stealth_node_kit.conversions import seconds, time_msg
+from stealth_sim.sim_messages import occupancy_grid
 
 STEALTH = str(REPO_ROOT / 'ros2_ws/install/stealth_tools/lib/stealth_tools/stealth')
 LATCHED = QoSProfile(
@@ -51,8 +56,10 @@ def client(node_processes, ros_context):
 
 
 def start_mask(node_processes, scenario: str, *params: str):
+    """`stealth run` of the node on the scenario ('': none, the scene from topics)."""
     args = [STEALTH, 'run', 'stealth_nav2', 'exposure_mask', '--ros-args']
-    args += ['-p', f'scenario:={scenario}']
+    if scenario:
+        args += ['-p', f'scenario:={scenario}']
     for param in params:
         args += ['-p', param]
     return node_processes.start(
@@ -143,6 +150,44 @@ def test_moving_scenario_follows_the_lights_on_simulated_time(client, node_proce
         assert not np.array_equal(values_of(before), values_of(after))
     for mask in client.masks[-3:]:  # each the lights at its stamp, the node's clock time
         assert np.array_equal(values_of(mask), model.at(seconds(mask.header.stamp)))
+
+
+def test_scene_from_the_map_and_searchlights_topics(client, node_processes):
+    """No scenario: the mask of the latest map and lights, built again when the lights change;
+    a message that cannot be used is dropped with a line naming the topic."""
+    process = start_mask(node_processes, '', 'detection_threshold:=0.3')
+    wait_for_log(process, 'waiting for the scene on /map and /searchlights')
+    scenario = load_scenario('simple-maze')
+    map_publisher = client.node.create_publisher(OccupancyGrid, '/map', LATCHED)
+    lights_publisher = client.node.create_publisher(SearchlightArray, '/searchlights', LATCHED)
+    grid = occupancy_grid(scenario.map)
+    map_publisher.publish(grid)
+    lights_msg = searchlight_array_msg(scenario.lights, 0.0)
+    lights_publisher.publish(lights_msg)
+    client.subscribe()
+    assert client.spin_until(lambda: client.masks, 30.0), process.log_path.read_text()
+    expected = mask_of(grid, lights_msg, 0.3)
+    assert np.array_equal(values_of(client.masks[-1]), expected)
+
+    bad = searchlight_array_msg(scenario.lights, 0.0)
+    bad.lights[0].range = -1.0
+    lights_publisher.publish(bad)
+    wait_for_log(process, '/searchlights: message ignored: SearchlightArray: lights[0]')
+    one_light = searchlight_array_msg(scenario.lights[:1], 0.0)
+    lights_publisher.publish(one_light)
+    assert client.spin_until(lambda: len(client.masks) == 2, 30.0), process.log_path.read_text()
+    fewer = mask_of(grid, one_light, 0.3)
+    assert np.array_equal(values_of(client.masks[-1]), fewer)
+    assert not np.array_equal(fewer, expected)
+
+
+def mask_of(grid_msg: OccupancyGrid, lights_msg: SearchlightArray, threshold: float):
+    """The mask of a map and lights as a subscriber gets them (the map's resolution float32)."""
+    scene = scene_from_messages(
+        *(deserialize_message(serialize_message(m), type(m)) for m in (grid_msg, lights_msg))
+    )
+    origin = scene.origin
+    return ExposureMask(scene.blocked, scene.resolution, origin, scene.lights, threshold).at(0.0)
 
 
 def test_a_missing_scenario_stops_the_node_with_one_line(node_processes):
