@@ -9,6 +9,8 @@ from nav2_msgs.msg import CostmapFilterInfo
 from nav_msgs.msg import OccupancyGrid
 import numpy as np
 import pytest
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
 from ros_support import REPO_ROOT, SpinningNode
@@ -88,7 +90,7 @@ def values_of(mask: OccupancyGrid) -> np.ndarray:
 
 
 def test_static_scenario_latches_the_filter_info_and_the_mask(client, node_processes):
-    process = start_mask(node_processes, 'simple-maze')
+    process = start_mask(node_processes, 'map1')
     wait_for_log(process, STARTED)
     client.subscribe()  # late: both were published before this subscriber existed
     assert client.spin_until(lambda: client.infos and client.masks, 30.0), (
@@ -105,7 +107,7 @@ def test_static_scenario_latches_the_filter_info_and_the_mask(client, node_proce
     assert qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
     assert qos.reliability == ReliabilityPolicy.RELIABLE
 
-    scenario = load_scenario('simple-maze')
+    scenario = load_scenario('map1')
     occupancy, mask = scenario.map, client.masks[-1]
     assert mask.header.frame_id == 'map'
     assert (mask.info.width, mask.info.height) == (occupancy.width, occupancy.height)
@@ -114,10 +116,21 @@ def test_static_scenario_latches_the_filter_info_and_the_mask(client, node_proce
     assert (origin.x, origin.y) == pytest.approx(occupancy.origin[:2])
     expected = ExposureMask.of_scenario(scenario).at(0.0)
     assert np.array_equal(values_of(mask), expected)
-    assert np.count_nonzero(expected == LETHAL) > 0
+    assert np.count_nonzero(expected == LETHAL) and np.count_nonzero(
+        (expected > 0) & (expected < LETHAL)
+    )
 
     client.spin_for(1.5)  # static lights: nothing more is sent
     assert len(client.masks) == 1
+
+    parameters = AsyncParameterClient(client.node, 'exposure_mask')
+    assert parameters.wait_for_services(10.0)
+    future = parameters.set_parameters([Parameter('band_start', value=1.0)])
+    assert client.spin_until(future.done, 10.0) and future.result().results[0].successful
+    assert client.spin_until(lambda: len(client.masks) == 2, 10.0), process.log_path.read_text()
+    values = values_of(client.masks[-1])
+    assert set(np.unique(values).tolist()) <= {-1, 0, LETHAL}  # no band left
+    assert np.array_equal(values == LETHAL, expected == LETHAL)
 
 
 def test_moving_scenario_follows_the_lights_on_simulated_time(client, node_processes):
@@ -150,6 +163,10 @@ def test_moving_scenario_follows_the_lights_on_simulated_time(client, node_proce
         assert not np.array_equal(values_of(before), values_of(after))
     for mask in client.masks[-3:]:  # each the lights at its stamp, the node's clock time
         assert np.array_equal(values_of(mask), model.at(seconds(mask.header.stamp)))
+
+    wait_for_log(process, '/clock has not moved for')  # the simulator stopped: said so
+    client.publish_clock(end + step)
+    wait_for_log(process, '/clock runs again at')
 
 
 def test_scene_from_the_map_and_searchlights_topics(client, node_processes):
