@@ -3,8 +3,6 @@ domain: the CostmapFilterInfo Nav2's keepout filter reads, the mask's QoS (a sub
 comes late still gets both), its geometry and values, and, on simulated time driven by the
 test's own /clock, a moving scenario's masks following the lights at the clock's time."""
 
-import time
-
 from nav2_msgs.msg import CostmapFilterInfo
 from nav_msgs.msg import OccupancyGrid
 import numpy as np
@@ -22,6 +20,7 @@ from stealth_nav2.exposure_mask import LETHAL, ExposureMask
 from stealth_nav2.scene_source import scene_from_messages
 from stealth_node_kit.conversions import seconds, time_msg
 from stealth_sim.sim_messages import occupancy_grid
+from test_cli import wait_for_output
 
 STEALTH = str(REPO_ROOT / 'ros2_ws/install/stealth_tools/lib/stealth_tools/stealth')
 LATCHED = QoSProfile(
@@ -69,18 +68,6 @@ def start_mask(node_processes, scenario: str, *params: str):
     )
 
 
-def wait_for_log(process, text: str, timeout: float = 60.0) -> str:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        output = process.log_path.read_text()
-        if text in output:
-            return output
-        if process.poll() is not None:
-            pytest.fail(f'{process.args} exited early:\n{output}')
-        time.sleep(0.05)
-    pytest.fail(f'no {text!r} within {timeout} s:\n{process.log_path.read_text()}')
-
-
 def latest_stamp(client: MaskClient) -> float:
     return seconds(client.masks[-1].header.stamp)
 
@@ -91,7 +78,7 @@ def values_of(mask: OccupancyGrid) -> np.ndarray:
 
 def test_static_scenario_latches_the_filter_info_and_the_mask(client, node_processes):
     process = start_mask(node_processes, 'map1')
-    wait_for_log(process, STARTED)
+    wait_for_output(process, STARTED, 60.0)
     client.subscribe()  # late: both were published before this subscriber existed
     assert client.spin_until(lambda: client.infos and client.masks, 30.0), (
         process.log_path.read_text()
@@ -137,7 +124,7 @@ def test_moving_scenario_follows_the_lights_on_simulated_time(client, node_proce
     process = start_mask(
         node_processes, 'simple-maze-moving', 'use_sim_time:=true', 'update_rate:=10.0'
     )
-    wait_for_log(process, STARTED)
+    wait_for_output(process, STARTED, 60.0)
     client.subscribe()
     assert client.spin_until(lambda: client.masks, 30.0), process.log_path.read_text()
     assert seconds(client.masks[0].header.stamp) == 0.0  # no /clock yet: simulated time 0
@@ -164,16 +151,16 @@ def test_moving_scenario_follows_the_lights_on_simulated_time(client, node_proce
     for mask in client.masks[-3:]:  # each the lights at its stamp, the node's clock time
         assert np.array_equal(values_of(mask), model.at(seconds(mask.header.stamp)))
 
-    wait_for_log(process, '/clock has not moved for')  # the simulator stopped: said so
+    wait_for_output(process, '/clock has not moved for')  # the simulator stopped: said so
     client.publish_clock(end + step)
-    wait_for_log(process, '/clock runs again at')
+    wait_for_output(process, '/clock runs again at')
 
 
 def test_scene_from_the_map_and_searchlights_topics(client, node_processes):
     """No scenario: the mask of the latest map and lights, built again when the lights change;
     a message that cannot be used is dropped with a line naming the topic."""
     process = start_mask(node_processes, '', 'detection_threshold:=0.3')
-    wait_for_log(process, 'waiting for the scene on /map and /searchlights')
+    wait_for_output(process, 'waiting for the scene on /map and /searchlights')
     scenario = load_scenario('simple-maze')
     map_publisher = client.node.create_publisher(OccupancyGrid, '/map', LATCHED)
     lights_publisher = client.node.create_publisher(SearchlightArray, '/searchlights', LATCHED)
@@ -189,7 +176,7 @@ def test_scene_from_the_map_and_searchlights_topics(client, node_processes):
     bad = searchlight_array_msg(scenario.lights, 0.0)
     bad.lights[0].range = -1.0
     lights_publisher.publish(bad)
-    wait_for_log(process, '/searchlights: message ignored: SearchlightArray: lights[0]')
+    wait_for_output(process, '/searchlights: message ignored: SearchlightArray: lights[0]')
     one_light = searchlight_array_msg(scenario.lights[:1], 0.0)
     lights_publisher.publish(one_light)
     assert client.spin_until(lambda: len(client.masks) == 2, 30.0), process.log_path.read_text()
