@@ -34,7 +34,7 @@ import math
 import numpy as np
 from stealth_env.bounce import Bounce, check_static
 from stealth_env.lighting import GridFrame
-from stealth_env.searchlight import Searchlight
+from stealth_env.searchlight import PatrolMotion, Searchlight
 from stealth_env.visibility import PointVisibility, cached_visibility_field
 
 LETHAL = 100  # nav_msgs/OccupancyGrid's top value: KeepoutFilter's LETHAL_OBSTACLE (254)
@@ -104,6 +104,10 @@ class LightField:
         self.blocked = blocked
         self.lights = tuple(lights)
         self.moving = any(light.is_moving for light in self.lights)
+        for light in self.lights:  # a lamp off the map: refused now, not at some update
+            route = light.motion.waypoints if isinstance(light.motion, PatrolMotion) else ()
+            for x, y in ((light.x, light.y), *route):  # the map is convex: the route is inside
+                self.frame.cell_of(x, y, what=f'searchlight {light.name!r}')
         if bounce is not None and bounce.albedo > 0.0:
             check_static(self.lights)
         static = [light for light in self.lights if not light.is_moving]

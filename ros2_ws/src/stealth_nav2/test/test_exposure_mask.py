@@ -175,3 +175,11 @@ def test_scenario_mask_is_lethal_exactly_where_the_task_detects_a_robot(tmp_path
 def test_scenario_band_start_out_of_range_is_refused(tmp_path):
     with pytest.raises(ValueError, match='band_start'):
         ExposureMask.of_scenario(load_scenario('simple-maze'), band_start=2.0, cache_dir=tmp_path)
+
+
+def test_a_lamp_that_leaves_the_map_is_refused_when_the_mask_is_built(tmp_path):
+    patrol = Searchlight(
+        'rail', 1.0, 1.0, 0.0, 1.0, 2.0, motion=PatrolMotion(((1.0, 1.0), (9.0, 1.0)), 0.5)
+    )
+    with pytest.raises(ValueError, match="searchlight 'rail' .* is outside the map"):
+        LightField(room(), RESOLUTION, ORIGIN, [patrol], cache_dir=tmp_path)
