@@ -33,7 +33,6 @@ PACKAGES = (
     'stealth_sim',
     'stealth_env',
     'stealth_agent',
-    'stealth_nav2',
     'stealth_bringup',
     'stealth_experiments',
     'stealth_node_kit',
