@@ -120,11 +120,11 @@ class LightField:
         leading = 0
         while leading < len(self.lights) and not self.lights[leading].is_moving:
             leading += 1
-        self._prefix = total
         if self.moving:
-            self._prefix = np.zeros(blocked.shape)
+            total = np.zeros(blocked.shape)
             for layer in per_light[:leading]:
-                self._prefix += layer
+                total += layer
+        self._prefix = total  # all of it (and the bounce) when no light moves
         static_layers = iter(per_light[leading:])
         memo_lamps = max(MIN_LAMP_CELLS, SIGHT_MEMORY // max(blocked.size, 1))
         self._rest: list[tuple[Searchlight, object]] = []
@@ -147,8 +147,6 @@ class LightField:
                 total += source
                 continue
             cols, rows = self._window(light.at(t))
-            if cols.start >= cols.stop or rows.start >= rows.stop:
-                continue  # the lamp's whole reach is off the map
             xs, ys = np.meshgrid(self._centres[0][cols], self._centres[1][rows])
             total[rows, cols] += source.many(xs, ys, t)  # 0 beyond its range: adds nothing
         return total
@@ -157,8 +155,7 @@ class LightField:
         """Column and row slices of the cells whose centres can be within the light's range."""
         frame = self.frame
         reach = int(np.ceil(light.range / frame.resolution)) + 1
-        col = math.floor((light.x - frame.origin_x) / frame.resolution)
-        row = math.floor((light.y - frame.origin_y) / frame.resolution)
+        col, row = frame.cell_of(light.x, light.y, what=f'searchlight {light.name!r}')
         return (
             slice(max(col - reach, 0), min(col + reach + 1, frame.width)),
             slice(max(row - reach, 0), min(row + reach + 1, frame.height)),
