@@ -144,9 +144,12 @@ def map_from_message(grid_msg) -> tuple[OccupancyMap, str]:
             f'map_server publishes), got yaw {yaw:g} rad'
         )
     origin = (float(info.origin.position.x), float(info.origin.position.y), 0.0)
+    # The message carries a float32: 0.05 arrives as 0.05000000075, which moves cone edges by a
+    # cell against the scenario's map. Its shortest decimal is the resolution that was meant.
+    resolution = float(str(np.float32(info.resolution)))
     try:
         occupancy = from_occupancy_grid(
-            int(info.width), int(info.height), float(info.resolution), origin, grid_msg.data
+            int(info.width), int(info.height), resolution, origin, grid_msg.data
         )
     except (MapError, ValueError) as error:
         raise SceneError(str(error)) from None

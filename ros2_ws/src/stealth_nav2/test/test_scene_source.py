@@ -5,6 +5,7 @@ import math
 from nav_msgs.msg import OccupancyGrid
 import numpy as np
 import pytest
+from rclpy.serialization import deserialize_message, serialize_message
 from stealth_env.env_messages import searchlight_array_msg
 from stealth_env.scenario import content_identity, load_scenario
 from stealth_nav2.scene_source import (
@@ -68,6 +69,15 @@ def test_map_message_gives_the_map():
     assert frame == 'map'
     assert np.array_equal(rebuilt.data, occupancy.data)
     assert rebuilt.resolution == occupancy.resolution and rebuilt.origin == occupancy.origin
+
+
+def test_map_message_keeps_the_resolution_the_float32_meant():
+    """0.05 m travels as a float32 (0.05000000075): the scene must use 0.05, the scenario's."""
+    occupancy = load_scenario('simple-maze').map
+    wire = deserialize_message(serialize_message(grid_message(occupancy)), OccupancyGrid)
+    assert wire.info.resolution != occupancy.resolution  # what arrives is the float32
+    rebuilt, _ = map_from_message(wire)
+    assert rebuilt.resolution == occupancy.resolution
 
 
 def test_a_rotated_map_is_refused_by_field():
