@@ -98,11 +98,11 @@ def _stop_cluster(temp_dirs) -> None:
 
 
 def _trial_workers(temp_dirs) -> list[int]:
-    """Ray worker processes running a trial (Tune's function trainable actor)."""
+    """Ray worker processes running a trial (sweep_pool's actor, while it runs one)."""
     return [
         pid
         for pid in _cluster_processes(temp_dirs)
-        if _cmdline(pid).startswith('ray::ImplicitFunc')
+        if _cmdline(pid).startswith('ray::TrialWorker.run')
     ]
 
 

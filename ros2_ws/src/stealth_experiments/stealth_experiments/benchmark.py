@@ -20,7 +20,6 @@ from collections.abc import Callable, Sequence
 import os
 from pathlib import Path
 import sys
-import tempfile
 import time
 
 from stealth_experiments import sweep_stop
@@ -226,11 +225,8 @@ def run_trials(laid: list[dict], done: dict, *, jobs: int, say: Callable[[str], 
             if records:
                 done[records[0]['trial']] = records
 
-        with (
-            tempfile.TemporaryDirectory(prefix='stealth-benchmark-') as storage,
-            Engine(None, jobs, say) as engine,
-        ):
-            engine.run_fixed(runnable, keep, Path(storage), runner=run_case, label='benchmark')
+        with Engine(None, jobs, say) as engine:
+            engine.run_fixed(runnable, keep, runner=run_case, label='benchmark')
 
 
 def collect(laid: list[dict], done: dict[str, list[dict]]) -> list[dict]:
