@@ -29,6 +29,7 @@ from collections import deque
 from collections.abc import Callable, Sequence
 import contextlib
 import os
+import re
 import signal
 import socket
 import time
@@ -97,6 +98,7 @@ class Pool:
         self.warm = list(warm)
         self._args = (runner, self.warm)
         self.idle: list = []
+        self.places: dict = {}  # actor -> where it runs (TrialWorker.where)
         self.starting: dict = {}  # ready ref -> actor
         self.dead: list = []
         self.start_failures: list[str] = []
@@ -111,7 +113,7 @@ class Pool:
     def _started(self, ref) -> None:
         actor = self.starting.pop(ref)
         try:
-            self.ray.get(ref)
+            self.places[actor] = self.ray.get(ref)
         except self.ray.exceptions.RayError as error:
             self.start_failures.append(_last_line(error))
             self.say(f'engine: a worker could not start ({self.start_failures[-1]})')
@@ -123,10 +125,12 @@ class Pool:
             self.ready_seconds = time.monotonic() - self.started
             built = f', {len(self.warm)} scenario model(s) built' if self.warm else ''
             self.say(
-                f'engine: start-up: {self.workers_started} worker(s) ready in {self.ready_seconds:.1f} '
-                f's (imports{built} once per worker, reused for every trial)'
+                f'engine: start-up: {self.workers_started} worker(s) ready in '
+                f'{self.ready_seconds:.1f} s (imports{built} once per worker, reused for every '
+                'trial)'
             )
 
+    @sweep_stop.ray_calls()
     def ready(self) -> float:
         """Wait until every worker has started (imports and scenario models done): its s."""
         while self.starting:
@@ -137,6 +141,7 @@ class Pool:
             raise PoolError(_no_worker(self.start_failures))
         return self.ready_seconds
 
+    @sweep_stop.ray_calls()
     def run(self, trials: Sequence[dict], on_records: Callable[[list[dict]], None],
             progress: Progress, max_failures: int = DEFAULT_MAX_FAILURES) -> None:  # fmt: skip
         """Every trial once (again on another worker when its worker was lost)."""
@@ -166,7 +171,7 @@ class Pool:
                         self._started(ref)
                         continue
                     actor, trial, attempt = running.pop(ref)
-                    records, lost = self._result(ref, trial)
+                    records, lost = self._result(ref, trial, self.places.get(actor, {}))
                     if lost is None:
                         self.idle.append(actor)
                         on_records(records)
@@ -184,7 +189,7 @@ class Pool:
         finally:
             progress.finish()
 
-    def _result(self, ref, trial: dict) -> tuple[list[dict], str | None]:
+    def _result(self, ref, trial: dict, place: dict) -> tuple[list[dict], str | None]:
         """(records, None), or ([], why) when the worker or its node was lost."""
         exceptions = self.ray.exceptions
         try:
@@ -193,7 +198,8 @@ class Pool:
             return lost_records(trial, _last_line(error), prefix=''), None
         except (exceptions.RayActorError, exceptions.ObjectLostError,
                 exceptions.WorkerCrashedError, exceptions.NodeDiedError) as error:  # fmt: skip
-            return [], _lost_why(error)
+            addresses = {n['NodeID']: n['NodeManagerAddress'] for n in self.ray.nodes()}
+            return [], _lost_why(error, {**place, 'ip': addresses.get(place.get('node'), '?')})
 
     def _kill(self, actor) -> None:
         with contextlib.suppress(Exception):  # already dead, or Ray shutting down
@@ -230,11 +236,17 @@ def lost_records(trial: dict, error: str, prefix: str = 'worker lost: ') -> list
     ]
 
 
-def _lost_why(error) -> str:
-    text = str(error)
-    if 'node' in text.lower() and ('died' in text.lower() or 'dead' in text.lower()):
-        return 'its node died'
-    return 'its worker process died'
+def _lost_why(error, place: dict) -> str:
+    """Where the lost worker ran and what Ray said of it, short: its "because ..." line, or the
+    RPC error of a worker that stopped answering."""
+    where = ''
+    if place.get('node'):
+        where = f'pid {place["pid"]} on node {place["node"][:8]} at {place["ip"]}: '
+    lines = [line.strip() for line in str(error).splitlines() if line.strip()]
+    said = next((line for line in lines if 'because' in line), lines[0] if lines else '')
+    rpc = re.search(r'RPC error: (.*?)(?: rpc_code.*)?$', said)
+    said = f'unreachable, {rpc.group(1)}' if rpc else said.split('. ')[0]
+    return f'{where}{said[:120] or type(error).__name__}'
 
 
 def _last_line(error) -> str:
