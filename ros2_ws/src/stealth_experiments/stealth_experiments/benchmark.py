@@ -42,7 +42,7 @@ from stealth_experiments.benchmark_plan import (
 )
 from stealth_experiments.benchmark_report import write_csv, write_plot, write_summary
 from stealth_experiments.harness import DEFAULT_EPISODES, MOVING_EPISODES
-from stealth_experiments.sweep_engine import _duration
+from stealth_experiments.sweep_pool import duration as _duration
 
 PROG = 'stealth benchmark'
 DEFAULT_OUT = Path('runs/benchmark')
