@@ -83,6 +83,8 @@ def run(report=print, ros: bool = True) -> dict:
         kept, workers_s, engine_s = _engine_run(engine, todo)
         ros_figures = _ros(engine, cpus, report) if ros else {}
     startup_s = ray_s + workers_s
+    slots = min(cpus, len(todo))
+    busy = sum(r['wall_seconds'] for r in kept) / (slots * engine_s)
     total_s = startup_s + engine_s
 
     def per_minute(seconds: float) -> float:
@@ -101,6 +103,9 @@ def run(report=print, ros: bool = True) -> dict:
         'sweep_ray_with_startup_trials_per_min': round(per_minute(total_s), 2),
         'sweep_sequential_mean_trial_s': round(_inside(sequential), 2),
         'sweep_ray_mean_trial_s': round(_inside(kept), 2),
+        # The share of the engine's wall time its workers spent inside trials: 1 means no cost
+        # of its own (what is left of a speedup short of the CPUs is contention for the cores).
+        'sweep_ray_busy_fraction': round(busy, 3),
         'sweep_speedup': round(sequential_s / engine_s, 3),
         'sweep_speedup_with_startup': round(sequential_s / total_s, 3),
         **ros_figures,
@@ -114,7 +119,7 @@ def run(report=print, ros: bool = True) -> dict:
         f'{figures["sweep_sequential_trials_per_min"]:.1f} trials/min'
     )
     report(
-        f'  start-up: {startup_s:.1f} s = Ray {ray_s:.1f} s + {min(cpus, len(todo))} '
+        f'  start-up: {startup_s:.1f} s = Ray {ray_s:.1f} s + {slots} '
         f'workers {workers_s:.1f} s (imports and the lattice model, once per worker)'
     )
     report(
@@ -125,6 +130,10 @@ def run(report=print, ros: bool = True) -> dict:
     report(
         f'  mean time inside a trial: {figures["sweep_sequential_mean_trial_s"]:.1f} s alone, '
         f'{figures["sweep_ray_mean_trial_s"]:.1f} s on Ray ({cpus} side by side)'
+    )
+    report(
+        f"  workers busy inside trials {busy:.1%} of the engine's {engine_s:.1f} s x {slots} "
+        f"(the rest is the engine's own cost)"
     )
     report(
         f'  speedup {figures["sweep_speedup"]:.2f}x ({sequential_s:.1f} s / {engine_s:.1f} s); '
