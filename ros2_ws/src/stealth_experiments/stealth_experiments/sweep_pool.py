@@ -100,7 +100,7 @@ class Pool:
         self.idle: list = []
         self.places: dict = {}  # actor -> where it runs (TrialWorker.where)
         self.starting: dict = {}  # ready ref -> actor
-        self.dead: list = []
+        self.actors: list = []  # every worker started, for close()
         self.start_failures: list[str] = []
         self.workers_started = 0
         for _ in range(self.slots):
@@ -108,6 +108,7 @@ class Pool:
 
     def _start_one(self) -> None:
         actor = self._remote.remote(*self._args)
+        self.actors.append(actor)
         self.starting[actor.where.remote()] = actor
 
     def _started(self, ref) -> None:
@@ -196,20 +197,20 @@ class Pool:
             return self.ray.get(ref), None
         except exceptions.RayTaskError as error:  # the runner raised: failed, not retried
             return lost_records(trial, _last_line(error), prefix=''), None
-        except (exceptions.RayActorError, exceptions.ObjectLostError,
-                exceptions.WorkerCrashedError, exceptions.NodeDiedError) as error:  # fmt: skip
+        except exceptions.RayError as error:  # its worker, its node or its result lost
             addresses = {n['NodeID']: n['NodeManagerAddress'] for n in self.ray.nodes()}
             return [], _lost_why(error, {**place, 'ip': addresses.get(place.get('node'), '?')})
 
     def _kill(self, actor) -> None:
         with contextlib.suppress(Exception):  # already dead, or Ray shutting down
             self.ray.kill(actor, no_restart=True)
-        self.dead.append(actor)
 
     def close(self) -> None:
-        for actor in [*self.idle, *self.starting.values()]:
+        """Every worker goes, those running a trial too (interrupted: a ROS trial's `stealth
+        train` then gets SIGTERM from its dying worker and stops its nodes)."""
+        for actor in self.actors:
             self._kill(actor)
-        self.idle, self.starting = [], {}
+        self.actors, self.idle, self.starting = [], [], {}
 
     def __enter__(self):
         return self
