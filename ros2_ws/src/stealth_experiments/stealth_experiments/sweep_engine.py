@@ -55,6 +55,10 @@ RAY_ENVIRONMENT = {
     # A worker's end would SIGKILL its children: a ROS trial's `stealth train` gets SIGTERM
     # instead (sweep_trials._stop_with_parent) and stops its nodes in order.
     'RAY_kill_child_processes_on_worker_exit': '0',
+    # Ray runs its workers at niceness 15, under everything else on the host: on cores that
+    # other work shares, two trials side by side then got less CPU than one alone in the driver.
+    # A sweep's trials are the work itself; they run at the niceness of the sweep.
+    'RAY_worker_niceness': '0',
 }
 # Ray gives a node 30 s (fixed) to register; on a busy host its agents' start-up can miss that.
 START_ATTEMPTS = 3
