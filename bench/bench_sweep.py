@@ -6,14 +6,16 @@ another in this process (sweep_trials.run_trial), in one run, on trials of a rea
 Start-up is given apart, in its two parts: Ray's own (``ray.init``: a local Ray's GCS, raylet
 and their agents) and the workers' (sweep_pool: the actors started, their imports done and the
 scenario's lattice model built, once per worker, reused for every trial); one after another
-builds the same model once before its clock starts. The speedup is of the trials alone; a
-second figure counts the start-up too. Beside them, the mean time inside a trial either way: on
-cores other work shares, two trials side by side each take longer than one alone, which is what
-separates contention from the engine's own overhead.
+builds the same model once before its clock starts, and runs half of the trials before the
+engine and half after (so that a drift in the host's load weighs on both). The speedup is of
+the trials alone; a second figure counts the start-up too. Beside them, the mean time inside a
+trial either way, and the share of the engine's time its workers spent inside trials (1: the
+engine costs nothing of its own; on cores other work shares, two trials side by side can each
+take longer than one alone, which is contention, not the engine).
 
 Then ROS trials (mode ros: `stealth train` in its own ROS domain per trial, reserved
 machine-wide by stealth_bringup.ros_domain): 4 short trials on the same engine, one at a time
-against as many at once as there are CPUs.
+(half before, half after) against as many at once as there are CPUs.
 
 Run: source scripts/ros_env.sh && python bench/run_all.py --only sweep
      python bench/bench_sweep.py --no-ros        # the in-process trials only
@@ -68,13 +70,20 @@ def _engine_run(engine: Engine, todo: list[dict], max_concurrent: int | None = N
     return kept, ready_s, trials_s
 
 
+def _one_after_another(todo: list[dict]) -> tuple[list[dict], float]:
+    started = time.perf_counter()
+    records = [record for trial in todo for record in run_trial(trial)]
+    assert all(r['status'] == 'ok' for r in records), 'a trial failed one after another'
+    return records, time.perf_counter() - started
+
+
 def run(report=print, ros: bool = True) -> dict:
     todo = trials()
+    half = len(todo) // 2
     lattice_model(SCENARIO, GOAL)  # built once, outside the clock, as each worker does
-    started = time.perf_counter()
-    sequential = [record for trial in todo for record in run_trial(trial)]
-    sequential_s = time.perf_counter() - started
-    assert all(r['status'] == 'ok' for r in sequential), 'a trial failed one after another'
+    # Half of the trials one after another before the engine runs them all, half after: on a
+    # host whose other work comes and goes, a drift in its load then weighs on both sides.
+    before, before_s = _one_after_another(todo[:half])
 
     cpus = os.cpu_count() or 1
     started = time.perf_counter()
@@ -82,6 +91,8 @@ def run(report=print, ros: bool = True) -> dict:
         ray_s = time.perf_counter() - started
         kept, workers_s, engine_s = _engine_run(engine, todo)
         ros_figures = _ros(engine, cpus, report) if ros else {}
+    after, after_s = _one_after_another(todo[half:])
+    sequential, sequential_s = before + after, before_s + after_s
     startup_s = ray_s + workers_s
     slots = min(cpus, len(todo))
     busy = sum(r['wall_seconds'] for r in kept) / (slots * engine_s)
@@ -154,10 +165,14 @@ def run(report=print, ros: bool = True) -> dict:
 
 
 def _ros(engine: Engine, cpus: int, report) -> dict:
-    """The ROS trials one at a time, then ``cpus`` at once, on the same engine."""
+    """The ROS trials ``cpus`` at once on the same engine, and one at a time: half of them
+    before, half after (as the in-process trials)."""
     todo = ros_trials()
-    one, _, one_s = _engine_run(engine, todo, max_concurrent=1)
+    half = len(todo) // 2
+    first, _, first_s = _engine_run(engine, todo[:half], max_concurrent=1)
     both, _, both_s = _engine_run(engine, todo)
+    second, _, second_s = _engine_run(engine, todo[half:], max_concurrent=1)
+    one, one_s = first + second, first_s + second_s
     return {
         'sweep_ros_trials': len(todo),
         'sweep_ros_one_s': round(one_s, 2),
