@@ -43,9 +43,7 @@ def run(report=print) -> dict:
         with Engine(None, cpus, say=lambda line: None) as engine:
             startup_s = time.perf_counter() - started
             began = time.perf_counter()
-            engine.run_fixed(
-                todo, kept.extend, Path(work) / 'storage', progress=False, runner=run_case
-            )
+            engine.run_fixed(todo, kept.extend, progress=False, runner=run_case)
             engine_s = time.perf_counter() - began
         total_s = time.perf_counter() - started
     assert len(kept) == len(sequential) and all(r['status'] == 'ok' for r in kept), 'a row failed'

@@ -98,11 +98,11 @@ def _stop_cluster(temp_dirs) -> None:
 
 
 def _trial_workers(temp_dirs) -> list[int]:
-    """Ray worker processes running a trial (Tune's function trainable actor)."""
+    """Ray worker processes running a trial (sweep_pool's actor, while it runs one)."""
     return [
         pid
         for pid in _cluster_processes(temp_dirs)
-        if _cmdline(pid).startswith('ray::ImplicitFunc')
+        if _cmdline(pid).startswith('ray::TrialWorker.run')
     ]
 
 
@@ -378,3 +378,33 @@ def test_a_sweep_whose_every_run_failed_exits_1(tmp_path, local_env):
     assert 'stealth sweep: failed: every run failed (1 of 1 trials done);' in output, output
     assert _status(out)['status'] == 'failed'
     assert _rows(out)[0]['error'].startswith('ValueError: a ROS trial has no slip')
+
+
+def test_a_configuration_whose_runs_fail_is_marked_failed_and_the_rest_finish_exit_3(
+    tmp_path, local_env
+):
+    sweep_file = tmp_path / 'partly.yaml'
+    sweep_file.write_text(  # the in-process trials learn with slip; a ROS trial has none: it fails
+        'scenarios: [{scenario: simple-maze, goal: easy}]\nlearners: [qlearning]\nseeds: [0, 1]\n'
+        'episodes: 20\neval_every: 10\nmode: gym\nslip: 0.1\n'
+        'extra:\n  - {mode: ros, scenario: simple-maze, goal: easy, learner: dyna, seed: 0, '
+        'episodes: 10}\n'
+    )
+    out = tmp_path / 'out'
+    with open(tmp_path / 'sweep.log', 'w+') as log:
+        process = _sweep([str(sweep_file), '--out', str(out), '--cpus', '2'], local_env, log)
+        code, output = _finish(process, log)
+    assert code == 3, output[-3000:]
+    rows = _rows(out)
+    failed = [r for r in rows if r['status'] != 'ok']
+    assert len(rows) == 3 and [r['mode'] for r in failed] == ['ros'], rows
+    reason = 'ValueError: a ROS trial has no slip (the simulator moves as it moves)'
+    assert failed[0]['error'] == reason
+    assert all(float(r['greedy_return']) != 0.0 for r in rows if r['status'] == 'ok')
+    assert (
+        f'stealth sweep: 1 of 3 runs failed, the rest finished (exit 3); `stealth sweep --resume '
+        f'{out}` runs the failed ones again:\n  {failed[0]["trial"]} seed 0: {reason}\n'
+    ) in output, output[-3000:]
+    assert f'failed: {reason}' in (out / 'results.md').read_text()
+    status = _status(out)
+    assert status['status'] == 'complete' and status['trials_failed'] == 1

@@ -20,7 +20,6 @@ from collections.abc import Callable, Sequence
 import os
 from pathlib import Path
 import sys
-import tempfile
 import time
 
 from stealth_experiments import sweep_stop
@@ -43,7 +42,7 @@ from stealth_experiments.benchmark_plan import (
 )
 from stealth_experiments.benchmark_report import write_csv, write_plot, write_summary
 from stealth_experiments.harness import DEFAULT_EPISODES, MOVING_EPISODES
-from stealth_experiments.sweep_engine import _duration
+from stealth_experiments.sweep_pool import duration as _duration
 
 PROG = 'stealth benchmark'
 DEFAULT_OUT = Path('runs/benchmark')
@@ -226,11 +225,8 @@ def run_trials(laid: list[dict], done: dict, *, jobs: int, say: Callable[[str], 
             if records:
                 done[records[0]['trial']] = records
 
-        with (
-            tempfile.TemporaryDirectory(prefix='stealth-benchmark-') as storage,
-            Engine(None, jobs, say) as engine,
-        ):
-            engine.run_fixed(runnable, keep, Path(storage), runner=run_case, label='benchmark')
+        with Engine(None, jobs, say) as engine:
+            engine.run_fixed(runnable, keep, runner=run_case, label='benchmark')
 
 
 def collect(laid: list[dict], done: dict[str, list[dict]]) -> list[dict]:

@@ -12,7 +12,8 @@ the table, best configurations and curves are written at the end.
 
 Ctrl-C or SIGTERM (sweep_stop): the running trials are stopped (a ROS trial's processes waited
 for and their shared memory cleaned), the report written from the finished ones and marked
-interrupted, exit 130 or 143; --resume runs the rest. Exit 1 when every run failed.
+interrupted, exit 130 or 143; --resume runs the rest. Exit 1 when every run failed; 3 when
+some did and the rest finished (the failed runs listed, one line each, with their own error).
 """
 
 from __future__ import annotations
@@ -29,6 +30,8 @@ from stealth_experiments.sweep_stop import Interrupted
 
 SAVED_FILE = 'sweep.yaml'
 BASE_FILE = 'sweep_base.txt'  # the sweep file's directory: its relative scenario paths' base
+SOME_FAILED = 3  # exit code: the sweep finished, but some of its runs failed (1: every run did)
+MAX_FAILED_LINES = 10
 
 
 def parser() -> argparse.ArgumentParser:
@@ -41,7 +44,8 @@ def parser() -> argparse.ArgumentParser:
         "YAML paths; a relative path is relative to the sweep file's directory. A sweep has at "
         f'most {MAX_TRIALS:,} trials (counted before anything starts). Ctrl-C or SIGTERM stops '
         'the running trials and marks the results interrupted (exit 130 or 143); --resume runs '
-        'the rest. Exit 1 when every run failed.',
+        f'the rest. Exit 1 when every run failed, {SOME_FAILED} when some did (the rest '
+        'finished; each failed run is a line saying why).',
     )
     p.add_argument('config', nargs='?', metavar='SWEEP.yaml', help='the sweep file')
     p.add_argument(
@@ -163,7 +167,7 @@ def _run(plan, todo, searches, store, storage, address, cpus, say) -> None:
 
     options = {'cpus_per_trial': plan.cpus_per_trial, 'max_failures': plan.max_failures}
     with Engine(address, cpus, say) as engine:
-        engine.run_fixed(todo, store.add, storage, **options)
+        engine.run_fixed(todo, store.add, **options)
         for group, base, budget, seen in searches:
             say(f'sweep: optuna search on {group.label}: {budget} trial(s), {len(seen)} known')
             engine.run_search(
@@ -227,7 +231,30 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         print(f'{prog}: {status_line(status, out)}', file=sys.stderr)
         return 1
+    failed, runs = failed_runs(out)
+    if failed:
+        print(f'{prog}: {len(failed)} of {runs} runs failed, the rest finished (exit '
+              f'{SOME_FAILED}); `stealth sweep --resume {out}` runs the failed ones again:',
+              file=sys.stderr)  # fmt: skip
+        for line in failed[:MAX_FAILED_LINES]:
+            print(f'  {line}', file=sys.stderr)
+        if len(failed) > MAX_FAILED_LINES:
+            print(f'  ... and {len(failed) - MAX_FAILED_LINES} more', file=sys.stderr)
+        return SOME_FAILED
     return 0
+
+
+def failed_runs(out: Path) -> tuple[list[str], int]:
+    """(one line per failed run of the sweep in ``out``: its trial, seed and error; the runs)."""
+    from stealth_experiments.sweep_report import SweepStore
+
+    records = SweepStore(out).records()
+    failed = [
+        f'{r["trial"]} seed {r["seed"]}: {r.get("error") or "no error text"}'
+        for r in records
+        if r['status'] != 'ok'
+    ]
+    return failed, len(records)
 
 
 if __name__ == '__main__':

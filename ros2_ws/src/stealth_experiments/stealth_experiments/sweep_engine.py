@@ -1,41 +1,46 @@
-"""The experiment engine: trials on Ray Tune, on a local Ray (every core) or an existing cluster
+"""The experiment engine: trials on Ray, on a local Ray (every core) or an existing cluster
 (`ray start`), for `stealth sweep`, `make compare` and `stealth benchmark` alike. No rclpy.
 
     engine = Engine(address=None, num_cpus=None, say=print)   # ray.init: local or the cluster
-    engine.run_fixed(trials, on_records, storage)             # laid-out trials (grid, random)
-    engine.run_fixed(trials, on_records, storage, runner=f)   # trials run by f(trial) -> records
-    engine.run_search(group_trial, space, budget, seen, on_records, storage)   # optuna
+    engine.run_fixed(trials, on_records)                      # laid-out trials (grid, random)
+    engine.run_fixed(trials, on_records, runner=f)            # trials run by f(trial) -> records
+    with engine.pool(trials) as pool: pool.ready(); engine.run_fixed(trials, sink, pool=pool)
+    engine.run_search(group_trial, space, budget, seen, on_records, storage)   # optuna, on Tune
 
-Each Tune trial is one ``sweep_trials`` trial, given ``cpus_per_trial`` CPUs (1: one trial per
-core). A trial whose worker process or node dies is retried by Tune (``FailureConfig``,
-``max_failures`` times) from the start; a trial that raises is not retried: its record says
-failed, with the error, and the sweep goes on. Records come back to the driver in the trial's
-result (policies included), so no storage shared between hosts is needed for the results; Tune's
-own bookkeeping goes to ``storage`` (on a real cluster a path every node can write: its default
-is under the sweep's directory, and each node writes its trials' bookkeeping there locally).
+Laid-out trials run on sweep_pool's workers: Ray actors of ``cpus_per_trial`` CPUs each (1: one
+trial per core), started once, importing and building the trials' scenario models once, then
+reused for trial after trial. A trial whose worker process or node dies runs again on another
+worker from the start (``max_failures`` times); a trial that raises is not retried: its record
+says failed, with the error, and the sweep goes on. Records come back to the driver as the
+trial's result (policies included), so no storage shared between hosts is needed. An optuna
+search runs on Ray Tune (its OptunaSearch), whose own bookkeeping goes to ``storage``.
 
-Progress: a line whenever a trial starts, ends or is retried: done / running / failed of the
-total, the best objective so far and an ETA from the mean trial time and the concurrency.
-SIGINT and SIGTERM (sweep_stop): Tune stops the running trials and the run raises Interrupted;
-a trial stopped so is not recorded (it is not done: --resume runs it).
+Start-up, said apart from the trials: Ray's own (``ray.init``: a local Ray starts its GCS, raylet
+and their agents, without the dashboard), then the workers' (``Pool.ready``).
+
+Progress (sweep_pool.Progress): a line whenever a trial starts, ends or is retried: done /
+running / failed of the total, the best objective so far and an ETA from the mean trial time
+and the concurrency; at the end, which trials were retried. SIGINT and SIGTERM (sweep_stop):
+the running trials are stopped (their workers killed) and Interrupted raised; a trial stopped so
+is not recorded (it is not done: --resume runs it).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 import contextlib
+import functools
 import logging
 import os
 from pathlib import Path
-import signal
 import socket
-import tempfile
 import time
 
 from tqdm import tqdm
 
 from stealth_experiments import sweep_stop
 from stealth_experiments.harness import DEFAULT_EVAL_EVERY, RunResult, RunSpec, default_budget, run
+from stealth_experiments.sweep_pool import DEFAULT_MAX_FAILURES, Pool, Progress, scenarios_of
 from stealth_experiments.sweep_trials import objective, run_trial
 
 # Ray's node startup waits for its agents (Python processes) to write their ports; under load
@@ -50,8 +55,11 @@ RAY_ENVIRONMENT = {
     # A worker's end would SIGKILL its children: a ROS trial's `stealth train` gets SIGTERM
     # instead (sweep_trials._stop_with_parent) and stops its nodes in order.
     'RAY_kill_child_processes_on_worker_exit': '0',
+    # Ray runs its workers at niceness 15, under everything else on the host: on cores that
+    # other work shares, two trials side by side then got less CPU than one alone in the driver.
+    # A sweep's trials are the work itself; they run at the niceness of the sweep.
+    'RAY_worker_niceness': '0',
 }
-DEFAULT_MAX_FAILURES = 2
 # Ray gives a node 30 s (fixed) to register; on a busy host its agents' start-up can miss that.
 START_ATTEMPTS = 3
 # The HTTP/2 connection preface and an empty SETTINGS frame: a gRPC server (a Ray head's GCS)
@@ -157,11 +165,28 @@ class Engine:
 
     # --- running ---------------------------------------------------------------------------
 
+    def pool(
+        self,
+        trials: Sequence[dict],
+        *,
+        cpus_per_trial: float = 1.0,
+        max_concurrent: int | None = None,
+        runner: Callable | None = None,
+    ) -> Pool:
+        """Workers for these trials (sweep_pool): one per ``cpus_per_trial`` CPUs of the cluster
+        (at most ``max_concurrent``, and no more than there are trials), each importing and
+        building the trials' scenario models once. runner: what runs a trial (a module-level
+        function of the trial dict, returning records with 'trial' and 'status'); None:
+        ``sweep_trials.run_trial``."""
+        slots = max(1, int(self.cpus // cpus_per_trial))
+        slots = min(slots, max_concurrent or slots, max(len(trials), 1))
+        work = run_trial if runner is None else functools.partial(_trial_only, runner)
+        return Pool(slots, cpus_per_trial, work, scenarios_of(trials), self.say)
+
     def run_fixed(
         self,
         trials: Sequence[dict],
         on_records: Callable[[list[dict]], None],
-        storage: Path,
         *,
         cpus_per_trial: float = 1.0,
         max_failures: int = DEFAULT_MAX_FAILURES,
@@ -169,35 +194,27 @@ class Engine:
         progress: bool = True,
         runner: Callable[[dict], list[dict]] | None = None,
         label: str = 'sweep',
+        pool: Pool | None = None,
     ) -> None:
-        """Every trial once (retried on a lost worker); records to ``on_records`` as they end.
-        runner: what runs a trial where Tune placed it (a module-level function of the trial
-        dict, returning records with 'trial' and 'status'); None: ``sweep_trials.run_trial``,
-        scored by its objective. label: the progress lines' first word."""
+        """Every trial once (again on another worker when its worker was lost); records to
+        ``on_records`` as they end. runner: as for pool(); None: ``sweep_trials.run_trial``,
+        scored by its objective. label: the progress lines' first word. pool: workers already
+        started (``pool()``), kept open; None: a pool of its own for these trials."""
         if not trials:
             return
-        from ray import tune
-
-        trainable = _fixed_trainable
-        if runner is not None:
-            trainable = tune.with_parameters(_runner_trainable, runner=runner)
-        self._fit(
-            tune.with_resources(trainable, {'cpu': cpus_per_trial}),
-            {'trial': tune.grid_search(list(trials))},
-            tune.TuneConfig(
-                num_samples=1,
-                max_concurrent_trials=max_concurrent,
-                reuse_actors=True,  # a new worker per trial costs seconds on a busy host
-                trial_dirname_creator=_dirname,
-            ),
-            len(trials),
-            on_records,
-            storage,
-            cpus_per_trial,
-            max_failures,
-            progress,
-            label,
-        )
+        own = pool is None
+        if own:
+            pool = self.pool(trials, cpus_per_trial=cpus_per_trial,
+                             max_concurrent=max_concurrent, runner=runner)  # fmt: skip
+        try:
+            watcher = Progress(
+                len(trials), self.say if progress else None, pool.slots, label,
+                objective if runner is None else None,
+            )  # fmt: skip
+            pool.run(trials, on_records, watcher, max_failures)
+        finally:
+            if own:
+                pool.close()
 
     def run_search(
         self,
@@ -214,7 +231,8 @@ class Engine:
         progress: bool = True,
     ) -> None:
         """``budget`` more trials of ``base`` with parameters Optuna (TPE, through Ray Tune's
-        OptunaSearch) suggests from ``space``, told the (params, objective) already ``seen``."""
+        OptunaSearch) suggests from ``space``, told the (params, objective) already ``seen``.
+        Tune's own bookkeeping goes to ``storage``."""
         if budget <= 0:
             return
         import optuna
@@ -231,42 +249,24 @@ class Engine:
             evaluated_rewards=[value for _, value in seen] or None,
         )
         concurrent = max(1, int(self.cpus // cpus_per_trial))
-        self._fit(
+        watcher = Progress(budget, self.say if progress else None, concurrent, 'sweep', objective)
+        tuner = tune.Tuner(
             tune.with_resources(
                 tune.with_parameters(_search_trainable, base=base), {'cpu': cpus_per_trial}
             ),
-            space,
-            tune.TuneConfig(
+            param_space=space,
+            tune_config=tune.TuneConfig(
                 search_alg=searcher,
                 num_samples=budget,
                 max_concurrent_trials=concurrent,
                 reuse_actors=True,
                 trial_dirname_creator=_dirname,
             ),
-            budget,
-            on_records,
-            storage,
-            cpus_per_trial,
-            max_failures,
-            progress,
-        )
-
-    def _fit(self, trainable, space, tune_config, total, on_records, storage, cpus_per_trial,
-             max_failures, progress, label='sweep') -> None:  # fmt: skip
-        from ray import tune
-
-        watcher = _Progress(
-            total, on_records, self.say if progress else None, self.cpus / cpus_per_trial, label
-        )
-        tuner = tune.Tuner(
-            trainable,
-            param_space=space,
-            tune_config=tune_config,
             run_config=tune.RunConfig(
                 name=f'trials-{time.strftime("%Y%m%d-%H%M%S")}',
                 storage_path=str(Path(storage).resolve()),
                 failure_config=tune.FailureConfig(max_failures=max_failures),
-                callbacks=[watcher],
+                callbacks=[_TuneProgress(watcher, on_records)],
                 verbose=0,
             ),
         )
@@ -277,34 +277,18 @@ class Engine:
                 watcher.finish()
 
 
+def _trial_only(runner: Callable[[dict], list[dict]], trial: dict, where: dict) -> list[dict]:
+    """A runner of the trial alone (stealth benchmark's), as the pool calls it."""
+    del where
+    return runner(trial)
+
+
 def _dirname(trial) -> str:
     return trial.trial_id
 
 
-def _where() -> dict:
-    import ray
-    from ray import tune
-
-    return {
-        'node': ray.get_runtime_context().get_node_id(),
-        'tune_trial': tune.get_context().get_trial_id(),
-    }
-
-
-def _fixed_trainable(config: dict) -> None:
-    from ray import tune
-
-    records = run_trial(config['trial'], _where())
-    tune.report({'objective': objective(records), 'records': records})
-
-
-def _runner_trainable(config: dict, runner) -> None:
-    from ray import tune
-
-    tune.report({'records': runner(config['trial'])})
-
-
 def _search_trainable(config: dict, base: dict) -> None:
+    import ray
     from ray import tune
 
     from stealth_experiments.sweep_plan import make_trial
@@ -314,7 +298,7 @@ def _search_trainable(config: dict, base: dict) -> None:
         base['mode'], base['scenario'], base['goal'], base['learner'], base['seeds'],
         base['episodes'], base['eval_every'], base['slip'], {**base['params'], **params},
     )  # fmt: skip
-    records = run_trial(trial, _where())
+    records = run_trial(trial, {'node': ray.get_runtime_context().get_node_id()})
     tune.report({'objective': objective(records), 'records': records})
 
 
@@ -325,121 +309,36 @@ def _plain(value):
     return round(value, 6) if isinstance(value, float) else value
 
 
-class _Progress:
-    """Tune callback: records to the sink as trials end, and a progress line on each event."""
+class _TuneProgress:
+    """Tune callback of an optuna search: records to the sink as trials end, progress lines."""
 
-    def __new__(cls, *args, **kwargs):
+    def __new__(cls, progress: Progress, sink):
         from ray import tune
 
-        class Progress(tune.Callback):
-            def __init__(self, total, sink, say, slots, label='sweep'):
-                self.total, self.sink, self.say, self.slots = total, sink, say, max(slots, 1)
-                self.label = label
-                self.started = time.monotonic()
-                self.done = self.failed = self.retries = 0
-                self.running: set[str] = set()
-                self.best: tuple[float, str] | None = None
-                self.durations: list[float] = []
-                self.began: dict[str, float] = {}
+        class TuneProgress(tune.Callback):
+            def __init__(self):
                 self.recorded: set[str] = set()
 
             def on_trial_start(self, iteration, trials, trial, **info):
-                self.began.setdefault(trial.trial_id, time.monotonic())
-                self.running.add(trial.trial_id)
-                self._line('started')
+                progress.started(trial.trial_id)
 
             def on_trial_result(self, iteration, trials, trial, result, **info):
                 records = result.get('records')
                 if records is None or trial.trial_id in self.recorded:
                     return
                 self.recorded.add(trial.trial_id)
-                self.sink(records)
-                self.done += 1
-                self.failed += any(r['status'] != 'ok' for r in records)
-                value = result.get('objective')
-                label = records[0]['trial']
-                if value is not None and (self.best is None or value > self.best[0]):
-                    self.best = (value, label)
-                self.durations.append(time.monotonic() - self.began.get(trial.trial_id, 0.0))
-
-            def on_trial_complete(self, iteration, trials, trial, **info):
-                self.running.discard(trial.trial_id)
-                stopped = trial.trial_id not in self.recorded and sweep_stop.requested()
-                self._line('stopped' if stopped else 'finished')
+                sink(records)
+                progress.finished(trial.trial_id, records)
 
             def on_trial_recover(self, iteration, trials, trial, **info):
-                self.retries += 1
-                self.running.discard(trial.trial_id)
-                self._line('lost its worker process, retried from the start')
+                progress.retried(trial.trial_id, 'its worker process died', 0, 0)
 
             def on_trial_error(self, iteration, trials, trial, **info):
-                self.running.discard(trial.trial_id)
                 if trial.trial_id not in self.recorded and not sweep_stop.requested():
-                    self.recorded.add(trial.trial_id)
-                    self.sink(_lost_records(trial.config, _first_line(trial.get_error())))
-                    self.done += 1
-                    self.failed += 1
-                self._line('failed')
+                    self.recorded.add(trial.trial_id)  # its parameters are Tune's alone
+                    progress.finished(trial.trial_id, [])
 
-            def _line(self, event: str) -> None:
-                if self.say is None:
-                    return
-                running = len(self.running)
-                best = f', best {self.best[0]:.3f} ({self.best[1]})' if self.best else ''
-                retried = f', {self.retries} retried' if self.retries else ''
-                self.say(
-                    f'{self.label}: trial {event}: {self.done}/{self.total} done, {running} '
-                    f'running, {self.failed} failed{retried}{best}, ETA {self.eta()}'
-                )
-
-            def eta(self) -> str:
-                if not self.durations:
-                    return 'after the first trial'
-                mean = sum(self.durations) / len(self.durations)
-                waves = (self.total - self.done) / self.slots
-                return _duration(max(waves * mean, 0.0))
-
-            def finish(self) -> None:
-                signum = sweep_stop.requested()
-                stopped = f'interrupted by {signal.Signals(signum).name}: ' if signum else ''
-                if self.say is not None:
-                    self.say(
-                        f'{self.label}: {stopped}{self.done}/{self.total} trials done, '
-                        f'{self.failed} failed, '
-                        f'{self.retries} retried, in {_duration(time.monotonic() - self.started)}'
-                    )
-
-        return Progress(*args, **kwargs)
-
-
-def _lost_records(config: dict, error: str) -> list[dict]:
-    """Failed records of a trial whose every attempt was lost (no record came back)."""
-    trial = config.get('trial')
-    if trial is None:
-        return []  # a search trial: its parameters are in the Tune config only
-    return [
-        {
-            'trial': trial['id'],
-            'settings': {k: v for k, v in trial.items() if k not in ('id', 'seeds')},
-            'seed': seed,
-            'status': 'failed',
-            'error': f'worker lost: {error}',
-            'wall_seconds': None,
-            'host': '',
-            'node': '',
-        }
-        for seed in trial.get('seeds', [None])
-    ]
-
-
-def _first_line(error) -> str:
-    lines = [line for line in str(error or 'no error text').splitlines() if line.strip()]
-    return lines[-1][:300] if lines else 'no error text'
-
-
-def _duration(seconds: float) -> str:
-    minutes, seconds = divmod(int(round(seconds)), 60)
-    return f'{minutes}m{seconds:02d}s' if minutes else f'{seconds}s'
+        return TuneProgress()
 
 
 # --- the harness's grid (`make compare`) ---------------------------------------------------------
@@ -509,12 +408,8 @@ def run_specs(specs, *, jobs: int, progress: bool = True):
             records[record['trial']] = record
 
     say = print if progress else (lambda line: None)
-    with (
-        sweep_stop.signals_stop(),
-        tempfile.TemporaryDirectory(prefix='stealth-eval-') as storage,
-        Engine(None, jobs, say) as engine,
-    ):
-        engine.run_fixed(trials, keep, Path(storage), progress=progress)
+    with sweep_stop.signals_stop(), Engine(None, jobs, say) as engine:
+        engine.run_fixed(trials, keep, progress=progress)
     results = []
     for spec, trial in zip(specs, trials, strict=True):
         record = records.get(trial['id'])

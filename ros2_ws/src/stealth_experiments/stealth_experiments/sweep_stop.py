@@ -4,8 +4,9 @@ Ray Tune takes SIGINT for itself: it ends the run and returns as if every trial 
 ray.init makes SIGTERM a bare exit. So while a sweep runs (``signals_stop``), both signals are the
 driver's: inside a Tune run (``tune_run``) the signal is remembered and Tune asked to end through
 its own SIGUSR1 handler (it stops the running trials and returns), and the run then raises
-Interrupted; anywhere else Interrupted is raised at once, and so is a second signal. Interrupted
-is a KeyboardInterrupt whose exit code is 128 + the signal's number (130 SIGINT, 143 SIGTERM).
+Interrupted (Tune is left for optuna searches); anywhere else Interrupted is raised at once (out
+of Ray's blocking calls too: ``ray_calls``), and so is a second signal. Interrupted is a
+KeyboardInterrupt whose exit code is 128 + the signal's number (130 SIGINT, 143 SIGTERM).
 
 A ROS trial's `stealth train` runs in a session of its own, so that the terminal's Ctrl-C does
 not reach it as well as the stop of its worker (two signals make it kill its nodes at once), and
@@ -96,7 +97,7 @@ def signals_stop() -> Iterator[str]:
     try:
         yield mark
     finally:
-        _state.update(active=False, tune=False)
+        _state.update(active=False, tune=False, signum=None)  # the stop went out as Interrupted
         for number, handler in previous.items():
             signal.signal(number, handler)
         for key, value in saved_environment.items():
@@ -122,6 +123,19 @@ def tune_run() -> Iterator[None]:
         _state['tune'] = False
     if _state['signum'] is not None:
         raise Interrupted(_state['signum'])
+
+
+@contextlib.contextmanager
+def ray_calls() -> Iterator[None]:
+    """Around Ray's blocking calls (ray.wait, ray.get): a signal handled inside one comes out of
+    it as a bare KeyboardInterrupt (Ray drops the exception the handler raised); the sweep's
+    stop comes out of here as Interrupted, with its signal."""
+    try:
+        yield
+    except KeyboardInterrupt as stop:
+        if _state['signum'] is not None and not isinstance(stop, Interrupted):
+            raise Interrupted(_state['signum']) from None
+        raise
 
 
 # --- the ROS trials of an interrupted sweep ------------------------------------------------------

@@ -1,6 +1,7 @@
 """The sweep driver's guards, without Ray: an --address that is not a Ray head is refused at
 once, and SIGINT or SIGTERM become Interrupted (exit 130 or 143) after Tune's run returns."""
 
+import contextlib
 import http.server
 import os
 import signal
@@ -10,7 +11,12 @@ import time
 
 import pytest
 from stealth_experiments import sweep_stop
+from stealth_experiments.sweep import failed_runs
 from stealth_experiments.sweep_engine import EngineError, check_address
+from stealth_experiments.sweep_plan import make_trial
+from stealth_experiments.sweep_pool import Progress, lost_records, scenarios_of
+from stealth_experiments.sweep_report import SweepStore
+from stealth_experiments.sweep_trials import objective
 
 
 @pytest.fixture
@@ -66,3 +72,69 @@ def test_a_signal_during_a_tune_run_ends_it_through_tune_then_raises(number, cod
             os.kill(os.getpid(), number)
             time.sleep(0.1)
     assert signal.getsignal(number) == before and sweep_stop.MARK not in os.environ
+
+
+def test_a_signal_inside_a_ray_call_comes_out_as_interrupted_not_a_bare_keyboard_interrupt():
+    """Ray raises a bare KeyboardInterrupt when a handler raised inside its blocking calls; the
+    sweep's stop must keep its signal (its exit code)."""
+    with sweep_stop.signals_stop():
+        with pytest.raises(sweep_stop.Interrupted) as stop, sweep_stop.ray_calls():
+            with contextlib.suppress(sweep_stop.Interrupted):  # what Ray drops
+                os.kill(os.getpid(), signal.SIGTERM)
+                time.sleep(0.1)
+            raise KeyboardInterrupt  # what Ray raises instead
+        assert stop.value.exit_code == 143
+    with pytest.raises(KeyboardInterrupt) as plain, sweep_stop.ray_calls():
+        raise KeyboardInterrupt  # no sweep stop asked: a KeyboardInterrupt stays one
+    assert not isinstance(plain.value, sweep_stop.Interrupted)
+
+
+def _records(trial_id: str, ok: bool, score: float = 0.9) -> list[dict]:
+    return [{'trial': trial_id, 'status': 'ok' if ok else 'failed', 'score': score}]
+
+
+def test_progress_lines_name_each_retried_trial_and_why_and_count_failures():
+    lines = []
+    progress = Progress(3, lines.append, 2, 'sweep', objective)  # no sweep stopped: no signal
+    progress.started('a')
+    progress.started('b')
+    progress.retried('b', 'its node died', 2, 3)
+    progress.started('b')
+    progress.finished('a', _records('a', True, 0.8))
+    progress.finished('b', _records('b', True, 0.9))
+    progress.started('c')
+    progress.finished('c', [])  # a trial that brought nothing back failed
+    progress.finish()
+    assert lines[2] == (
+        'sweep: trial b lost its worker (its node died), retried from the start (attempt 2 of '
+        '3): 0/3 done, 1 running, 0 failed, 1 retried, ETA after the first trial'
+    )
+    assert lines[5].startswith('sweep: trial finished: 2/3 done, 0 running, 0 failed, 1 retried, '
+                               'best 0.900 (b), ETA ')  # fmt: skip
+    assert lines[7].startswith('sweep: trial failed: 3/3 done, 0 running, 1 failed, 1 retried')
+    assert lines[8].startswith('sweep: 3/3 trials done, 1 failed, 1 retried, in ')
+    assert lines[9] == 'sweep: retried after a lost worker: b (its node died)'
+
+
+def test_lost_trials_are_failed_records_per_seed_and_workers_build_each_scenario_once():
+    trial = make_trial('gym', 'simple-maze', 'easy', 'dyna', [3, 4], 20, 10, 0.0, {})
+    records = lost_records(trial, 'its node died (3 attempts)')
+    assert [r['seed'] for r in records] == [3, 4]
+    assert {r['status'] for r in records} == {'failed'}
+    assert records[0]['error'] == 'worker lost: its node died (3 attempts)'
+    assert records[0]['settings']['learner'] == 'dyna' and 'id' not in records[0]['settings']
+    others = [make_trial('gym', 'simple-maze', 'easy', 'qlearning', [0], 20, 10, 0.0, {}),
+              make_trial('ros', 'map1', None, 'dyna', [0], 20, 10, 0.0, {}),
+              {'id': 'case', 'scenario': 'map1'}]  # fmt: skip
+    assert scenarios_of([trial, *others]) == [('simple-maze', 'easy'), ('map1', None)]
+
+
+def test_failed_runs_are_one_line_each_with_their_own_error(tmp_path):
+    store = SweepStore(tmp_path)
+    good = make_trial('gym', 'simple-maze', 'easy', 'dyna', [0], 20, 10, 0.0, {})
+    bad = make_trial('ros', 'simple-maze', 'easy', 'dyna', [0], 20, 10, 0.1, {})
+    store.add(lost_records(bad, 'ValueError: a ROS trial has no slip', prefix=''))
+    store.add([{**lost_records(good, '')[0], 'status': 'ok', 'error': ''}])
+    failed, runs = failed_runs(tmp_path)
+    assert runs == 2
+    assert failed == [f'{bad["id"]} seed 0: ValueError: a ROS trial has no slip']
