@@ -12,8 +12,8 @@ FollowWaypoints with its own (600, 601) and each missed waypoint with its naviga
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
+import math
 from typing import NamedTuple
 
 from stealth_sim.kinematics import Pose, compose, relative
@@ -48,7 +48,7 @@ def planner_for(behavior_tree: str, default: str, known: Sequence[str]) -> tuple
         return behavior_tree, ''
     return '', (
         f"behavior_tree '{behavior_tree}': this navigator runs no behaviour trees; give '' "
-        f"(the planner_id parameter, {default}) or a planner id: {', '.join(known)}"
+        f'(the planner_id parameter, {default}) or a planner id: {", ".join(known)}'
     )
 
 
@@ -141,4 +141,3 @@ class WaypointRun:
         self.loops_left -= 1
         self.index = 0
         return False
-

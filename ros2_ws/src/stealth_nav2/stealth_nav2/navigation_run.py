@@ -7,10 +7,10 @@ tick move it on.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 import dataclasses
 import math
 import time
-from collections.abc import Callable
 from typing import TYPE_CHECKING, NamedTuple
 
 from action_msgs.msg import GoalStatus
@@ -100,9 +100,10 @@ class Navigation:
         elif self.stage == Stage.PLANNING:
             if not self._plan_sent and not self._client().server_is_ready():
                 if now - self._since > values['server_timeout']:
+                    wait = values['server_timeout']
                     self._fail(self._code(codes.TIMEOUT), (
                         f'no planner server on {self._action_name()} within server_timeout '
-                        f"{values['server_timeout']:g} s (is planner_server running?)"))  # fmt: skip
+                        f'{wait:g} s (is planner_server running?)'))  # fmt: skip
             elif not self._plan_sent:
                 self._send_plan_request()
             elif now - self._since > values['planner_timeout']:

@@ -150,8 +150,8 @@ class Navigator(StartupNode):
         self.create_timer(1.0 / values['feedback_rate'], self._feedback, clock=steady)
         self.get_logger().info(
             f'navigator ready: navigate_to_pose, navigate_through_poses, follow_waypoints; '
-            f"planner {values['planner_id']} on {self.resolve_topic_name('compute_path_to_pose')}"
-            f"; robot over {', '.join(self.resolve_topic_name(t) for t in TOPICS.values())}"
+            f'planner {values["planner_id"]} on {self.resolve_topic_name("compute_path_to_pose")}'
+            f'; robot over {", ".join(self.resolve_topic_name(t) for t in TOPICS.values())}'
         )
 
     # --- parameters -----------------------------------------------------------------------------
@@ -290,9 +290,10 @@ class Navigator(StartupNode):
             succeeded = outcome.status == GoalStatus.STATUS_SUCCEEDED
             if run.finished(succeeded, outcome.error_code, outcome.message):
                 break
-        for missed in run.missed:
-            result.missed_waypoints.append(MissedWaypoint(
-                index=missed.index, goal=poses[missed.index], error_code=missed.error_code))  # fmt: skip
+        result.missed_waypoints = [
+            MissedWaypoint(index=m.index, goal=poses[m.index], error_code=m.error_code)
+            for m in run.missed
+        ]
         if not problem and outcome.status != GoalStatus.STATUS_CANCELED and self.task is task:
             if run.missed and run.stop_on_failure:
                 missed = run.missed[-1]

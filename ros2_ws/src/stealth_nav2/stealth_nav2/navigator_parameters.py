@@ -45,7 +45,7 @@ PARAMETERS = {
     ),
     'stray_distance': Param(0.5, 'm off the path that make the robot replan.', (0.05, 100.0)),
     'goal_tolerance': Param(
-        0.25, 'm from the goal that count as reached (as Nav2\'s xy_goal_tolerance).',
+        0.25, "m from the goal that count as reached (as Nav2's xy_goal_tolerance).",
         (0.01, 10.0),
     ),
     'via_radius': Param(
@@ -69,7 +69,7 @@ PARAMETERS = {
                            (0.0, 1.0), read_only=True),
     'stall_time': Param(1.0, "s (robot's clock) without progress while driving: blocked.",
                         (0.05, 60.0), read_only=True),
-    'max_linear_speed': Param(Limits.max_linear_speed, 'm/s (the robot\'s limit or lower).',
+    'max_linear_speed': Param(Limits.max_linear_speed, "m/s (the robot's limit or lower).",
                               (0.01, 5.0), read_only=True),
     'max_angular_speed': Param(Limits.max_angular_speed, 'rad/s.', (0.01, 10.0), read_only=True),
     'max_linear_accel': Param(Limits.max_linear_accel, 'm/s^2.', (0.01, 20.0), read_only=True),

@@ -22,10 +22,10 @@ whose stamps rise is **timed**, and its stamps bind:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import dataclasses
 import enum
 import math
-from collections.abc import Sequence
 from typing import NamedTuple
 
 from stealth_env.topic_moves import Limits, MoveGoal, MoveOutcome, Pose, go_to, hold_goal

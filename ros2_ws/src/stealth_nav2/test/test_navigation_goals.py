@@ -3,8 +3,6 @@
 import math
 
 import pytest
-from stealth_sim.kinematics import Pose
-
 from stealth_nav2.navigation_goals import (
     PLANNER_IDS,
     Frames,
@@ -14,6 +12,7 @@ from stealth_nav2.navigation_goals import (
     navigator_code,
     planner_for,
 )
+from stealth_sim.kinematics import Pose
 
 
 def test_behavior_tree_selects_the_planner_or_is_refused_naming_the_choices():

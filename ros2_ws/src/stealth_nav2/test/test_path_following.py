@@ -4,7 +4,6 @@ import math
 
 import pytest
 from stealth_env.topic_moves import Limits, MoveOutcome, Pose
-
 from stealth_nav2.path_following import (
     Arrived,
     FollowSettings,
