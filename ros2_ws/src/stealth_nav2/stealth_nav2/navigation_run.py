@@ -38,6 +38,7 @@ class Outcome(NamedTuple):
 
 
 SUCCEEDED = Outcome(GoalStatus.STATUS_SUCCEEDED)
+CLOCK_MISMATCH = 3600.0  # s between a path's first stamp and the robot's clock: another clock
 
 
 class Stage:
@@ -223,9 +224,17 @@ class Navigation:
                        f"expected '{frame}'")  # fmt: skip
             return
         poses = [TimedPose(*pose_of(p.pose), seconds(p.header.stamp)) for p in path.poses]
+        now = self.robot.tracker.latest.t
+        if poses and abs(poses[0].t - now) > CLOCK_MISMATCH:
+            message = (
+                f"the planner's path is stamped {poses[0].t:.1f} s, the robot's clock (odom) "
+                f'says {now:.1f} s: run both on one clock (use_sim_time on a simulator)'
+            )
+            self._fail(self._code(codes.UNKNOWN), message)
+            return
         try:
             self.follower = PathFollower(poses, self.robot.tracker.estimate,
-                                         self.node.follow_settings)  # fmt: skip
+                                         self.node.follow_settings, now)  # fmt: skip
         except ValueError as error:
             self._fail(self._code(codes.UNKNOWN), f"the planner's path: {error}")
             return
@@ -270,21 +279,25 @@ class Navigation:
             return
         verdict = self.follower.move_ended(end.outcome, end.message, end.t, end.estimate)
         if isinstance(verdict, Replan):
-            self._recover(verdict.reason)
+            self._recover(verdict.reason, verdict.recovery)
         else:
             self._next_move()
 
-    def _recover(self, reason: str) -> None:
-        """Plan again from where the robot is (a recovery), or give up after max_recoveries."""
+    def _recover(self, reason: str, counted: bool = True) -> None:
+        """Plan again from where the robot is: a recovery (given up after max_recoveries), or,
+        for a robot behind a timed path's schedule, a plain replan."""
         self.robot.cancel()
         limit = self.node.values['max_recoveries']
-        if self.recoveries >= limit:
+        if counted and self.recoveries >= limit:
             self._fail(codes.FAILED_TO_MAKE_PROGRESS,
                        f'the robot could not follow the path: {reason} (after {limit} '
                        'recoveries)')  # fmt: skip
             return
-        self.recoveries += 1
-        self.node.get_logger().warning(f'replanning (recovery {self.recoveries}): {reason}')
+        if counted:
+            self.recoveries += 1
+            self.node.get_logger().warning(f'replanning (recovery {self.recoveries}): {reason}')
+        else:
+            self.node.get_logger().info(f'replanning: {reason}')
         self.follower = None
         self._plan()
 

@@ -15,9 +15,11 @@ whose stamps rise is **timed**, and its stamps bind:
 - **pace**: a timed drive is given the speed that ends it at its last pose's stamp (never above
   the robot's limit), so it passes the poses along a run near their own stamps rather than ahead
   of them; a leg that ends early holds until its stamp; one that ends more than
-  ``max_lateness`` late asks for a new plan from where and when the robot is;
-- **replanning**: a move that ends BUMPED (blocked) or TIMED_OUT, and a robot more than
-  ``stray_distance`` off its leg, ask for a new plan too (the navigator counts it a recovery).
+  ``max_lateness`` late (beyond the lateness the path already had when it came: the time it
+  took to plan) asks for a new plan from where and when the robot is (not a recovery: Nav2
+  replans as it goes too);
+- **recoveries**: a move that ends BUMPED (blocked) or TIMED_OUT, and a robot more than
+  ``stray_distance`` off its leg, ask for a new plan as a recovery (the navigator counts them).
 """
 
 from __future__ import annotations
@@ -73,7 +75,7 @@ class FollowSettings:
     limits: Limits = Limits()
     heading_tolerance: float = 0.1  # rad: a pose's heading this close needs no turn
     join_distance: float = 0.25  # m: a robot this close to the first pose starts from it
-    max_lateness: float = 1.5  # s late at a pose's stamp: replan (timed paths)
+    max_lateness: float = 3.0  # s late at a pose's stamp: replan (timed paths)
     stray_distance: float = 0.5  # m off the current leg: replan
     min_pace_speed: float = 0.05  # m/s: a paced drive never crawls slower
 
@@ -169,9 +171,10 @@ class Move(NamedTuple):
 
 
 class Replan(NamedTuple):
-    """The path cannot be followed on from here: plan again (a recovery)."""
+    """The path cannot be followed on from here: plan again (a recovery, unless only late)."""
 
     reason: str
+    recovery: bool = True
 
 
 class Arrived(NamedTuple):
@@ -186,13 +189,23 @@ class PathFollower:
     Times are seconds of the robot's clock (odometry stamps), the clock of the path's
     stamps."""
 
-    def __init__(self, poses: Sequence[TimedPose], start: Pose, settings: FollowSettings):
+    def __init__(
+        self,
+        poses: Sequence[TimedPose],
+        start: Pose,
+        settings: FollowSettings,
+        now: float | None = None,
+    ):
+        """``now``: the robot's clock as the path arrives; a timed path that is already late
+        then (planning took time) is allowed that much more lateness."""
         problem = path_problem(poses)
         if problem:
             raise ValueError(problem)
         self.poses = list(poses)
         self.settings = settings
         self.timed = is_timed(poses)
+        late = 0.0 if now is None or not self.timed else now - self.poses[0].t
+        self.max_lateness = settings.max_lateness + max(0.0, late)
         self.legs = legs_of(self.poses, start, settings)
         self.leg = 0  # the leg running or next
         self._heading = start.yaw  # the heading the robot starts the next leg with
@@ -238,9 +251,10 @@ class PathFollower:
         if off > self.settings.stray_distance:
             return Replan(f'strayed: ended {off:.2f} m from the path at ({leg.x:.2f}, '
                           f'{leg.y:.2f})')  # fmt: skip
-        if leg.arrive_by is not None and now - leg.arrive_by > self.settings.max_lateness:
-            return Replan(f'{now - leg.arrive_by:.1f} s late at pose {leg.last} of the path '
-                          f'(max_lateness {self.settings.max_lateness:g} s)')  # fmt: skip
+        if leg.arrive_by is not None and now - leg.arrive_by > self.max_lateness:
+            late = now - leg.arrive_by
+            return Replan(f'{late:.1f} s late at pose {leg.last} of the path (allowed '
+                          f'{self.max_lateness:.1f} s)', recovery=False)  # fmt: skip
         self._holding = True  # hold until the leg's stamp if early, then the next leg
         return None
 

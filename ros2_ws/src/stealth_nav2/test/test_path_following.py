@@ -150,6 +150,17 @@ def test_blocked_timed_out_strayed_or_late_asks_for_a_new_plan(outcome, now, end
     result = follower.move_ended(outcome, message, now, end)
     assert isinstance(result, Replan)
     assert reason in result.reason
+    assert result.recovery == ('late' not in reason)  # behind schedule: a plain replan
+
+
+def test_a_path_late_on_arrival_allows_that_much_more_lateness():
+    poses = [TimedPose(0, 0, EAST, 0.0), TimedPose(1.0, 0, EAST, 5.0)]
+    follower = PathFollower(poses, Pose(0, 0, EAST), SETTINGS, now=2.0)  # planning took 2 s
+    follower.next_move(now=2.0)
+    assert follower.move_ended(MoveOutcome.DONE, '', 9.0, Pose(1.0, 0, 0)) is None
+    late = PathFollower(poses, Pose(0, 0, EAST), SETTINGS, now=0.0)
+    late.next_move(now=0.0)
+    assert isinstance(late.move_ended(MoveOutcome.DONE, '', 9.0, Pose(1.0, 0, 0)), Replan)
 
 
 def test_progress_distance_time_and_how_far_off_the_path():
