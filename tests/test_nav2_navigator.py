@@ -1,0 +1,257 @@
+"""System tests of the navigator (``stealth_nav2 navigator``, node ``bt_navigator``): the
+simulator standing in for the robot and AMCL, the covert planner server, and plain rclpy action
+clients called the way nav2_simple_commander's BasicNavigator calls them (wait for the server,
+send_goal_async with a feedback callback, get_result_async, cancel_goal_async; GetState on
+``bt_navigator/get_state`` and ``amcl/get_state`` as waitUntilNav2Active does)."""
+
+import math
+import time
+
+from action_msgs.msg import GoalStatus
+from geometry_msgs.msg import PoseStamped, Twist
+from lifecycle_msgs.srv import GetState
+from nav2_msgs.action import FollowWaypoints, NavigateThroughPoses, NavigateToPose
+from nav_msgs.msg import Odometry
+import pytest
+from rclpy.action import ActionClient
+from rclpy.qos import qos_profile_sensor_data
+from ros_support import REPO_ROOT, SpinningNode
+from stealth_env.scenario import find_scenario, load_scenario
+from stealth_env.task import StealthTask
+from stealth_node_kit.conversions import quaternion_yaw, seconds, yaw_quaternion
+from test_env_node import ros_args, start_sim, wait_for_log
+
+INSTALL = REPO_ROOT / 'ros2_ws/install/stealth_nav2/lib/stealth_nav2'
+NAVIGATOR, PLANNER = INSTALL / 'navigator', INSTALL / 'planner_server'
+SCENARIO = 'lgfloor'
+# Simulated time at 4x, odometry (and so the control period) every 0.1 s simulated (25 ms wall).
+SIM = {'real_time_factor': 4.0, 'idle_period': 0.025, 'publish_rate': 10.0}
+SIM_TIME = {'use_sim_time': True}
+
+
+def start_planner(node_processes, **params):
+    assert PLANNER.exists(), f'{PLANNER} is missing: make setup'
+    process = node_processes.start(
+        [str(PLANNER), *ros_args({'scenario': SCENARIO, **SIM_TIME, **params})],
+        'planner_server',
+        extra_env={'RCUTILS_LOGGING_BUFFERED_STREAM': '0'},
+    )
+    return process
+
+
+def start_navigator(node_processes, name='navigator', extra_args=(), **params):
+    assert NAVIGATOR.exists(), f'{NAVIGATOR} is missing: make setup'
+    return node_processes.start(
+        [str(NAVIGATOR), *ros_args({**SIM_TIME, **params}), *extra_args],
+        name,
+        extra_env={'RCUTILS_LOGGING_BUFFERED_STREAM': '0'},
+    )
+
+
+def stamped(x: float, y: float, yaw: float = 0.0, frame: str = 'map') -> PoseStamped:
+    pose = PoseStamped()
+    pose.header.frame_id = frame
+    pose.pose.position.x, pose.pose.position.y = float(x), float(y)
+    pose.pose.orientation = yaw_quaternion(yaw)
+    return pose
+
+
+class Commander(SpinningNode):
+    """What BasicNavigator does, with the test's own spinning; plus the robot's ground truth
+    and the commands it is sent."""
+
+    def __init__(self, context, namespace=''):
+        super().__init__('commander', context)
+        prefix = f'{namespace}/' if namespace else ''
+        node = self.node
+        self.clients = {
+            'to_pose': ActionClient(node, NavigateToPose, f'{prefix}navigate_to_pose'),
+            'through': ActionClient(node, NavigateThroughPoses, f'{prefix}navigate_through_poses'),
+            'waypoints': ActionClient(node, FollowWaypoints, f'{prefix}follow_waypoints'),
+        }
+        self.feedback = []
+        self.truths = []  # (sim t, x, y, yaw, speed)
+        self.commands = []  # (wall t, linear, angular)
+        node.create_subscription(Odometry, 'ground_truth', self._on_truth, qos_profile_sensor_data)
+        node.create_subscription(Twist, 'cmd_vel', self._on_cmd, 10)
+
+    def _on_truth(self, message: Odometry):
+        p = message.pose.pose
+        self.truths.append((seconds(message.header.stamp), p.position.x, p.position.y,
+                            quaternion_yaw(p.orientation), message.twist.twist.linear.x))  # fmt: skip
+
+    def _on_cmd(self, message: Twist):
+        self.commands.append((time.monotonic(), message.linear.x, message.angular.z))
+
+    def wait_until_active(self, names=('amcl', 'bt_navigator'), timeout=60.0) -> None:
+        """waitUntilNav2Active's GetState loop on each node."""
+        for name in names:
+            client = self.node.create_client(GetState, f'{name}/get_state')
+            assert self.spin_until(lambda c=client: c.service_is_ready(), timeout), name
+            deadline = time.monotonic() + timeout
+            state = 'unknown'
+            while state != 'active' and time.monotonic() < deadline:
+                future = client.call_async(GetState.Request())
+                self.spin_until(future.done, 5.0)
+                state = future.result().current_state.label if future.done() else 'unknown'
+                if state != 'active':
+                    self.spin_for(0.2)
+            assert state == 'active', f'{name}/get_state: {state}'
+
+    def send(self, kind: str, goal, timeout=30.0):
+        client = self.clients[kind]
+        assert self.spin_until(lambda: client.server_is_ready(), timeout), f'no {kind} server'
+        self.feedback = []
+        future = client.send_goal_async(goal, lambda message: self.feedback.append(
+            (time.monotonic(), message.feedback)))  # fmt: skip
+        assert self.spin_until(future.done, timeout)
+        handle = future.result()
+        assert handle.accepted, f'{kind} goal rejected'
+        return handle
+
+    def result(self, handle, timeout: float):
+        future = handle.get_result_async()
+        assert self.spin_until(future.done, timeout), 'no result in time'
+        return future.result()
+
+
+@pytest.fixture
+def commander(node_processes, ros_context):
+    """Set up after (so torn down before) node_processes."""
+    node = Commander(ros_context)
+    yield node
+    node.close()
+
+
+def start_all(node_processes, **navigator_params):
+    scenario = load_scenario(find_scenario(SCENARIO))
+    sim = start_sim(node_processes, scenario, **SIM)
+    planner = start_planner(node_processes)
+    navigator = start_navigator(node_processes, **navigator_params)
+    wait_for_log(navigator, 'navigator ready', timeout=60.0)
+    return scenario, sim, planner, navigator
+
+
+def test_navigate_to_lgfloors_hard_goal_unseen_with_feedback(commander, node_processes):
+    scenario, _, _, navigator = start_all(node_processes)
+    commander.wait_until_active()
+    task = StealthTask(scenario, 'hard')
+    gx, gy = task.goal.x, task.goal.y
+    started = time.monotonic()
+    handle = commander.send('to_pose', NavigateToPose.Goal(pose=stamped(gx, gy)))
+    answer = commander.result(handle, timeout=600.0)
+    elapsed = time.monotonic() - started
+    result = answer.result
+    assert answer.status == GoalStatus.STATUS_SUCCEEDED, (result.error_code, result.error_msg)
+    assert (result.error_code, result.error_msg) == (0, '')
+
+    truths = commander.truths
+    sim_seconds = truths[-1][0] - truths[0][0]
+    print(f'\nlgfloor hard goal: {elapsed:.1f} s wall, {sim_seconds:.1f} s simulated')
+    x, y = truths[-1][1:3]
+    assert math.dist((x, y), (gx, gy)) <= 0.25  # goal_tolerance
+    peak = max(task.visibility(x, y, t, yaw) for t, x, y, yaw, _ in truths)
+    assert peak < scenario.detection_threshold, f'seen: visibility {peak:.3f} on the way'
+    moved = [(tx, ty) for _, tx, ty, _, _ in truths]
+    assert math.dist(moved[0], scenario.start[:2]) < 0.2 and len(truths) > 50
+
+    feedback = [message for _, message in commander.feedback]
+    assert len(feedback) > 10
+    following = [message for message in feedback if message.distance_remaining > 0]
+    first, last = following[0], feedback[-1]  # distance 0 while the first plan is being made
+    assert first.distance_remaining > 20.0 > last.distance_remaining
+    assert seconds(last.navigation_time) > seconds(first.navigation_time)
+    assert first.estimated_time_remaining.sec > 10
+    assert last.current_pose.header.frame_id == 'map'
+    assert math.dist((last.current_pose.pose.position.x, last.current_pose.pose.position.y),
+                     (gx, gy)) < 2.0  # fmt: skip
+    assert all(message.number_of_recoveries >= 0 for message in feedback)
+    assert 'goal reached' in navigator.log_path.read_text()
+
+
+def test_cancel_stops_the_robot_within_one_control_period(commander, node_processes):
+    start_all(node_processes)
+    commander.wait_until_active()
+    task = StealthTask(load_scenario(find_scenario(SCENARIO)), 'hard')
+    handle = commander.send('to_pose', NavigateToPose.Goal(pose=stamped(task.goal.x, task.goal.y)))
+    assert commander.spin_until(
+        lambda: commander.truths and commander.truths[-1][4] > 0.3, 120.0
+    ), 'the robot never got under way'
+    sent = time.monotonic()
+    truths_before = len(commander.truths)
+    cancel = handle.cancel_goal_async()
+    assert commander.spin_until(cancel.done, 10.0)
+    assert cancel.result().goals_canceling, 'the cancel was refused'
+    answer = commander.result(handle, timeout=30.0)
+    assert answer.status == GoalStatus.STATUS_CANCELED
+    commander.spin_for(1.0)
+
+    after = [c for c in commander.commands if c[0] >= sent]
+    stops = [c for c in after if c[1] == 0.0 and c[2] == 0.0]
+    assert stops, 'no zero Twist after the cancel'
+    first_stop = stops[0][0]
+    # At most a command already in flight between the cancel and the zero Twist, and nothing
+    # but zeros once it came.
+    assert len([c for c in after if c[0] < first_stop]) <= 1
+    assert all(c[1] == 0.0 and c[2] == 0.0 for c in after if c[0] >= first_stop)
+    period_wall = 1.0 / SIM['publish_rate'] / SIM['real_time_factor']
+    latency = first_stop - sent
+    truths = commander.truths[truths_before:]
+    stopped = next(t for t, *_, speed in truths if abs(speed) < 0.01)
+    print(f'\ncancel: zero Twist {latency * 1000:.0f} ms (wall) after the cancel was sent '
+          f'(control period {period_wall * 1000:.0f} ms wall); ground truth at rest '
+          f'{stopped - truths[0][0]:.2f} s simulated after')  # fmt: skip
+
+
+def test_errors_end_the_goal_with_nav2s_codes_and_a_line(commander, node_processes):
+    """A plan that fails carries the planner's code and reason; a frame that cannot be
+    transformed, an unknown behaviour tree: Nav2 Kilted's navigator codes."""
+    start_all(node_processes)
+    commander.wait_until_active()
+
+    def outcome(kind, goal):
+        answer = commander.result(commander.send(kind, goal), timeout=60.0)
+        return answer.status, answer.result.error_code, answer.result.error_msg
+
+    status, code, message = outcome('to_pose', NavigateToPose.Goal(pose=stamped(80.0, 80.0)))
+    assert (status, code) == (GoalStatus.STATUS_ABORTED, 204)  # GOAL_OUTSIDE_MAP
+    assert message.startswith('planning failed (planner covert): ')
+    status, code, message = outcome(
+        'to_pose', NavigateToPose.Goal(pose=stamped(1.0, 1.0, frame='camera'))
+    )
+    assert (status, code) == (GoalStatus.STATUS_ABORTED, 9002)
+    assert message == (
+        "pose: header.frame_id 'camera': expected 'map' (or 'odom', 'base_link', transformed "
+        "through the robot's pose)"
+    )
+    status, code, message = outcome(
+        'to_pose', NavigateToPose.Goal(pose=stamped(-11.0, 0.0), behavior_tree='nav.xml')
+    )
+    assert (status, code) == (GoalStatus.STATUS_ABORTED, 9001)
+    assert "behavior_tree 'nav.xml': this navigator runs no behaviour trees" in message
+    status, code, message = outcome(
+        'through', NavigateThroughPoses.Goal(poses=[stamped(-11.0, 0.0), stamped(80.0, 0.0)])
+    )
+    assert (status, code) == (GoalStatus.STATUS_ABORTED, 304)  # the through-poses planner's
+    waypoints = FollowWaypoints.Goal(poses=[stamped(80.0, 0.0), stamped(-11.5, 0.0)])
+    answer = commander.result(commander.send('waypoints', waypoints), timeout=120.0)
+    assert answer.status == GoalStatus.STATUS_ABORTED  # stop_on_failure, as Nav2's default
+    missed = answer.result.missed_waypoints
+    assert [(m.index, m.error_code) for m in missed] == [(0, 204)]
+    assert answer.result.error_msg.startswith('waypoint 0: planning failed')
+
+
+def test_a_robot_whose_odom_stops_aborts_the_goal(commander, node_processes):
+    scenario = load_scenario(find_scenario(SCENARIO))
+    start_sim(node_processes, scenario, **SIM)
+    start_planner(node_processes)
+    # Odometry from nowhere: the navigator hears amcl_pose but never odom.
+    navigator = start_navigator(node_processes, sensor_timeout=1.0,
+                                extra_args=['-r', 'odom:=silent_odom'])  # fmt: skip
+    wait_for_log(navigator, 'navigator ready', timeout=60.0)
+    handle = commander.send('to_pose', NavigateToPose.Goal(pose=stamped(-11.0, 0.0)))
+    answer = commander.result(handle, timeout=30.0)
+    assert answer.status == GoalStatus.STATUS_ABORTED
+    assert (answer.result.error_code, answer.result.error_msg) == (
+        9003, 'no /silent_odom for 1 s (is the robot running?)'
+    )
