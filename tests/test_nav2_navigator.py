@@ -77,8 +77,8 @@ class Commander(SpinningNode):
 
     def _on_truth(self, message: Odometry):
         p = message.pose.pose
-        self.truths.append((seconds(message.header.stamp), p.position.x, p.position.y,
-                            quaternion_yaw(p.orientation), message.twist.twist.linear.x))  # fmt: skip
+        yaw, speed = quaternion_yaw(p.orientation), message.twist.twist.linear.x
+        self.truths.append((seconds(message.header.stamp), p.position.x, p.position.y, yaw, speed))
 
     def _on_cmd(self, message: Twist):
         self.commands.append((time.monotonic(), message.linear.x, message.angular.z))
@@ -253,5 +253,6 @@ def test_a_robot_whose_odom_stops_aborts_the_goal(commander, node_processes):
     answer = commander.result(handle, timeout=30.0)
     assert answer.status == GoalStatus.STATUS_ABORTED
     assert (answer.result.error_code, answer.result.error_msg) == (
-        9003, 'no /silent_odom for 1 s (is the robot running?)'
+        9003,
+        'no /silent_odom for 1 s (is the robot running?)',
     )

@@ -11,7 +11,7 @@ from collections.abc import Callable
 import dataclasses
 import math
 import time
-from typing import TYPE_CHECKING, NamedTuple
+from typing import NamedTuple
 
 from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped
@@ -24,9 +24,6 @@ from stealth_node_kit.conversions import seconds, time_msg, yaw_quaternion
 from stealth_nav2 import navigation_goals as codes
 from stealth_nav2.navigation_goals import ViaPoses
 from stealth_nav2.path_following import Arrived, PathFollower, Replan, TimedPose
-
-if TYPE_CHECKING:
-    from stealth_nav2.navigator_node import Navigator
 
 
 class Outcome(NamedTuple):
@@ -49,11 +46,12 @@ class Stage:
 
 
 class Navigation:
-    """To ``goals[-1]`` (through the others first when ``through``), in the map frame."""
+    """To ``goals[-1]`` (through the others first when ``through``), in the map frame, for the
+    navigator ``node`` (its robot, planner clients, watch, values and settings)."""
 
     def __init__(
         self,
-        node: Navigator,
+        node,
         goals: list[Pose],
         through: bool,
         planner_id: str,
