@@ -16,6 +16,7 @@ import pytest
 from rclpy.action import ActionClient
 from rclpy.qos import qos_profile_sensor_data
 from ros_support import REPO_ROOT, SpinningNode
+from stealth_env.planners import optimal_path
 from stealth_env.scenario import find_scenario, load_scenario
 from stealth_env.task import StealthTask
 from stealth_node_kit.conversions import quaternion_yaw, seconds, yaw_quaternion
@@ -229,6 +230,12 @@ def test_errors_end_the_goal_with_nav2s_codes_and_a_line(commander, node_process
     )
     assert (status, code) == (GoalStatus.STATUS_ABORTED, 9001)
     assert "behavior_tree 'nav.xml': this navigator runs no behaviour trees" in message
+    # The learned policy is a planner id: without a policy file the planner server refuses it.
+    status, code, message = outcome(
+        'to_pose', NavigateToPose.Goal(pose=stamped(-11.0, 0.0), behavior_tree='policy')
+    )
+    assert (status, code) == (GoalStatus.STATUS_ABORTED, 201)  # INVALID_PLANNER
+    assert message.startswith('planning failed (planner policy): planner policy: no policy file')
     status, code, message = outcome(
         'through', NavigateThroughPoses.Goal(poses=[stamped(-11.0, 0.0), stamped(80.0, 0.0)])
     )
@@ -239,6 +246,31 @@ def test_errors_end_the_goal_with_nav2s_codes_and_a_line(commander, node_process
     missed = answer.result.missed_waypoints
     assert [(m.index, m.error_code) for m in missed] == [(0, 204)]
     assert answer.result.error_msg.startswith('waypoint 0: planning failed')
+
+
+def test_through_poses_and_waypoints_on_the_covert_way(commander, node_processes):
+    """Poses along the covert way to the hard goal: NavigateThroughPoses passes them in order
+    (number_of_poses_remaining counts down), FollowWaypoints visits each (current_waypoint)."""
+    scenario, *_ = start_all(node_processes)
+    commander.wait_until_active()
+    points, _ = optimal_path(scenario, 'hard')
+    via = [stamped(*points[k]) for k in (4, 8)]
+    handle = commander.send('through', NavigateThroughPoses.Goal(poses=via))
+    answer = commander.result(handle, timeout=300.0)
+    assert answer.status == GoalStatus.STATUS_SUCCEEDED, answer.result.error_msg
+    remaining = [m.number_of_poses_remaining for _, m in commander.feedback]
+    assert remaining[0] == 2 and remaining[-1] == 1 and remaining == sorted(remaining)[::-1]
+    x, y = commander.truths[-1][1:3]
+    assert math.dist((x, y), points[8]) <= 0.25
+
+    back = [stamped(*points[k]) for k in (6, 3)]
+    handle = commander.send('waypoints', FollowWaypoints.Goal(poses=back))
+    answer = commander.result(handle, timeout=300.0)
+    assert answer.status == GoalStatus.STATUS_SUCCEEDED, answer.result.error_msg
+    assert list(answer.result.missed_waypoints) == []
+    assert {m.current_waypoint for _, m in commander.feedback} == {0, 1}
+    x, y = commander.truths[-1][1:3]
+    assert math.dist((x, y), points[3]) <= 0.25
 
 
 def test_a_robot_whose_odom_stops_aborts_the_goal(commander, node_processes):
