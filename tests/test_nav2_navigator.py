@@ -8,7 +8,7 @@ import math
 import time
 
 from action_msgs.msg import GoalStatus
-from geometry_msgs.msg import PoseStamped, Twist
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
 from lifecycle_msgs.srv import GetState
 from nav2_msgs.action import FollowWaypoints, NavigateThroughPoses, NavigateToPose
 from nav_msgs.msg import Odometry
@@ -170,11 +170,27 @@ def test_navigate_to_lgfloors_hard_goal_unseen_with_feedback(commander, node_pro
     assert 'goal reached' in navigator.log_path.read_text()
 
 
-def test_cancel_stops_the_robot_within_one_control_period(commander, node_processes):
+def test_preempt_reject_and_cancel_which_stops_the_robot_within_one_control_period(
+    commander, node_processes
+):
+    """A second goal of the same action preempts the first (ABORTED), a goal of another action
+    is rejected while one runs, and a cancel stops the robot at once."""
     start_all(node_processes)
     commander.wait_until_active()
     task = StealthTask(load_scenario(find_scenario(SCENARIO)), 'hard')
-    handle = commander.send('to_pose', NavigateToPose.Goal(pose=stamped(task.goal.x, task.goal.y)))
+    goal = NavigateToPose.Goal(pose=stamped(task.goal.x, task.goal.y))
+    first = commander.send('to_pose', goal)
+    assert commander.spin_until(lambda: commander.truths and commander.truths[-1][4] > 0.3, 120.0)
+    handle = commander.send('to_pose', goal)
+    answer = commander.result(first, timeout=30.0)
+    assert answer.status == GoalStatus.STATUS_ABORTED
+    assert answer.result.error_msg == 'preempted by a newer goal'
+    other = commander.clients['through'].send_goal_async(
+        NavigateThroughPoses.Goal(poses=[stamped(task.goal.x, task.goal.y)])
+    )
+    assert commander.spin_until(other.done, 30.0)
+    assert not other.result().accepted  # one goal at a time, as Nav2's navigator muxer
+
     assert commander.spin_until(
         lambda: commander.truths and commander.truths[-1][4] > 0.3, 120.0
     ), 'the robot never got under way'
@@ -202,6 +218,31 @@ def test_cancel_stops_the_robot_within_one_control_period(commander, node_proces
     print(f'\ncancel: zero Twist {latency * 1000:.0f} ms (wall) after the cancel was sent '
           f'(control period {period_wall * 1000:.0f} ms wall); ground truth at rest '
           f'{stopped - truths[0][0]:.2f} s simulated after')  # fmt: skip
+
+
+def test_a_robot_knocked_off_its_path_replans_as_a_recovery(commander, node_processes):
+    """The localisation is told the robot stands a metre off the path (initialpose, as a
+    kidnapped robot's AMCL would jump): the navigator replans, counted as a recovery."""
+    _, _, _, navigator = start_all(node_processes)
+    commander.wait_until_active()
+    task = StealthTask(load_scenario(find_scenario(SCENARIO)), 'hard')
+    handle = commander.send('to_pose', NavigateToPose.Goal(pose=stamped(task.goal.x, task.goal.y)))
+    assert commander.spin_until(lambda: commander.truths and commander.truths[-1][4] > 0.3, 120.0)
+    kidnap = commander.node.create_publisher(PoseWithCovarianceStamped, 'initialpose', 10)
+    _, x, y, yaw, _ = commander.truths[-1]
+    message = PoseWithCovarianceStamped()
+    message.header.frame_id = 'map'
+    message.pose.pose.position.x = x - math.sin(yaw)  # a metre to the robot's left
+    message.pose.pose.position.y = y + math.cos(yaw)
+    message.pose.pose.orientation = yaw_quaternion(yaw)
+    kidnap.publish(message)
+    assert commander.spin_until(
+        lambda: any(m.number_of_recoveries >= 1 for _, m in commander.feedback), 30.0
+    ), 'no recovery in the feedback'
+    assert 'replanning (recovery 1): strayed' in navigator.log_path.read_text()
+    cancel = handle.cancel_goal_async()
+    assert commander.spin_until(cancel.done, 10.0)
+    assert commander.result(handle, timeout=30.0).status == GoalStatus.STATUS_CANCELED
 
 
 def test_errors_end_the_goal_with_nav2s_codes_and_a_line(commander, node_processes):

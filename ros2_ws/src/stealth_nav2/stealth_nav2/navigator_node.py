@@ -143,7 +143,7 @@ class Navigator(StartupNode):
         ]
         self.create_service(GetState, '~/get_state', self._get_state)
         if values['localizer_state']:
-            self.create_service(GetState, f'/{values["localizer_state"]}/get_state',
+            self.create_service(GetState, f'{values["localizer_state"]}/get_state',
                                 self._get_state)  # fmt: skip
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(TICK_PERIOD, self._tick, clock=steady)
