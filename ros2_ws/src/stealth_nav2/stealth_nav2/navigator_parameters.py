@@ -46,8 +46,9 @@ PARAMETERS = {
     ),
     'stray_distance': Param(0.5, 'm off the path that make the robot replan.', (0.05, 100.0)),
     'goal_tolerance': Param(
-        0.25, "m from the goal that count as reached (as Nav2's xy_goal_tolerance).",
-        (0.01, 10.0),
+        0.25, "m from the path's last pose that count as arrived (as Nav2's "
+        "xy_goal_tolerance; the covert planner's path ends where its task counts the goal "
+        'reached, within the scenario goal_radius).', (0.01, 10.0),
     ),
     'via_radius': Param(
         0.5, 'm from a NavigateThroughPoses pose that count as passing it.', (0.01, 10.0)
