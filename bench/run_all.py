@@ -28,13 +28,15 @@ import traceback
 BENCH_DIR = Path(__file__).resolve().parent
 REPOSITORY = BENCH_DIR.parent
 # The pure-Python cores the benches use (stealth_experiments: the experiment harness, which
-# writes its reports with stealth_bringup's run outputs).
+# writes its reports with stealth_bringup's run outputs; stealth_nav2: the covert planner's).
 PACKAGES = (
     'stealth_sim',
     'stealth_env',
     'stealth_agent',
     'stealth_bringup',
     'stealth_experiments',
+    'stealth_node_kit',
+    'stealth_nav2',
 )
 DEFAULT_OUT = BENCH_DIR / 'results.json'
 RATIO_WORDS = ('ratio', 'speedup', 'per_optimum', 'relative')

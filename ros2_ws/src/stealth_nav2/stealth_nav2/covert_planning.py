@@ -4,9 +4,10 @@ A request (start, goal, planner id, the lights' time) becomes a path of lattice 
 with the time to be there, or a ``PlanError`` carrying Nav2's error name
 (``nav2_msgs/action/ComputePathToPose`` result codes) and one line saying why. Planner ids:
 
-- ``covert`` (the default, ''): value iteration's optimum (``stealth_env.planners``) on the
-  time-expanded lattice where lights move, followed greedily from the start's place (node, bin
-  of the lights' cycle, heading where lights weigh exposure): the path ``optimal_path`` gives.
+- ``covert`` (the default: '' and Nav2's default id ``GridBased`` too): value iteration's
+  optimum (``stealth_env.planners``) on the time-expanded lattice where lights move, followed
+  greedily from the start's place (node, bin of the lights' cycle, heading where lights weigh
+  exposure): the path ``optimal_path`` gives.
 - ``dark_path``: Dark Path (A* with a light cost, never entering a seen step), time-aware.
 - ``astar``: the shortest path, blind to the lights.
 - ``policy``: the greedy actions of a tabular policy saved by ``stealth train``
@@ -22,10 +23,11 @@ What is cached, per scene (its grid and lights' SHA-256) and task numbers: the l
 (the expensive part: every step's visibility at every bin); per goal point: value iteration's
 greedy policy. A request for a cached goal only follows the policy.
 
-The lattice is anchored at the scenario's start (or, for a scene from topics, at a valid node
-of the grid ``origin + (step/2, step/2) + k * step``); a request's start is snapped to the
-nearest node the robot fits at (within one step), which is the path's first pose. A goal of the
-scenario keeps its own radius; any other goal point has ``goal_radius``.
+The lattice is anchored at the scenario's start (or, for a scene from topics, at the start of
+the first request on that scene, as the environment anchors it at the episode's); a request's
+start is snapped to the nearest node the robot fits at (within one step), which is the path's
+first pose. A goal of the scenario keeps its own radius; any other goal point has
+``goal_radius``.
 """
 
 from __future__ import annotations
@@ -52,34 +54,16 @@ from stealth_env.reward import RewardWeights
 from stealth_env.scenario import Goal, Scenario
 from stealth_env.task import StealthTask
 
+from stealth_nav2.plan_errors import PlanError
+from stealth_nav2.policy_behaviour import greedy_actions
 from stealth_nav2.scene_source import Scene
 
 PLANNER_IDS = ('covert', 'dark_path', 'astar', 'policy')
 DEFAULT_PLANNER = PLANNER_IDS[0]
-# Nav2's error names (ComputePathToPose / ComputePathThroughPoses result constants).
-ERROR_NAMES = (
-    'UNKNOWN',
-    'INVALID_PLANNER',
-    'TF_ERROR',
-    'START_OUTSIDE_MAP',
-    'GOAL_OUTSIDE_MAP',
-    'START_OCCUPIED',
-    'GOAL_OCCUPIED',
-    'TIMEOUT',
-    'NO_VALID_PATH',
-    'NO_VIAPOINTS_GIVEN',
-)
+# Nav2's default planner id (nav2_params.yaml's planner_plugins, the default behaviour trees'
+# PlannerSelector): an unchanged Nav2 setup asks for it, and gets the covert optimum.
+PLANNER_ALIASES = {'': DEFAULT_PLANNER, 'GridBased': DEFAULT_PLANNER}
 _SAME_POINT = 1e-6  # m: a request goal this close to a scenario goal is that goal
-
-
-class PlanError(Exception):
-    """A request that gets no path: ``code`` is Nav2's error name, the message says why."""
-
-    def __init__(self, code: str, message: str):
-        if code not in ERROR_NAMES:
-            raise ValueError(f'code: expected one of {", ".join(ERROR_NAMES)}, got {code!r}')
-        super().__init__(message)
-        self.code = code
 
 
 @dataclasses.dataclass(frozen=True)
@@ -172,11 +156,12 @@ class CovertPlanner:
     ) -> Plan:
         """A path through the goals in order, each leg starting where the last ended (the
         same node, time and heading), as Nav2's planner server joins its legs."""
-        planner_id = planner_id or DEFAULT_PLANNER
+        planner_id = PLANNER_ALIASES.get(planner_id, planner_id)
         if planner_id not in PLANNER_IDS:
             raise PlanError(
                 'INVALID_PLANNER',
-                f'planner id {planner_id!r} is invalid; planner ids are: {" ".join(PLANNER_IDS)}',
+                f'planner id {planner_id!r} is invalid; planner ids are: {" ".join(PLANNER_IDS)}'
+                " (and GridBased, Nav2's default, for covert)",
             )
         if not goals:
             raise PlanError('NO_VIAPOINTS_GIVEN', 'no goals given: expected at least one pose')
@@ -185,7 +170,7 @@ class CovertPlanner:
         _check_point(occupancy, start, 'START')
         for goal in goals:
             _check_point(occupancy, goal, 'GOAL')
-        setting, cached = self._setting_for(scene)
+        setting, cached = self._setting_for(scene, start)
         clock.check('building the lattice model')
         place, t0 = self._start_place(setting, start, t)
         places, all_cached = [place], cached
@@ -197,15 +182,25 @@ class CovertPlanner:
 
     # --- the scene ------------------------------------------------------------------------
 
-    def prepare(self, scene: Scene) -> None:
-        """Build the scene's lattice model now (the slow part of a first request)."""
-        self._setting_for(scene)
+    @property
+    def model(self) -> LatticeModel | None:
+        """The current scene's lattice model (None before the first scene)."""
+        return None if self._setting is None else self._setting.model
 
-    def _setting_for(self, scene: Scene) -> tuple[_Setting, bool]:
+    def prepare(self, scene: Scene, start: Pose | None = None) -> None:
+        """Build the scene's lattice model now (the slow part of a first request); a scene
+        from topics needs the start its lattice is anchored at."""
+        self._setting_for(scene, start)
+
+    def _setting_for(self, scene: Scene, start: Pose | None) -> tuple[_Setting, bool]:
+        """The scene's setting, built when the scene (or the task numbers) changed; a scene
+        from topics is anchored at this start."""
         key = (scene.key, self.numbers if scene.scenario is None else None)
         if self._setting is not None and self._key == key:
             return self._setting, True
-        scenario = scene.scenario or scenario_of(scene, self.numbers)
+        if scene.scenario is None and start is None:
+            raise ValueError('a scene from topics is anchored at a start: give one')
+        scenario = scene.scenario or scenario_of(scene, self.numbers, start[:2])
         model = LatticeModel.build(StealthTask(scenario))
         node_index = {node: i for i, node in enumerate(model.nodes)}
         self._key, self._setting = key, _Setting(scenario, model, node_index, OrderedDict())
@@ -297,8 +292,6 @@ class CovertPlanner:
     def _policy_actions(self, setting: _Setting, model: LatticeModel):
         """The saved policy's greedy action at each place (the first maximal, as argmax), -1
         where it never saw the state."""
-        from stealth_nav2.policy_behaviour import greedy_actions
-
         return greedy_actions(self.policy, setting.scenario, model)
 
     # --- the answer -----------------------------------------------------------------------
@@ -321,19 +314,19 @@ class CovertPlanner:
         return Plan(poses, times, planner_id, steps, peak, cached)
 
 
-def scenario_of(scene: Scene, numbers: TaskNumbers) -> Scenario:
-    """The Scenario of a scene from topics, with these task numbers, anchored at a valid node
-    of the grid ``origin + (step/2, step/2) + k * step`` (the one nearest the map's centre).
-    PlanError UNKNOWN when the lights' timing does not fit the phase bins, or nothing fits."""
+def scenario_of(scene: Scene, numbers: TaskNumbers, anchor: tuple[float, float]) -> Scenario:
+    """The Scenario of a scene from topics, with these task numbers, its lattice anchored at
+    ``anchor`` (the robot's start at the first request, as the environment anchors its lattice
+    at the episode's start), or at the nearest node of that grid the robot fits at.
+    PlanError START_OCCUPIED when none fits, UNKNOWN when the lights' timing does not fit the
+    phase bins."""
     occupancy, step = scene.map, numbers.step_distance
-    x0, y0, _ = occupancy.origin
-    lattice = MoveLattice(occupancy, (x0 + step / 2, y0 + step / 2), step, numbers.robot_radius)
-    x_min, y_min, x_max, y_max = occupancy.bounds
-    node = lattice.nearest_valid_node((x_min + x_max) / 2, (y_min + y_max) / 2)
+    lattice = MoveLattice(occupancy, anchor, step, numbers.robot_radius)
+    node = lattice.nearest_valid_node(*anchor)
     if node is None:
         raise PlanError(
-            'UNKNOWN',
-            f'the map from {scene.source} has no free place for the robot (robot_radius '
+            'START_OCCUPIED',
+            f'the map from {scene.source} has no place the robot fits (robot_radius '
             f'{numbers.robot_radius:g} m, step {step:g} m)',
         )
     anchor = lattice.node_to_point(node)

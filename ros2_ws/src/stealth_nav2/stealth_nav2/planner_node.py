@@ -6,8 +6,16 @@
 
 It answers as Nav2's ``nav2_planner/planner_server`` does (same node name, actions, result
 codes and path), so bt_navigator or nav2_simple_commander's ``getPath`` /
-``getPathThroughPoses`` call it unchanged; planner ids: covert (default), dark_path, astar,
-policy.
+``getPathThroughPoses`` call it unchanged; planner ids: covert (the default: '' and Nav2's
+default id GridBased too), dark_path, astar, policy.
+
+## Topics
+
+* subscribes ``map`` (nav_msgs/OccupancyGrid, transient local) and ``searchlights``
+  (stealth_interfaces/SearchlightArray, transient local) when no scenario is given;
+  ``amcl_pose`` (geometry_msgs/PoseWithCovarianceStamped, transient local, as AMCL); ``/tf``
+  (tf2_msgs/TFMessage, as tf2_ros's listener).
+* publishes ``plan`` (nav_msgs/Path, depth 1, as Nav2's planner server): each path found.
 
 ## Actions
 
@@ -17,14 +25,6 @@ policy.
   carried into it over /tf (an empty frame is the map's). Success: the path, ``planning_time``
   (wall time). Failure: aborted with Nav2's ``error_code`` and an ``error_msg`` naming the
   reason (the same line is logged as a warning). Cancelled before planning: canceled.
-
-## Topics
-
-* subscribes ``map`` (nav_msgs/OccupancyGrid, transient local) and ``searchlights``
-  (stealth_interfaces/SearchlightArray, transient local) when no scenario is given;
-  ``amcl_pose`` (geometry_msgs/PoseWithCovarianceStamped, transient local, as AMCL); ``/tf``
-  (tf2_msgs/TFMessage, as tf2_ros's listener).
-* publishes ``plan`` (nav_msgs/Path, depth 1, as Nav2's planner server): each path found.
 
 ## Parameters
 
@@ -58,8 +58,9 @@ from stealth_node_kit.qos import kept_qos
 from stealth_node_kit.running import StartupNode, run_node
 from tf2_msgs.msg import TFMessage
 
-from stealth_nav2.covert_planning import CovertPlanner, PlanError, Pose, densify
+from stealth_nav2.covert_planning import CovertPlanner, Pose, densify
 from stealth_nav2.frame_tree import FrameError, FrameTree
+from stealth_nav2.plan_errors import PlanError
 from stealth_nav2.planner_parameters import PARAMETERS, task_numbers
 from stealth_nav2.policy_behaviour import read_policy
 from stealth_nav2.scene_source import SceneError, SceneSource, scene_from_scenario
@@ -113,7 +114,7 @@ class PlannerServer(StartupNode):
             self.get_logger().info(
                 f'scene: {scene.source}, lattice model built in '
                 f'{time.perf_counter() - started:.2f} s; planner ids: covert (default), '
-                'dark_path, astar, policy'
+                'dark_path, astar, policy (GridBased: covert)'
             )
         else:
             self.get_logger().info(
@@ -176,6 +177,8 @@ class PlannerServer(StartupNode):
         planner_id = request.planner_id
         goals = list(request.goals) if through else [request.goal]
         try:
+            if not goals:  # Nav2 says so before it looks for the start
+                raise PlanError('NO_VIAPOINTS_GIVEN', 'no goals given: expected at least one pose')
             scene = self._scene()
             start = self._start(request, scene.frame_id)
             targets = [self._in_frame(goal, scene.frame_id, 'goal') for goal in goals]

@@ -14,7 +14,7 @@ import numpy as np
 from stealth_agent.policy_store import PolicyFileError, SavedPolicy, load_policy
 from stealth_env.scenario import content_identity
 
-from stealth_nav2.covert_planning import PlanError
+from stealth_nav2.plan_errors import PlanError
 
 CONTENT = {'grid_sha256': 'map', 'lights_sha256': 'lights'}
 

@@ -26,6 +26,7 @@ settles which way it turns at the stamp).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import json
 import math
@@ -97,9 +98,10 @@ class Scene:
         (what saved policies carry): equal identities, equal scenes."""
         return content_identity(self)
 
-    @property
+    @functools.cached_property
     def key(self) -> tuple[str, str]:
-        """(grid_sha256, lights_sha256): a cache key that changes with the content."""
+        """(grid_sha256, lights_sha256): a cache key that changes with the content (hashed
+        once: a scene is never changed)."""
         identity = self.identity()
         return identity['grid_sha256'], identity['lights_sha256']
 
@@ -182,7 +184,7 @@ def _light_at_zero(light, t: float) -> Searchlight:
             float(light.sweep_min), float(light.sweep_max), float(light.angular_speed)
         ).validate(light.name)
         span = motion.max_direction - motion.min_direction
-        if t != 0.0 and span > 0.0 and motion.angular_speed > 0.0:
+        if span > 0.0 and motion.angular_speed > 0.0:
             offset = motion.start_offset(light.name, fields['direction'])
             # Along the triangle wave at t: offset turning ccw, or 2 * span - offset turning
             # back; at t = 0 the wave is on its ccw half (a Searchlight starts turning ccw).
@@ -192,7 +194,9 @@ def _light_at_zero(light, t: float) -> Searchlight:
                     back = 0.0
                 if back <= span * (1 + 1e-9):
                     break
-            fields['direction'] = motion.min_direction + min(back, span)
+            # Rounded to 1e-9 rad along the sweep: the same light from every stamp, so the
+            # scene stays the same while the lights move.
+            fields['direction'] = motion.min_direction + min(round(back, 9), span)
         return Searchlight(**fields, motion=motion)
     if light.motion == MOTION_PATROL:
         route = [(float(p.x), float(p.y)) for p in light.waypoints]

@@ -12,12 +12,12 @@ from stealth_env.scenario import load_scenario
 from stealth_env.task import StealthTask
 from stealth_nav2.covert_planning import (
     CovertPlanner,
-    PlanError,
     Pose,
     TaskNumbers,
     densify,
     scenario_of,
 )
+from stealth_nav2.plan_errors import PlanError
 from stealth_nav2.scene_source import Scene, scene_from_scenario
 
 
@@ -184,9 +184,17 @@ def test_astar_refuses_its_seen_path(lgfloor, planner):
 def test_unknown_planner_id(lgfloor, planner):
     error = error_of(lambda: planner.plan(lgfloor, start_pose(lgfloor), goal_pose(lgfloor), 'x'))
     assert error.code == 'INVALID_PLANNER'
-    assert (
-        str(error) == "planner id 'x' is invalid; planner ids are: covert dark_path astar policy"
+    assert str(error) == (
+        "planner id 'x' is invalid; planner ids are: covert dark_path astar policy (and "
+        "GridBased, Nav2's default, for covert)"
     )
+
+
+@pytest.mark.parametrize('planner_id', ['', 'GridBased'])
+def test_the_default_ids_are_the_covert_optimum(lgfloor, planner, planner_id):
+    plan = planner.plan(lgfloor, start_pose(lgfloor), goal_pose(lgfloor), planner_id)
+    covert = planner.plan(lgfloor, start_pose(lgfloor), goal_pose(lgfloor), 'covert')
+    assert plan.planner_id == 'covert' and np.array_equal(plan.poses, covert.poses)
 
 
 def test_no_goals(lgfloor, planner):
@@ -216,7 +224,8 @@ def test_a_scene_without_a_scenario_plans_with_the_task_numbers():
     scenario = load_scenario('simple-maze')
     scene = Scene(map=scenario.map, lights=scenario.lights, source='topics')
     numbers = TaskNumbers(robot_radius=scenario.robot_radius, step_limit=300)
-    built = scenario_of(scene, numbers)
+    built = scenario_of(scene, numbers, scenario.start[:2])
+    assert built.start[:2] == scenario.start[:2]
     assert built.step_limit == 300 and built.lights == scenario.lights
     plan = CovertPlanner(numbers).plan(
         scene,

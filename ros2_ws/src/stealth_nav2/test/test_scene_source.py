@@ -119,3 +119,16 @@ def test_source_names_what_is_missing_then_gives_the_scene():
 def test_a_fixed_source_ignores_nothing_missing():
     scene = scene_from_scenario('simple-maze')
     assert SceneSource(scene).current() is scene
+
+
+def test_moving_lights_at_later_stamps_keep_the_scene():
+    """The environment republishes moving lights at every stamp: the same lights at t = 0, so
+    the same scene (nothing to rebuild, the planner's cache holds)."""
+    scenario = load_scenario('lgfloor-moving')
+    source = SceneSource()
+    source.update_map(grid_message(scenario.map))
+    source.update_lights(searchlight_array_msg(scenario.lights, 0.0))
+    scene = source.current()
+    for stamp in (3.0, 7.7, 31.5, 1234.25):
+        source.update_lights(searchlight_array_msg(scenario.lights, stamp))
+        assert source.current() is scene
