@@ -18,6 +18,10 @@ from typing import NamedTuple
 
 from stealth_sim.kinematics import Pose, compose, relative
 
+from stealth_nav2.covert_planning import PLANNER_IDS
+
+__all__ = ['PLANNER_IDS', 'Frames', 'ViaPoses', 'WaypointRun', 'goal_in_map', 'planner_for']
+
 # Nav2 Kilted's NavigateToPose result codes; NavigateThroughPoses' are these + 100.
 UNKNOWN = 9000
 FAILED_TO_LOAD_BEHAVIOR_TREE = 9001
@@ -28,8 +32,6 @@ THROUGH_POSES_OFFSET = 100
 FAILED_TO_MAKE_PROGRESS = 105
 # nav2_msgs/action/FollowWaypoints'.
 WAYPOINTS_UNKNOWN = 600
-
-PLANNER_IDS = ('covert', 'dark_path', 'astar', 'policy')
 
 
 def navigator_code(code: int, through_poses: bool) -> int:
