@@ -295,6 +295,8 @@ def test_errors_end_the_goal_with_nav2s_codes_and_a_line(commander, node_process
     status, code, message = outcome('to_pose', NavigateToPose.Goal(pose=stamped(80.0, 80.0)))
     assert (status, code) == (GoalStatus.STATUS_ABORTED, 204)  # GOAL_OUTSIDE_MAP
     assert message.startswith('planning failed (planner covert): ')
+    status, code, message = outcome('to_pose', NavigateToPose.Goal(pose=stamped(-13.0, 0.0)))
+    assert (status, code) == (GoalStatus.STATUS_ABORTED, 206), message  # GOAL_OCCUPIED: a wall
     status, code, message = outcome(
         'to_pose', NavigateToPose.Goal(pose=stamped(1.0, 1.0, frame='camera'))
     )
@@ -351,18 +353,25 @@ def test_through_poses_and_waypoints_on_the_covert_way(commander, node_processes
     assert math.dist((x, y), points[3]) <= 0.25
 
 
-def test_a_robot_whose_odom_stops_aborts_the_goal(commander, node_processes):
+@pytest.mark.parametrize(
+    ('topic', 'silent'),
+    [
+        ('odom', 'no /silent for 1 s (is the robot running?)'),
+        ('amcl_pose', 'no /silent for 1 s (is the localisation running?)'),
+    ],
+)
+def test_a_robot_whose_odom_or_amcl_pose_is_silent_aborts_the_goal(
+    commander, node_processes, topic, silent
+):
     scenario = load_scenario(find_scenario(SCENARIO))
     start_sim(node_processes, scenario, **SIM)
     start_planner(node_processes)
-    # Odometry from nowhere: the navigator hears amcl_pose but never odom.
-    navigator = start_navigator(node_processes, sensor_timeout=1.0,
-                                extra_args=['-r', 'odom:=silent_odom'])  # fmt: skip
+    # The navigator listens where nothing is published.
+    navigator = start_navigator(
+        node_processes, sensor_timeout=1.0, extra_args=['-r', f'{topic}:=silent']
+    )
     wait_for_log(navigator, 'navigator ready', timeout=60.0)
     handle = commander.send('to_pose', NavigateToPose.Goal(pose=stamped(-11.0, 0.0)))
     answer = commander.result(handle, timeout=30.0)
     assert answer.status == GoalStatus.STATUS_ABORTED
-    assert (answer.result.error_code, answer.result.error_msg) == (
-        9003,
-        'no /silent_odom for 1 s (is the robot running?)',
-    )
+    assert (answer.result.error_code, answer.result.error_msg) == (9003, silent)
