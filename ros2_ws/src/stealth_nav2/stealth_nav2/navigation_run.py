@@ -119,7 +119,7 @@ class Navigation:
 
     def cancel(self) -> None:
         """The goal was cancelled: stop the robot now."""
-        self._finish(Outcome(GoalStatus.STATUS_CANCELED, 0, 'canceled'))
+        self._finish(Outcome(GoalStatus.STATUS_CANCELED))
 
     def preempt(self) -> None:
         self._finish(Outcome(GoalStatus.STATUS_ABORTED, 0, 'preempted by a newer goal'))

@@ -219,9 +219,7 @@ class Navigator(StartupNode):
         planner_id, problem = planner_for(behavior_tree, values['planner_id'],
                                           values['planner_ids'])  # fmt: skip
         if problem:
-            return Outcome(GoalStatus.STATUS_ABORTED,
-                           codes.navigator_code(codes.FAILED_TO_LOAD_BEHAVIOR_TREE, through),
-                           problem)  # fmt: skip
+            return self._refused(codes.FAILED_TO_LOAD_BEHAVIOR_TREE, through, problem)
         goals = []
         tracker = self.robot.tracker
         latest = tracker.latest
@@ -230,19 +228,21 @@ class Navigator(StartupNode):
                                         tracker.estimate, latest and latest.pose)  # fmt: skip
             if problem:
                 where = f'poses[{index}]' if through else 'pose'
-                return Outcome(GoalStatus.STATUS_ABORTED,
-                               codes.navigator_code(codes.TF_ERROR, through),
-                               f'{where}: {problem}')  # fmt: skip
+                return self._refused(codes.TF_ERROR, through, f'{where}: {problem}')
             goals.append(goal)
         if not goals:
-            return Outcome(GoalStatus.STATUS_ABORTED, codes.navigator_code(codes.UNKNOWN, True),
-                           'poses: no poses given')  # fmt: skip
+            return self._refused(codes.UNKNOWN, through, 'poses: no poses given')
         done = Future()
         task.navigation = Navigation(self, goals, through, planner_id, done.set_result)
         where = ', '.join(f'({g.x:.2f}, {g.y:.2f})' for g in goals)
         self.get_logger().info(f'{task.action}: to {where} with planner {planner_id}')
         task.navigation.start()
         return await done
+
+    def _refused(self, code: int, through: bool, message: str) -> Outcome:
+        """A goal that cannot start: one line, and the abort with the navigator's code."""
+        self.get_logger().error(f'goal aborted: {message}')
+        return Outcome(GoalStatus.STATUS_ABORTED, codes.navigator_code(code, through), message)
 
     def _end(self, task: Task, handle, outcome: Outcome) -> None:
         if self.task is task:
