@@ -114,8 +114,11 @@ class Navigation:
             if self.through and estimate is not None:
                 self.via.passed(estimate)
             off = self.follower.off_path(estimate) if estimate is not None else 0.0
+            behind = self.follower.behind(self.robot.tracker.latest.t)
             if off > values['stray_distance']:
                 self._recover(f'strayed {off:.2f} m off the path')
+            elif behind is not None:
+                self._recover(behind.reason, counted=False)
 
     def cancel(self) -> None:
         """The goal was cancelled: stop the robot now."""
@@ -239,11 +242,11 @@ class Navigation:
         self._plan_handle, self._plan_sent = None, False
         self.stage = Stage.FOLLOWING
         self._since = time.monotonic()
-        timing = 'timed' if self.follower.timed else 'untimed'
+        legs = self.follower.legs
+        timing = f'timed, {self.follower.waits} waits' if self.follower.timed else 'untimed'
         self.node.get_logger().info(
-            f'plan {self.plans} ({self.planner_id}): {len(poses)} poses, {timing}, '
-            f'{len(self.follower.legs)} legs, planned in '
-            f'{seconds(result.planning_time):.3f} s'
+            f'plan {self.plans} ({self.planner_id}): {len(poses)} poses ({timing}), '
+            f'{len(legs)} legs, planned in {seconds(result.planning_time):.3f} s'
         )
         self._next_move()
 

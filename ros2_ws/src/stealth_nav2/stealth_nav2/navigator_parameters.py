@@ -40,8 +40,8 @@ PARAMETERS = {
         5, 'Replans (blocked, strayed, late) a goal may take before it is aborted.', (0, 1000)
     ),
     'max_lateness': Param(
-        3.0, "s of the robot's clock a timed path's pose may be reached after its stamp (beyond "
-        'the time the plan took) before the robot replans (not a recovery); 3 s is a step of the '
+        1.5, "s of the robot's clock a timed path's pose may be reached after its stamp (beyond "
+        'the time the plan took) before the robot replans (not a recovery); half a step of the '
         'shipped moving-light scenarios.', (0.0, 3600.0),
     ),
     'stray_distance': Param(0.5, 'm off the path that make the robot replan.', (0.05, 100.0)),

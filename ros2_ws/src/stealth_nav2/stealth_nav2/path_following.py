@@ -14,10 +14,13 @@ whose stamps rise is **timed**, and its stamps bind:
   another heading a turn, one with a later stamp a wait;
 - **pace**: a timed drive is given the speed that ends it at its last pose's stamp (never above
   the robot's limit), so it passes the poses along a run near their own stamps rather than ahead
-  of them; a leg that ends early holds until its stamp; one that ends more than
-  ``max_lateness`` late (beyond the lateness the path already had when it came: the time it
-  took to plan) asks for a new plan from where and when the robot is (not a recovery: Nav2
-  replans as it goes too);
+  of them; a leg that ends early holds until its stamp. A leg is **late** once it runs more than
+  ``max_lateness`` past the later of its stamp and the soonest the robot could end it (from when
+  it started: the turn and the drive at the limits, their speed ramps, the rests between), so
+  stamps the robot cannot keep (a static scene's nominal 1 s a step) are followed as fast as it
+  can, while a robot held up (load, a slow start) asks for a new plan from where and when it is
+  (not a recovery: Nav2 replans as it goes too). Checked as the leg runs, except in a plan's
+  first leg, which always finishes (so replanning cannot stop the robot from getting on);
 - **recoveries**: a move that ends BUMPED (blocked) or TIMED_OUT, and a robot more than
   ``stray_distance`` off its leg, ask for a new plan as a recovery (the navigator counts them).
 """
@@ -37,6 +40,7 @@ SAME_PLACE = 0.01  # m: poses closer than this are at one place (a turn or a wai
 STRAIGHT = 1e-3  # rad: drives whose directions differ by less than this are one straight run
 EVEN_PACE = 0.05  # relative: a run's stamps advance evenly when speeds agree this closely
 MIN_HOLD = 0.05  # s: an early arrival by less than this is on time
+SETTLE = 0.5  # s a leg's turn and drive each may take to come to rest, beyond the ramps
 
 
 class TimedPose(NamedTuple):
@@ -75,7 +79,7 @@ class FollowSettings:
     limits: Limits = Limits()
     heading_tolerance: float = 0.1  # rad: a pose's heading this close needs no turn
     join_distance: float = 0.25  # m: a robot this close to the first pose starts from it
-    max_lateness: float = 3.0  # s late at a pose's stamp: replan (timed paths)
+    max_lateness: float = 1.5  # s late at a pose's stamp: replan (timed paths)
     stray_distance: float = 0.5  # m off the current leg: replan
     min_pace_speed: float = 0.05  # m/s: a paced drive never crawls slower
 
@@ -209,8 +213,18 @@ class PathFollower:
         self.legs = legs_of(self.poses, start, settings)
         self.leg = 0  # the leg running or next
         self._heading = start.yaw  # the heading the robot starts the next leg with
+        self._due: float | None = None  # when the running leg is due to end (timed paths)
         self._holding = False  # the current leg's motion is done; holding until its stamp
         self._lengths = _cumulative_lengths(self.poses)
+
+    @property
+    def waits(self) -> int:
+        """How many times a timed path stays at one place to a later stamp (a wait for a light;
+        a leg of its own, or the hold after a turn there)."""
+        if not self.timed:
+            return 0
+        pairs = zip(self.poses, self.poses[1:], strict=False)
+        return sum(math.dist(a[:2], b[:2]) <= SAME_PLACE and b.t > a.t for a, b in pairs)
 
     @property
     def done(self) -> bool:
@@ -229,6 +243,9 @@ class PathFollower:
                 self._holding = False
                 self.leg += 1
                 continue
+            self._due = None
+            if leg.arrive_by is not None:
+                self._due = max(leg.arrive_by, now + self._soonest(leg))
             if leg.kind is LegKind.TURN:
                 return Move(MoveGoal(leg.heading), limits, self.leg)
             return Move(go_to(leg.x, leg.y), self._paced(leg, now), self.leg)
@@ -251,12 +268,25 @@ class PathFollower:
         if off > self.settings.stray_distance:
             return Replan(f'strayed: ended {off:.2f} m from the path at ({leg.x:.2f}, '
                           f'{leg.y:.2f})')  # fmt: skip
-        if leg.arrive_by is not None and now - leg.arrive_by > self.max_lateness:
+        if self._due is not None and now - self._due > self.max_lateness:
             late = now - leg.arrive_by
-            return Replan(f'{late:.1f} s late at pose {leg.last} of the path (allowed '
+            return Replan(f'{late:.1f} s late at pose {leg.last} of the path, '
+                          f'{now - self._due:.1f} s more than the robot needed (allowed '
                           f'{self.max_lateness:.1f} s)', recovery=False)  # fmt: skip
         self._holding = True  # hold until the leg's stamp if early, then the next leg
         return None
+
+    def behind(self, now: float) -> Replan | None:
+        """A :class:`Replan` once the leg running is late (a timed path; checked while it
+        runs, from the plan's second leg on)."""
+        if self.done or self._holding or self.leg == 0 or self._due is None:
+            return None
+        if now - self._due <= self.max_lateness:
+            return None
+        leg = self.legs[self.leg]
+        return Replan(f'{now - leg.arrive_by:.1f} s behind pose {leg.last} of the path, '
+                      f'{now - self._due:.1f} s more than the robot needed (allowed '
+                      f'{self.max_lateness:.1f} s)', recovery=False)  # fmt: skip
 
     def off_path(self, estimate: Pose) -> float:
         """How far the robot is from the leg it runs (m): from the segment a drive runs along,
@@ -285,6 +315,21 @@ class PathFollower:
         if self.timed:
             return max(0.0, self.poses[-1].t - now)
         return self.distance_remaining(estimate) / self.settings.limits.max_linear_speed
+
+    def _soonest(self, leg: Leg) -> float:
+        """The least time the leg can take (s): its turn and its drive at the limits, with
+        their speed ramps and a rest after each."""
+        limits = self.settings.limits
+        turn = abs(wrap_angle(leg.heading - self._heading))
+        took = 0.0
+        if turn > self.settings.heading_tolerance:
+            took += turn / limits.max_angular_speed
+            took += limits.max_angular_speed / limits.max_angular_accel + SETTLE
+        distance = math.dist((leg.x0, leg.y0), (leg.x, leg.y))
+        if leg.kind is LegKind.DRIVE and distance > 0:
+            took += distance / limits.max_linear_speed
+            took += limits.max_linear_speed / limits.max_linear_accel + SETTLE
+        return took
 
     def _paced(self, leg: Leg, now: float) -> Limits:
         """The limits of a drive that should end at its stamp: the speed that takes the time

@@ -60,6 +60,33 @@ def test_timed_runs_merge_only_at_an_even_pace_and_a_later_stamp_at_one_place_is
         (LegKind.DRIVE, 1.0, 1.5, 22.0, 25.0, 4),
         (LegKind.DRIVE, 1.5, 2.0, 25.0, 31.0, 5),
     ]
+    assert PathFollower(poses, Pose(0, 0, 0), SETTINGS).waits == 1
+
+
+def test_a_wait_at_a_corner_turns_first_then_holds_to_its_stamp():
+    """The covert planner's poses face the next pose elsewhere: at a corner where the plan
+    waits, the waiting pose already faces the way out."""
+    poses = [
+        TimedPose(0, 0, EAST, 0.0),
+        TimedPose(0.5, 0, NORTH, 3.0),
+        TimedPose(0.5, 0, NORTH, 6.0),  # waits a step, facing north
+        TimedPose(0.5, 0.5, NORTH, 9.0),
+    ]
+    follower = PathFollower(poses, Pose(0, 0, EAST), SETTINGS)
+    assert [(leg.kind, leg.arrive_by) for leg in follower.legs] == [
+        (LegKind.DRIVE, 3.0),
+        (LegKind.TURN, 6.0),
+        (LegKind.DRIVE, 9.0),
+    ]
+    assert follower.waits == 1
+    follower.next_move(now=0.0)
+    assert follower.move_ended(MoveOutcome.DONE, '', 2.5, Pose(0.5, 0, EAST)) is None
+    assert follower.next_move(now=2.5).goal.hold == pytest.approx(0.5)  # early: hold to 3 s
+    assert follower.move_ended(MoveOutcome.DONE, '', 3.0, Pose(0.5, 0, EAST)) is None
+    turn = follower.next_move(now=3.0)
+    assert turn.goal.heading == pytest.approx(NORTH) and turn.goal.distance == 0
+    assert follower.move_ended(MoveOutcome.DONE, '', 4.1, Pose(0.5, 0, NORTH)) is None
+    assert follower.next_move(now=4.1).goal.hold == pytest.approx(1.9)  # the rest of the wait
 
 
 def test_a_turn_in_place_and_the_goal_orientation_are_turns():
@@ -153,14 +180,39 @@ def test_blocked_timed_out_strayed_or_late_asks_for_a_new_plan(outcome, now, end
     assert result.recovery == ('late' not in reason)  # behind schedule: a plain replan
 
 
+def test_a_leg_that_runs_late_asks_for_a_plan_while_it_runs_but_never_the_first():
+    poses = [TimedPose(0, 0, EAST, 0.0), TimedPose(1.0, 0, EAST, 3.0), TimedPose(1, 1, NORTH, 6.0)]
+    follower = PathFollower(poses, Pose(0, 0, EAST), SETTINGS)
+    follower.next_move(now=0.0)
+    assert follower.behind(now=10.0) is None  # the plan's first leg always finishes
+    assert follower.move_ended(MoveOutcome.DONE, '', 3.0, Pose(1.0, 0, EAST)) is None
+    follower.next_move(now=3.0)
+    # The turn and the 1 m drive need 5.05 s at the limits, more than the 3 s the stamps give:
+    # due at 8.05 s, late after 9.55 s.
+    assert follower.behind(now=9.5) is None
+    late = follower.behind(now=9.6)
+    assert isinstance(late, Replan) and not late.recovery
+    assert late.reason.startswith('3.6 s behind pose 2 of the path, 1.6 s more than the robot')
+
+
+def test_stamps_the_robot_cannot_keep_are_followed_as_fast_as_it_can():
+    """A static scene's nominal 1 s a step: late by the stamps, on time by the robot."""
+    poses = [TimedPose(0, 0, EAST, 0.0), TimedPose(0.5, 0, EAST, 1.0), TimedPose(0.5, 0.5, 0, 2.0)]
+    follower = PathFollower(poses, Pose(0, 0, EAST), SETTINGS)
+    follower.next_move(now=0.0)
+    assert follower.move_ended(MoveOutcome.DONE, '', 2.0, Pose(0.5, 0, EAST)) is None
+    follower.next_move(now=2.0)
+    assert follower.move_ended(MoveOutcome.DONE, '', 6.0, Pose(0.5, 0.5, NORTH)) is None
+
+
 def test_a_path_late_on_arrival_allows_that_much_more_lateness():
     poses = [TimedPose(0, 0, EAST, 0.0), TimedPose(1.0, 0, EAST, 5.0)]
     follower = PathFollower(poses, Pose(0, 0, EAST), SETTINGS, now=2.0)  # planning took 2 s
     follower.next_move(now=2.0)
-    assert follower.move_ended(MoveOutcome.DONE, '', 9.0, Pose(1.0, 0, 0)) is None
+    assert follower.move_ended(MoveOutcome.DONE, '', 8.0, Pose(1.0, 0, 0)) is None
     late = PathFollower(poses, Pose(0, 0, EAST), SETTINGS, now=0.0)
     late.next_move(now=0.0)
-    assert isinstance(late.move_ended(MoveOutcome.DONE, '', 9.0, Pose(1.0, 0, 0)), Replan)
+    assert isinstance(late.move_ended(MoveOutcome.DONE, '', 8.0, Pose(1.0, 0, 0)), Replan)
 
 
 def test_progress_distance_time_and_how_far_off_the_path():
