@@ -208,19 +208,21 @@ def test_a_timed_path_through_the_sweeping_light_keeps_its_stamps_unseen(
     assert peak < scenario.detection_threshold, f'seen: visibility {peak:.3f} on the way'
 
     # Never early at a pose of the first plan (up to a replan, if the loaded machine made the
-    # robot fall behind): the first time it comes within 0.15 m of each, not before its stamp
-    # (but for half a step: a paced run's speed ramps are estimated).
+    # robot fall behind): when it comes closest to each (within 0.25 m: localisation error),
+    # not before its stamp (but for half a step: a paced run's speed ramps are estimated).
     assert plans, 'no plan published'
     until = seconds(plans[1].header.stamp) if len(plans) > 1 else math.inf
-    passed = 0
-    for pose in plans[0].poses[1:]:  # (the robot stands at the first from the start)
+    poses = plans[0].poses[1:]  # (the robot stands at the first from the start)
+    checked = 0
+    for pose in poses:
         stamp, point = seconds(pose.header.stamp), (pose.pose.position.x, pose.pose.position.y)
-        reached = next((t for t, x, y, *_ in truths if math.dist((x, y), point) < 0.15), None)
-        if reached is None or reached > until:
-            break
-        assert reached >= stamp - scenario.timing.step_seconds / 2, (point, reached, stamp)
-        passed += 1
-    assert passed > 10
+        near = [(math.dist((x, y), point), t) for t, x, y, *_ in truths if t <= until]
+        closest = min(near)[0] if near else math.inf
+        if closest < 0.25:
+            reached = next(t for d, t in near if d <= closest + 0.02)
+            assert reached >= stamp - scenario.timing.step_seconds / 2, (point, reached, stamp)
+            checked += 1
+    assert checked >= len(poses) / 2 if until == math.inf else checked > 10
 
 
 def test_preempt_reject_and_cancel_which_stops_the_robot_within_one_control_period(

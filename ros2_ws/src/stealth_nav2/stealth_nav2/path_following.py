@@ -119,6 +119,8 @@ def legs_of(poses: Sequence[TimedPose], start: Pose, settings: FollowSettings) -
         arrive_by = pose.t if timed else None
         if index == 0 and joined:
             x, y, t = first.x, first.y, arrive_by
+            if timed:  # be at the first pose at its stamp too (a plan may start on a later bin)
+                legs.append(Leg(LegKind.WAIT, x, y, x, y, heading, None, arrive_by, 0))
             continue
         if math.dist((x, y), (pose.x, pose.y)) > SAME_PLACE:
             direction = math.atan2(pose.y - y, pose.x - x)

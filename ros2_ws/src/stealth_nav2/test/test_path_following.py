@@ -55,6 +55,7 @@ def test_timed_runs_merge_only_at_an_even_pace_and_a_later_stamp_at_one_place_is
     assert is_timed(poses)
     legs = legs_of(poses, Pose(0.02, 0.01, 0.0), SETTINGS)  # joins the path at pose 0
     assert [(leg.kind, leg.x0, leg.x, leg.t0, leg.arrive_by, leg.last) for leg in legs] == [
+        (LegKind.WAIT, 0, 0, None, 10.0, 0),  # be at the first pose by its stamp
         (LegKind.DRIVE, 0, 1.0, 10.0, 16.0, 2),
         (LegKind.WAIT, 1.0, 1.0, 16.0, 22.0, 3),
         (LegKind.DRIVE, 1.0, 1.5, 22.0, 25.0, 4),
@@ -74,6 +75,7 @@ def test_a_wait_at_a_corner_turns_first_then_holds_to_its_stamp():
     ]
     follower = PathFollower(poses, Pose(0, 0, EAST), SETTINGS)
     assert [(leg.kind, leg.arrive_by) for leg in follower.legs] == [
+        (LegKind.WAIT, 0.0),  # at the first pose at its stamp (now: no hold)
         (LegKind.DRIVE, 3.0),
         (LegKind.TURN, 6.0),
         (LegKind.DRIVE, 9.0),
