@@ -216,6 +216,7 @@ class PathFollower:
         self.leg = 0  # the leg running or next
         self._heading = start.yaw  # the heading the robot starts the next leg with
         self._due: float | None = None  # when the running leg is due to end (timed paths)
+        self._moved_legs = 0  # legs whose turn or drive has finished
         self._holding = False  # the current leg's motion is done; holding until its stamp
         self._lengths = _cumulative_lengths(self.poses)
 
@@ -266,6 +267,7 @@ class PathFollower:
             return None
         leg = self.legs[self.leg]
         self._heading = leg.heading
+        self._moved_legs += 1
         off = math.dist((estimate.x, estimate.y), (leg.x, leg.y))
         if off > self.settings.stray_distance:
             return Replan(f'strayed: ended {off:.2f} m from the path at ({leg.x:.2f}, '
@@ -280,8 +282,8 @@ class PathFollower:
 
     def behind(self, now: float) -> Replan | None:
         """A :class:`Replan` once the leg running is late (a timed path; checked while it
-        runs, from the plan's second leg on)."""
-        if self.done or self._holding or self.leg == 0 or self._due is None:
+        runs, once a leg of the plan has been driven)."""
+        if self.done or self._holding or self._moved_legs == 0 or self._due is None:
             return None
         if now - self._due <= self.max_lateness:
             return None
