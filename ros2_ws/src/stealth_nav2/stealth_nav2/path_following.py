@@ -19,8 +19,9 @@ whose stamps rise is **timed**, and its stamps bind:
   it started: the turn and the drive at the limits, their speed ramps, the rests between), so
   stamps the robot cannot keep (a static scene's nominal 1 s a step) are followed as fast as it
   can, while a robot held up (load, a slow start) asks for a new plan from where and when it is
-  (not a recovery: Nav2 replans as it goes too). Checked as the leg runs, except in a plan's
-  first leg, which always finishes (so replanning cannot stop the robot from getting on);
+  (not a recovery: Nav2 replans as it goes too). Checked as a leg runs once the plan's first
+  turn or drive has finished (which always does, so replanning cannot keep the robot from
+  getting on), and at each leg's end;
 - **recoveries**: a move that ends BUMPED (blocked) or TIMED_OUT, and a robot more than
   ``stray_distance`` off its leg, ask for a new plan as a recovery (the navigator counts them).
 """
