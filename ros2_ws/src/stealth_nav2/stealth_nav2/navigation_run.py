@@ -298,11 +298,15 @@ class Navigation:
                        f'the robot could not follow the path: {reason} (after {limit} '
                        'recoveries)')  # fmt: skip
             return
+        here = self.robot.tracker.estimate
+        at = f' at ({here.x:.2f}, {here.y:.2f})' if here is not None else ''
         if counted:
             self.recoveries += 1
-            self.node.get_logger().warning(f'replanning (recovery {self.recoveries}): {reason}')
+            self.node.get_logger().warning(
+                f'replanning (recovery {self.recoveries}){at}: {reason}'
+            )
         else:
-            self.node.get_logger().info(f'replanning: {reason}')
+            self.node.get_logger().info(f'replanning{at}: {reason}')
         self.follower = None
         self._plan()
 
