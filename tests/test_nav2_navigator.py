@@ -362,7 +362,8 @@ def test_through_poses_and_waypoints_on_the_covert_way(commander, node_processes
     remaining = [m.number_of_poses_remaining for _, m in commander.feedback]
     assert remaining[0] == 2 and remaining[-1] == 1 and remaining == sorted(remaining)[::-1]
     x, y = commander.truths[-1][1:3]
-    assert math.dist((x, y), points[8]) <= 0.25
+    reach = scenario.goal_radius + 0.25  # the covert legs end within the goal radius
+    assert math.dist((x, y), points[8]) <= reach
 
     back = [stamped(*points[k]) for k in (6, 3)]
     handle = commander.send('waypoints', FollowWaypoints.Goal(poses=back))
@@ -371,7 +372,7 @@ def test_through_poses_and_waypoints_on_the_covert_way(commander, node_processes
     assert list(answer.result.missed_waypoints) == []
     assert {m.current_waypoint for _, m in commander.feedback} == {0, 1}
     x, y = commander.truths[-1][1:3]
-    assert math.dist((x, y), points[3]) <= 0.25
+    assert math.dist((x, y), points[3]) <= reach
 
 
 @pytest.mark.parametrize(
