@@ -9,7 +9,7 @@ import re
 import time
 
 from action_msgs.msg import GoalStatus
-from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
+from geometry_msgs.msg import PoseWithCovarianceStamped, Twist
 from lifecycle_msgs.srv import GetState
 from nav2_msgs.action import FollowWaypoints, NavigateThroughPoses, NavigateToPose
 from nav_msgs.msg import Odometry, Path
@@ -22,6 +22,7 @@ from stealth_env.scenario import find_scenario, load_scenario
 from stealth_env.task import StealthTask
 from stealth_node_kit.conversions import quaternion_yaw, seconds, yaw_quaternion
 from test_env_node import ros_args, start_sim, wait_for_log
+from test_nav2_planner import stamped
 
 INSTALL = REPO_ROOT / 'ros2_ws/install/stealth_nav2/lib/stealth_nav2'
 NAVIGATOR, PLANNER = INSTALL / 'navigator', INSTALL / 'planner_server'
@@ -48,14 +49,6 @@ def start_navigator(node_processes, name='navigator', extra_args=(), **params):
         name,
         extra_env={'RCUTILS_LOGGING_BUFFERED_STREAM': '0'},
     )
-
-
-def stamped(x: float, y: float, yaw: float = 0.0, frame: str = 'map') -> PoseStamped:
-    pose = PoseStamped()
-    pose.header.frame_id = frame
-    pose.pose.position.x, pose.pose.position.y = float(x), float(y)
-    pose.pose.orientation = yaw_quaternion(yaw)
-    return pose
 
 
 class Commander(SpinningNode):
