@@ -390,3 +390,17 @@ def test_a_robot_whose_odom_or_amcl_pose_is_silent_aborts_the_goal(
     answer = commander.result(handle, timeout=30.0)
     assert answer.status == GoalStatus.STATUS_ABORTED
     assert (answer.result.error_code, answer.result.error_msg) == (9003, silent)
+
+
+@pytest.mark.parametrize(
+    ('param', 'line'),
+    [
+        ('feedback_rate:=0.0', 'not starting: parameter feedback_rate: Invalid parameter value'),
+        ('planner_id:=""', 'not starting: parameter planner_id: expected a planner id'),
+    ],
+)
+def test_a_bad_parameter_is_one_line_and_exit_code_2(node_processes, param, line):
+    navigator = start_navigator(node_processes, extra_args=['-p', param])
+    assert navigator.wait(30) == 2
+    log = navigator.log_path.read_text()
+    assert line in log and 'Traceback' not in log, log

@@ -73,7 +73,7 @@ from stealth_env.env_parameters import topic_config
 from stealth_env.topic_moves import Odom, PoseTracker
 from stealth_env.topic_robot import TOPICS, TopicRobot
 from stealth_node_kit.conversions import time_msg, yaw_quaternion
-from stealth_node_kit.parameters import declare_parameters, non_finite
+from stealth_node_kit.parameters import StartupError, declare_parameters, non_finite
 from stealth_node_kit.running import StartupNode, run_node
 
 from stealth_nav2 import navigation_goals as codes
@@ -119,6 +119,8 @@ class Navigator(StartupNode):
 
     def set_up(self) -> None:
         self.values = declare_parameters(self, PARAMETERS)
+        if not self.values['planner_id']:
+            raise StartupError('parameter planner_id: expected a planner id (covert, ...), got ""')
         self.add_on_set_parameters_callback(self._validate)
         values = self.values
         self.frames = Frames(values['map_frame'], values['odom_frame'], values['robot_frame'])
