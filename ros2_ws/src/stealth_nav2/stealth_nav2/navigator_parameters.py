@@ -68,10 +68,8 @@ PARAMETERS = {
         'responding to cmd_vel.', (1, 1000), read_only=True,
     ),
     'robot_radius': Param(
-        0.15, 'm: the disc the scan check sweeps ahead (an obstacle it would touch before the '
-        "leg's end stops the robot, blocked). Below the simulator's 0.2 m robot: the lattice "
-        'runs paths 0.25-0.3 m beside walls, whose noisy returns in a 0.2 m band stopped long '
-        'drives along them; real contact still ends a move blocked (no progress).',
+        0.2, 'm: the disc the scan check sweeps ahead (an obstacle it would touch before the '
+        "leg's end stops the robot short of it, blocked: a recovery); the simulator's robot.",
         (0.0, 5.0), read_only=True,
     ),
     'bump_distance': Param(0.05, 'm to an obstacle in the scan that ends a move blocked.',
