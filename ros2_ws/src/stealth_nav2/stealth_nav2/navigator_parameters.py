@@ -1,0 +1,85 @@
+"""The navigator node's parameters (navigator_node declares them), importable without rclpy."""
+
+from stealth_env.topic_moves import Limits
+from stealth_node_kit.param_table import Param
+
+from stealth_nav2.navigation_goals import PLANNER_IDS
+
+PARAMETERS = {
+    'planner_id': Param(
+        'covert', "The planner server's planner id for a goal whose behavior_tree is '': "
+        "covert (the covert optimum, time-aware where lights move), dark_path, astar or policy "
+        '(the learned policy).',
+    ),
+    'planner_ids': Param(
+        list(PLANNER_IDS), "The planner ids a goal's behavior_tree field may name instead.",
+        read_only=True,
+    ),
+    'map_frame': Param('map', 'The global frame: plans, amcl_pose and feedback.', read_only=True),
+    'odom_frame': Param('odom', "odom's frame: goals in it are transformed through the "
+                        'localisation.', read_only=True),
+    'robot_frame': Param('base_link', "The robot's frame: goals in it are relative to the robot.",
+                         read_only=True),
+    'feedback_rate': Param(5.0, 'Feedback messages per second of wall time.', (0.5, 100.0),
+                           read_only=True),
+    'sensor_timeout': Param(
+        2.0, 'Wall-clock s without odom (or without amcl_pose while the robot drove '
+        'localisation_travel on odom) that abort a navigation.', (0.1, 600.0),
+    ),
+    'localisation_travel': Param(
+        1.0, 'm the robot may drive on odom without an amcl_pose before the localisation counts '
+        'as silent (AMCL publishes only after moving).', (0.0, 100.0),
+    ),
+    'server_timeout': Param(
+        5.0, 'Wall-clock s to wait for the planner server to be there.', (0.1, 600.0)
+    ),
+    'planner_timeout': Param(
+        30.0, "Wall-clock s to wait for a plan (the planner server's answer).", (0.1, 3600.0)
+    ),
+    'max_recoveries': Param(
+        5, 'Replans (blocked, strayed, late) a goal may take before it is aborted.', (0, 1000)
+    ),
+    'max_lateness': Param(
+        1.5, "s of the robot's clock a timed path's pose may be reached after its stamp (beyond "
+        'the time the plan took) before the robot replans (not a recovery); half a step of the '
+        'shipped moving-light scenarios.', (0.0, 3600.0),
+    ),
+    'stray_distance': Param(0.5, 'm off the path that make the robot replan.', (0.05, 100.0)),
+    'goal_tolerance': Param(
+        0.25, "m from the path's last pose that count as arrived (as Nav2's "
+        "xy_goal_tolerance; the covert planner's path ends where its task counts the goal "
+        'reached, within the scenario goal_radius).', (0.01, 10.0),
+    ),
+    'via_radius': Param(
+        0.7, 'm from a NavigateThroughPoses pose that count as passing it (the covert '
+        "planner's legs end within the scenario's goal_radius of each, 0.5 m in the shipped "
+        'ones, plus localisation error).', (0.01, 10.0),
+    ),
+    'stop_on_failure': Param(
+        True, 'FollowWaypoints: end at the first waypoint not reached (else go on to the next).'
+    ),
+    'localizer_state': Param(
+        'amcl', "Also answer <this>/get_state (lifecycle_msgs/GetState: active once amcl_pose "
+        "came) for nav2_simple_commander's waitUntilNav2Active; '' when a real lifecycle "
+        'localiser runs.', read_only=True,
+    ),
+    'unresponsive_moves': Param(
+        3, 'Moves in a row that time out without the robot moving before it counts as not '
+        'responding to cmd_vel.', (1, 1000), read_only=True,
+    ),
+    'robot_radius': Param(
+        0.2, 'm: the disc the scan check sweeps ahead (an obstacle it would touch before the '
+        "leg's end stops the robot short of it, blocked: a recovery); the simulator's robot.",
+        (0.0, 5.0), read_only=True,
+    ),
+    'bump_distance': Param(0.05, 'm to an obstacle in the scan that ends a move blocked.',
+                           (0.0, 1.0), read_only=True),
+    'stall_time': Param(1.0, "s (robot's clock) without progress while driving: blocked.",
+                        (0.05, 60.0), read_only=True),
+    'max_linear_speed': Param(Limits.max_linear_speed, "m/s (the robot's limit or lower).",
+                              (0.01, 5.0), read_only=True),
+    'max_angular_speed': Param(Limits.max_angular_speed, 'rad/s.', (0.01, 10.0), read_only=True),
+    'max_linear_accel': Param(Limits.max_linear_accel, 'm/s^2.', (0.01, 20.0), read_only=True),
+    'max_angular_accel': Param(Limits.max_angular_accel, 'rad/s^2.', (0.01, 50.0),
+                               read_only=True),
+}  # fmt: skip

@@ -1,0 +1,40 @@
+"""The navigator's watch on odom and amcl_pose going silent."""
+
+from stealth_nav2.sensor_watch import SensorWatch
+from stealth_sim.kinematics import Pose
+
+
+def test_odom_silence_is_noticed_after_the_timeout():
+    watch = SensorWatch(timeout=2.0, travel=1.0)
+    watch.restart(100.0)
+    assert watch.silent(101.0) == ''
+    assert watch.silent(102.5) == 'no odom for 2 s (is the robot running?)'
+    watch.odom(102.6, Pose(0, 0, 0))
+    watch.estimate(102.6)
+    assert watch.silent(104.0) == ''
+    assert watch.silent(104.7, '/robot/odom') == 'no /robot/odom for 2 s (is the robot running?)'
+
+
+def test_amcl_pose_silence_counts_only_once_the_robot_drove_on():
+    watch = SensorWatch(timeout=2.0, travel=1.0)
+    watch.restart(0.0)
+    watch.odom(0.0, Pose(0, 0, 0))
+    watch.estimate(0.0)
+    for t in range(1, 30):  # holding still for a moving light: no amcl_pose, not silent
+        watch.odom(float(t), Pose(0, 0, 0))
+        assert watch.silent(float(t)) == ''
+    for step in range(1, 4):  # drives 1.5 m with no amcl_pose
+        watch.odom(29.0 + step, Pose(0.5 * step, 0, 0))
+    assert watch.silent(32.0) == (
+        'no amcl_pose for 32.0 s while the robot drove 1.5 m on odom (is the localisation '
+        'running?)'
+    )
+    watch.estimate(32.0)
+    assert watch.silent(32.1) == ''
+
+
+def test_no_amcl_pose_at_all_is_noticed_after_the_timeout():
+    watch = SensorWatch(timeout=2.0, travel=1.0)
+    watch.restart(10.0)
+    watch.odom(12.5, Pose(0, 0, 0))
+    assert watch.silent(12.5) == 'no amcl_pose for 2 s (is the localisation running?)'
