@@ -15,14 +15,13 @@ for ``clock_timeout`` wall seconds fails them too); nothing blocks the executor.
 Commands answer the latest odometry, one per message: a simulator may run in lockstep with
 this controller (``stealth_sim.lockstep``: the next control period once the command for the
 latest odometry has come), where a command sent while newer odometry is on its way would be
-taken as the answer to that one and leave the controller a period behind for good. So the
-commands sent since the latest odometry came are counted: while one is in flight, odometry is
-not answered (a newer message is coming) and a new move's first command waits for it; on a
-robot that publishes odometry on its own clock that costs at most one odometry period. While
-there is no odometry yet, a teleported robot waits for its first odometry, or (under
-``use_sim_time``) the robot has nothing to do, the tick sends a zero command: a simulator that
-holds its clock at rest until commanded then lets time go on (a recorder on simulated time
-starts with it).
+taken as the answer to that one and leave the controller a period behind for good. So after a
+command, odometry is on its way (for ODOM_WAIT of wall time at most: then the command is taken
+as lost): a new move's first command waits for it (on a robot that publishes odometry on its
+own clock, at most one odometry period). While there is no odometry yet, a teleported robot
+waits for its first odometry, or (under ``use_sim_time``) the robot has nothing to do, the tick
+sends a zero command unless odometry is on its way: a simulator that holds its clock at rest
+until commanded then lets time go on (a recorder on simulated time starts with it).
 A robot that does not move on ``cmd_vel`` makes moves TIME OUT; after ``unresponsive_moves``
 episode moves of them in a row it is not responding (:meth:`TopicRobot.not_responding`).
 Bad messages (a pose that is not finite, an ``amcl_pose`` in a frame other than ``map``) are
@@ -80,6 +79,7 @@ TOPICS = {
 BAD_MESSAGE_LOG_PERIOD = 5.0  # s of wall time between lines about one topic's bad messages
 TRUTH_WAIT = 1.0  # s of wall time a finished move waits for the ground truth of its end
 CLOCK_TIMEOUT = 10.0  # wall s without an advancing /clock (use_sim_time) that fail a move
+ODOM_WAIT = 0.5  # wall s after a command within which its odometry is awaited
 # nav2's AMCL publishes amcl_pose reliable and transient local (the last one to late joiners).
 ESTIMATE_QOS = kept_qos(5)
 
@@ -123,7 +123,8 @@ class TopicRobot:
         self._on_placed: Callable[[], None] | None = None
         self._on_not_placed: Callable[[str], None] | None = None  # a teleport's failure
         self._odom_silence = Silence()  # on the robot's clock (_now)
-        self._in_flight = 0  # commands sent since the latest odometry came (not below 0)
+        self._awaiting: float | None = None  # wall time of a command no odometry came after
+        self._deferred = False  # the move's first command waits for the odometry on its way
         self._clock_watch = ClockWatch()
         self._bad_log: dict[tuple[str, str], Throttle] = {}  # by topic and kind of problem
         self.bad_messages = dict.fromkeys(TOPICS, 0)
@@ -265,6 +266,7 @@ class TopicRobot:
         self._moves, self._move, self._ending, self._on_end = [], None, None, None
         self._on_silent = None
         self._on_placed = self._on_not_placed = None
+        self._deferred = False
 
     def restart(
         self,
@@ -294,7 +296,12 @@ class TopicRobot:
         twist = Twist()
         twist.linear.x, twist.angular.z = float(command.linear), float(command.angular)
         self._cmd_pub.publish(twist)
-        self._in_flight += 1
+        if self._awaiting is None:
+            self._awaiting = time.monotonic()
+
+    def _odom_coming(self) -> bool:
+        """Whether odometry answering a command sent since the latest one is on its way."""
+        return self._awaiting is not None and time.monotonic() - self._awaiting < ODOM_WAIT
 
     def sim_time(self) -> bool:
         """Whether the node runs on simulated time (use_sim_time): the robot's clock."""
@@ -325,8 +332,11 @@ class TopicRobot:
             self._clock_watch.observe(self.node.get_clock().now().nanoseconds, wall, waiting)
         if self.teleport is not None:
             self.teleport.tick()
-        if self._on_placed is not None or self.tracker.latest is None or sim_time and not waiting:
+        blind = self._on_placed is not None or self.tracker.latest is None
+        if (blind or sim_time and not waiting) and not self._odom_coming():
             self.send(STOP)
+        if self._deferred and self._move is not None and not self._odom_coming():
+            self._control()  # the odometry awaited did not come: go on without it
         if self._ending is not None and wall - self._ending[1] > TRUTH_WAIT:
             self._report(self._ending[0])
         if not waiting:
@@ -368,13 +378,13 @@ class TopicRobot:
             self._bad('odom', problem)
             return
         self._odom_silence.heard(self._now())
-        self._in_flight = max(0, self._in_flight - 1)
+        self._awaiting = None
         self.tracker.add_odom(Odom(seconds(message.header.stamp), pose, twist.linear.x,
                                    twist.angular.z))  # fmt: skip
         if self._on_placed is not None and self.tracker.estimate is not None:
             on_placed, self._on_placed, self._on_not_placed = self._on_placed, None, None
             on_placed()
-        if self._move is not None and not self._in_flight:  # else a newer one is coming
+        if self._move is not None:
             self._control()
 
     def _on_estimate(self, message: PoseWithCovarianceStamped) -> None:
@@ -407,10 +417,12 @@ class TopicRobot:
             self._end(failed(f'no pose of the robot ({self.waiting_for()})'))
             return
         self._move = TopicMove(self._moves.pop(0), estimate, latest.t, self.config)
-        if not self._in_flight:  # else it starts on the odometry that is coming
+        self._deferred = self._odom_coming()  # then it starts on the odometry coming
+        if not self._deferred:
             self._control()
 
     def _control(self) -> None:
+        self._deferred = False
         odom, estimate = self.tracker.latest, self.tracker.estimate
         result = self._move.update(
             odom.t, estimate, odom, self._clearance(odom), self.tracker.period
