@@ -40,7 +40,8 @@ rest may change while running, checked by the same ``sim_config`` that builds th
 ## Time
 
 Time is simulated, published on ``clock`` with the periodic topics (to nodes under
-``use_sim_time``). A move over the service runs as fast as the CPU allows when
+``use_sim_time``; a new subscriber gets the current time at once, even while it stands still).
+A move over the service runs as fast as the CPU allows when
 ``real_time_factor`` is 0, or held to that multiple of wall time. Between moves, with a factor
 > 0, simulated time flows at that multiple of wall time. With the factor 0 it stands still
 until a ``cmd_vel`` comes, so training over the service wastes no CPU and a seeded run of moves
