@@ -186,21 +186,30 @@ def test_steps_per_second_topics_against_service(agent, node_processes):
     )
 
 
-def test_a_topics_run_lets_simulated_time_flow_for_the_control_loop(tmp_path):
-    """stealth train --set environment.robot_interface=topics: the simulator at 20x in 10 ms
-    ticks with one odom per tick; --set still wins, and --watch stays real time."""
+def test_a_topics_run_is_on_simulated_time_in_lockstep_with_the_controller(tmp_path):
+    """stealth train --set environment.robot_interface=topics: the simulator in lockstep
+    (real_time_factor 0, one odom per 0.2 s control period), the controller told a command acts
+    from the odometry it answers, and every node on use_sim_time; --set still wins, --watch
+    stays real time, and a service run is on the wall clock as before."""
     from stealth_bringup.run_arguments import train_parser
-    from stealth_bringup.run_plan import TOPICS_SIMULATOR, make_plan
+    from stealth_bringup.run_plan import TOPICS_ENVIRONMENT, TOPICS_SIMULATOR, make_plan
 
-    def simulator(*options: str) -> dict:
-        argv = ['--runs-dir', str(tmp_path), '--no-record', *options]
+    def parameters(*options: str) -> dict:
+        argv = ['--runs-dir', str(tmp_path), *options]
         plan = make_plan(train_parser().parse_args(argv), 'train', argv)
-        return plan.parameters['simulator'].values
+        return {node: p.values for node, p in plan.parameters.items()}
 
     topics = ('--set', 'environment.robot_interface=topics')
-    assert TOPICS_SIMULATOR.items() <= simulator(*topics).items()
-    assert simulator()['real_time_factor'] == 0.0
-    assert (
-        simulator(*topics, '--set', 'simulator.real_time_factor=10.0')['real_time_factor'] == 10.0
-    )
-    assert simulator(*topics, '--watch')['real_time_factor'] == 1.0
+    run = parameters(*topics)
+    assert TOPICS_SIMULATOR.items() <= run['simulator'].items()
+    assert TOPICS_ENVIRONMENT.items() <= run['environment'].items()
+    assert sorted(run) == ['agent', 'environment', 'recorder', 'simulator']
+    assert all(values['use_sim_time'] is True for values in run.values())
+    service = parameters()
+    assert service['simulator']['real_time_factor'] == 0.0
+    assert not any('use_sim_time' in values for values in service.values())
+    changed = parameters(*topics, '--set', 'simulator.real_time_factor=10.0')
+    assert changed['simulator']['real_time_factor'] == 10.0
+    watched = parameters(*topics, '--watch')
+    assert watched['simulator']['real_time_factor'] == 1.0
+    assert all(values['use_sim_time'] is True for values in watched.values())

@@ -41,6 +41,12 @@ environment, with no summary publisher, gets rl_agent's behaviour. A restarted e
 told by its states' DDS sequence numbers starting again (the old episode is dropped there,
 whenever its latched description arrives).
 
+## Time
+
+The node's ROS clock stamps AgentEpisodeInfo: simulated time under ``use_sim_time`` (every node
+of a ``stealth train`` topics run). The summary wait stays on wall time: it waits for a message
+from the environment, not for the robot, and must not stand still with a stopped clock.
+
 ## Bad input
 
 An unusable description, a state before any description, a state whose length changes, a

@@ -50,9 +50,13 @@ from stealth_bringup.run_resume import Continuation, continued_run, train_settin
 
 WATCH_PUBLISH_RATE = 10.0  # Hz of odom, ground_truth, scan, clock under --watch
 # environment.robot_interface topics (issue 13): the environment drives the simulator over
-# cmd_vel/odom, one control step per odom message, so simulated time must flow between moves:
-# 20x wall time in ticks of 10 ms (0.2 s simulated, the control period), one odom per tick.
-TOPICS_SIMULATOR = {'real_time_factor': 20.0, 'idle_period': 0.01, 'publish_rate': 5.0}
+# cmd_vel/odom, one control step per odom message (a control period of 0.2 s simulated), and
+# the simulator runs in lockstep with it (real_time_factor 0: the next period as soon as the
+# command for the latest odom has come). Every node of such a run is on its simulated time
+# (use_sim_time, issue 28), so its clock is the robot's wherever it runs.
+TOPICS_SIMULATOR = {'real_time_factor': 0.0, 'publish_rate': 5.0}
+TOPICS_ENVIRONMENT = {'command_latency': 0.0}  # a command acts from the odometry it answers
+SIM_TIME = {'use_sim_time': True}
 # --compose: these two nodes in one process, the second's (sim_env), under the second's name.
 COMPOSED = ('simulator', 'environment')
 COMPOSED_TEXT = 'the simulator and the environment'
@@ -273,6 +277,10 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
         run_values['environment']['publish_plan'] = True  # the optimum, for the 3D view
     elif _environment_value(sources, run_values, overrides, 'robot_interface') == 'topics':
         run_values['simulator'].update(TOPICS_SIMULATOR)
+        run_values['environment'].update(TOPICS_ENVIRONMENT)
+    if _environment_value(sources, run_values, overrides, 'robot_interface') == 'topics':
+        for values in run_values.values():
+            values.update(SIM_TIME)
     if _environment_value(sources, run_values, overrides, 'track') == 'sensed':
         run_values['agent']['state_features'] = sensed_state_features(scenario, goal)
     # Read the files before creating anything, so a bad one stops us with nothing to undo.

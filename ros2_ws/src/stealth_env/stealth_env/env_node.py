@@ -74,9 +74,10 @@ collision-free path on the move lattice (lights ignored), then publishes ``initi
 topic names are relative and remappable. A robot that does not move on ``cmd_vel`` makes moves
 TIME OUT; after ``unresponsive_moves`` of them in a row the episode is ABORTED and the node exits
 with code 3 and a line saying the robot is not responding. A robot that stops publishing
-``odom`` for ``move_timeout`` aborts the episode, as a simulator that does not answer. An
-``amcl_pose`` in another frame or any non-finite pose is dropped with a one-line error naming the
-topic (throttled), and the move goes on with the next good message.
+``odom`` for ``move_timeout`` (simulated s under ``use_sim_time``: the robot is timed on
+``/clock``), or whose ``/clock`` stops for ``clock_timeout`` wall s, aborts the episode naming
+it (``stealth_env.robot_watch``). An ``amcl_pose`` in another frame or a non-finite pose is
+dropped with a one-line error naming the topic (throttled); the move goes on with the next.
 """
 
 from __future__ import annotations
@@ -154,6 +155,7 @@ class EnvironmentNode(StartupNode):
             raise StartupError(f'parameter goal: {error}') from None
         self.flow = EpisodeFlow(self.task, values['judge_on'], values['first_episode'])
         self.move_timeout = values['move_timeout']
+        self.clock_timeout = values['clock_timeout']
         self.start_delay = values['start_delay']
         self.first_action_timeout = values['first_action_timeout']
         self.step_readers = values['step_readers']
@@ -207,7 +209,8 @@ class EnvironmentNode(StartupNode):
             return ServiceRobot(self, self._in_process, teleport, self._move_timeout)
         config = topic_config(values, self.scenario.robot_radius)
         return TopicRobot(self, config, MAP_FRAME, self.task.lattice, teleport,
-                          values['unresponsive_moves'], self._move_timeout)  # fmt: skip
+                          values['unresponsive_moves'], self._move_timeout,
+                          lambda: self.clock_timeout)  # fmt: skip
 
     def _move_timeout(self) -> float:
         return self.move_timeout
@@ -238,8 +241,8 @@ class EnvironmentNode(StartupNode):
                 self.flow.judge_on = change.value
             elif change.name == 'marker_period':
                 self.scene.schedule(change.value)
-            elif change.name in ('move_timeout', 'start_delay', 'first_action_timeout',
-                                 'step_readers', 'log_every'):  # fmt: skip
+            elif change.name in ('move_timeout', 'clock_timeout', 'start_delay',
+                                 'first_action_timeout', 'step_readers', 'log_every'):  # fmt: skip
                 setattr(self, change.name, change.value)
         names = ', '.join(f'{c.name}={c.value}' for c in changes)
         self.get_logger().info(f'parameters changed: {names}')

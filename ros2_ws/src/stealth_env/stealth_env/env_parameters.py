@@ -41,7 +41,14 @@ PARAMETERS = {
                   read_only=True),
     'move_timeout': Param(
         60.0, 'Wall-clock seconds to wait for an answer of sim/execute_move or sim/reset; a '
-        'move without one ends the episode as ABORTED.', (0.1, 3600.0)
+        'move without one ends the episode as ABORTED. topics: also the seconds without odom '
+        'that fail a move, a drive home or a teleport (simulated seconds under use_sim_time).',
+        (0.1, 3600.0)
+    ),
+    'clock_timeout': Param(
+        10.0, 'topics under use_sim_time: wall-clock seconds without an advancing /clock that '
+        'fail what the robot was doing (a move ends the episode as ABORTED, a teleport is tried '
+        'again), rather than wait on a stopped simulator for ever.', (0.1, 3600.0)
     ),
     'marker_period': Param(
         1.0, 'Wall-clock seconds between updates of searchlights and searchlight_markers '
@@ -105,6 +112,12 @@ PARAMETERS = {
         1.0, "topics: s (robot's clock) without progress while driving that end a move BUMPED.",
         (0.05, 60.0), read_only=True,
     ),
+    'command_latency': Param(
+        1.0, 'topics: when a command takes effect after the odom it answers, in odom periods: '
+        "1 a robot that takes it at its next control cycle, 0 a simulator in lockstep with the "
+        "controller (stealth_sim's real_time_factor 0; stealth train sets it for topics runs).",
+        (0.0, 1.0), read_only=True,
+    ),
     'max_linear_speed': Param(
         Limits.max_linear_speed, "topics: the controller's speed limit (m/s; the robot's or "
         'lower, as the following three).', (0.01, 5.0), read_only=True,
@@ -141,4 +154,5 @@ def topic_config(values: dict, robot_radius: float) -> TopicConfig:
         robot_radius=robot_radius,
         bump_distance=values['bump_distance'],
         stall_time=values['stall_time'],
+        command_latency=values['command_latency'],
     )

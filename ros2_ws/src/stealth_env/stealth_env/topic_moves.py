@@ -241,6 +241,9 @@ class TopicConfig:
     stall_time: float = 1.0  # s without progress while driving, after moving: BUMPED
     progress: float = 0.005  # m: less than this over stall_time is no progress
     default_period: float = 0.1  # s: the control period until odometry has shown its own
+    # When a command takes effect after the odometry it answers, in odometry periods: 1 (a
+    # robot that takes it at its next control cycle) to 0 (a simulator in lockstep).
+    command_latency: float = 1.0
 
 
 class MoveStage(enum.Enum):
@@ -370,7 +373,8 @@ class TopicMove:
         error = wrap_angle(aim - estimate.yaw)
         limits = self.config.limits
         # Signed: past the target (a command that came late at speed), it backs up to it.
-        left = remaining - coast(odom.linear, self._sent.linear, limits.max_linear_accel, period)
+        latency = period * self.config.command_latency
+        left = remaining - coast(odom.linear, self._sent.linear, limits.max_linear_accel, latency)
         speed = signed_approach_speed(
             left,
             limits.max_linear_speed,
@@ -428,7 +432,8 @@ class TopicMove:
     def _turn_rate(self, error: float, rate: float, period: float) -> float:
         """Turn rate towards a heading error, on the braking curve, after a period of coasting."""
         limits = self.config.limits
-        left = error - coast(rate, self._sent.angular, limits.max_angular_accel, period)
+        latency = period * self.config.command_latency
+        left = error - coast(rate, self._sent.angular, limits.max_angular_accel, latency)
         return signed_approach_speed(
             left,
             limits.max_angular_speed,

@@ -7,8 +7,21 @@ odometry from after it has come) or a drive back to the start along a collision-
 the move lattice (``drive``: lights ignored, then ``initialpose``).
 
 Everything happens in the odometry callback (one control step per message, in the robot's
-time) and the node's housekeeping tick (wall-clock watchdogs: a robot that stops publishing
-``odom`` for ``move_timeout`` fails its move or its drive home); nothing blocks the executor.
+time) and the node's housekeeping tick (the watchdogs of :mod:`stealth_env.robot_watch`: a robot
+that stops publishing ``odom`` for ``move_timeout`` fails its move, its drive home or its
+teleport; under ``use_sim_time`` that is simulated time, and a ``/clock`` that stops advancing
+for ``clock_timeout`` wall seconds fails them too); nothing blocks the executor.
+
+Commands answer the latest odometry, one per message: a simulator may run in lockstep with
+this controller (``stealth_sim.lockstep``: the next control period once the command for the
+latest odometry has come), where a command sent while newer odometry is on its way would be
+taken as the answer to that one and leave the controller a period behind for good. So after a
+command, odometry is on its way (for ODOM_WAIT of wall time at most: then the command is taken
+as lost): a new move's first command waits for it (on a robot that publishes odometry on its
+own clock, at most one odometry period). While there is no odometry yet, a teleported robot
+waits for its first odometry, or (under ``use_sim_time``) the robot has nothing to do, the tick
+sends a zero command unless odometry is on its way: a simulator that holds its clock at rest
+until commanded then lets time go on (a recorder on simulated time starts with it).
 A robot that does not move on ``cmd_vel`` makes moves TIME OUT; after ``unresponsive_moves``
 episode moves of them in a row it is not responding (:meth:`TopicRobot.not_responding`).
 Bad messages (a pose that is not finite, an ``amcl_pose`` in a frame other than ``map``) are
@@ -39,6 +52,7 @@ from stealth_env.env_messages import pose_of
 from stealth_env.log_throttle import Throttle
 from stealth_env.move_lattice import MoveLattice
 from stealth_env.robot import MoveEnd, OnMoveEnd, OnReset, failed
+from stealth_env.robot_watch import ClockWatch, Silence, silence_reason
 from stealth_env.service_robot import Teleport
 from stealth_env.topic_moves import (
     STOP,
@@ -64,6 +78,8 @@ TOPICS = {
 }
 BAD_MESSAGE_LOG_PERIOD = 5.0  # s of wall time between lines about one topic's bad messages
 TRUTH_WAIT = 1.0  # s of wall time a finished move waits for the ground truth of its end
+CLOCK_TIMEOUT = 10.0  # wall s without an advancing /clock (use_sim_time) that fail a move
+ODOM_WAIT = 0.5  # wall s after a command within which its odometry is awaited
 # nav2's AMCL publishes amcl_pose reliable and transient local (the last one to late joiners).
 ESTIMATE_QOS = kept_qos(5)
 
@@ -72,7 +88,7 @@ class TopicRobot:
     """One move (or a drive home of several) at a time over the robot's standard topics.
 
     `teleport`: the reset of ``reset_mode teleport`` (None: drive home over `lattice`);
-    `move_timeout`: the node's parameter (it can change).
+    `move_timeout`, `clock_timeout`: the node's parameters (they can change).
     """
 
     def __init__(
@@ -84,6 +100,7 @@ class TopicRobot:
         teleport: Teleport | None,
         unresponsive_moves: int,
         move_timeout: Callable[[], float],
+        clock_timeout: Callable[[], float] = lambda: CLOCK_TIMEOUT,
     ):
         self.node = node
         self.config = config
@@ -92,6 +109,7 @@ class TopicRobot:
         self.teleport = teleport
         self.unresponsive_moves = unresponsive_moves
         self._move_timeout = move_timeout
+        self._clock_timeout = clock_timeout
         self._unresponsive = 0  # episode moves in a row that timed out without the robot moving
         self._judged_on_estimate = False  # said once: no ground truth, judged on the estimate
         self._on_silent: Callable[[str], None] | None = None  # the running moves' failure
@@ -103,7 +121,11 @@ class TopicRobot:
         self._on_end: Callable[[MoveEnd], None] | None = None
         self._ending: tuple[MoveEnd, float] | None = None  # waiting for the truth, since (wall)
         self._on_placed: Callable[[], None] | None = None
-        self._last_odom_wall = -math.inf
+        self._on_not_placed: Callable[[str], None] | None = None  # a teleport's failure
+        self._odom_silence = Silence()  # on the robot's clock (_now)
+        self._awaiting: float | None = None  # wall time of a command no odometry came after
+        self._deferred = False  # the move's first command waits for the odometry on its way
+        self._clock_watch = ClockWatch()
         self._bad_log: dict[tuple[str, str], Throttle] = {}  # by topic and kind of problem
         self.bad_messages = dict.fromkeys(TOPICS, 0)
         quiet = QUIET_SUBSCRIPTION
@@ -193,7 +215,9 @@ class TopicRobot:
             if problem:
                 on_done(problem, -math.inf)
             else:
-                self.restart(pose, lambda: on_done('', self._clock()))
+                self.restart(
+                    pose, lambda: on_done('', self._clock()), lambda why: on_done(why, -math.inf)
+                )
 
         self.teleport.place(pose, placed)
 
@@ -227,6 +251,7 @@ class TopicRobot:
         self._stop()
         self._moves = list(moves)
         self._on_end, self._on_silent = on_end, on_silent
+        self._odom_silence.heard(self._now())  # silence counts from now
         self._next_move()
 
     def cancel(self) -> None:
@@ -240,12 +265,21 @@ class TopicRobot:
             self.send(STOP)
         self._moves, self._move, self._ending, self._on_end = [], None, None, None
         self._on_silent = None
+        self._on_placed = self._on_not_placed = None
+        self._deferred = False
 
-    def restart(self, pose: Pose, on_placed: Callable[[], None]) -> None:
-        """The robot was teleported to ``pose``: ``on_placed`` once odometry after it came."""
+    def restart(
+        self,
+        pose: Pose,
+        on_placed: Callable[[], None],
+        on_not_placed: Callable[[str], None] | None = None,
+    ) -> None:
+        """The robot was teleported to ``pose``: ``on_placed`` once odometry after it came, or
+        ``on_not_placed`` why none came (the watchdogs)."""
         latest = self.tracker.latest
         self.tracker.restart(pose, after=latest.t if latest else -math.inf)
-        self._on_placed = on_placed
+        self._on_placed, self._on_not_placed = on_placed, on_not_placed
+        self._odom_silence.heard(self._now())
 
     def set_initial_pose(self, pose: Pose) -> None:
         """Tell the localisation where the robot is (AMCL's initialpose, zero covariance: its
@@ -262,32 +296,66 @@ class TopicRobot:
         twist = Twist()
         twist.linear.x, twist.angular.z = float(command.linear), float(command.angular)
         self._cmd_pub.publish(twist)
+        if self._awaiting is None:
+            self._awaiting = time.monotonic()
+
+    def _odom_coming(self) -> bool:
+        """Whether odometry answering a command sent since the latest one is on its way."""
+        return self._awaiting is not None and time.monotonic() - self._awaiting < ODOM_WAIT
+
+    def sim_time(self) -> bool:
+        """Whether the node runs on simulated time (use_sim_time): the robot's clock."""
+        return bool(self.node.get_parameter('use_sim_time').value)
+
+    def _now(self) -> float:
+        """The robot's clock now (s): /clock under use_sim_time, else the wall clock."""
+        if self.sim_time():
+            return self.node.get_clock().now().nanoseconds * 1e-9
+        return time.monotonic()
 
     def silent_for(self) -> float:
-        """Wall seconds since the last odometry message."""
-        return time.monotonic() - self._last_odom_wall
+        """Seconds of the robot's clock without odometry since the robot was last given
+        something to do."""
+        return self._odom_silence.silent_for(self._now())
 
     def tick(self) -> None:
-        """Housekeeping: the teleport's deadline; a robot waiting to be placed gets a zero
-        command (a simulator that holds its clock at rest lets it run); a move's end stops
-        waiting for the truth; and a robot that stops publishing odometry mid-move fails the
-        move, as a simulator that does not answer does."""
+        """Housekeeping: the teleport's deadline; a robot with no odometry yet, waiting to be
+        placed or idle on simulated time gets a zero command (a simulator that holds its clock
+        at rest lets it run); a
+        move's end stops waiting for the truth; and a robot that stops publishing odometry (or
+        whose /clock stops) while it has something to do fails it, as a simulator that does not
+        answer does."""
+        wall = time.monotonic()
+        waiting = self.busy or self._on_placed is not None
+        sim_time = self.sim_time()
+        if sim_time:
+            self._clock_watch.observe(self.node.get_clock().now().nanoseconds, wall, waiting)
         if self.teleport is not None:
             self.teleport.tick()
-        if self._on_placed is not None:
+        blind = self._on_placed is not None or self.tracker.latest is None
+        if (blind or sim_time and not waiting) and not self._odom_coming():
             self.send(STOP)
-        if self._ending is not None and time.monotonic() - self._ending[1] > TRUTH_WAIT:
+        if self._deferred and self._move is not None and not self._odom_coming():
+            self._control()  # the odometry awaited did not come: go on without it
+        if self._ending is not None and wall - self._ending[1] > TRUTH_WAIT:
             self._report(self._ending[0])
-        move_timeout = self._move_timeout()
-        if not self.busy or self.silent_for() <= move_timeout:
+        if not waiting:
             return
-        on_silent = self._on_silent
+        reason = silence_reason(
+            sim_time=sim_time,
+            clock_silent=self._clock_watch.silence.silent_for(wall),
+            clock_timeout=self._clock_timeout(),
+            odom_silent=self.silent_for(),
+            move_timeout=self._move_timeout(),
+            clock_topic=self.node.resolve_topic_name('/clock'),
+            odom_topic=self.node.resolve_topic_name(TOPICS['odom']),
+        )
+        if not reason:
+            return
+        on_silent = self._on_silent or self._on_not_placed
         self._stop()
         if on_silent is not None:
-            on_silent(
-                f'no {self.node.resolve_topic_name(TOPICS["odom"])} for move_timeout '
-                f'{move_timeout:g} s (is the robot running?)'
-            )
+            on_silent(reason)
 
     # --- messages -------------------------------------------------------------------------------
 
@@ -309,11 +377,12 @@ class TopicRobot:
         if problem:
             self._bad('odom', problem)
             return
-        self._last_odom_wall = time.monotonic()
+        self._odom_silence.heard(self._now())
+        self._awaiting = None
         self.tracker.add_odom(Odom(seconds(message.header.stamp), pose, twist.linear.x,
                                    twist.angular.z))  # fmt: skip
         if self._on_placed is not None and self.tracker.estimate is not None:
-            on_placed, self._on_placed = self._on_placed, None
+            on_placed, self._on_placed, self._on_not_placed = self._on_placed, None, None
             on_placed()
         if self._move is not None:
             self._control()
@@ -348,9 +417,12 @@ class TopicRobot:
             self._end(failed(f'no pose of the robot ({self.waiting_for()})'))
             return
         self._move = TopicMove(self._moves.pop(0), estimate, latest.t, self.config)
-        self._control()
+        self._deferred = self._odom_coming()  # then it starts on the odometry coming
+        if not self._deferred:
+            self._control()
 
     def _control(self) -> None:
+        self._deferred = False
         odom, estimate = self.tracker.latest, self.tracker.estimate
         result = self._move.update(
             odom.t, estimate, odom, self._clearance(odom), self.tracker.period

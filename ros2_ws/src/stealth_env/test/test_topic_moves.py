@@ -86,6 +86,8 @@ class TopicRobot:
             if step == self.phase:
                 sample = (self.odom(), self.sim.estimate, self.clearance())
             self.sim.step(*(self._acting if self.respond else (0.0, 0.0)))
+        if sample is None:  # phase = steps per period: at its end (a simulator in lockstep)
+            sample = (self.odom(), self.sim.estimate, self.clearance())
         return sample
 
 
@@ -131,6 +133,35 @@ def test_grid_moves_end_within_the_service_paths_tolerances(maze, period, phase)
         f'period {period} s, odometry at step {phase}: {np.mean(periods_used):.1f} periods '
         f'per move ({np.mean(periods_used) * period:.2f} s of robot time)'
     )
+
+
+@pytest.mark.parametrize('period', [0.2, 0.4])
+def test_in_lockstep_a_command_latency_of_0_ends_within_tolerance_in_fewer_periods(maze, period):
+    """A simulator in lockstep (odometry at the end of a period, the command answering it
+    acting from then on): told so (command_latency 0), the controller no longer brakes for a
+    period of latency that is not there, so its moves end within tolerance in fewer periods
+    (assuming the latency, a move at 0.4 s even times out: it oscillates)."""
+    steps = round(period / PHYSICS_DT)
+    used = {}
+    for latency in (1.0, 0.0):
+        robot = TopicRobot(maze, maze.start, period, phase=steps)
+        config = TopicConfig(limits=LIMITS, command_latency=latency)
+        used[latency] = 0
+        for action in (3, 3, 0, 2, 1, 3, 0):
+            move = action_move(action, 0.5)
+            result, periods, controller = run_move(robot, move, config)
+            used[latency] += periods
+            if latency:
+                continue
+            assert result.outcome == MoveOutcome.DONE, result
+            estimate = robot.sim.estimate
+            target_x, target_y = controller._target
+            past = (estimate.x - target_x) * math.cos(move.heading) + (
+                estimate.y - target_y
+            ) * math.sin(move.heading)
+            assert -TOLERANCE.position_tolerance <= past <= 0.04, (latency, past)
+            assert abs(wrap_angle(estimate.yaw - move.heading)) < 0.1
+    assert used[0.0] < 0.85 * used[1.0], used
 
 
 def test_moves_to_lattice_nodes_take_an_offset_robot_back_onto_the_lattice(maze):

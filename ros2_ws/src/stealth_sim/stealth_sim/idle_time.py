@@ -9,12 +9,13 @@ and simulated time is when the searchlights are judged, so a step taken because 
 slow to send the next move would make the episode depend on the load.
 
 So with ``real_time_factor`` 0 (training), time stands still between moves unless something
-outside moves the robot: a fresh ``cmd_vel``, or a robot still coasting after one. A robot that
-a move or a reset left in place is *held*, even when the move's final braking stopped it within
-the controller's ``stopped_speed`` rather than at exactly zero (a residual of < 1e-3 m/s that
-the next move's first step then takes up, identically in every run). With a real-time factor >
-0 (``--watch``, the ``topics`` interface) simulated time follows wall time by design and a run
-is not repeatable step for step.
+outside moves the robot: a fresh ``cmd_vel``, or a robot still coasting after one; then it
+flows in lockstep with whoever commands it (:mod:`stealth_sim.lockstep`: a control period per
+answer on ``cmd_vel``, at most a period of wall time each). A robot that a move or a reset left
+in place is *held*, even when the move's final braking stopped it within the controller's
+``stopped_speed`` rather than at exactly zero (a residual of < 1e-3 m/s that the next move's
+first step then takes up, identically in every run). With a real-time factor > 0 (``--watch``)
+simulated time follows wall time by design and a run is not repeatable step for step.
 """
 
 from __future__ import annotations
@@ -28,10 +29,13 @@ MAX_CATCH_UP = 0.25  # s of simulated time an idle tick may run before the clock
 class IdleTick(NamedTuple):
     """What one idle tick does: step the physics until simulated time ``until`` (no step when
     it is not one physics step ahead), after re-anchoring the real-time pacer at the current
-    simulated time when ``anchor``."""
+    simulated time when ``anchor``; with ``lockstep``, time flows in lockstep with the
+    commands instead (``until`` is then the current time: the tick only lets a period whose
+    answer is overdue go by, :class:`stealth_sim.lockstep.Lockstep`)."""
 
     until: float
     anchor: bool
+    lockstep: bool = False
 
 
 def idle_tick(
@@ -46,15 +50,17 @@ def idle_tick(
     max_catch_up: float = MAX_CATCH_UP,
 ) -> IdleTick:
     """The idle tick at simulated time ``sim_time`` when the pacer says simulated time should
-    be ``due`` by now (at the real-time factor, or 1x when it is 0).
+    be ``due`` by now (at the real-time factor; not used when it is 0).
 
     commanded: a cmd_vel command is fresh; moving: the robot's velocities are not both exactly
     zero; held: no cmd_vel came since the last move or reset left the robot in place.
     """
-    if real_time_factor == 0.0 and not commanded and (held or not moving):
-        return IdleTick(sim_time, True)  # training: time stands still between moves
+    if real_time_factor == 0.0:
+        if not commanded and (held or not moving):
+            return IdleTick(sim_time, True)  # training: time stands still between moves
+        return IdleTick(sim_time, True, lockstep=True)  # as fast as the commands come
     if due - sim_time > max_catch_up:  # fell behind (a busy machine): do not race
-        return IdleTick(sim_time + idle_period * (real_time_factor or 1.0), True)
+        return IdleTick(sim_time + idle_period * real_time_factor, True)
     return IdleTick(due, False)
 
 

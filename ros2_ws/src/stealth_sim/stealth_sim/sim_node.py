@@ -39,19 +39,29 @@ rest may change while running, checked by the same ``sim_config`` that builds th
 
 ## Time
 
-Time is simulated. A move runs as fast as the CPU allows when ``real_time_factor`` is 0, or
-held to that multiple of wall time. Between moves, simulated time flows at the real-time factor
-(at 1x for teleoperation when the factor is 0). With the factor 0 and no ``cmd_vel`` since the
-last move or reset it stands still, so training wastes no CPU and a seeded run of moves is the
-same whatever the load: no physics step, random draw or clock tick ever happens because wall
-time passed (:mod:`stealth_sim.idle_time`). The periodic topics go out at ``publish_rate`` Hz
-of simulated time, and only when someone subscribes: publishing every physics step would slow
-training down; they draw their scan noise from a stream of their own.
+Time is simulated, published on ``clock`` with the periodic topics (to nodes under
+``use_sim_time``; a new subscriber gets the current time at once, even while it stands still).
+A move over the service runs as fast as the CPU allows when
+``real_time_factor`` is 0, or held to that multiple of wall time. Between moves, with a factor
+> 0, simulated time flows at that multiple of wall time. With the factor 0 it stands still
+until a ``cmd_vel`` comes, so training over the service wastes no CPU and a seeded run of moves
+is the same whatever the load: no physics step, random draw or clock tick ever happens because
+wall time passed (:mod:`stealth_sim.idle_time`). Under ``cmd_vel`` it then runs as fast as
+its subscribers keep up, in lockstep with the controller (:mod:`stealth_sim.lockstep`): the
+simulator steps one control period (``1 / publish_rate`` of simulated time), publishes
+odometry, scan and clock, and steps the next period as soon as the command answering that
+odometry arrives, or after one period of wall time without an answer (a teleop tool or a
+silent subscriber: never slower than real time, never stalled); once the command is older
+than ``cmd_vel_timeout`` and the robot is at rest, time stands still again. The periodic
+topics go out at ``publish_rate`` Hz of simulated time, and only when someone subscribes:
+publishing every physics step would slow training down; they draw their scan noise from a
+stream of their own.
 """
 
 import ctypes
 import ctypes.util
 import math
+import time
 
 from geometry_msgs.msg import (
     PoseWithCovarianceStamped,
@@ -82,6 +92,7 @@ from stealth_sim.frames import (
 )
 from stealth_sim.idle_time import RealTimePacer, idle_tick
 from stealth_sim.kinematics import Pose
+from stealth_sim.lockstep import Lockstep
 from stealth_sim.move_executor import MoveOutcome, MoveRequest, StepStops, execute_move, warm_up
 from stealth_sim.occupancy_map import MapError, OccupancyMap, load_map
 from stealth_sim.sim_messages import (
@@ -135,6 +146,8 @@ class SimulatorNode(StartupNode):
         self._published_updates = self.sim.localisation_updates
         self._estimate_due = False  # an estimate nobody subscribed to yet (latched: sent later)
         self._pacer = RealTimePacer(self.sim.time)
+        self._lockstep = Lockstep(self.publish_period)  # factor 0 under cmd_vel
+        self._clock_readers = 0  # /clock subscribers when it was last published
 
         latched = kept_qos(1)
         # rclpy gives every endpoint default QoS event handlers, each an entity the executor
@@ -246,6 +259,8 @@ class SimulatorNode(StartupNode):
         self.cmd_vel_timeout = values['cmd_vel_timeout']
         self.publish_period = 1.0 / values['publish_rate']
         self._pacer.anchor(self.sim.time)
+        self._lockstep.max_wait = self.publish_period
+        self._lockstep.restart()
 
     # --- time --------------------------------------------------------------------------------
 
@@ -278,13 +293,16 @@ class SimulatorNode(StartupNode):
         return self._command
 
     def _on_idle_tick(self) -> None:
-        """Between moves: simulated time runs at the real-time factor under /cmd_vel, and
-        stands still in training (see stealth_sim.idle_time: never on wall time alone)."""
+        """Between moves: simulated time runs at the real-time factor, or in lockstep with
+        /cmd_vel at factor 0, and stands still in training (see stealth_sim.idle_time: never on
+        wall time alone)."""
         if self._estimate_due and self.pose_pub.get_subscription_count():
             self._publish_estimate()
+        if self.clock_pub.get_subscription_count() != self._clock_readers:
+            self._publish_clock()  # a new node on simulated time learns it, standing still or not
         tick = idle_tick(
             self.sim.time,
-            self._pacer.due(self.real_time_factor or 1.0),
+            self._pacer.due(self.real_time_factor),
             real_time_factor=self.real_time_factor,
             commanded=self._fresh_command() is not None,
             moving=self.sim.state.linear != 0.0 or self.sim.state.angular != 0.0,
@@ -293,11 +311,27 @@ class SimulatorNode(StartupNode):
         )
         if tick.anchor:
             self._pacer.anchor(self.sim.time)
-        while self.sim.time + self.sim.config.physics_dt <= tick.until + 1e-9:
+        if tick.lockstep:
+            if self._lockstep.waited_out(time.monotonic()):
+                self._next_period()
+            return
+        if self.real_time_factor == 0.0:
+            self._lockstep.restart()  # time stands still: the next command goes at once
+        self._step_until(tick.until)
+
+    def _step_until(self, until: float) -> None:
+        """Physics steps under the latest fresh command up to simulated time ``until``."""
+        while self.sim.time + self.sim.config.physics_dt <= until + 1e-9:
             linear, angular = self._fresh_command() or (0.0, 0.0)
             if self.sim.step(linear, angular):
                 self.get_logger().info('bumped into a wall', throttle_duration_sec=1.0)
             self._publish_due()
+
+    def _next_period(self) -> None:
+        """Lockstep: one control period, up to and including its publication, whose answer
+        is then awaited."""
+        self._step_until(max(self._next_publish, self.sim.time + self.sim.config.physics_dt))
+        self._lockstep.sent(time.monotonic())
 
     # --- subscriptions -----------------------------------------------------------------------
 
@@ -313,6 +347,8 @@ class SimulatorNode(StartupNode):
         self._command = (linear, angular)
         self._command_time = self.sim.time
         self._held = False
+        if self.real_time_factor == 0.0 and self._lockstep.command():
+            self._next_period()  # the answer to the latest odometry: on to the next period
 
     def _on_initial_pose(self, message: PoseWithCovarianceStamped) -> None:
         if message.header.frame_id not in ('', MAP_FRAME):
@@ -344,6 +380,7 @@ class SimulatorNode(StartupNode):
         self._command = None
         self._held = True
         self._pacer.anchor(self.sim.time)
+        self._lockstep.restart()
         if result.outcome == MoveOutcome.REJECTED:
             self.get_logger().warning(f'move rejected: {result.message}')
         else:
@@ -368,6 +405,7 @@ class SimulatorNode(StartupNode):
         self._command = None
         self._held = True
         self._pacer.anchor(self.sim.time)
+        self._lockstep.restart()
         self._publish_state(everything=True)
         response.success, response.message = True, ''
         return response
@@ -382,8 +420,7 @@ class SimulatorNode(StartupNode):
         if not everything and not any(p.get_subscription_count() for p in self._periodic):
             return  # the usual case in training: nobody listens, so build nothing
         stamp = time_msg(sim.time)
-        if self.clock_pub.get_subscription_count():
-            self.clock_pub.publish(ClockMsg(clock=stamp))
+        self._publish_clock()
         for publisher, frame, pose in (
             (self.odom_pub, ODOM_FRAME, sim.odometry_pose),
             (self.truth_pub, MAP_FRAME, sim.ground_truth),
@@ -397,6 +434,11 @@ class SimulatorNode(StartupNode):
             self.tf_pub.publish(TFMessage(transforms=[transform_msg(t, stamp) for t in tree]))
         if everything:
             self._publish_estimate(only_if_subscribed=True)
+
+    def _publish_clock(self) -> None:
+        self._clock_readers = self.clock_pub.get_subscription_count()
+        if self._clock_readers:
+            self.clock_pub.publish(ClockMsg(clock=time_msg(self.sim.time)))
 
     def _publish_estimate(self, only_if_subscribed: bool = False) -> None:
         """amcl_pose; `only_if_subscribed`: with no subscriber it stays due, and the idle tick

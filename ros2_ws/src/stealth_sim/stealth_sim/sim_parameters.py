@@ -47,16 +47,22 @@ PARAMETERS = {
     'update_min_a': Param(_FILTER.update_min_a, 'AMCL update turn (rad).', (0.0, math.pi), True),
     'seed': Param(_DEFAULTS.seed, 'Seed of every random stream.', (0, 2**31 - 1), True),
     'real_time_factor': Param(
-        0.0, 'Simulated s per wall s; 0: moves run as fast as possible.', (0.0, 1000.0)
+        0.0,
+        'Simulated s per wall s; 0: as fast as possible (service moves) or as the cmd_vel '
+        'publisher answers each odometry (lockstep, at least 1x; see sim_node Time).',
+        (0.0, 1000.0),
     ),
     'cmd_vel_timeout': Param(0.5, 'Drop a cmd_vel older than this (s, simulated).', (0.01, 60.0)),
     'publish_rate': Param(
-        10.0, 'Rate of odom, ground_truth, scan, clock, tf (Hz).', (0.1, 1000.0)
+        10.0,
+        'Rate of odom, ground_truth, scan, clock, tf (Hz of simulated time; at '
+        'real_time_factor 0 under cmd_vel, one control period per answer).',
+        (0.1, 1000.0),
     ),
     'idle_period': Param(
         IDLE_PERIOD,
-        'Wall s between ticks of time between moves (under cmd_vel, the control '
-        'period of a robot driven over topics is this times real_time_factor).',
+        'Wall s between ticks of time between moves (with real_time_factor > 0 under cmd_vel, '
+        'the control period of a robot driven over topics is this times the factor).',
         (0.001, 1.0),
         True,
     ),

@@ -41,11 +41,14 @@ def test_in_training_time_stands_still_between_moves_however_late_the_next_move(
         assert tick(due=due) == IdleTick(10.0, True)
 
 
-def test_teleoperation_runs_at_1x_when_the_factor_is_0():
-    assert tick(due=10.1, commanded=True) == IdleTick(10.1, False)
-    assert tick(due=10.1, commanded=True, held=True) == IdleTick(10.1, False)
+@pytest.mark.parametrize('due', [10.0, 10.1, 10.0 + MAX_CATCH_UP + 5.0])
+def test_under_cmd_vel_at_factor_0_time_flows_in_lockstep_whatever_the_wall_clock(due):
+    """No step on the tick's own: the lockstep lets periods go by (stealth_sim.lockstep)."""
+    lockstep = IdleTick(10.0, True, lockstep=True)
+    assert tick(due=due, commanded=True) == lockstep
+    assert tick(due=due, commanded=True, held=True) == lockstep
     # The command expired while the robot still coasts (not held: a cmd_vel drove it): it brakes.
-    assert tick(due=10.1, moving=True) == IdleTick(10.1, False)
+    assert tick(due=due, moving=True) == lockstep
 
 
 def test_with_a_real_time_factor_time_follows_the_wall_clock():
@@ -55,5 +58,5 @@ def test_with_a_real_time_factor_time_follows_the_wall_clock():
 
 def test_a_tick_that_fell_behind_does_not_race_to_catch_up():
     late = 10.0 + MAX_CATCH_UP + 1.0
-    assert tick(due=late, commanded=True) == IdleTick(10.0 + PERIOD, True)
+    assert tick(due=late, factor=1.0, commanded=True) == IdleTick(10.0 + PERIOD, True)
     assert tick(due=late, factor=20.0) == IdleTick(10.0 + PERIOD * 20.0, True)

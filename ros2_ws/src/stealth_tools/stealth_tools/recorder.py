@@ -44,8 +44,9 @@ pour in (a batch took BUSY_TAKE from one queue) it takes them without pausing. r
 costs about a quarter of a millisecond per wake-up, several times the cost of writing a message,
 and a training run's ~1,200 messages/s arrive one at a time, so waking for each made the
 recorder the run's second-largest CPU user. The log time is
-still each message's reception time, so batching does not move it; under use_sim_time the log
-time is the clock when the message is taken, so there the recorder takes each at once.
+still each message's reception time, so batching does not move it; under use_sim_time it is the
+simulated time at reception: that of the latest ``/clock`` message received before it (of the
+recorded ``/clock``; the ROS clock when the message is taken while ``/clock`` is not recorded).
 """
 
 from __future__ import annotations
@@ -60,6 +61,8 @@ from rclpy.exceptions import InvalidParameterValueException, ParameterException
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+from rosgraph_msgs.msg import Clock as ClockMessage
 from stealth_node_kit.full_disk import EXIT_DISK_FULL, disk_full_message, is_disk_full
 from stealth_node_kit.running import StartupNode
 
@@ -143,7 +146,8 @@ class Recorder(StartupNode):
         self._told_waiting_for_clock = False
         # (subscription, message type, topic) of every recorded topic, for taking a batch
         self._queues: list[tuple[object, object, str]] = []
-        self._batch_period = 0.0 if self.use_sim_time else self.settings.batch_period
+        self._batch_period = self.settings.batch_period
+        self._sim_ns = 0  # under use_sim_time: the latest /clock taken (ns; 0: none yet)
         self._last_batch = 0.0  # time.monotonic() when the last batch was taken
         self._largest_take = 0  # the most messages the last batch took from one queue
         steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -232,7 +236,10 @@ class Recorder(StartupNode):
             subscription = raw_subscription(
                 self, topic, msg_type, qos, record_batch, report_loss, drain=False
             )
-            self._queues.append((subscription, msg_type, topic))
+            # /clock is taken last, so what a batch takes of other topics has the /clock
+            # received before it (_on_sim_time).
+            at = len(self._queues) if topic == '/clock' else 0
+            self._queues.insert(at, (subscription, msg_type, topic))
             return subscription
 
         def record_one(data: bytes, info: dict) -> None:
@@ -241,10 +248,26 @@ class Recorder(StartupNode):
         return raw_subscription(self, topic, msg_type, qos, record_one, report_loss)
 
     def _times(self, info: dict) -> tuple[int, int]:
-        """(log time, publish time) in ns of a message taken now with this message info."""
-        received = 0 if self.use_sim_time else info.get('received_timestamp', 0)
-        log_time = received or self.get_clock().now().nanoseconds
-        return log_time, info.get('source_timestamp', 0)
+        """(log time, publish time) in ns of a message taken now with this message info; in
+        batches under use_sim_time, the wall time of reception instead (see _on_sim_time)."""
+        if self.use_sim_time and not self._batch_period:
+            return self.get_clock().now().nanoseconds, info.get('source_timestamp', 0)
+        received = info.get('received_timestamp', 0)
+        if self.use_sim_time:
+            received = received or time.time_ns()
+        return received or self.get_clock().now().nanoseconds, info.get('source_timestamp', 0)
+
+    def _on_sim_time(self, batch: list) -> list:
+        """A batch in order of reception (wall ns) with log times in simulated time: that of
+        the latest /clock received before each message (the ROS clock before any is taken)."""
+        stamped = []
+        for _, publish_time, topic, data in batch:
+            if topic == '/clock':
+                clock = deserialize_message(data, ClockMessage).clock
+                self._sim_ns = clock.sec * 1_000_000_000 + clock.nanosec
+            log_time = self._sim_ns or self.get_clock().now().nanoseconds
+            stamped.append((log_time, publish_time, topic, data))
+        return stamped
 
     def _take_batch(self, topic: str, data: bytes, info: dict) -> None:
         """A message woke the recorder: unless messages are pouring in, let batch_period pass
@@ -271,6 +294,8 @@ class Recorder(StartupNode):
                     taken_here += 1
             largest = max(largest, taken_here)
         batch.sort(key=lambda item: item[0])
+        if self.use_sim_time:
+            batch = self._on_sim_time(batch)
         for log_time, publish_time, topic, data in batch:
             self.bag.write(topic, data, log_time, publish_time)
         self._last_batch, self._largest_take = time.monotonic(), largest
