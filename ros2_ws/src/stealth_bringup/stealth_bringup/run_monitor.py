@@ -174,6 +174,14 @@ class Monitor:
         self.steps.setdefault(msg.episode, []).append(
             (msg.reward, msg.visibility, msg.distance_to_goal, msg.true_pose.x, msg.true_pose.y)
         )
+        if self._ended():
+            return
+        estimate = msg.estimated_pose  # with the action: the episode's scores
+        steps = self.tracker.add_step(
+            msg.episode, msg.action, estimate.x, estimate.y, self._elapsed()
+        )
+        for record in steps:
+            self.on_record(record)
 
     # --- the graph --------------------------------------------------------------------------
 

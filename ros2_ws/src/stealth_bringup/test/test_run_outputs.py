@@ -16,7 +16,6 @@ from stealth_bringup.run_outputs import (
     _replace_atomically,
     append_episode,
     moving_average,
-    optimal_path,
     plot_learning_curve,
     plot_path,
     read_episodes_csv,
@@ -24,6 +23,7 @@ from stealth_bringup.run_outputs import (
     write_episodes_csv,
     write_json,
 )
+from stealth_env.planners import optimal_path
 from stealth_node_kit.full_disk import DiskFullError
 
 

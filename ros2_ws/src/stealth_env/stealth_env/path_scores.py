@@ -29,7 +29,7 @@ from collections.abc import Mapping, Sequence
 import dataclasses
 import math
 
-from stealth_env.planners import LatticeModel, PathResult, walk
+from stealth_env.planners import LatticeModel, PathResult, follow, value_iteration, walk
 from stealth_env.reward import EpisodeOutcome
 
 DEFAULT_MAX_PATH_RATIO = 1.1
@@ -222,6 +222,13 @@ def meets_criterion(
     """Whether ``scores`` meet the success criterion against the optimum's (module
     docstring). The one test every caller uses."""
     return not failures(scores, optimum, options)
+
+
+def optimum_path(model: LatticeModel) -> PathResult:
+    """Value iteration's path on the model (no slip), walked: what the criterion compares an
+    episode against (``planners.optimal_path`` of the model)."""
+    optimum = value_iteration(model)
+    return walk(model, follow(model, lambda i: int(optimum.policy[i])))
 
 
 def replay_actions(model: LatticeModel, actions: Sequence[int]) -> PathResult:

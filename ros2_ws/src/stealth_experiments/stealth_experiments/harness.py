@@ -35,6 +35,7 @@ from stealth_env.path_scores import (
     PathScores,
     mean_scores,
     meets_criterion,
+    optimum_path,
 )
 from stealth_env.planners import LatticeModel, astar, dark_path, follow, value_iteration, walk
 from stealth_env.replanning import SensedReplanner, play
@@ -237,20 +238,13 @@ def settled_within(eval_at, eval_returns, optimum: float, within: float = WITHIN
     return settled(eval_at, np.asarray(eval_returns) >= optimum - within * abs(optimum))
 
 
-def optimum_scores(model: LatticeModel) -> PathScores:
-    """The scores of value iteration's path on the model (no slip): what the criterion compares
-    an episode against."""
-    optimum = value_iteration(model)
-    return PathScores.of_path(walk(model, follow(model, lambda i: int(optimum.policy[i]))))
-
-
 def run(spec: RunSpec) -> RunResult:
     """Train one learner on one scenario with one seed, evaluating greedily as it goes."""
     started = time.perf_counter()
     env = StealthNavEnv(spec.scenario, spec.goal, spec.slip)
     evaluator = StealthNavEnv(spec.scenario, spec.goal, spec.slip)
     optimum = value_iteration(env.model, slip=spec.slip).optimal_return
-    reference = optimum_scores(env.model)
+    reference = PathScores.of_path(optimum_path(env.model))
     criterion = spec.criterion
     learner = make_learner(
         spec.learner, env.action_space.n, configured(spec.learner, spec.slip > 0, spec.params)
