@@ -27,6 +27,7 @@ from stealth_env.path_scores import (
     compare,
     meets_criterion,
     optimum_path,
+    polyline_length,
     replay_actions,
 )
 from stealth_env.planners import LatticeModel, PathResult
@@ -82,9 +83,7 @@ class EpisodeScorer:
         fields['true_path_over_optimum'] = summary['path_length'] / length if length else math.nan
         start = self.scenario.start[:2]
         points = [tuple(start), *((x, y) for _, x, y in moves)]
-        fields['estimated_path_length'] = sum(
-            math.dist(a, b) for a, b in zip(points, points[1:], strict=False)
-        )
+        fields['estimated_path_length'] = polyline_length(points)
         if len(moves) != summary['steps']:
             return fields
         try:

@@ -246,6 +246,13 @@ def replay_actions(model: LatticeModel, actions: Sequence[int]) -> PathResult:
     return walk(model, path)
 
 
+def polyline_length(points) -> float:
+    """The length (m) of a path of (x, y, ...) points: the straight distances between
+    consecutive points, summed (as EpisodeStats sums the true pose's)."""
+    pairs = zip(points, points[1:], strict=False)
+    return float(sum(math.dist(a[:2], b[:2]) for a, b in pairs))
+
+
 def describe(scores: PathScores, optimum: PathScores | None = None) -> str:
     """Scores in a few words (a legend's), with their ratios to the optimum's when given."""
     outcome = 'unfinished' if scores.outcome is None else scores.outcome.name.lower()
