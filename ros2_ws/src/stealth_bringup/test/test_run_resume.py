@@ -126,3 +126,28 @@ def test_a_continued_run_keeps_its_criterion_unless_given(tmp_path):
     summary_file.write_text(json.dumps(summary))
     with pytest.raises(RunConfigError, match=r'criterion: --max-path-ratio: expected a number in'):
         resume(run, '--episodes', '12')
+
+
+@pytest.mark.parametrize(
+    ('argv', 'line'),
+    [
+        (['--max-path-ratio', '0.9'], 'argument --max-path-ratio: expected a number in [1, 10], '
+                                      "got '0.9'"),
+        (['--exposure-tolerance', 'lots'], 'argument --exposure-tolerance: expected a number in '
+                                           "[0, 100], got 'lots'"),
+    ],
+)  # fmt: skip
+def test_a_criterion_option_out_of_range_is_one_line_naming_it(capsys, argv, line):
+    with pytest.raises(SystemExit) as stop:
+        train_parser().parse_args(argv)
+    assert stop.value.code == 2
+    assert capsys.readouterr().err.splitlines()[-1] == f'stealth train: error: {line}'
+
+
+def test_the_run_states_its_criterion(tmp_path):
+    plan = plan_of('--max-path-ratio', '1.25', '--episodes', '4', runs_dir=tmp_path)
+    assert 'meet the success criterion (path <= 1.25x, exposure <= opt + 0.1)' in plan.describe()
+    RunReport(plan, Tracker(), RunFacts(0.0), print).write_progress()
+    summary = json.loads(plan.file('summary.json').read_text())
+    assert summary['criterion']['max_path_ratio'] == 1.25
+    assert summary['criterion']['exposure_tolerance'] == 0.1
