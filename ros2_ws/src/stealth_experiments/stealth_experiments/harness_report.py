@@ -19,6 +19,7 @@ from stealth_env.path_scores import (
     Criterion,
     PathScores,
     compare,
+    describe,
     meets_criterion,
 )
 from stealth_env.planners import LatticeModel
@@ -312,19 +313,23 @@ def write_curves(out: Path, results: Sequence[RunResult], optima: dict[str, floa
 
 
 def _labelled_paths(found: list[Baseline], results, baselines=BASELINES):
-    """(points, label) of the baselines named and each learner's first seed."""
+    """(points, label) of the baselines named and each learner's first seed, each labelled
+    with its scores against the optimum's (value iteration's path)."""
+    reference = optimum_reference(found)
     labelled = []
     for baseline in found:
         if baseline.name in baselines and baseline.summary.get('points') is not None:
-            outcome = _outcome_name(baseline.summary['outcome']).lower()
-            labelled.append((baseline.summary['points'], f'{baseline.name} ({outcome})'))
+            scores = PathScores.of_summary(baseline.summary)
+            optimum = None if baseline.name == 'value iteration' else reference
+            label = f'{baseline.name}: {describe(scores, optimum)}'
+            labelled.append((baseline.summary['points'], label))
     seen = set()
     for result in results:
         if result.spec.learner in seen:
             continue
         seen.add(result.spec.learner)
-        outcome = _outcome_name(result.final['outcome']).lower()
-        label = f'{result.spec.learner} seed {result.spec.seed} ({outcome})'
+        scores = PathScores.of_summary(result.final)
+        label = f'{result.spec.learner} seed {result.spec.seed}: {describe(scores, reference)}'
         labelled.append((result.final['points'], label))
     return labelled
 

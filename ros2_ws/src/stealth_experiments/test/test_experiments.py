@@ -19,6 +19,7 @@ from stealth_experiments.harness import (
     MOVING_EPISODES,
     SENSED_BASELINES,
     RunSpec,
+    baselines,
     criterion_params,
     default_budget,
     grid_specs,
@@ -29,7 +30,7 @@ from stealth_experiments.harness import (
     settled_within,
     tuned_config,
 )
-from stealth_experiments.harness_report import baseline_row
+from stealth_experiments.harness_report import _labelled_paths, baseline_row
 
 SCENARIO = 'simple-maze'
 
@@ -233,3 +234,12 @@ def test_the_sensed_baselines_play_the_sensed_track_into_the_report_rows():
         assert row['meets_criterion'] == ''  # no optimum's scores given
         assert row['method'] == baseline.name and row['success_rate'] == 1.0
         assert row['greedy_return'] <= optimum + 1e-9
+
+
+def test_every_path_in_the_picture_is_labelled_with_its_scores_against_the_optimum(trained):
+    _, found = baselines(lattice_model(SCENARIO))
+    labels = [label for _, label in _labelled_paths(found, [trained])]
+    assert labels[0].startswith('A*: detected, 15 steps, 7.5 m (0.18x), exposure')
+    assert labels[2] == 'value iteration: success, 83 steps, 41.5 m, exposure 0.00, peak 0.00'
+    assert labels[3].startswith(f'dyna seed 3: success, {trained.final["steps"]} steps, ')
+    assert '(1.0' in labels[3]  # its path's ratio to the optimum's
