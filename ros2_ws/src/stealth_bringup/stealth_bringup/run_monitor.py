@@ -386,9 +386,13 @@ class Progress:
             self.bar.set_postfix_str(tracker.postfix(), refresh=False)
             if self.bar.disable and (record.greedy or tracker.episodes % 10 == 0):
                 what = 'greedy evaluation' if record.greedy else 'training'
+                verdict = ''
+                if record.greedy and tracker.scorer is not None:
+                    met = 'meets' if record.meets_criterion else 'misses'
+                    verdict = f', {met} the criterion'
                 print(
                     f'episode {record.episode} ({what}): {record.outcome.lower()} in '
-                    f'{record.steps} steps, return {record.total_reward:.1f}; '
+                    f'{record.steps} steps, return {record.total_reward:.1f}{verdict}; '
                     f'{tracker.postfix()}',
                     file=self.err,
                     flush=True,
