@@ -303,7 +303,7 @@ def plot_learning_curve(
                 [],
                 color=palette.STREAK,
                 linestyle='--',
-                label=f'greedy success streak from {streak_start}',
+                label=f'greedy streak meeting the criterion from {streak_start}',
             )
         )
     top.legend(handles=handles, loc='lower right', fontsize=8, framealpha=0.85)
