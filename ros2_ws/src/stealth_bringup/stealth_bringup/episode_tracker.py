@@ -318,7 +318,11 @@ class Tracker:
             )
         if evaluating:
             reached = self.outcome_counts()[EpisodeOutcome.SUCCESS.name]
-            return f'{self.budget} greedy episodes: {reached} reached the goal'
+            message = f'{self.budget} greedy episodes: {reached} reached the goal'
+            if self.scorer is not None:
+                met = sum(r.meets_criterion for r in self.records if r.greedy)
+                message += f', {met} met the success criterion ({self.scorer.criterion.short()})'
+            return message
         message = f'episode budget of {self.budget} spent'
         if self.streak_goal:
             message += (

@@ -232,6 +232,10 @@ def test_the_streak_counts_greedy_episodes_that_meet_the_criterion(scorer):
     loose.scorer._model, loose.scorer._optimum = found.model, found.optimum
     play(loose, scorer, 0, [actions[0]] * 4 + [back] * 4 + actions)
     assert loose.streak == 1
+    assert tracker.end_message('budget', evaluating=True) == (
+        '100 greedy episodes: 5 reached the goal, 3 met the success criterion (path <= 1.1x, '
+        'exposure <= opt + 0.1)'
+    )
 
 
 def test_an_episode_waits_for_its_last_step(scorer):
