@@ -243,3 +243,12 @@ def test_every_path_in_the_picture_is_labelled_with_its_scores_against_the_optim
     assert labels[2] == 'value iteration: success, 83 steps, 41.5 m, exposure 0.00, peak 0.00'
     assert labels[3].startswith(f'dyna seed 3: success, {trained.final["steps"]} steps, ')
     assert '(1.0' in labels[3]  # its path's ratio to the optimum's
+
+
+def test_with_slip_an_evaluation_is_judged_on_the_mean_of_its_rollouts():
+    """Ten rollouts per evaluation with slip: the criterion judges their mean path and
+    exposure, and fails the evaluation unless every one reached the goal undetected (20
+    episodes of this seed are not enough for that)."""
+    result = run(RunSpec(SCENARIO, 'dyna', 0, episodes=20, eval_every=10, slip=0.1))
+    assert result.eval_met.tolist() == [False, False]
+    assert result.episodes_to_criterion is None
