@@ -5,11 +5,13 @@ a user can ask for, checked for form only; what it means is run_plan's. No rclpy
 from __future__ import annotations
 
 import argparse
+import dataclasses
 
 from stealth_env.path_scores import (
     DEFAULT_CRITERION,
     EXPOSURE_TOLERANCE_RANGE,
     MAX_PATH_RATIO_RANGE,
+    Criterion,
     CriterionError,
     check_option,
 )
@@ -50,10 +52,11 @@ def criterion_option(name: str, low: float, high: float):
     return parse
 
 
-def _criterion_options(parser: argparse.ArgumentParser, evaluating: bool) -> None:
+def add_criterion_options(parser: argparse.ArgumentParser, resumable: bool = False) -> None:
     """--max-path-ratio, --exposure-tolerance: the success criterion (stealth_env.path_scores)
-    the greedy episodes are judged by (and, in training, the streak counts)."""
-    resumed = '' if evaluating else ", with --resume the run's"
+    greedy episodes are judged by (stealth train's streak counts them, the harness settles on
+    them); None when not given (``criterion_of``: the defaults; --resume: the run's)."""
+    resumed = ", with --resume the run's" if resumable else ''
     low, high = MAX_PATH_RATIO_RANGE
     parser.add_argument(
         '--max-path-ratio',
@@ -74,8 +77,18 @@ def _criterion_options(parser: argparse.ArgumentParser, evaluating: bool) -> Non
     )
 
 
+def criterion_of(args: argparse.Namespace) -> Criterion:
+    """The criterion the options ask for: each given option over the defaults."""
+    given = {
+        name: getattr(args, name)
+        for name in ('max_path_ratio', 'exposure_tolerance')
+        if getattr(args, name, None) is not None
+    }
+    return dataclasses.replace(DEFAULT_CRITERION, **given)
+
+
 def _common_options(parser: argparse.ArgumentParser, evaluating: bool = False) -> None:
-    _criterion_options(parser, evaluating)
+    add_criterion_options(parser, resumable=not evaluating)
     parser.add_argument(
         '--runs-dir',
         default='runs',

@@ -39,14 +39,9 @@ import sys
 
 from stealth_agent.learners import LEARNER_NAMES, LearnerConfig
 from stealth_agent.schedules import Schedule
+from stealth_bringup.run_arguments import add_criterion_options, criterion_of
 from stealth_env.gym_env import lattice_model
-from stealth_env.path_scores import (
-    DEFAULT_CRITERION,
-    EXPOSURE_TOLERANCE_RANGE,
-    MAX_PATH_RATIO_RANGE,
-    Criterion,
-    CriterionError,
-)
+from stealth_env.path_scores import DEFAULT_CRITERION, Criterion
 from tqdm import tqdm
 
 from stealth_experiments.harness import (
@@ -158,33 +153,6 @@ def _describe(config: LearnerConfig) -> str:
     )
 
 
-def add_criterion_options(parser: argparse.ArgumentParser) -> None:
-    """--max-path-ratio and --exposure-tolerance (stealth_env.path_scores.Criterion)."""
-    low, high = MAX_PATH_RATIO_RANGE
-    parser.add_argument(
-        '--max-path-ratio',
-        type=float,
-        default=DEFAULT_CRITERION.max_path_ratio,
-        metavar='R',
-        help="success criterion: the greedy path at most R times the optimum's length "
-        f'([{low:g}, {high:g}]; default: %(default)s)',
-    )
-    low, high = EXPOSURE_TOLERANCE_RANGE
-    parser.add_argument(
-        '--exposure-tolerance',
-        type=float,
-        default=DEFAULT_CRITERION.exposure_tolerance,
-        metavar='E',
-        help="success criterion: the greedy path's accumulated exposure (visibility summed over "
-        f"its steps) at most the optimum's + E ([{low:g}, {high:g}]; default: %(default)s)",
-    )
-
-
-def criterion_of(args: argparse.Namespace) -> Criterion:
-    """The criterion the options ask for (CriterionError: one line naming the option)."""
-    return Criterion(args.max_path_ratio, args.exposure_tolerance)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog='experiments',
@@ -247,11 +215,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error('--episodes and --eval-every must be >= 1')
     if not 0.0 <= args.slip <= 1.0:
         parser.error('--slip must be a probability in [0, 1]')
-    try:
-        criterion = criterion_of(args)
-    except CriterionError as error:
-        print(f'experiments: {error}', file=sys.stderr)
-        return 2
+    criterion = criterion_of(args)
     try:
         evaluate(
             args.scenarios,
