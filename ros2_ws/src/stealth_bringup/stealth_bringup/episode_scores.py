@@ -9,8 +9,10 @@ the start on ``planners.LatticeModel`` and judged as value iteration judges its 
 continuous pose's, labelled: the **true** pose's path length (EpisodeSummary.path_length, its
 ratio to the optimum's) and the **estimate**'s (StepInfo.estimated_pose, from the start). The
 episode's outcome is the environment's (the true pose's): the criterion asks that it reached
-the goal undetected, and that the lattice path is at most ``max_path_ratio`` x the optimum's
-with at most the optimum's accumulated exposure + ``exposure_tolerance``.
+the goal undetected, that the lattice path was not seen either (a robot sent through a lit node
+that got away with it does not count), and that the lattice path is at most
+``max_path_ratio`` x the optimum's with at most the optimum's accumulated exposure +
+``exposure_tolerance``.
 
 Lattice time: where lights move, the replay steps at the scenario's ``step_seconds`` (the
 model's bins), which matches the ROS run only as far as the simulator's step times do.
@@ -93,6 +95,8 @@ class EpisodeScorer:
         lattice = PathScores.of_path(walked)
         versus = compare(lattice, optimum)
         outcome = summary['outcome']
+        if walked.outcome is EpisodeOutcome.DETECTED:  # seen on the lattice: not covert
+            outcome = EpisodeOutcome.DETECTED.name
         judged = PathScores(
             EpisodeOutcome[outcome] if outcome in EpisodeOutcome.__members__ else None,
             lattice.steps,

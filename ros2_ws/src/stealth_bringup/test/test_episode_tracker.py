@@ -210,6 +210,19 @@ def test_a_detour_or_a_detection_does_not_meet_the_criterion(scorer):
     assert not long.meets_criterion
     (seen,) = play(tracker, scorer, 1, actions, outcome='DETECTED')
     assert seen.path_over_optimum == pytest.approx(1.0) and not seen.meets_criterion
+    # Sent through a lit node on the lattice, though the true pose got away with it.
+    model = found.model
+    place, lit = model.start, None
+    for k, action in enumerate(actions):
+        for other in range(4):
+            if model.step_seen[place, other]:
+                lit = [*actions[:k], other]
+                break
+        if lit:
+            break
+        place = int(model.successors[place, action])
+    (lucky,) = play(tracker, scorer, 2, lit, outcome='SUCCESS')
+    assert lucky.lattice_outcome == 'DETECTED' and not lucky.meets_criterion
 
 
 def test_the_streak_counts_greedy_episodes_that_meet_the_criterion(scorer):
