@@ -60,6 +60,7 @@ class EpisodeScorer:
         self.scenario, self.goal, self.criterion = scenario, goal, criterion
         self._model: LatticeModel | None = None
         self._optimum: PathResult | None = None
+        self.error: str | None = None  # why the optimum could not be had (then no scores)
 
     @property
     def model(self) -> LatticeModel:
@@ -78,9 +79,17 @@ class EpisodeScorer:
         """The score fields (UNSCORED's keys) of an episode: ``summary`` its EpisodeSummary
         fields (episode_tracker.summary_fields), ``moves`` (action, estimated x, estimated y)
         of each step in order. The lattice figures stay unknown when the steps do not add up
-        to the summary's (a step not received) or an action is not the scenario's."""
-        optimum = PathScores.of_path(self.optimum)
+        to the summary's (a step not received) or an action is not the scenario's; every
+        score when the optimum cannot be had (``error`` says why: a score must not cost the
+        run its episodes)."""
         fields = dict(UNSCORED)
+        if self.error is not None:
+            return fields
+        try:
+            optimum = PathScores.of_path(self.optimum)
+        except Exception as error:  # noqa: BLE001 - e.g. a scenario the lattice cannot judge
+            self.error = f'no value-iteration optimum to score episodes against: {error}'
+            return fields
         length = optimum.path_length
         fields['true_path_over_optimum'] = summary['path_length'] / length if length else math.nan
         start = self.scenario.start[:2]

@@ -251,6 +251,15 @@ def test_the_streak_counts_greedy_episodes_that_meet_the_criterion(scorer):
     )
 
 
+def test_a_scenario_without_an_optimum_leaves_the_episodes_unscored(scorer):
+    found, actions = scorer
+    broken = EpisodeScorer(found.scenario, 'no-such-goal')
+    tracker = Tracker(budget=10, scorer=broken)
+    (record,) = play(tracker, scorer, 0, actions)
+    assert record.outcome == 'SUCCESS' and record.lattice_steps == -1
+    assert not record.meets_criterion and "goal 'no-such-goal'" in broken.error
+
+
 def test_an_episode_waits_for_its_last_step(scorer):
     """The summary may come before the last StepInfo (two topics): the record waits for it,
     or for a later episode's first step when it never comes."""
