@@ -242,6 +242,27 @@ def test_train_runs_episodes_over_dds_and_leaves_a_complete_run(system, tmp_path
         assert row['outcome'] == OUTCOMES[message.outcome]
         assert int(row['steps']) == message.steps
         assert float(row['total_reward']) == pytest.approx(message.total_reward, rel=1e-5)
+    # Each episode scored on the lattice nodes its actions sent the robot to (episode_scores),
+    # against the optimum on the lattice; the true and estimated path lengths beside them.
+    from stealth_env.gym_env import lattice_model
+    from stealth_env.path_scores import replay_actions
+
+    model = lattice_model(str(scenario), 'easy')
+    optimum = summary['optimum_on_lattice']
+    assert summary['criterion']['max_path_ratio'] == 1.1
+    for row in rows:
+        mine = sorted((m.step, m.action) for m in steps if m.episode == int(row['episode']))
+        lattice = replay_actions(model, [action for _, action in mine])
+        assert int(row['lattice_steps']) == lattice.steps
+        assert float(row['lattice_path_length']) == pytest.approx(lattice.path_length, rel=1e-5)
+        assert float(row['path_over_optimum']) == pytest.approx(
+            lattice.path_length / optimum['path_length'], rel=1e-5
+        )
+        assert float(row['true_path_over_optimum']) == pytest.approx(
+            float(row['path_length']) / optimum['path_length'], rel=1e-5
+        )
+        assert float(row['estimated_path_length']) > 0
+        assert row['meets_criterion'] in ('True', 'False')
     greedy = {m.episode for m in messages['/rl_agent/episode_info'] if m.greedy and m.episode < 8}
     assert greedy == {3, 7} == {int(r['episode']) for r in rows if r['greedy'] == 'True'}
     for message in messages['/rl_agent/episode_info']:

@@ -5,9 +5,15 @@ Both messages carry the episode number, counted from 0 in a run by the environme
 agent alike, so they are paired by it. An episode is complete when both have arrived, or when
 the environment reports it ABORTED (the agent may never have seen it end).
 
+Each episode is scored against value iteration's optimum when the tracker has a scorer
+(``episode_scores``: the lattice nodes the robot was sent to, from the StepInfo reports given
+to ``add_step``, and the continuous pose's figures beside them).
+
 End criteria: the episode budget (every episode counts, greedy evaluations included), or K
-greedy evaluation episodes in a row reaching the goal (a greedy episode that does not resets
-the streak; the training episodes in between do not count).
+greedy evaluation episodes in a row meeting the success criterion (``path_scores``: reached the
+goal undetected on a path close enough to the optimum's in length and exposure; without a
+scorer, reaching the goal); a greedy episode that does not resets the streak, the training
+episodes in between do not count.
 """
 
 from __future__ import annotations
@@ -18,6 +24,8 @@ import itertools
 import math
 
 from stealth_env.reward import EpisodeOutcome
+
+from stealth_bringup.episode_scores import UNSCORED, EpisodeScorer
 
 # The names of the core's outcome enum, whose values are EpisodeSummary's constants.
 OUTCOMES = tuple(outcome.name for outcome in EpisodeOutcome)
@@ -50,6 +58,18 @@ class EpisodeRecord:
     learner_updates: int
     table_states: int
     wall_time: float  # s from the start of the run to the episode's completion
+    # Scores against the optimum (episode_scores.UNSCORED: unknown values): on the lattice
+    # nodes the robot was sent to, then the continuous pose's beside them.
+    lattice_outcome: str = UNSCORED['lattice_outcome']  # the lattice replay's own ending
+    lattice_steps: int = UNSCORED['lattice_steps']
+    lattice_path_length: float = UNSCORED['lattice_path_length']  # m
+    lattice_peak_visibility: float = UNSCORED['lattice_peak_visibility']
+    lattice_accumulated_visibility: float = UNSCORED['lattice_accumulated_visibility']
+    path_over_optimum: float = UNSCORED['path_over_optimum']  # lattice path / the optimum's
+    exposure_over_optimum: float = UNSCORED['exposure_over_optimum']  # lattice - the optimum's
+    true_path_over_optimum: float = UNSCORED['true_path_over_optimum']  # true pose's / optimum's
+    estimated_path_length: float = UNSCORED['estimated_path_length']  # m, the estimate's
+    meets_criterion: bool = UNSCORED['meets_criterion']
 
     @property
     def success(self) -> bool:
@@ -69,10 +89,24 @@ class EpisodeRecord:
             'peak_visibility': self.peak_visibility,
             'accumulated_visibility': self.accumulated_visibility,
             'final_distance_to_goal': self.final_distance_to_goal,
+            'lattice': {
+                'outcome': self.lattice_outcome or None,
+                'steps': self.lattice_steps if self.lattice_steps >= 0 else None,
+                'path_length': self.lattice_path_length,
+                'peak_visibility': self.lattice_peak_visibility,
+                'accumulated_visibility': self.lattice_accumulated_visibility,
+                'path_over_optimum': self.path_over_optimum,
+                'exposure_over_optimum': self.exposure_over_optimum,
+            },
+            'true_path_over_optimum': self.true_path_over_optimum,
+            'estimated_path_length': self.estimated_path_length,
+            'meets_criterion': self.meets_criterion,
         }
 
 
 CSV_FIELDS = tuple(f.name for f in dataclasses.fields(EpisodeRecord))
+# Columns an episodes.csv written before the scores existed lacks (read as unknown).
+SCORE_FIELDS = tuple(UNSCORED)
 
 
 def summary_fields(msg) -> dict:
@@ -131,15 +165,22 @@ UNREPORTED = {
 class Tracker:
     """Joins the two reports of each episode and keeps the run's figures."""
 
-    def __init__(self, budget: int | None = None, streak_goal: int | None = None):
+    def __init__(
+        self,
+        budget: int | None = None,
+        streak_goal: int | None = None,
+        scorer: EpisodeScorer | None = None,
+    ):
         self.budget = budget
         self.streak_goal = streak_goal
+        self.scorer = scorer
+        self._moves: dict[int, list[tuple[int, float, float]]] = {}  # by episode
         self.records: list[EpisodeRecord] = []
         self._summaries: dict[int, dict] = {}
         self._agent: dict[int, dict] = {}
         self._done: set[int] = set()
-        self.streak = 0  # greedy successes in a row so far
-        self.streak_start: int | None = None  # episode of the first greedy success of the streak
+        self.streak = 0  # greedy episodes in a row that met the criterion so far
+        self.streak_start: int | None = None  # episode of the first of the streak
         self.greedy_count = 0
 
     # --- input ------------------------------------------------------------------------------
@@ -153,6 +194,20 @@ class Tracker:
             return self._complete(episode, UNREPORTED, wall_time)
         return self._try(episode, wall_time)
 
+    def add_step(
+        self, episode: int, action: int, x: float, y: float, wall_time: float
+    ) -> list[EpisodeRecord]:
+        """One StepInfo report: the action and the estimated pose (x, y) after it. With a
+        scorer an episode waits for its last step (the reports of two topics may arrive in
+        either order): this one may complete it, or, of a later episode, those before."""
+        if episode in self._done:
+            return []
+        self._moves.setdefault(episode, []).append((int(action), float(x), float(y)))
+        completed = []
+        for waiting in sorted(e for e in self._summaries if e <= episode):
+            completed += self._try(waiting, wall_time)
+        return completed
+
     def add_agent_info(self, episode: int, fields: dict, wall_time: float) -> list[EpisodeRecord]:
         if episode in self._done:
             return []
@@ -160,9 +215,18 @@ class Tracker:
         return self._try(episode, wall_time)
 
     def _try(self, episode: int, wall_time: float) -> list[EpisodeRecord]:
-        if episode in self._summaries and episode in self._agent:
+        if episode in self._summaries and episode in self._agent and self._stepped(episode):
             return self._complete(episode, self._agent.pop(episode), wall_time)
         return []
+
+    def _stepped(self, episode: int) -> bool:
+        """Every step of the episode is in (or none will come: no scorer, or a later episode
+        has begun), so that its scores can be taken."""
+        if self.scorer is None:
+            return True
+        if len(self._moves.get(episode, ())) >= self._summaries[episode]['steps']:
+            return True
+        return any(later > episode for later in self._moves)
 
     def load(self, records: Iterable[EpisodeRecord]) -> None:
         """Take in the episodes of an earlier part of the run (a continued run's episodes.csv),
@@ -174,7 +238,9 @@ class Tracker:
     def _complete(self, episode: int, agent: dict, wall_time: float) -> list[EpisodeRecord]:
         summary = self._summaries.pop(episode)
         self._agent.pop(episode, None)
-        record = EpisodeRecord(**summary, **agent, wall_time=wall_time)
+        moves = self._moves.pop(episode, [])
+        scores = {} if self.scorer is None else self.scorer.score(summary, moves)
+        record = EpisodeRecord(**summary, **agent, wall_time=wall_time, **scores)
         self._count(record)
         return [record]
 
@@ -183,12 +249,17 @@ class Tracker:
         self.records.append(record)
         if record.greedy:
             self.greedy_count += 1
-            if record.success:
+            if self.qualifies(record):
                 if self.streak == 0:
                     self.streak_start = record.episode
                 self.streak += 1
             else:
                 self.streak, self.streak_start = 0, None
+
+    def qualifies(self, record: EpisodeRecord) -> bool:
+        """Whether a greedy episode counts towards the streak: it met the criterion (without
+        a scorer: it reached the goal)."""
+        return record.meets_criterion if self.scorer is not None else record.success
 
     # --- figures ----------------------------------------------------------------------------
 
@@ -242,19 +313,28 @@ class Tracker:
         if reason == 'streak':
             episodes = [r.episode for r in self.records if r.greedy][-self.streak_goal :]
             return (
-                f'the greedy policy reached the goal undetected in {self.streak_goal} evaluations '
+                f'the greedy policy {self._criterion_words()} in {self.streak_goal} evaluations '
                 f'in a row (episodes {", ".join(map(str, episodes))})'
             )
         if evaluating:
             reached = self.outcome_counts()[EpisodeOutcome.SUCCESS.name]
-            return f'{self.budget} greedy episodes: {reached} reached the goal'
+            message = f'{self.budget} greedy episodes: {reached} reached the goal'
+            if self.scorer is not None:
+                met = sum(r.meets_criterion for r in self.records if r.greedy)
+                message += f', {met} met the success criterion ({self.scorer.criterion.short()})'
+            return message
         message = f'episode budget of {self.budget} spent'
         if self.streak_goal:
             message += (
-                f' before {self.streak_goal} greedy successes in a row (best streak at the end: '
-                f'{self.streak})'
+                f' before {self.streak_goal} greedy evaluations in a row '
+                f'{self._criterion_words()} (streak at the end: {self.streak})'
             )
         return message
+
+    def _criterion_words(self) -> str:
+        if self.scorer is None:
+            return 'reached the goal undetected'
+        return f'met the success criterion ({self.scorer.criterion.short()})'
 
     def postfix(self) -> str:
         """The progress bar's figures."""

@@ -5,7 +5,16 @@ a user can ask for, checked for form only; what it means is run_plan's. No rclpy
 from __future__ import annotations
 
 import argparse
+import dataclasses
 
+from stealth_env.path_scores import (
+    DEFAULT_CRITERION,
+    EXPOSURE_TOLERANCE_RANGE,
+    MAX_PATH_RATIO_RANGE,
+    Criterion,
+    CriterionError,
+    check_option,
+)
 from stealth_tools.commands.arguments import (
     non_negative_int,
     positive_float,
@@ -30,7 +39,56 @@ REMOTE_NODES = ('simulator', 'environment', 'agent')
 COMMAND_OF_MODE = {'train': 'train', 'eval': 'rollout'}
 
 
+def criterion_option(name: str, low: float, high: float):
+    """The argparse type of a criterion option: a number in [low, high], else the error line
+    naming the range (argparse adds the option's name)."""
+
+    def parse(text: str) -> float:
+        try:
+            return check_option(name, text, low, high)
+        except CriterionError as error:
+            raise argparse.ArgumentTypeError(str(error).split(': ', 1)[1]) from None
+
+    return parse
+
+
+def add_criterion_options(parser: argparse.ArgumentParser, resumable: bool = False) -> None:
+    """--max-path-ratio, --exposure-tolerance: the success criterion (stealth_env.path_scores)
+    greedy episodes are judged by (stealth train's streak counts them, the harness settles on
+    them); None when not given (``criterion_of``: the defaults; --resume: the run's)."""
+    resumed = ", with --resume the run's" if resumable else ''
+    low, high = MAX_PATH_RATIO_RANGE
+    parser.add_argument(
+        '--max-path-ratio',
+        type=criterion_option('max_path_ratio', low, high),
+        metavar='R',
+        help='success criterion: a greedy path on the lattice at most R times as long as '
+        f"value iteration's optimum ([{low:g}, {high:g}]; default: "
+        f'{DEFAULT_CRITERION.max_path_ratio:g}{resumed})',
+    )
+    low, high = EXPOSURE_TOLERANCE_RANGE
+    parser.add_argument(
+        '--exposure-tolerance',
+        type=criterion_option('exposure_tolerance', low, high),
+        metavar='E',
+        help="success criterion: the greedy path's accumulated exposure (visibility summed over "
+        f"its steps) at most the optimum's + E ([{low:g}, {high:g}]; default: "
+        f'{DEFAULT_CRITERION.exposure_tolerance:g}{resumed})',
+    )
+
+
+def criterion_of(args: argparse.Namespace) -> Criterion:
+    """The criterion the options ask for: each given option over the defaults."""
+    given = {
+        name: getattr(args, name)
+        for name in ('max_path_ratio', 'exposure_tolerance')
+        if getattr(args, name, None) is not None
+    }
+    return dataclasses.replace(DEFAULT_CRITERION, **given)
+
+
 def _common_options(parser: argparse.ArgumentParser, evaluating: bool = False) -> None:
+    add_criterion_options(parser, resumable=not evaluating)
     parser.add_argument(
         '--runs-dir',
         default='runs',
@@ -147,7 +205,8 @@ def train_parser() -> argparse.ArgumentParser:
         description='Train the agent on a scenario: start simulator, environment, agent and '
         "recorder as separate processes (--compose: the simulator in the environment's) in a "
         'private ROS domain, show progress, stop on the '
-        'episode budget or when the greedy policy reached the goal K evaluations in a row, '
+        'episode budget or when the greedy policy met the success criterion K evaluations in a '
+        "row (reached the goal undetected, its path and exposure close to the optimum's), "
         'and leave runs/<name>/ with the recording, parameters, policy, summary and plots.',
     )
     parser.add_argument(
@@ -181,7 +240,8 @@ def train_parser() -> argparse.ArgumentParser:
         '--success-streak',
         type=non_negative_int,
         metavar='K',
-        help='stop once K greedy evaluations in a row reached the goal (0 = run the whole '
+        help='stop once K greedy evaluations in a row met the success criterion (reached the '
+        'goal undetected, --max-path-ratio, --exposure-tolerance) (0 = run the whole '
         f"budget; default: {DEFAULT_STREAK}, with --resume the run's)",
     )
     parser.add_argument(

@@ -23,6 +23,7 @@ from stealth_node_kit.full_disk import (
     is_disk_full,
 )
 
+from stealth_bringup.episode_scores import EpisodeScorer
 from stealth_bringup.episode_tracker import Tracker
 from stealth_bringup.remote_nodes import RemoteNodes
 from stealth_bringup.respawn import Respawner, RespawnPolicy
@@ -72,7 +73,8 @@ class Run:
         self.plan = plan
         self.out = out or sys.stdout
         self.prog = f'stealth {COMMAND_OF_MODE[plan.mode]}'
-        self.tracker = Tracker(plan.episodes, plan.streak or None)
+        scorer = EpisodeScorer(plan.scenario, plan.goal, plan.criterion)
+        self.tracker = Tracker(plan.episodes, plan.streak or None, scorer)
         self.facts = RunFacts(time.monotonic() if started is None else started)  # command start
         self.progress = Progress(self.tracker, err or sys.stderr)
         self.say = self.progress.say

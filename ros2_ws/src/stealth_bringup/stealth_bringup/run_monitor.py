@@ -174,6 +174,14 @@ class Monitor:
         self.steps.setdefault(msg.episode, []).append(
             (msg.reward, msg.visibility, msg.distance_to_goal, msg.true_pose.x, msg.true_pose.y)
         )
+        if self._ended():
+            return
+        estimate = msg.estimated_pose  # with the action: the episode's scores
+        steps = self.tracker.add_step(
+            msg.episode, msg.action, estimate.x, estimate.y, self._elapsed()
+        )
+        for record in steps:
+            self.on_record(record)
 
     # --- the graph --------------------------------------------------------------------------
 
@@ -378,9 +386,13 @@ class Progress:
             self.bar.set_postfix_str(tracker.postfix(), refresh=False)
             if self.bar.disable and (record.greedy or tracker.episodes % 10 == 0):
                 what = 'greedy evaluation' if record.greedy else 'training'
+                verdict = ''
+                if record.greedy and tracker.scorer is not None:
+                    met = 'meets' if record.meets_criterion else 'misses'
+                    verdict = f', {met} the criterion'
                 print(
                     f'episode {record.episode} ({what}): {record.outcome.lower()} in '
-                    f'{record.steps} steps, return {record.total_reward:.1f}; '
+                    f'{record.steps} steps, return {record.total_reward:.1f}{verdict}; '
                     f'{tracker.postfix()}',
                     file=self.err,
                     flush=True,

@@ -32,10 +32,9 @@ from matplotlib.figure import Figure  # no pyplot: no global state, no display (
 from matplotlib.lines import Line2D
 import numpy as np
 from stealth_env import palette
-from stealth_env.planners import optimal_path  # noqa: F401 - where run_report takes it
 from stealth_node_kit.full_disk import checked_write, remove_quietly
 
-from stealth_bringup.episode_tracker import CSV_FIELDS, OUTCOMES, EpisodeRecord
+from stealth_bringup.episode_tracker import CSV_FIELDS, OUTCOMES, SCORE_FIELDS, EpisodeRecord
 from stealth_bringup.run_config import RunConfigError, relative_to_cwd
 
 AVERAGE_WINDOW = 20
@@ -117,14 +116,17 @@ def append_episode(record: EpisodeRecord, path: Path) -> None:
 
 def read_episodes_csv(path: Path) -> list[EpisodeRecord]:
     """The episodes of an episodes.csv (as written here); RunConfigError naming the file, the
-    line and the field when it cannot be read back."""
+    line and the field when it cannot be read back. A file written before the score columns
+    existed reads with them unknown (episode_scores.UNSCORED)."""
     kinds = {f.name: f.type for f in dataclasses.fields(EpisodeRecord)}
     try:
         with open(path, newline='', encoding='utf-8') as stream:
             reader = csv.DictReader(stream)
             if reader.fieldnames is None:
                 return []
-            missing = [f for f in CSV_FIELDS if f not in reader.fieldnames]
+            missing = [
+                f for f in CSV_FIELDS if f not in reader.fieldnames and f not in SCORE_FIELDS
+            ]
             if missing:
                 columns = ', '.join(missing)
                 raise RunConfigError(f'{path}: no column {columns} (not an episodes.csv)')
@@ -132,6 +134,8 @@ def read_episodes_csv(path: Path) -> list[EpisodeRecord]:
             for row in reader:
                 values = {}
                 for name, kind in kinds.items():
+                    if name not in row:  # a score column of a file written before them
+                        continue
                     try:
                         values[name] = _parse_csv_value(row[name], kind)
                     except (TypeError, ValueError):
@@ -299,7 +303,7 @@ def plot_learning_curve(
                 [],
                 color=palette.STREAK,
                 linestyle='--',
-                label=f'greedy success streak from {streak_start}',
+                label=f'greedy streak meeting the criterion from {streak_start}',
             )
         )
     top.legend(handles=handles, loc='lower right', fontsize=8, framealpha=0.85)

@@ -15,6 +15,7 @@ import os
 from pathlib import Path
 import shlex
 
+from stealth_env.path_scores import DEFAULT_CRITERION, Criterion
 from stealth_tools.bag_files import next_recording_file
 
 from stealth_bringup.episode_budget import STATE_ACTIONS_PER_EPISODE, default_episode_budget
@@ -48,7 +49,12 @@ from stealth_bringup.run_config import (
     utc_stamp,
     write_params_file,
 )
-from stealth_bringup.run_resume import Continuation, continued_run, train_settings
+from stealth_bringup.run_resume import (
+    Continuation,
+    continued_run,
+    criterion_setting,
+    train_settings,
+)
 
 WATCH_PUBLISH_RATE = 10.0  # Hz of odom, ground_truth, scan, clock under --watch
 # environment.robot_interface topics (issue 13): the environment drives the simulator over
@@ -172,6 +178,7 @@ class RunPlan:
     notes: list[str] = dataclasses.field(default_factory=list)  # to say before the run starts
     hashes: dict[str, str] = dataclasses.field(default_factory=dict)  # scenario and map SHA-256
     composed: bool = False  # --compose: the simulator runs in the environment's process
+    criterion: Criterion = DEFAULT_CRITERION  # what a greedy episode must meet (the streak's)
 
     def process_of(self, node: str) -> str:
         """The name of the local process `node` runs in (its own, but for a composed
@@ -210,7 +217,10 @@ class RunPlan:
         if self.eval_every:
             ending += f', a greedy evaluation every {self.eval_every}'
         if self.streak:
-            ending += f', stopping after {self.streak} greedy successes in a row'
+            ending += (
+                f', stopping after {self.streak} greedy evaluations in a row meet the success '
+                f'criterion ({self.criterion.short()})'
+            )
         learner = self.parameters['agent'].values.get('agent', 'qlearning')
         return f'{self.title}, learner {learner}; {ending}'
 
@@ -367,6 +377,7 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
         notes=notes,
         hashes=hashes,
         composed=args.compose,
+        criterion=criterion_setting(args, continued),
     )
 
 

@@ -11,10 +11,12 @@ import math
 from pathlib import Path
 import time
 
+from stealth_env.path_scores import Criterion, PathScores, describe
 from stealth_node_kit.full_disk import EXIT_DISK_FULL, DiskFullError
 from stealth_tools.bag_files import recording_files
 
-from stealth_bringup.episode_tracker import Tracker
+from stealth_bringup.episode_scores import EpisodeScorer
+from stealth_bringup.episode_tracker import EpisodeRecord, Tracker
 from stealth_bringup.run_config import RunConfigError, relative_to_cwd
 from stealth_bringup.run_plan import RunPlan
 
@@ -125,17 +127,15 @@ class RunReport:
 
     def write(self) -> dict[str, Path]:
         """Every output file of the run, written; {key: path} of what exists afterwards."""
-        from stealth_bringup.run_outputs import (
-            optimal_path,
-            plot_learning_curve,
-            plot_path,
-        )
+        from stealth_bringup.run_outputs import plot_learning_curve, plot_path
 
         plan, tracker, facts = self.plan, self.tracker, self.facts
         files = {}
         records = sorted(tracker.records, key=lambda r: r.episode)
         try:
-            optimum_points, optimum = optimal_path(plan.scenario, plan.goal)
+            scorer = tracker.scorer or EpisodeScorer(plan.scenario, plan.goal, plan.criterion)
+            optimum = scorer.optimum  # value iteration's path on the lattice
+            optimum_points = optimum.points
         except Exception as error:  # noqa: BLE001 - a baseline must not cost the run its outputs
             self.say(f'{self.prog}: no value-iteration baseline: {error}')
             optimum_points, optimum = None, None
@@ -160,16 +160,11 @@ class RunReport:
             start = plan.scenario.start[:2]
             learned = [tuple(start), *facts.paths[shown.episode]]
         if shown is not None:
-            kind = 'greedy' if shown.greedy else 'last'
-            label = (
-                f'learned: {kind} episode {shown.episode}, true pose '
-                f'({shown.outcome.lower()}, {shown.steps} steps, return {shown.total_reward:.1f})'
-            )
+            label = path_label(shown, self.plan.criterion)
             optimum_label = (
                 'value-iteration optimum on the lattice'
                 if optimum is None
-                else f'optimum on the lattice ({optimum.steps} steps, return '
-                f'{optimum.total_reward:.1f})'
+                else f'optimum on the lattice: {describe(PathScores.of_path(optimum))}'
             )
             try:
                 picture = self._fitting(
@@ -384,7 +379,15 @@ class RunReport:
                 'steps': optimum.steps,
                 'path_length': optimum.path_length,
                 'peak_visibility': optimum.peak_visibility,
+                'accumulated_visibility': optimum.accumulated_visibility,
             },
+            # The success criterion greedy episodes are judged by (and the streak counts).
+            'criterion': {
+                'max_path_ratio': plan.criterion.max_path_ratio,
+                'exposure_tolerance': plan.criterion.exposure_tolerance,
+                'text': plan.criterion.describe(),
+            },
+            'greedy_criterion_rate': _rate(greedy, 'meets_criterion'),
             # From the command's start to now (nodes stopped, pictures drawn).
             'wall_time_s': round(time.monotonic() - facts.started, 2),
             'startup_s': round(facts.startup_seconds, 2)
@@ -478,6 +481,7 @@ class RunReport:
                     f'{last.steps} steps, return {last.total_reward:.1f}, path '
                     f'{last.path_length:.1f} m, peak visibility {last.peak_visibility:.3f}'
                 )
+                lines.append(f'    {criterion_line(last, plan.criterion)}')
         for restart in facts.restarts:
             back = restart['back_after']
             lines.append(
@@ -513,8 +517,40 @@ class RunReport:
             print('\n'.join(lines), file=out, flush=True)
 
 
-def _rate(records) -> float | None:
-    return sum(r.success for r in records) / len(records) if records else None
+def _rate(records, what: str = 'success') -> float | None:
+    return sum(getattr(r, what) for r in records) / len(records) if records else None
+
+
+def _verdict(record: EpisodeRecord) -> str:
+    return 'meets the criterion' if record.meets_criterion else 'does not meet the criterion'
+
+
+def path_label(record: EpisodeRecord, criterion: Criterion) -> str:
+    """path.png's legend line of the learned path: the true pose's figures, then the lattice
+    path's against the optimum's and the verdict."""
+    kind = 'greedy' if record.greedy else 'last'
+    text = (
+        f'learned: {kind} episode {record.episode}, true pose ({record.outcome.lower()}, '
+        f'{record.steps} steps, {record.path_length:.1f} m)'
+    )
+    if record.lattice_steps < 0:
+        return text + '; lattice scores unknown'
+    return (
+        f'{text};\non the lattice: {record.lattice_path_length:.1f} m '
+        f'({record.path_over_optimum:.2f}x), exposure {record.lattice_accumulated_visibility:.2f} '
+        f'({record.exposure_over_optimum:+.2f}): {_verdict(record)} ({criterion.short()})'
+    )
+
+
+def criterion_line(record: EpisodeRecord, criterion: Criterion) -> str:
+    """The closing lines' verdict on the last greedy episode."""
+    if record.lattice_steps < 0:
+        return 'on the lattice: scores unknown (steps missing)'
+    return (
+        f"on the lattice: path {record.path_over_optimum:.2f}x the optimum's, exposure "
+        f"{record.exposure_over_optimum:+.3f} against it (true pose's path "
+        f'{record.true_path_over_optimum:.2f}x): {_verdict(record)} ({criterion.short()})'
+    )
 
 
 def _duration(seconds: float) -> str:

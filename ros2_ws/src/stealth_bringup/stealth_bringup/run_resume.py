@@ -8,6 +8,8 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
+from stealth_env.path_scores import DEFAULT_CRITERION, Criterion, CriterionError
+
 from stealth_bringup.run_arguments import (
     COMMAND_OF_MODE,
     DEFAULT_EPISODES,
@@ -47,9 +49,11 @@ def train_settings(
     episodes = _given(args.episodes, saved.get('episode_budget'), default_episodes)
     eval_every = _given(args.eval_every, saved.get('eval_every'), DEFAULT_EVAL_EVERY)
     streak = _given(args.success_streak, saved.get('success_streak'), DEFAULT_STREAK)
+    from stealth_bringup.episode_scores import EpisodeScorer
     from stealth_bringup.episode_tracker import Tracker
 
-    tracker = Tracker(episodes, (streak if eval_every else 0) or None)
+    scorer = EpisodeScorer(None, None, criterion_setting(args, continued))  # for the streak
+    tracker = Tracker(episodes, (streak if eval_every else 0) or None, scorer)
     tracker.load(continued.records)
     reason = tracker.stop_reason()
     where = f'--resume {args.resume}'
@@ -60,11 +64,29 @@ def train_settings(
         )
     if reason == 'streak':
         raise RunConfigError(
-            f'{where}: the run ended on {tracker.streak} greedy successes in a row (its '
+            f'{where}: the run ended on {tracker.streak} greedy evaluations in a row that met '
+            f'the success criterion (its '
             f'--success-streak {streak}); give a larger --success-streak, or 0 to spend the '
             'budget'
         )
     return episodes, eval_every, streak
+
+
+def criterion_setting(args, continued: Continuation | None) -> Criterion:
+    """The success criterion of a run: each option given, else a continued run's own
+    (summary.json's "criterion"), else the default; RunConfigError for a saved value out of
+    range."""
+    saved = {} if continued is None else continued.summary.get('criterion') or {}
+    values = {}
+    for name in ('max_path_ratio', 'exposure_tolerance'):
+        given = getattr(args, name, None)
+        kept = saved.get(name) if isinstance(saved, dict) else None
+        values[name] = given if given is not None else kept
+    values = {k: v for k, v in values.items() if v is not None}
+    try:
+        return Criterion(**{**dataclasses.asdict(DEFAULT_CRITERION), **values})
+    except CriterionError as error:
+        raise RunConfigError(f'--resume {args.resume}: summary.json criterion: {error}') from None
 
 
 def _given(value, saved, default):

@@ -2,7 +2,11 @@
 
 import math
 
+import pytest
+from stealth_bringup.episode_scores import EpisodeScorer
 from stealth_bringup.episode_tracker import OUTCOMES, Tracker, unfinished_fields
+from stealth_env.path_scores import Criterion
+from stealth_env.scenario import load_scenario
 
 
 def summary(episode, outcome='SUCCESS', steps=10, reward=1.0):
@@ -87,8 +91,8 @@ def test_the_end_message_says_why_the_run_ended():
         'the greedy policy reached the goal undetected in 2 evaluations in a row (episodes 1, 2)'
     )
     assert tracker.end_message('budget') == (
-        'episode budget of 100 spent before 2 greedy successes in a row (best streak at the end: '
-        '3)'
+        'episode budget of 100 spent before 2 greedy evaluations in a row reached the goal '
+        'undetected (streak at the end: 3)'
     )
     assert Tracker(budget=5).end_message('budget') == 'episode budget of 5 spent'
     evaluation = tracker.end_message('budget', evaluating=True)
@@ -140,3 +144,135 @@ def test_an_episode_whose_environment_died_is_rebuilt_from_its_steps():
     (record,) = tracker.add_summary(fields, 5.0)  # complete without the agent's report
     assert record.outcome == 'ABORTED' and math.isnan(record.epsilon)
     assert unfinished_fields(3, [], (0.0, 0.0))['path_length'] == 0.0
+
+
+# --- the success criterion through ROS ---------------------------------------------------------
+
+
+@pytest.fixture(scope='module')
+def scorer():
+    """map1's optimum (64 moves, 32 m, in the dark) and its actions on the lattice."""
+    found = EpisodeScorer(load_scenario('map1'), None)
+    model = found.model
+    path = [int(model.start)]
+    for point in found.optimum.points[1:]:
+        here = path[-1]
+        path.append(next(int(j) for j in model.successors[here]
+                         if (model.points[j] == point).all() and j != here))  # fmt: skip
+    actions = [model.direction(a, b) for a, b in zip(path, path[1:], strict=False)]
+    return found, actions
+
+
+def ros_summary(episode, actions, outcome='SUCCESS', path_length=None):
+    return {
+        **summary(episode, outcome, steps=len(actions), reward=1035.0),
+        'path_length': 0.5 * len(actions) if path_length is None else path_length,
+    }
+
+
+def play(tracker, scorer_actions, episode, actions, outcome='SUCCESS', greedy=True, **kwargs):
+    """An episode's StepInfo reports (the estimate 1 cm off each node), then its summary and
+    the agent's report; the records completed."""
+    scorer_, _ = scorer_actions
+    model = scorer_.model
+    place, done = model.start, []
+    for action in actions:
+        place = int(model.successors[place, action])
+        x, y = model.points[place]
+        done += tracker.add_step(episode, action, x + 0.01, y, 0.5)
+    done += tracker.add_summary(ros_summary(episode, actions, outcome, **kwargs), 1.0)
+    return done + tracker.add_agent_info(episode, agent(greedy), 2.0)
+
+
+def test_an_episode_is_scored_on_the_lattice_nodes_it_was_sent_to(scorer):
+    """The return through ROS (1035 here) is not the optimum's: the lattice replay of the
+    actions is, with the true and the estimated path lengths beside it."""
+    found, actions = scorer
+    tracker = Tracker(budget=10, scorer=found)
+    (record,) = play(tracker, scorer, 0, actions, path_length=33.0)
+    assert (record.lattice_outcome, record.lattice_steps) == ('SUCCESS', 64)
+    assert record.lattice_path_length == pytest.approx(32.0)
+    assert record.path_over_optimum == pytest.approx(1.0)
+    assert record.exposure_over_optimum == pytest.approx(0.0)
+    assert record.true_path_over_optimum == pytest.approx(33.0 / 32.0)
+    assert record.estimated_path_length == pytest.approx(32.0, abs=0.05)
+    assert record.meets_criterion and record.brief()['lattice']['path_over_optimum'] == 1.0
+
+
+def test_a_detour_or_a_detection_does_not_meet_the_criterion(scorer):
+    found, actions = scorer
+    tracker = Tracker(budget=10, scorer=found)
+    # Out and back along the first move's direction, 4 steps each way, then the optimum.
+    back = {0: 1, 1: 0, 2: 3, 3: 2}[actions[0]]
+    detour = [actions[0]] * 4 + [back] * 4 + actions
+    (long,) = play(tracker, scorer, 0, detour)
+    assert long.outcome == 'SUCCESS' and long.path_over_optimum > 1.1
+    assert not long.meets_criterion
+    (seen,) = play(tracker, scorer, 1, actions, outcome='DETECTED')
+    assert seen.path_over_optimum == pytest.approx(1.0) and not seen.meets_criterion
+    # Sent through a lit node on the lattice, though the true pose got away with it.
+    model = found.model
+    place, lit = model.start, None
+    for k, action in enumerate(actions):
+        for other in range(4):
+            if model.step_seen[place, other]:
+                lit = [*actions[:k], other]
+                break
+        if lit:
+            break
+        place = int(model.successors[place, action])
+    (lucky,) = play(tracker, scorer, 2, lit, outcome='SUCCESS')
+    assert lucky.lattice_outcome == 'DETECTED' and not lucky.meets_criterion
+
+
+def test_the_streak_counts_greedy_episodes_that_meet_the_criterion(scorer):
+    found, actions = scorer
+    tracker = Tracker(budget=100, streak_goal=2, scorer=found)
+    back = {0: 1, 1: 0, 2: 3, 3: 2}[actions[0]]
+    play(tracker, scorer, 0, actions)
+    play(tracker, scorer, 1, [actions[0]] * 4 + [back] * 4 + actions)  # reached, too long
+    assert tracker.streak == 0
+    play(tracker, scorer, 2, actions)
+    play(tracker, scorer, 3, actions, greedy=False)  # training: does not count
+    play(tracker, scorer, 4, actions)
+    assert tracker.stop_reason() == 'streak' and tracker.streak_start == 2
+    assert tracker.end_message('streak') == (
+        'the greedy policy met the success criterion (path <= 1.1x, exposure <= opt + 0.1) in '
+        '2 evaluations in a row (episodes 2, 4)'
+    )
+    loose = Tracker(budget=100, streak_goal=2, scorer=EpisodeScorer(
+        found.scenario, None, Criterion(max_path_ratio=1.5)))  # fmt: skip
+    loose.scorer._model, loose.scorer._optimum = found.model, found.optimum
+    play(loose, scorer, 0, [actions[0]] * 4 + [back] * 4 + actions)
+    assert loose.streak == 1
+    assert tracker.end_message('budget', evaluating=True) == (
+        '100 greedy episodes: 5 reached the goal, 3 met the success criterion (path <= 1.1x, '
+        'exposure <= opt + 0.1)'
+    )
+
+
+def test_a_scenario_without_an_optimum_leaves_the_episodes_unscored(scorer):
+    found, actions = scorer
+    broken = EpisodeScorer(found.scenario, 'no-such-goal')
+    tracker = Tracker(budget=10, scorer=broken)
+    (record,) = play(tracker, scorer, 0, actions)
+    assert record.outcome == 'SUCCESS' and record.lattice_steps == -1
+    assert not record.meets_criterion and "goal 'no-such-goal'" in broken.error
+
+
+def test_an_episode_waits_for_its_last_step(scorer):
+    """The summary may come before the last StepInfo (two topics): the record waits for it,
+    or for a later episode's first step when it never comes."""
+    found, actions = scorer
+    tracker = Tracker(budget=10, scorer=found)
+    assert tracker.add_summary(ros_summary(0, actions), 1.0) == []
+    assert tracker.add_agent_info(0, agent(True), 1.0) == []
+    model, place = found.model, found.model.start
+    for k, action in enumerate(actions):
+        place = int(model.successors[place, action])
+        done = tracker.add_step(0, action, *model.points[place], 1.5)
+        assert done == [] if k < len(actions) - 1 else done[0].meets_criterion
+    tracker.add_summary(ros_summary(1, actions), 2.0)
+    assert tracker.add_agent_info(1, agent(True), 2.0) == []  # no step of it yet
+    (record,) = tracker.add_step(2, actions[0], 0.0, 0.0, 3.0)
+    assert record.episode == 1 and record.lattice_steps == -1 and not record.meets_criterion

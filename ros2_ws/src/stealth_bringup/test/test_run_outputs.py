@@ -10,13 +10,12 @@ import os
 import numpy as np
 import pytest
 from stealth_bringup import run_outputs
-from stealth_bringup.episode_tracker import CSV_FIELDS, EpisodeRecord
+from stealth_bringup.episode_tracker import CSV_FIELDS, SCORE_FIELDS, EpisodeRecord
 from stealth_bringup.run_config import RunConfigError
 from stealth_bringup.run_outputs import (
     _replace_atomically,
     append_episode,
     moving_average,
-    optimal_path,
     plot_learning_curve,
     plot_path,
     read_episodes_csv,
@@ -24,6 +23,7 @@ from stealth_bringup.run_outputs import (
     write_episodes_csv,
     write_json,
 )
+from stealth_env.planners import optimal_path
 from stealth_node_kit.full_disk import DiskFullError
 
 
@@ -195,3 +195,21 @@ def test_a_row_a_full_disk_cuts_short_is_undone(tmp_path, monkeypatch):
     monkeypatch.setattr(run_outputs.os, 'write', real_write)
     append_episode(RECORDS[1], path)
     assert [r.episode for r in read_episodes_csv(path)] == [0, 1]
+
+
+def test_an_episodes_csv_from_before_the_scores_reads_with_them_unknown(tmp_path):
+    """A run written before the score columns existed can still be continued (--resume)."""
+    path = tmp_path / 'episodes.csv'
+    write_episodes_csv([record(0, 'SUCCESS', greedy=True)], path)
+    lines = path.read_text().splitlines()
+    keep = [k for k, name in enumerate(lines[0].split(',')) if name not in SCORE_FIELDS]
+    path.write_text('\n'.join(','.join(line.split(',')[k] for k in keep) for line in lines) + '\n')
+    (old,) = read_episodes_csv(path)
+    assert old.outcome == 'SUCCESS' and old.lattice_steps == -1 and not old.meets_criterion
+    assert math.isnan(old.path_over_optimum)
+    scored = dataclasses.replace(
+        old, lattice_steps=5, path_over_optimum=1.05, meets_criterion=True
+    )
+    write_episodes_csv([scored], path)
+    (again,) = read_episodes_csv(path)
+    assert (again.lattice_steps, again.path_over_optimum, again.meets_criterion) == (5, 1.05, True)

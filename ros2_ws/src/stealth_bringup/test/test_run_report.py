@@ -1,6 +1,9 @@
-"""A run's figures from what orchestrating it found out (RunFacts; no ROS)."""
+"""A run's figures from what orchestrating it found out (RunFacts; no ROS), and what it says of
+its greedy episodes against the optimum."""
 
-from stealth_bringup.run_report import RunFacts
+from stealth_bringup.episode_tracker import EpisodeRecord
+from stealth_bringup.run_report import RunFacts, criterion_line, path_label
+from stealth_env.path_scores import Criterion
 
 
 class Episode:
@@ -28,3 +31,29 @@ def test_without_the_ends_the_rate_is_over_the_time_followed():
     assert facts.stepping_seconds() == 3.0
     assert facts.steps_per_second([Episode(0, 100), Episode(1, 300)]) == 400 / 3
     assert RunFacts(started=0.0).steps_per_second([]) is None  # never got to the episodes
+
+
+def scored(meets=True, lattice_steps=38):
+    return EpisodeRecord(
+        12, 'SUCCESS', 38, 1035.0, 0.1, 0.4, 19.3, 0.1, True, 0.0, 0.0, 10, 100, 50, 3.0,
+        lattice_outcome='SUCCESS', lattice_steps=lattice_steps, lattice_path_length=19.0,
+        lattice_peak_visibility=0.1, lattice_accumulated_visibility=0.4, path_over_optimum=1.027,
+        exposure_over_optimum=0.02, true_path_over_optimum=1.043, estimated_path_length=19.1,
+        meets_criterion=meets,
+    )  # fmt: skip
+
+
+def test_the_learned_path_is_labelled_with_its_scores_against_the_optimum():
+    """path.png's legend: the true pose's figures, then the lattice path's ratio and excess
+    over the optimum's and the verdict, not a return that looks better than the optimum's."""
+    assert path_label(scored(), Criterion()) == (
+        'learned: greedy episode 12, true pose (success, 38 steps, 19.3 m);\n'
+        'on the lattice: 19.0 m (1.03x), exposure 0.40 (+0.02): meets the criterion '
+        '(path <= 1.1x, exposure <= opt + 0.1)'
+    )
+    assert 'does not meet the criterion' in path_label(scored(meets=False), Criterion())
+    assert path_label(scored(lattice_steps=-1), Criterion()).endswith('lattice scores unknown')
+    assert criterion_line(scored(), Criterion(1.2, 0.5)) == (
+        "on the lattice: path 1.03x the optimum's, exposure +0.020 against it (true pose's path "
+        '1.04x): meets the criterion (path <= 1.2x, exposure <= opt + 0.5)'
+    )

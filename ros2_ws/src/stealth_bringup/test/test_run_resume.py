@@ -38,7 +38,8 @@ def finished_run(tmp_path, episodes=6, eval_every=3):
 
 def record(episode, outcome, greedy):
     return EpisodeRecord(episode, outcome, 10, 1.0, 0.0, 0.0, 5.0, 0.1, greedy, 0.1, 0.3,
-                         episode, 10 * episode, 5, float(episode))  # fmt: skip
+                         episode, 10 * episode, 5, float(episode),
+                         meets_criterion=outcome == 'SUCCESS')  # fmt: skip
 
 
 def resume(run, *argv):
@@ -69,7 +70,10 @@ BUDGET_SPENT = 'the run has 6 episodes, its budget of 6 is spent; give --episode
     ('argv', 'message'),
     [
         ([], BUDGET_SPENT),
-        (['--episodes', '9', '--success-streak', '2'], 'the run ended on 2 greedy successes'),
+        (
+            ['--episodes', '9', '--success-streak', '2'],
+            'the run ended on 2 greedy evaluations in a row that met the success criterion',
+        ),
         (['--episodes', '9', '--goal', 'hard'], 'a continued run keeps its goal; drop --goal'),
     ],
 )
@@ -105,3 +109,45 @@ def test_a_run_whose_scenario_changed_is_not_continued(tmp_path):
     with pytest.raises(RunConfigError, match=f'its scenario file {scenario} changed since the '
                        'run started'):  # fmt: skip
         resume(plan.directory)
+
+
+def test_a_continued_run_keeps_its_criterion_unless_given(tmp_path):
+    """The criterion's options are summary.json's "criterion"; given again, they replace it."""
+    run = finished_run(tmp_path)
+    summary_file = run / 'summary.json'
+    summary = json.loads(summary_file.read_text())
+    summary['criterion'] = {'max_path_ratio': 1.3, 'exposure_tolerance': 0.5}
+    summary_file.write_text(json.dumps(summary))
+    plan = resume(run, '--episodes', '12')
+    assert (plan.criterion.max_path_ratio, plan.criterion.exposure_tolerance) == (1.3, 0.5)
+    plan = resume(run, '--episodes', '12', '--max-path-ratio', '1.05')
+    assert (plan.criterion.max_path_ratio, plan.criterion.exposure_tolerance) == (1.05, 0.5)
+    summary['criterion'] = {'max_path_ratio': 0.5}
+    summary_file.write_text(json.dumps(summary))
+    with pytest.raises(RunConfigError, match=r'criterion: --max-path-ratio: expected a number in'):
+        resume(run, '--episodes', '12')
+
+
+@pytest.mark.parametrize(
+    ('argv', 'line'),
+    [
+        (['--max-path-ratio', '0.9'], 'argument --max-path-ratio: expected a number in [1, 10], '
+                                      "got '0.9'"),
+        (['--exposure-tolerance', 'lots'], 'argument --exposure-tolerance: expected a number in '
+                                           "[0, 100], got 'lots'"),
+    ],
+)  # fmt: skip
+def test_a_criterion_option_out_of_range_is_one_line_naming_it(capsys, argv, line):
+    with pytest.raises(SystemExit) as stop:
+        train_parser().parse_args(argv)
+    assert stop.value.code == 2
+    assert capsys.readouterr().err.splitlines()[-1] == f'stealth train: error: {line}'
+
+
+def test_the_run_states_its_criterion(tmp_path):
+    plan = plan_of('--max-path-ratio', '1.25', '--episodes', '4', runs_dir=tmp_path)
+    assert 'meet the success criterion (path <= 1.25x, exposure <= opt + 0.1)' in plan.describe()
+    RunReport(plan, Tracker(), RunFacts(0.0), print).write_progress()
+    summary = json.loads(plan.file('summary.json').read_text())
+    assert summary['criterion']['max_path_ratio'] == 1.25
+    assert summary['criterion']['exposure_tolerance'] == 0.1

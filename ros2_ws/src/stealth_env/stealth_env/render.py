@@ -263,6 +263,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser.error('give a scenario name or path, or --all')
         if args.animate:
             gif_frame_ms(args.fps, '--fps')
+        from stealth_env.path_scores import PathScores, describe, polyline_length
         from stealth_env.planners import optimal_path
         from stealth_env.scenario import find_scenario, load_scenario
 
@@ -275,16 +276,27 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 0
         paths = [read_path_csv(path) for path in args.path]
         labels = [Path(path).stem for path in args.path]
+        optimum = None
         if args.optimum and scenario.exposure is not None and not args.animate:
             # the optimum with the robot's footprint at each pose, and the one without exposure
-            paths.append(optimal_path(scenario, args.goal, poses=True)[0])
+            points, optimum = optimal_path(scenario, args.goal, poses=True)
+            paths.append(points)
             labels.append('optimum (value iteration), footprint at each step')
             plain = dataclasses.replace(scenario, exposure=None)
             paths.append(optimal_path(plain, args.goal)[0])
             labels.append('optimum without exposure')
         elif args.optimum:
-            paths.append(optimal_path(scenario, args.goal)[0])
+            points, optimum = optimal_path(scenario, args.goal)
+            paths.append(points)
             labels.append('optimum (value iteration)')
+        if optimum is not None:  # its scores, and each given path's length against its
+            given = len(args.path)
+            labels[given] += f': {describe(PathScores.of_path(optimum))}'
+            labels[:given] = [
+                f'{label}: {polyline_length(points):.1f} m '
+                f"({polyline_length(points) / optimum.path_length:.2f}x the optimum's)"
+                for label, points in zip(labels[:given], paths[:given], strict=True)
+            ]
         if args.animate:
             print(
                 animate_scenario(

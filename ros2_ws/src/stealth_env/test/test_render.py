@@ -121,6 +121,30 @@ def test_cli_renders_a_shipped_scenario_with_paths(tmp_path, capsys):
     read_png(out)
 
 
+def test_the_legend_gives_the_optimums_scores_and_each_paths_length_against_it(
+    tmp_path, monkeypatch
+):
+    route = tmp_path / 'route.csv'
+    route.write_text('x,y\n2.5,2.5\n2.5,10.5\n4.0,10.5\n')  # 8 m + 1.5 m
+    drawn = {}
+
+    def capture(scenario, out, **kwargs):
+        drawn.update(kwargs)
+        return out
+
+    monkeypatch.setattr(render, 'render_scenario', capture)
+    assert (
+        render.main(['map1', '--path', str(route), '--optimum', '-o', str(tmp_path / 'a.png')])
+        == 0
+    )
+    optimum = optimal_path(load_scenario('map1'), None)[1]
+    assert drawn['path_labels'] == [
+        f"route: 9.5 m ({9.5 / optimum.path_length:.2f}x the optimum's)",
+        f'optimum (value iteration): success, {optimum.steps} steps, {optimum.path_length:.1f} m, '
+        'exposure 0.00, peak 0.00',
+    ]
+
+
 def test_cli_renders_every_scenario(tmp_path, capsys):
     assert render.main(['--all', '--out-dir', str(tmp_path), '--cache-dir', str(tmp_path)]) == 0
     written = sorted(path.name for path in tmp_path.glob('*.png'))

@@ -6,6 +6,9 @@ counted apart):
 
 - **success**: the undetected success rate, the fraction of episodes that reached the goal
   without being detected (detection ends an episode);
+- **criterion**: the fraction that met the success criterion (``stealth_env.path_scores``:
+  reached the goal undetected, path <= 1.1x the optimum's, accumulated exposure <= the
+  optimum's + 0.1), the one the harness and `stealth train` judge greedy episodes by;
 - **regret**: the mean normalised regret ``(vi_return - return) / (vi_return - floor)``, the
   floor being the return of being detected at the first step (``benchmark_methods.floor_of``):
   0 at the optimum, 1 as bad as being caught at once (a timeout that wandered in the light can
@@ -27,6 +30,8 @@ from pathlib import Path
 from matplotlib.figure import Figure
 import numpy as np
 from stealth_env import palette
+from stealth_env.path_scores import DEFAULT_CRITERION, PathScores, meets_criterion
+from stealth_env.reward import EpisodeOutcome
 
 from stealth_experiments.benchmark_methods import COLUMNS, METHODS, TRACKS
 
@@ -60,6 +65,7 @@ def summarise(rows: list[dict]) -> list[dict]:
                 continue
             ran = [r for r in mine if r['status'] == 'ok']
             won = [r for r in ran if r['success']]
+            met = [r for r in won if row_meets_criterion(r)]
             regrets = [r['regret'] for r in ran if _finite(r['regret'])]
             lengths = [r['path_length'] / r['vi_path_length'] for r in won if r['vi_path_length']]
             vi_exposure = sum(r['vi_exposure'] for r in won)
@@ -71,6 +77,7 @@ def summarise(rows: list[dict]) -> list[dict]:
                 'failed': sum(r['status'] == 'failed' for r in mine),
                 'interrupted': sum(r['status'] == 'interrupted' for r in mine),
                 'success': len(won) / len(ran) if ran else None,
+                'criterion': len(met) / len(ran) if ran else None,
                 'detected': sum(bool(r['detected']) for r in ran) / len(ran) if ran else None,
                 'regret': float(np.mean(regrets)) if regrets else None,
                 'path_ratio': float(np.mean(lengths)) if lengths else None,
@@ -81,6 +88,18 @@ def summarise(rows: list[dict]) -> list[dict]:
                 'seconds': float(np.mean([r['seconds'] for r in ran])) if ran else None,
             })  # fmt: skip
     return found
+
+
+def row_meets_criterion(row: dict) -> bool:
+    """Whether a row that ran met the success criterion (defaults) against value iteration's
+    path on the same scenario and goal."""
+    if not row['success']:
+        return False
+    scores = PathScores(EpisodeOutcome.SUCCESS, row.get('steps', 0), row['path_length'], 0.0,
+                        row['exposure'])  # fmt: skip
+    optimum = PathScores(EpisodeOutcome.SUCCESS, 0, row['vi_path_length'], 0.0,
+                         row['vi_exposure'])  # fmt: skip
+    return meets_criterion(scores, optimum, DEFAULT_CRITERION)
 
 
 def _finite(value) -> bool:
@@ -108,14 +127,15 @@ def write_summary(path: Path, rows: list[dict], settings: str, note: str = '') -
         lines += [
             f'## Track: {track}',
             '',
-            '| method | success | detected | regret | path / optimum | exposure / optimum | '
-            'mean exposure | s per row | rows (failed) |',
-            '|---|---|---|---|---|---|---|---|---|',
+            '| method | success | criterion | detected | regret | path / optimum '
+            '| exposure / optimum | mean exposure | s per row | rows (failed) |',
+            '|---|---|---|---|---|---|---|---|---|---|',
         ]
         for s in mine:
             failed = s['failed'] + s['interrupted']
             lines.append(
                 f'| {s["method"]} | {_figure(s["success"], percent=True)} | '
+                f'{_figure(s["criterion"], percent=True)} | '
                 f'{_figure(s["detected"], percent=True)} | {_figure(s["regret"])} | '
                 f'{_figure(s["path_ratio"], 2)} | {_figure(s["exposure_ratio"], 2)} | '
                 f'{_figure(s["exposure"], 2)} | {_figure(s["seconds"], 2)} | '
@@ -123,7 +143,8 @@ def write_summary(path: Path, rows: list[dict], settings: str, note: str = '') -
             )
         lines.append('')
     lines += [
-        'success: reached the goal undetected. regret: mean of (vi_return - return) / '
+        'success: reached the goal undetected. criterion: met the success criterion '
+        f'({DEFAULT_CRITERION.describe()}). regret: mean of (vi_return - return) / '
         '(vi_return - floor), floor = the return of being detected at the first step. '
         "path / optimum: mean path length over value iteration's, successful rows. "
         'exposure / optimum: summed exposure (accumulated step visibility) over the '

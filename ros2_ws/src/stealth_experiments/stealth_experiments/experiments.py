@@ -12,18 +12,21 @@ drives it) for a fixed budget of episodes, and every
 through the report writer ``run_outputs`` that `stealth train` runs use too):
 
 - ``results.md``: per scenario, one row per method (A*, Dark Path, value iteration, each
-  learner over its seeds): outcome rates, returns, path length, accumulated visibility,
-  episodes until the greedy policy stays within 5 % of the optimal return, wall time;
+  learner over its seeds): outcome rates, returns, path length and accumulated visibility with
+  their ratio and excess over the optimum's, whether the final greedy episode meets the success
+  criterion (``--max-path-ratio``, ``--exposure-tolerance``: ``stealth_env.path_scores``),
+  episodes until every greedy evaluation meets it, wall time;
 - ``results.csv``: the same per run (one row per seed);
 - ``learning_curves.png`` and ``curves_<scenario>.png``: greedy return against episodes, the
-  mean over seeds with a min-max band, the training return faintly, the optimum and the 5 % line;
+  mean over seeds with a min-max band, the training return faintly, the optimum, and where each
+  learner meets the criterion for good (median over seeds);
 - ``paths_<scenario>.png``: every method's path over the scenario's visibility picture;
   ``paths_<scenario>.gif`` where lights move: the optimum and each learner's greedy path walked
   step by step while the lights move;
 - ``policies/<scenario>-<learner>-seed<k>.npz``: each final policy, a ``stealth_agent`` policy
   file the ROS agent node loads (``policy_file``, ``load_policy``/``evaluate``) unchanged.
 
-What a return, a rate and "episodes to 5 %" are: ``harness``'s docstring.
+What a return, a rate and "episodes to the criterion" are: ``harness``'s docstring.
 """
 
 from __future__ import annotations
@@ -36,7 +39,10 @@ import sys
 
 from stealth_agent.learners import LEARNER_NAMES, LearnerConfig
 from stealth_agent.schedules import Schedule
+from stealth_bringup.run_arguments import add_criterion_options, criterion_of
 from stealth_env.gym_env import lattice_model
+from stealth_env.path_scores import DEFAULT_CRITERION, Criterion
+from tqdm import tqdm
 
 from stealth_experiments.harness import (
     DEFAULT_EPISODES,
@@ -45,11 +51,12 @@ from stealth_experiments.harness import (
     PLANNING_UPDATES,
     baselines,
     default_budget,
+    grid_specs,
+    run,
     scenario_argument,
     tuned_config,
 )
 from stealth_experiments.harness_report import write_results
-from stealth_experiments.sweep_engine import run_grid
 
 DEFAULT_SCENARIOS = (
     'simple-maze',
@@ -82,6 +89,7 @@ def evaluate(
     jobs: int = 1,
     plots: bool = True,
     progress: bool = True,
+    criterion: Criterion = DEFAULT_CRITERION,
 ) -> list[dict]:
     """Run the grid and write every report into ``out``; returns the CSV rows. Scenario paths
     are relative to the current directory (harness.scenario_argument), made absolute here."""
@@ -101,6 +109,7 @@ def evaluate(
         jobs=jobs,
         policy_dir=str(out / 'policies'),
         progress=progress,
+        criterion=criterion,
     )
     budgets = ', '.join(
         f'{name} {episodes or default_budget(name)}'
@@ -116,7 +125,20 @@ def evaluate(
         f'evaluation every {eval_every} episodes; slip {slip:g}. Learner settings (all '
         f'learners but the planning updates): {_describe(tuned_config(learners[0], slip > 0))}.'
     )
-    return write_results(out, models, planned, results, settings, plots)
+    settings += f' Success criterion: {criterion.describe()}.'
+    return write_results(out, models, planned, results, settings, plots, criterion)
+
+
+def run_grid(scenarios, learners, seeds, *, jobs: int = 1, progress: bool = True, **options):
+    """Every run of the grid (``harness.grid_specs``: its ``options``, the criterion among
+    them, in each RunSpec): on ``jobs`` CPUs of a local Ray (``sweep_engine.run_specs``, the
+    engine of `stealth sweep`) or, with ``jobs`` 1, one after another in this process."""
+    specs = grid_specs(scenarios, learners, seeds, **options)
+    if jobs > 1:
+        from stealth_experiments.sweep_engine import run_specs
+
+        return run_specs(specs, jobs=jobs, progress=progress)
+    return [run(spec) for spec in tqdm(specs, desc='runs', unit='run', disable=not progress)]
 
 
 def _describe(config: LearnerConfig) -> str:
@@ -189,11 +211,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         '--out', type=Path, default=DEFAULT_OUT, help='output directory (default: %(default)s)'
     )
     parser.add_argument('--no-plots', action='store_true', help='skip the pictures')
+    add_criterion_options(parser)
     args = parser.parse_args(argv)
     if (args.episodes is not None and args.episodes < 1) or args.eval_every < 1:
         parser.error('--episodes and --eval-every must be >= 1')
     if not 0.0 <= args.slip <= 1.0:
         parser.error('--slip must be a probability in [0, 1]')
+    criterion = criterion_of(args)
     try:
         evaluate(
             args.scenarios,
@@ -206,6 +230,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             out=args.out,
             jobs=args.jobs,
             plots=not args.no_plots,
+            criterion=criterion,
         )
     except (OSError, RuntimeError, ValueError) as error:
         print(f'experiments: {error}', file=sys.stderr)

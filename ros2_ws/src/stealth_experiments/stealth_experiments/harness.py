@@ -7,9 +7,13 @@ ROS agent node drives it) on the Gymnasium environment for a fixed budget of epi
 
 Definitions. A return sums the rewards after the first state, undiscounted; the optimum is
 ``planners.value_iteration``'s (undiscounted, exact, with the step limit). Rates count the
-training episodes' outcomes. "Episodes to 5 %" is the first evaluation point from which every
-later greedy return of the run is at least ``optimum - 0.05 * |optimum|`` (it stays there, not
-just touches it); a run that never settles is reported as not within 5 % in its budget.
+training episodes' outcomes. A greedy evaluation *meets the criterion* when its episode does
+(``stealth_env.path_scores.meets_criterion`` against value iteration's path: reached the goal
+undetected, path <= ``max_path_ratio`` x the optimum's, accumulated exposure <= the optimum's +
+``exposure_tolerance``; with slip, the mean of its rollouts). "Episodes to the criterion" is the
+first evaluation point from which every later greedy evaluation of the run meets it (it stays
+there, not just touches it); a run that never settles is reported as not meeting it in its
+budget.
 """
 
 from __future__ import annotations
@@ -25,13 +29,21 @@ from stealth_agent.protocol import ProtocolAgent, parse_description
 from stealth_agent.schedules import Schedule
 from stealth_agent.state_index import StateIndex
 from stealth_env.gym_env import StealthNavEnv, lattice_model
+from stealth_env.path_scores import (
+    DEFAULT_CRITERION,
+    Criterion,
+    PathScores,
+    mean_scores,
+    meets_criterion,
+    optimum_path,
+)
 from stealth_env.planners import LatticeModel, astar, dark_path, follow, value_iteration, walk
 from stealth_env.replanning import SensedReplanner, play
 from stealth_env.reward import EpisodeOutcome
 from stealth_env.scenario import content_identity
 
-# Training episodes per run, per learner: each well past where every seed settled within 5 %
-# (README); Dyna-Q's 20 planning updates make its episodes ~5x dearer and it needs ~1/6 as many;
+# Training episodes per run, per learner: each well past where every seed settled (README);
+# Dyna-Q's 20 planning updates make its episodes ~5x dearer and it needs ~1/6 as many;
 # prioritized sweeping settled by episode 150 on every static scenario (bench_learners).
 DEFAULT_EPISODES = {'qlearning': 1500, 'sarsa': 1500, 'dyna': 500, 'prioritized': 300}
 # Scenarios with the phase in the state (moving lights) have phase_bins times the states: each
@@ -40,7 +52,7 @@ DEFAULT_EPISODES = {'qlearning': 1500, 'sarsa': 1500, 'dyna': 500, 'prioritized'
 # goal; Dyna-Q at 1110 on lgfloor-moving and 1810 on floorplan-moving, where 1000 was too few).
 MOVING_EPISODES = {'qlearning': 15000, 'sarsa': 15000, 'dyna': 3000, 'prioritized': 1500}
 DEFAULT_EVAL_EVERY = 10
-WITHIN = 0.05  # of the optimal return
+WITHIN = 0.05  # of the optimal return: the old criterion, kept for settled_within only
 BASELINES = ('A*', 'Dark Path', 'value iteration')
 # The unknown-light track's baselines (stealth_env.replanning), by the rule for unsensed places.
 SENSED_BASELINES = {'replan (unknown dark)': 'dark', 'replan (unknown lit)': 'lit'}
@@ -54,6 +66,10 @@ PARAMETERS = (
 # Planning updates per real step: Dyna-Q's, and prioritized sweeping's at most (it stops when
 # its queue runs dry, so a larger cap costs only where values still change).
 PLANNING_UPDATES = {'dyna': 20, 'prioritized': 200}
+# The success criterion's options (stealth_env.path_scores.Criterion), carried in
+# RunSpec.params beside the learner's settings so that they travel with a run to any worker;
+# absent, the defaults.
+CRITERION_PARAMETERS = ('max_path_ratio', 'exposure_tolerance')
 
 
 def tuned_config(learner: str, stochastic: bool = False) -> LearnerConfig:
@@ -84,7 +100,7 @@ def configured(learner: str, stochastic: bool = False, params=()) -> LearnerConf
     """tuned_config with the settings in ``params`` ((name, value) pairs of PARAMETERS)
     instead; ValueError naming a setting that is unknown or out of range."""
     config = tuned_config(learner, stochastic)
-    values = dict(params)
+    values = {k: v for k, v in dict(params).items() if k not in CRITERION_PARAMETERS}
     unknown = sorted(set(values) - set(PARAMETERS))
     if unknown:
         raise ValueError(
@@ -124,7 +140,54 @@ class RunSpec:
     slip: float = 0.0
     goal: str | None = None
     policy_dir: str | None = None  # where to save the final policy, if anywhere
-    params: tuple = ()  # (name, value) pairs over tuned_config: see PARAMETERS
+    params: tuple = ()  # (name, value) pairs: PARAMETERS over tuned_config, CRITERION_PARAMETERS
+
+    @property
+    def criterion(self) -> Criterion:
+        """What a greedy evaluation must meet: the defaults, or the options in params
+        (CriterionError naming one out of range)."""
+        return Criterion(**{k: v for k, v in self.params if k in CRITERION_PARAMETERS})
+
+
+def criterion_params(criterion: Criterion) -> tuple:
+    """The (name, value) pairs of RunSpec.params that ask for ``criterion``: none for the
+    default one (so a default run's trial id is what it was)."""
+    return tuple(
+        (name, getattr(criterion, name))
+        for name in CRITERION_PARAMETERS
+        if getattr(criterion, name) != getattr(DEFAULT_CRITERION, name)
+    )
+
+
+def grid_specs(
+    scenarios,
+    learners,
+    seeds,
+    *,
+    episodes: int | None = None,
+    eval_every: int = DEFAULT_EVAL_EVERY,
+    slip: float = 0.0,
+    goal: str | None = None,
+    policy_dir: str | None = None,
+    criterion: Criterion = DEFAULT_CRITERION,
+) -> list[RunSpec]:
+    """Every scenario x learner x seed as a RunSpec (episodes None: each learner's budget)."""
+    return [
+        RunSpec(
+            scenario,
+            learner,
+            seed,
+            episodes or default_budget(learner, scenario),
+            eval_every,
+            slip,
+            goal,
+            policy_dir,
+            criterion_params(criterion),
+        )
+        for scenario in scenarios
+        for learner in learners
+        for seed in seeds
+    ]
 
 
 @dataclasses.dataclass
@@ -135,10 +198,17 @@ class RunResult:
     train_outcomes: np.ndarray  # (episodes,) EpisodeOutcome values
     eval_at: np.ndarray  # episodes trained before each greedy evaluation
     eval_returns: np.ndarray  # mean greedy return at each
-    episodes_to_within: int | None
+    episodes_to_criterion: int | None  # settled(eval_at, eval_met)
     final: dict  # the last greedy evaluation: EpisodeSummary's figures and the path
     seconds: float
     env_steps: int
+    eval_met: np.ndarray | None = None  # (evaluations,) bool: each met the criterion
+    optimum_scores: PathScores | None = None  # value iteration's path (no slip)
+
+    @property
+    def episodes_to_within(self) -> int | None:
+        """The former name of episodes_to_criterion (sweep_trials reads it)."""
+        return self.episodes_to_criterion
 
 
 def default_budget(learner: str, scenario: str | None = None) -> int:
@@ -162,14 +232,19 @@ def play_episode(env: StealthNavEnv, agent: ProtocolAgent, seed: int | None = No
         action = agent.next_action(reward, observation)
 
 
-def settled_within(eval_at, eval_returns, optimum: float, within: float = WITHIN) -> int | None:
-    """The first evaluation point from which every greedy return is within ``within`` of the
-    optimum, or None."""
-    good = np.asarray(eval_returns) >= optimum - within * abs(optimum)
+def settled(eval_at, passed) -> int | None:
+    """The first evaluation point from which every greedy evaluation passed, or None."""
+    good = np.asarray(passed, dtype=bool)
     if good.size == 0 or not good[-1]:
         return None
     bad = np.flatnonzero(~good)
     return int(eval_at[0] if bad.size == 0 else eval_at[bad[-1] + 1])
+
+
+def settled_within(eval_at, eval_returns, optimum: float, within: float = WITHIN) -> int | None:
+    """The old return criterion (greedy return >= optimum - within * |optimum|, settled): only
+    for runs that kept no scores (sweep_trials' ROS trials read it from the returns)."""
+    return settled(eval_at, np.asarray(eval_returns) >= optimum - within * abs(optimum))
 
 
 def run(spec: RunSpec) -> RunResult:
@@ -178,6 +253,8 @@ def run(spec: RunSpec) -> RunResult:
     env = StealthNavEnv(spec.scenario, spec.goal, spec.slip)
     evaluator = StealthNavEnv(spec.scenario, spec.goal, spec.slip)
     optimum = value_iteration(env.model, slip=spec.slip).optimal_return
+    reference = PathScores.of_path(optimum_path(env.model))
+    criterion = spec.criterion
     learner = make_learner(
         spec.learner, env.action_space.n, configured(spec.learner, spec.slip > 0, spec.params)
     )
@@ -186,7 +263,7 @@ def run(spec: RunSpec) -> RunResult:
     agent = ProtocolAgent(learner, index, rng)
     greedy = ProtocolAgent(learner, index, np.random.default_rng([spec.seed, 1]), learning=False)
     rollouts = 1 if spec.slip == 0 else 10
-    returns, outcomes, eval_at, eval_returns = [], [], [], []
+    returns, outcomes, eval_at, eval_returns, eval_met = [], [], [], [], []
     steps = 0
     final: dict = {}
     for episode in range(spec.episodes):
@@ -198,6 +275,8 @@ def run(spec: RunSpec) -> RunResult:
             tries = [_greedy_rollout(evaluator, greedy, spec.seed + k) for k in range(rollouts)]
             eval_at.append(episode + 1)
             eval_returns.append(float(np.mean([t['total_reward'] for t in tries])))
+            scores = mean_scores([PathScores.of_summary(t) for t in tries])
+            eval_met.append(meets_criterion(scores, reference, criterion))
             final = tries[0]
     if spec.policy_dir:
         save_policy(
@@ -218,10 +297,12 @@ def run(spec: RunSpec) -> RunResult:
         np.array(outcomes, dtype=np.int8),
         np.array(eval_at),
         np.array(eval_returns),
-        settled_within(eval_at, eval_returns, optimum),
+        settled(eval_at, eval_met),
         final,
         time.perf_counter() - started,
         steps,
+        np.array(eval_met, dtype=bool),
+        reference,
     )
 
 

@@ -14,10 +14,18 @@ from matplotlib.figure import Figure
 import numpy as np
 from stealth_bringup.run_outputs import plot_paths, write_csv
 from stealth_env import palette
+from stealth_env.path_scores import (
+    DEFAULT_CRITERION,
+    Criterion,
+    PathScores,
+    compare,
+    describe,
+    meets_criterion,
+)
 from stealth_env.planners import LatticeModel
 from stealth_env.reward import EpisodeOutcome
 
-from stealth_experiments.harness import BASELINES, WITHIN, Baseline, RunResult, scenario_label
+from stealth_experiments.harness import BASELINES, Baseline, RunResult, scenario_label
 
 RESULTS_FIELDS = (
     'scenario',
@@ -37,7 +45,14 @@ RESULTS_FIELDS = (
     'path_length_m',
     'peak_visibility',
     'accumulated_visibility',
-    'episodes_to_within_5pct',
+    'optimal_path_length_m',
+    'optimal_accumulated_visibility',
+    'path_over_optimum',
+    'exposure_over_optimum',
+    'meets_criterion',
+    'episodes_to_criterion',
+    'max_path_ratio',
+    'exposure_tolerance',
     'wall_seconds',
     'env_steps',
 )
@@ -47,7 +62,24 @@ def _outcome_name(value) -> str:
     return '' if value is None else EpisodeOutcome(value).name
 
 
-def run_row(result: RunResult, goal: str) -> dict:
+def scores_columns(summary: dict, reference: PathScores, criterion: Criterion) -> dict:
+    """The score columns of a path's summary (RunResult.final's keys) against the optimum's:
+    ratios, whether it meets the criterion, the criterion's options."""
+    scores = PathScores.of_summary(summary)
+    versus = compare(scores, reference)
+    return {
+        'optimal_path_length_m': reference.path_length,
+        'optimal_accumulated_visibility': reference.accumulated_exposure,
+        'path_over_optimum': versus.path_ratio,
+        'exposure_over_optimum': versus.exposure_excess,
+        'meets_criterion': meets_criterion(scores, reference, criterion),
+        'max_path_ratio': criterion.max_path_ratio,
+        'exposure_tolerance': criterion.exposure_tolerance,
+    }
+
+
+def run_row(result: RunResult, goal: str, reference: PathScores) -> dict:
+    """One learner run's row; ``reference``: the optimum's scores (value iteration's path)."""
     final, spec = result.final, result.spec
 
     def rate(outcome: EpisodeOutcome) -> float:
@@ -71,16 +103,34 @@ def run_row(result: RunResult, goal: str) -> dict:
         'path_length_m': final['path_length'],
         'peak_visibility': final['peak_visibility'],
         'accumulated_visibility': final['accumulated_visibility'],
-        'episodes_to_within_5pct': result.episodes_to_within,
+        **scores_columns(final, reference, spec.criterion),
+        'episodes_to_criterion': result.episodes_to_criterion,
         'wall_seconds': result.seconds,
         'env_steps': result.env_steps,
     }
 
 
-def baseline_row(scenario: str, goal: str, optimum: float, baseline: Baseline) -> dict:
+def baseline_row(
+    scenario: str,
+    goal: str,
+    optimum: float,
+    baseline: Baseline,
+    reference: PathScores | None = None,
+    criterion: Criterion = DEFAULT_CRITERION,
+) -> dict:
+    """A planner's row; its scores against ``reference`` (the optimum's) when given."""
     summary = baseline.summary
     outcome = summary['outcome']
     found = outcome is not None
+    scores = dict.fromkeys(
+        (
+            'optimal_path_length_m', 'optimal_accumulated_visibility', 'path_over_optimum',
+            'exposure_over_optimum', 'meets_criterion', 'max_path_ratio', 'exposure_tolerance',
+        ),
+        '',
+    )  # fmt: skip
+    if found and reference is not None:
+        scores = scores_columns(summary, reference, criterion)
     return {
         'scenario': scenario,
         'goal': goal,
@@ -99,7 +149,8 @@ def baseline_row(scenario: str, goal: str, optimum: float, baseline: Baseline) -
         'path_length_m': summary.get('path_length', ''),
         'peak_visibility': summary.get('peak_visibility', ''),
         'accumulated_visibility': summary.get('accumulated_visibility', ''),
-        'episodes_to_within_5pct': '',
+        **scores,
+        'episodes_to_criterion': '',
         'wall_seconds': baseline.seconds,
         'env_steps': '',
     }
@@ -111,13 +162,11 @@ def _mean(rows, key) -> float:
 
 def _episodes_text(rows) -> str:
     reached = sorted(
-        row['episodes_to_within_5pct']
-        for row in rows
-        if row['episodes_to_within_5pct'] is not None
+        row['episodes_to_criterion'] for row in rows if row['episodes_to_criterion'] is not None
     )
     budget = rows[0]['episodes']
     if not reached:
-        return f'**not within 5 % in {budget}**'
+        return f'**not met in {budget}**'
     median = int(np.median(reached))
     if len(reached) == len(rows):
         return f'{median} ({reached[0]}-{reached[-1]})'
@@ -125,12 +174,18 @@ def _episodes_text(rows) -> str:
     return f'**{len(reached)}/{len(rows)} seeds** ({listed}); the rest not in {budget}'
 
 
+def _met(value) -> str:
+    return 'yes' if value is True else 'no' if value is False else ''
+
+
 def markdown_table(rows: Sequence[dict]) -> str:
     """One table for all scenarios: baselines first, then learners averaged over seeds."""
     header = (
         '| scenario | method | success | detected | timeout | train return | greedy return '
-        '| of optimum | path (m) | steps | acc. visibility | episodes to 5 % | wall (s) |\n'
-        '| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n'
+        '| path (m) | path / opt. | steps | acc. visibility | exposure vs opt. | meets '
+        '| episodes to criterion | wall (s) |\n'
+        '| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- '
+        '| --- |\n'
     )
     lines = []
     groups: dict[tuple[str, str], list[dict]] = {}
@@ -142,38 +197,55 @@ def markdown_table(rows: Sequence[dict]) -> str:
             found = first['greedy_outcome'] != 'no path'
             lines.append(
                 f'| {scenario} | {method} | {first["greedy_outcome"].lower()} | | | '
-                f'| {first["greedy_return"]:.1f} | {first["greedy_over_optimum"]:.3f} '
-                f'| {first["path_length_m"]:.1f} | {first["steps"]} '
-                f'| {first["accumulated_visibility"]:.3f} | | {first["wall_seconds"]:.3f} |'
+                f'| {first["greedy_return"]:.1f} | {first["path_length_m"]:.1f} '
+                f'| {_number(first["path_over_optimum"], ".2f")} | {first["steps"]} '
+                f'| {first["accumulated_visibility"]:.3f} '
+                f'| {_number(first["exposure_over_optimum"], "+.3f")} '
+                f'| {_met(first["meets_criterion"])} | | {first["wall_seconds"]:.3f} |'
                 if found
-                else f'| {scenario} | {method} | no path | | | | | | | | | | |'
+                else f'| {scenario} | {method} | no path | | | | | | | | | | | | |'
             )
             continue
         greedy = [row['greedy_return'] for row in group]
         outcomes = sorted({row['greedy_outcome'].lower() for row in group})
+        met = sum(row['meets_criterion'] is True for row in group)
         lines.append(
             f'| {scenario} | {method} ({len(group)} seeds) | {_mean(group, "success_rate"):.2f} '
             f'| {_mean(group, "detection_rate"):.2f} | {_mean(group, "timeout_rate"):.2f} '
             f'| {_mean(group, "train_mean_return"):.1f} '
             f'| {np.mean(greedy):.1f} ± {np.std(greedy):.1f} ({"/".join(outcomes)}) '
-            f'| {_mean(group, "greedy_over_optimum"):.3f} | {_mean(group, "path_length_m"):.1f} '
+            f'| {_mean(group, "path_length_m"):.1f} | {_mean(group, "path_over_optimum"):.2f} '
             f'| {_mean(group, "steps"):.0f} | {_mean(group, "accumulated_visibility"):.3f} '
+            f'| {_mean(group, "exposure_over_optimum"):+.3f} | {met}/{len(group)} '
             f'| {_episodes_text(group)} | {_mean(group, "wall_seconds"):.1f} |'
         )
     return header + '\n'.join(lines) + '\n'
 
 
+def _number(value, spec: str) -> str:
+    return '' if value == '' else format(value, spec)
+
+
 # --- pictures -----------------------------------------------------------------------------------
 
-COLUMNS = (
-    'Returns are undiscounted sums of the rewards after the first state. success / detected / '
-    'timeout: outcome rates over all training episodes (planners: their one path). train '
-    'return: mean over training episodes. greedy return: the final greedy policy, mean ± sd '
-    "over seeds, and its outcomes. of optimum: greedy return / value iteration's optimal "
-    'return. path, steps, acc. visibility: of the final greedy episode (visibility summed over '
-    'the poses after each step). episodes to 5 %: from when on every greedy evaluation stayed '
-    'within 5 % of the optimum, median (min-max) over seeds. wall: seconds per run.'
-)
+
+def columns_text(criterion: Criterion = DEFAULT_CRITERION) -> str:
+    """What results.md's columns mean, the criterion's options stated."""
+    return (
+        'Returns are undiscounted sums of the rewards after the first state. success / '
+        'detected / timeout: outcome rates over all training episodes (planners: their one '
+        'path). train return: mean over training episodes. greedy return: the final greedy '
+        'policy, mean ± sd over seeds, and its outcomes. path, steps, acc. visibility: of the '
+        'final greedy episode (visibility summed over the poses after each step: the '
+        "accumulated exposure). path / opt.: its path length over value iteration's path's; "
+        "exposure vs opt.: its accumulated exposure minus the optimum's. meets: final greedy "
+        f'episodes that meet the criterion ({criterion.describe()}). episodes to criterion: '
+        'from when on every greedy evaluation met the criterion, median (min-max) over seeds. '
+        'wall: seconds per run.'
+    )
+
+
+COLUMNS = columns_text()
 PATH_SHIFT = 0.08  # of a step, between the lines of two methods
 
 
@@ -202,13 +274,16 @@ def plot_curves(ax, results: Sequence[RunResult], optimum: float, title: str) ->
             label=f'{learner} (training, mean of {window})',
         )
     ax.axhline(optimum, color=palette.PLOT_INK, linewidth=1.0, label=f'optimum {optimum:.1f}')
-    ax.axhline(
-        optimum - WITHIN * abs(optimum),
-        color=palette.PLOT_INK,
-        linewidth=0.8,
-        linestyle='--',
-        label='5 % below the optimum',
-    )
+    for learner, runs in by_learner.items():
+        reached = [r.episodes_to_criterion for r in runs if r.episodes_to_criterion is not None]
+        if reached:  # where the greedy policy meets the criterion for good (median over seeds)
+            ax.axvline(
+                float(np.median(reached)),
+                color=palette.LEARNERS.get(learner),
+                linewidth=0.9,
+                linestyle='--',
+                label=f'{learner}: criterion met from (median, {len(reached)}/{len(runs)} seeds)',
+            )
     ax.set_title(title)
     ax.set_xlabel('training episodes')
     ax.set_ylabel('return (undiscounted)')
@@ -238,19 +313,23 @@ def write_curves(out: Path, results: Sequence[RunResult], optima: dict[str, floa
 
 
 def _labelled_paths(found: list[Baseline], results, baselines=BASELINES):
-    """(points, label) of the baselines named and each learner's first seed."""
+    """(points, label) of the baselines named and each learner's first seed, each labelled
+    with its scores against the optimum's (value iteration's path)."""
+    reference = optimum_reference(found)
     labelled = []
     for baseline in found:
         if baseline.name in baselines and baseline.summary.get('points') is not None:
-            outcome = _outcome_name(baseline.summary['outcome']).lower()
-            labelled.append((baseline.summary['points'], f'{baseline.name} ({outcome})'))
+            scores = PathScores.of_summary(baseline.summary)
+            optimum = None if baseline.name == 'value iteration' else reference
+            label = f'{baseline.name}: {describe(scores, optimum)}'
+            labelled.append((baseline.summary['points'], label))
     seen = set()
     for result in results:
         if result.spec.learner in seen:
             continue
         seen.add(result.spec.learner)
-        outcome = _outcome_name(result.final['outcome']).lower()
-        label = f'{result.spec.learner} seed {result.spec.seed} ({outcome})'
+        scores = PathScores.of_summary(result.final)
+        label = f'{result.spec.learner} seed {result.spec.seed}: {describe(scores, reference)}'
         labelled.append((result.final['points'], label))
     return labelled
 
@@ -289,6 +368,12 @@ def write_paths(out: Path, model: LatticeModel, found: list[Baseline], results) 
     )
 
 
+def optimum_reference(found: list[Baseline]) -> PathScores:
+    """The optimum's scores: value iteration's path among the baselines."""
+    summary = next(b.summary for b in found if b.name == 'value iteration')
+    return PathScores.of_summary(summary)
+
+
 # --- the whole report ---------------------------------------------------------------------------
 
 
@@ -299,18 +384,27 @@ def write_results(
     results: Sequence[RunResult],
     settings: str,
     plots: bool = True,
+    criterion: Criterion = DEFAULT_CRITERION,
 ) -> list[dict]:
     """results.csv, results.md and (with `plots`) the pictures it shows, for the baselines
-    `planned` and the learners' `results` on each scenario's model; returns the CSV rows."""
+    `planned` and the learners' `results` on each scenario's model; returns the CSV rows.
+    The planners' rows are judged by ``criterion`` (the learners' by their runs' own)."""
     rows = []
     for scenario, model in models.items():
         optimum, found = planned[scenario]
         goal_name = model.task.goal.name
         label = scenario_label(scenario)
-        rows += [baseline_row(label, goal_name, optimum, baseline) for baseline in found]
-        rows += [run_row(r, goal_name) for r in results if r.spec.scenario == scenario]
+        reference = optimum_reference(found)
+        rows += [
+            baseline_row(label, goal_name, optimum, baseline, reference, criterion)
+            for baseline in found
+        ]
+        rows += [run_row(r, goal_name, reference) for r in results if r.spec.scenario == scenario]
     write_csv(rows, RESULTS_FIELDS, out / 'results.csv')
-    text = f'# stealth-nav evaluation\n\n{settings}\n\n{COLUMNS}\n\n{markdown_table(rows)}'
+    text = (
+        f'# stealth-nav evaluation\n\n{settings}\n\n{columns_text(criterion)}\n\n'
+        f'{markdown_table(rows)}'
+    )
     if plots:
         optima = {scenario: planned[scenario][0] for scenario in models}
         images = write_curves(out, results, optima)

@@ -7,8 +7,10 @@ summarised at the end. No rclpy, no Ray.
                                 and how many of the sweep's trials are done and failed
     DIR/trials/<trial>.json     each finished trial's records (sweep_trials), one per seed
     DIR/policies/<trial>-seed<k>.npz   each run's final policy (stealth_agent policy file)
-    DIR/results.csv             one row per run: settings, parameters, episodes to 5 % of the
-                                optimum, final greedy return / optimum, score, wall time, host
+    DIR/results.csv             one row per run: settings, parameters, episodes until every
+                                greedy evaluation meets the success criterion
+                                (stealth_env.path_scores), final greedy return / optimum,
+                                score, wall time, host
     DIR/results.md              headed by the status line (complete, failed, interrupted); the
                                 same as a table, the best configuration per scenario, curves
     DIR/curves_<scenario>.png   greedy return against episodes, each learner's best configuration
@@ -25,6 +27,7 @@ from pathlib import Path
 from matplotlib.figure import Figure
 import numpy as np
 from stealth_bringup.run_outputs import write_csv, write_json
+from stealth_env.path_scores import DEFAULT_CRITERION
 
 from stealth_experiments.harness import scenario_label
 from stealth_experiments.harness_report import plot_curves
@@ -36,7 +39,7 @@ BASE_FIELDS = (
 )  # fmt: skip
 RESULT_FIELDS = (
     'optimal_return', 'greedy_return', 'greedy_over_optimum', 'score',
-    'episodes_to_within_5pct', 'wall_seconds', 'host', 'node', 'error',
+    'episodes_to_criterion', 'wall_seconds', 'host', 'node', 'error',
 )  # fmt: skip
 
 
@@ -99,12 +102,18 @@ def row(record: dict, param_names: Iterable[str]) -> dict:
         'greedy_return': record['greedy_return'] if ok else '',
         'greedy_over_optimum': record['greedy_return'] / optimum if ok else '',
         'score': record['score'] if ok else '',
-        'episodes_to_within_5pct': record['episodes_to_within'] if ok else '',
+        'episodes_to_criterion': _episodes_to_criterion(record) if ok else '',
         'wall_seconds': record.get('wall_seconds'),
         'host': record.get('host', ''),
         'node': (record.get('node') or '')[:12],
         'error': record.get('error', ''),
     }
+
+
+def _episodes_to_criterion(record: dict) -> int | None:
+    """A run's episodes until every greedy evaluation met the success criterion (sweep_trials
+    keeps it under the record's older name)."""
+    return record.get('episodes_to_criterion', record.get('episodes_to_within'))
 
 
 def _config_key(record: dict) -> tuple:
@@ -129,7 +138,8 @@ def best_configurations(records: list[dict]) -> list[dict]:
     best: dict[tuple, dict] = {}
     for key, runs in groups.items():
         scores = [r['score'] for r in runs]
-        reached = [r['episodes_to_within'] for r in runs if r['episodes_to_within'] is not None]
+        reached = [_episodes_to_criterion(r) for r in runs]
+        reached = [episodes for episodes in reached if episodes is not None]
         candidate = {
             'scenario': key[0],
             'goal': key[1],
@@ -139,8 +149,8 @@ def best_configurations(records: list[dict]) -> list[dict]:
             'seeds': len(runs),
             'score': float(np.mean(scores)),
             'of_optimum': float(np.mean([r['greedy_return'] / r['optimum'] for r in runs])),
-            'within_5pct': f'{len(reached)}/{len(runs)}',
-            'episodes_to_5pct': int(np.median(reached)) if reached else None,
+            'met_criterion': f'{len(reached)}/{len(runs)}',
+            'episodes_to_criterion': int(np.median(reached)) if reached else None,
         }
         where = key[:2]
         if where not in best or candidate['score'] > best[where]['score']:
@@ -150,11 +160,12 @@ def best_configurations(records: list[dict]) -> list[dict]:
 
 def markdown(rows: list[dict], param_names: list[str], best: list[dict]) -> str:
     columns = ['trial', 'status', 'mode', 'scenario', 'learner', 'seed', *param_names,
-               'episodes to 5 %', 'greedy / optimum', 'wall (s)', 'host', 'node']  # fmt: skip
+               'episodes to criterion', 'greedy / optimum', 'wall (s)', 'host',
+               'node']  # fmt: skip
     lines = ['| ' + ' | '.join(columns) + ' |', '|' + ' --- |' * len(columns)]
     for r in rows:
         ok = r['status'] == 'ok'
-        within = r['episodes_to_within_5pct']
+        within = r['episodes_to_criterion']
         cells = [
             r['trial'], r['status'] if ok else f'failed: {r["error"]}', r['mode'], r['scenario'],
             r['learner'], str(r['seed']), *(str(r[name]) for name in param_names),
@@ -166,16 +177,16 @@ def markdown(rows: list[dict], param_names: list[str], best: list[dict]) -> str:
         lines.append('| ' + ' | '.join(cells) + ' |')
     table = '\n'.join(lines)
     best_lines = [
-        '| scenario | best configuration | seeds | score | greedy / optimum | within 5 % '
-        '| episodes to 5 % (median) |',
+        '| scenario | best configuration | seeds | score | greedy / optimum | met criterion '
+        '| episodes to criterion (median) |',
         '| --- | --- | --- | --- | --- | --- | --- |',
     ]
     for b in best:
         goal = f' ({b["goal"]})' if b['goal'] else ''
         best_lines.append(
             f'| {b["scenario"]}{goal} | {b["learner"]} ({b["mode"]}): {_params_text(b["params"])} '
-            f'| {b["seeds"]} | {b["score"]:.3f} | {b["of_optimum"]:.3f} | {b["within_5pct"]} '
-            f'| {b["episodes_to_5pct"] if b["episodes_to_5pct"] is not None else "-"} |'
+            f'| {b["seeds"]} | {b["score"]:.3f} | {b["of_optimum"]:.3f} | {b["met_criterion"]} '
+            f'| {b["episodes_to_criterion"] if b["episodes_to_criterion"] is not None else "-"} |'
         )
     return table + '\n', '\n'.join(best_lines) + '\n'
 
@@ -269,8 +280,10 @@ def write_report(
         f'# Sweep {title}\n\n{headline}{settings}\n\n{len(records)} runs ({failed} failed) on '
         f'{len(nodes)} Ray node(s), host(s) {", ".join(hosts) or "-"}.\n\n'
         f'## Best configuration per scenario\n\nscore: greedy return relative to the optimum '
-        f'(1 = optimal) minus 0.01 x the fraction of the budget spent before staying within 5 % '
-        f'of it, mean over seeds.\n\n{best_table}\n## Runs\n\n{table}'
+        f'(1 = optimal) minus 0.01 x the fraction of the budget spent before every greedy '
+        f'evaluation met the success criterion ({DEFAULT_CRITERION.describe()}; in-process '
+        f'runs; a ROS run: within 5 % of the optimal return), mean over seeds. met criterion: '
+        f'runs that settled on it.\n\n{best_table}\n## Runs\n\n{table}'
     )
     if plots and best:
         images = write_curves(store.out, records, best)

@@ -91,6 +91,20 @@ def test_the_summary_rates_regret_path_and_exposure_over_the_rows_that_ran():
     assert star['exposure_ratio'] == pytest.approx((3.0 + 1.0) / (1.0 + 1.0))
     assert summary['Dark Path']['exposure_ratio'] is None  # 0 / 0 is not a ratio
     assert summary['Dark Path']['path_ratio'] == 1.0
+    # The success criterion: path <= 1.1x the optimum's, exposure <= the optimum's + 0.1.
+    assert star['criterion'] == 0.0  # 1.2x, 1.5x and a detection
+    assert summary['Dark Path']['criterion'] == 1.0
+
+
+def test_the_criterion_column_judges_path_and_exposure_against_the_optimum():
+    rows = [
+        _row('Dark Path', True, 0.0, 10.5, 10.0, 1.1, 1.0),  # 1.05x, +0.1: meets it
+        _row('Dark Path', True, 0.0, 10.5, 10.0, 1.5, 1.0),  # +0.5: too much light
+        _row('Dark Path', True, 0.0, 11.5, 10.0, 1.0, 1.0),  # 1.15x: too long
+        _row('Dark Path', False, 0.9, 5.0, 10.0, 0.0, 1.0),  # detected
+    ]
+    (summary,) = summarise(rows)
+    assert summary['criterion'] == 0.25 and summary['success'] == 0.75
 
 
 def test_summary_md_has_a_table_per_track_and_names_the_rows_that_did_not_run(tmp_path):
@@ -106,7 +120,8 @@ def test_summary_md_has_a_table_per_track_and_names_the_rows_that_did_not_run(tm
     ]
     text = write_summary(tmp_path / 'summary.md', rows, 'settings here', 'a note').read_text()
     assert '## Track: full' in text and '## Track: sensed' in text
-    assert '| A* | 100 % | 0 % | 0.000 | 1.20 | 3.00 | 3.00 | 2.00 | 2 (1) |' in text
+    assert '| A* | 100 % | 0 % | 0 % | 0.000 | 1.20 | 3.00 | 3.00 | 2.00 | 2 (1) |' in text
+    assert 'criterion: met the success criterion (reached the goal undetected, path' in text
     assert '- broken g: failed: A* (full): broken.yaml: no such file' in text
     assert '**a note**' in text and 'settings here' in text
 
