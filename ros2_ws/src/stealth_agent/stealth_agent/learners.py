@@ -519,12 +519,22 @@ class DynaQ(QLearning):
             self._remember(*row)
 
 
+# Every learner by name; prioritized_sweeping adds its own when the package is imported.
+_LEARNER_CLASSES: dict[str, type[TabularLearner]] = {
+    cls.name: cls for cls in (QLearning, Sarsa, DynaQ)
+}
+
+
+def register_learner(cls: type[TabularLearner]) -> type[TabularLearner]:
+    """Make a learner class (one of LEARNER_NAMES) known to make_learner; the class."""
+    if cls.name not in LEARNER_NAMES:
+        raise ValueError(f'{cls.name!r} is not one of {", ".join(LEARNER_NAMES)}')
+    _LEARNER_CLASSES[cls.name] = cls
+    return cls
+
+
 def make_learner(
     name: str, num_actions: int, config: LearnerConfig | None = None
 ) -> TabularLearner:
     """A fresh learner by name (one of LEARNER_NAMES or an alias)."""
-    # Prioritized sweeping, a DynaQ, lives in its own module, which imports this one.
-    from .prioritized_sweeping import PrioritizedSweeping
-
-    classes = {cls.name: cls for cls in (QLearning, Sarsa, DynaQ, PrioritizedSweeping)}
-    return classes[canonical_learner_name(name)](num_actions, config)
+    return _LEARNER_CLASSES[canonical_learner_name(name)](num_actions, config)

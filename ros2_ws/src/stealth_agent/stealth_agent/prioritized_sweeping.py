@@ -28,9 +28,10 @@ import heapq
 
 import numpy as np
 
-from .learners import DynaQ, LearnerConfig
+from .learners import DynaQ, LearnerConfig, register_learner
 
 
+@register_learner
 class PrioritizedSweeping(DynaQ):
     """Prioritized sweeping: Dyna-Q's model, planning in order of expected TD error."""
 
