@@ -259,6 +259,33 @@ def test_agent_learns_reports_episodes_and_saves_a_reloadable_policy(
     assert load_policy(policy_file).learner.episodes == 45
 
 
+def test_agent_learns_with_prioritized_sweeping_and_saves_its_queue(env, node_processes, tmp_path):
+    from stealth_agent.policy_store import load_policy
+
+    policy_file = tmp_path / 'sweeping_policy.npz'
+    env.describe()
+    agent = start_agent(
+        node_processes,
+        'agent_sweeping',
+        agent='prioritized_sweeping',
+        n=50,
+        theta=0.001,
+        seed=2,
+        policy_file=policy_file,
+        save_every=0,
+    )
+    log = wait_for_log(agent, f"environment '{TITLE}'")
+    assert 'learner prioritized (' in log and 'n 50, theta 0.001, seed 2' in log, log
+    env.wait_for_agent()
+    steps = np.array([env.episode()[1] for _ in range(12)])
+    print(f'\ncorridor steps per episode (prioritized sweeping): {steps.tolist()}')
+    assert steps[-5:].mean() <= 6.5 < steps[0]
+    stop(agent)
+    policy = load_policy(policy_file)
+    assert policy.learner.name == 'prioritized' and policy.learner.config.theta == 0.001
+    assert policy.learner.model_size > 0
+
+
 def test_agent_survives_bad_input(env, node_processes):
     agent = start_agent(node_processes, 'agent_bad_input', log_every=1)
     wait_for_log(agent, 'waiting for rl_env/rl_env_description')

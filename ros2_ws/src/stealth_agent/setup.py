@@ -15,7 +15,9 @@ setup(
     zip_safe=True,
     maintainer='stealth-nav developers',
     maintainer_email='dev@stealth-nav.org',
-    description='Tabular reinforcement learners (Q-learning, SARSA, Dyna-Q).',
+    description=(
+        'Tabular reinforcement learners (Q-learning, SARSA, Dyna-Q, prioritized sweeping).'
+    ),
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

@@ -1,9 +1,9 @@
 """The agent node (``agent``): rl-texplore-ros-pkg's rl_agent protocol over the tabular learners.
 
 Everything it decides is in the plain-Python core: what it does with each message in
-agent_loop.py, over protocol.py, learners.py, schedules.py, state_index.py, policy_store.py,
-agent_parameters.py, agent_setup.py, agent_messages.py and progress.py; this node translates
-messages and parameters.
+agent_loop.py, over protocol.py, learners.py, prioritized_sweeping.py, schedules.py,
+state_index.py, policy_store.py, agent_parameters.py, agent_setup.py, agent_messages.py and
+progress.py; this node translates messages and parameters.
 
 ## Topics
 
@@ -95,8 +95,8 @@ INCOMPATIBLE_QOS = (
 
 
 class AgentNode(StartupNode):
-    """rl_agent for rl_msgs environments, with Q-learning, SARSA and Dyna-Q: the ROS shell of
-    AgentLoop, which it serves as the loop's Ports."""
+    """rl_agent for rl_msgs environments, with Q-learning, SARSA, Dyna-Q and prioritized sweeping:
+    the ROS shell of AgentLoop, which it serves as the loop's Ports."""
 
     def __init__(self):
         super().__init__('agent')

@@ -13,7 +13,10 @@ from .schedules import SCHEDULE_KINDS, Schedule
 
 PARAMETERS = {
     'agent': Param(
-        'qlearning', 'Learner: qlearning (rl_agent qlearner), sarsa or dyna.', read_only=True
+        'qlearning',
+        'Learner: qlearning (rl_agent qlearner), sarsa, dyna or prioritized (prioritized '
+        'sweeping; also spelled prioritized_sweeping).',
+        read_only=True,
     ),
     'seed': Param(
         1,
@@ -28,7 +31,16 @@ PARAMETERS = {
     ),
     'initialvalue': Param(0.0, 'Initial Q value of every new state-action.', read_only=True),
     'n': Param(
-        10, 'Dyna-Q: planning updates from the learned model per real step.', bounds=(0, 1_000_000)
+        10,
+        'Dyna-Q and prioritized sweeping: planning updates from the learned model per real step '
+        '(prioritized sweeping makes fewer when its queue runs dry).',
+        bounds=(0, 1_000_000),
+    ),
+    'theta': Param(
+        0.01,
+        'Prioritized sweeping: a state-action is queued for planning only when its expected '
+        'update would change its value by more than this (reward units).',
+        bounds=(0.0, 1e12),
     ),
     'epsilon_schedule': Param('constant', 'constant, linear or exponential (over episodes).'),
     'epsilon_final': Param(0.01, 'Epsilon the schedule decays to.', bounds=(0.0, 1.0)),
@@ -138,6 +150,7 @@ LIVE_LEARNER_PARAMETERS = {
     'alpha',
     'epsilon',
     'n',
+    'theta',
     'epsilon_schedule',
     'epsilon_final',
     'epsilon_decay_episodes',
@@ -169,6 +182,7 @@ def learner_config(values: Mapping) -> LearnerConfig:
         ),
         initial_value=values['initialvalue'],
         n_planning=values['n'],
+        theta=values['theta'],
     )
 
 

@@ -83,7 +83,9 @@ def set_up_agent(description: EnvDescription, values: Mapping) -> AgentSetup:
         settings = (
             f'gamma {config.gamma}, alpha {learner.alpha} ({config.alpha.kind}), '
             f'epsilon {learner.epsilon} ({config.epsilon.kind}), '
-            f'initial {config.initial_value}, n {config.n_planning}, seed {seed}'
+            f'initial {config.initial_value}, n {config.n_planning}, '
+            + (f'theta {config.theta}, ' if learner.name == 'prioritized' else '')
+            + f'seed {seed}'
         )
     summary = (
         f'environment {description.title!r}: {description.num_actions} actions, state '

@@ -1,4 +1,5 @@
-"""Tabular learners: Q-learning, SARSA and Dyna-Q (plain Python + numpy, no rclpy).
+"""Tabular learners: Q-learning, SARSA, Dyna-Q and (in `prioritized_sweeping`) prioritized
+sweeping; plain Python + numpy, no rclpy.
 
 Like rl-texplore-ros-pkg's rl_agent (QLearner, Sarsa, Dyna): the table holds one row of action
 values per discrete state, epsilon-greedy action choice with random tie-breaking among the
@@ -28,7 +29,7 @@ import numpy as np
 
 from .schedules import Schedule
 
-LEARNER_NAMES = ('qlearning', 'sarsa', 'dyna')
+LEARNER_NAMES = ('qlearning', 'sarsa', 'dyna', 'prioritized')
 # rl_agent's spellings and a few obvious ones.
 LEARNER_ALIASES = {
     'qlearning': 'qlearning',
@@ -39,13 +40,17 @@ LEARNER_ALIASES = {
     'dynaq': 'dyna',
     'dyna-q': 'dyna',
     'dyna_q': 'dyna',
+    'prioritized': 'prioritized',
+    'prioritized_sweeping': 'prioritized',
+    'prioritized-sweeping': 'prioritized',
+    'psweep': 'prioritized',
 }
 _INITIAL_CAPACITY = 64
 MAX_ROWS = 2**31 - 1
 
 
 def canonical_learner_name(name: str) -> str:
-    """'qlearning', 'sarsa' or 'dyna' for any accepted spelling; ValueError otherwise."""
+    """A name of LEARNER_NAMES for any accepted spelling; ValueError otherwise."""
     key = str(name).strip().lower()
     if key not in LEARNER_ALIASES:
         raise ValueError(f'unknown learner {name!r} (expected one of {", ".join(LEARNER_NAMES)})')
@@ -74,6 +79,7 @@ class LearnerConfig:
     epsilon: Schedule = field(default_factory=lambda: Schedule.fixed(0.1))
     initial_value: float = 0.0
     n_planning: int = 10  # Dyna-Q: model updates per real step (rl_agent's --k, default 1000)
+    theta: float = 0.01  # prioritized sweeping: smallest priority queued (|expected TD error|)
 
     def __post_init__(self):
         if not (isinstance(self.gamma, int | float) and 0.0 <= self.gamma <= 1.0):
@@ -90,6 +96,15 @@ class LearnerConfig:
             raise ValueError(f'n (planning updates) must be an integer, got {self.n_planning!r}')
         if self.n_planning < 0:
             raise ValueError(f'n (planning updates) must be >= 0, got {self.n_planning}')
+        if not (
+            isinstance(self.theta, int | float)
+            and not isinstance(self.theta, bool)
+            and math.isfinite(self.theta)
+            and self.theta >= 0
+        ):
+            raise ValueError(
+                f'theta (priority threshold) must be finite and >= 0, got {self.theta!r}'
+            )
 
     @classmethod
     def constant(
@@ -99,10 +114,11 @@ class LearnerConfig:
         epsilon: float = 0.1,
         initial_value: float = 0.0,
         n_planning: int = 10,
+        theta: float = 0.01,
     ) -> 'LearnerConfig':
         """A configuration with constant alpha and epsilon."""
         return cls(
-            gamma, Schedule.fixed(alpha), Schedule.fixed(epsilon), initial_value, n_planning
+            gamma, Schedule.fixed(alpha), Schedule.fixed(epsilon), initial_value, n_planning, theta
         )
 
     def to_dict(self) -> dict:
@@ -112,6 +128,7 @@ class LearnerConfig:
             'epsilon': self.epsilon.to_dict(),
             'initial_value': self.initial_value,
             'n_planning': int(self.n_planning),
+            'theta': float(self.theta),
         }
 
     @classmethod
@@ -122,6 +139,7 @@ class LearnerConfig:
             Schedule.from_dict(data['epsilon']),
             float(data['initial_value']),
             int(data['n_planning']),
+            float(data.get('theta', cls.theta)),  # files from before prioritized sweeping
         )
 
 
@@ -392,6 +410,9 @@ class DynaQ(QLearning):
         """State-action pairs in the model."""
         return len(self._model_s)
 
+    def _forget_model(self) -> None:
+        self._model_index, self._model_s, self._model_a, self._model_outcomes = {}, [], [], []
+
     def _check_update_extra(self, rng) -> None:
         if self.config.n_planning > 0 and rng is None:
             raise ValueError('Dyna-Q planning needs the random generator (rng=...)')
@@ -400,7 +421,10 @@ class DynaQ(QLearning):
         self._remember(s, a, (-1 if terminated else s_next, bool(terminated)), r, 1)
         self.plan(self.config.n_planning, rng)
 
-    def _remember(self, s: int, a: int, outcome: tuple[int, bool], reward: float, count: int):
+    def _remember(
+        self, s: int, a: int, outcome: tuple[int, bool], reward: float, count: int
+    ) -> int:
+        """Count an outcome of (s, a); the pair's model index."""
         i = self._model_index.get((s, a))
         if i is None:
             i = self._model_index[(s, a)] = len(self._model_s)
@@ -411,26 +435,31 @@ class DynaQ(QLearning):
         seen[0] += count
         # A running mean: an outcome whose reward never changes keeps it exactly.
         seen[1] += (reward - seen[1]) * count / seen[0]
+        return i
 
     def plan(self, n: int, rng: np.random.Generator) -> None:
         """n simulated Q-learning updates from the model's expected outcomes."""
         if n <= 0 or not self._model_s:
             return
-        q, gamma, alpha = self._q, self.config.gamma, self._alpha
+        q, alpha = self._q, self._alpha
         for i in rng.integers(len(self._model_s), size=n).tolist():
             s, a = self._model_s[i], self._model_a[i]
-            outcomes = self._model_outcomes[i]
-            if len(outcomes) == 1:
-                (((next_row, terminal), (_, reward)),) = outcomes.items()
-                target = reward if terminal else reward + gamma * q[next_row].max()
-            else:
-                total = weighted = 0.0
-                for (next_row, terminal), (count, reward) in outcomes.items():
-                    value = reward if terminal else reward + gamma * q[next_row].max()
-                    weighted += count * value
-                    total += count
-                target = weighted / total
-            q[s, a] += alpha * (target - q[s, a])
+            q[s, a] += alpha * (self.expected_target(i) - q[s, a])
+
+    def expected_target(self, i: int) -> float:
+        """r + gamma * (not terminal) * max_a' Q(s', a') of model pair i, its outcomes weighted
+        by how often they were seen."""
+        q, gamma = self._q, self.config.gamma
+        outcomes = self._model_outcomes[i]
+        if len(outcomes) == 1:
+            (((next_row, terminal), (_, reward)),) = outcomes.items()
+            return reward if terminal else reward + gamma * q[next_row].max()
+        total = weighted = 0.0
+        for (next_row, terminal), (count, reward) in outcomes.items():
+            value = reward if terminal else reward + gamma * q[next_row].max()
+            weighted += count * value
+            total += count
+        return weighted / total
 
     def to_arrays(self) -> dict[str, np.ndarray]:
         """The table and the model, one row per (s, a, outcome)."""
@@ -478,7 +507,7 @@ class DynaQ(QLearning):
         outcomes = list(zip(nxt.astype(int).tolist(), term.astype(bool).tolist(), strict=True))
         if len(set(zip(s.tolist(), a.tolist(), outcomes, strict=True))) != size:
             raise ValueError('Dyna-Q model holds an outcome of a state-action pair twice')
-        self._model_index, self._model_s, self._model_a, self._model_outcomes = {}, [], [], []
+        self._forget_model()
         for row in zip(
             s.astype(int).tolist(),
             a.astype(int).tolist(),
@@ -490,11 +519,22 @@ class DynaQ(QLearning):
             self._remember(*row)
 
 
-_LEARNER_CLASSES = {cls.name: cls for cls in (QLearning, Sarsa, DynaQ)}
+# Every learner by name; prioritized_sweeping adds its own when the package is imported.
+_LEARNER_CLASSES: dict[str, type[TabularLearner]] = {
+    cls.name: cls for cls in (QLearning, Sarsa, DynaQ)
+}
+
+
+def register_learner(cls: type[TabularLearner]) -> type[TabularLearner]:
+    """Make a learner class (one of LEARNER_NAMES) known to make_learner; the class."""
+    if cls.name not in LEARNER_NAMES:
+        raise ValueError(f'{cls.name!r} is not one of {", ".join(LEARNER_NAMES)}')
+    _LEARNER_CLASSES[cls.name] = cls
+    return cls
 
 
 def make_learner(
     name: str, num_actions: int, config: LearnerConfig | None = None
 ) -> TabularLearner:
-    """A fresh learner by name ('qlearning', 'sarsa', 'dyna' or an rl_agent alias)."""
+    """A fresh learner by name (one of LEARNER_NAMES or an alias)."""
     return _LEARNER_CLASSES[canonical_learner_name(name)](num_actions, config)

@@ -25,7 +25,7 @@ from stealth_bringup.ros_domain import DISCOVERY_RANGES
 
 DEFAULT_SCENARIO = 'simple-maze'
 DEFAULT_GOAL = 'easy'  # of the default scenario; other scenarios default to their own goal
-DEFAULT_EPISODES = 400
+DEFAULT_EPISODES = 400  # the least; the scenario's state count sets more (episode_budget)
 DEFAULT_EVAL_EVERY = 5
 DEFAULT_STREAK = 3
 DEFAULT_RESPAWN = 3  # restarts per node in stealth train (stealth rollout: 0)
@@ -223,9 +223,11 @@ def train_parser() -> argparse.ArgumentParser:
         '--episodes',
         type=positive_int,
         metavar='N',
-        help='episode budget, greedy evaluations included (default: '
-        f"{DEFAULT_EPISODES}); with --resume the new total, the run's earlier episodes "
-        "included (default: the run's budget)",
+        help='episode budget, greedy evaluations included (default: one per 6 of the '
+        "scenario's state-actions, at least "
+        f'{DEFAULT_EPISODES}: {DEFAULT_EPISODES} on simple-maze, 4000 on simple-maze-moving); '
+        "with --resume the new total, the run's earlier episodes included (default: the run's "
+        'budget)',
     )
     parser.add_argument(
         '--eval-every',

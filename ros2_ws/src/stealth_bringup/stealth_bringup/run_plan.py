@@ -18,9 +18,11 @@ import shlex
 from stealth_env.path_scores import DEFAULT_CRITERION, Criterion
 from stealth_tools.bag_files import next_recording_file
 
+from stealth_bringup.episode_budget import STATE_ACTIONS_PER_EPISODE, default_episode_budget
 from stealth_bringup.rollout_source import rollout_source
 from stealth_bringup.run_arguments import (
     COMMAND_OF_MODE,
+    DEFAULT_EPISODES,
     DEFAULT_GOAL,
     DEFAULT_SCENARIO,
     JOIN_TIMEOUT,
@@ -261,8 +263,17 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
         params_dir = args.params_dir
     else:
         scenario, goal, source_policy, params_dir, source_notes = rollout_source(args)
+    budget_note = None
     if mode == 'train':
-        episodes, eval_every, streak = train_settings(args, continued)
+        default_episodes = DEFAULT_EPISODES
+        if args.episodes is None and continued is None:
+            default_episodes, pairs = default_episode_budget(scenario, goal)
+        if default_episodes > DEFAULT_EPISODES:  # said where the scenario raised it
+            budget_note = (
+                f'episode budget {default_episodes}: one per {STATE_ACTIONS_PER_EPISODE} of the '
+                f"table's {pairs:,} state-actions (--episodes N to change it)"
+            )
+        episodes, eval_every, streak = train_settings(args, continued, default_episodes)
     else:
         episodes, eval_every, streak = args.episodes, 0, 0
     left_out = {'recorder': args.no_record, 'bridge': not args.watch}
@@ -336,6 +347,8 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
         recording = next_recording_file(directory).resolve()
         parameters['recorder'].values['output'] = str(recording)
     notes = _check_parameters(args, parameters, params_dir)
+    if budget_note is not None:
+        notes.append(budget_note)
     if mode != 'train':
         notes += source_notes
     if continued is not None and not policy_path.is_file():

@@ -33,18 +33,20 @@ class Continuation:
     first_episode: int  # the number of the first episode of this part
 
 
-def train_settings(args, continued: Continuation | None) -> tuple[int, int, int]:
+def train_settings(
+    args, continued: Continuation | None, default_episodes: int = DEFAULT_EPISODES
+) -> tuple[int, int, int]:
     """(episode budget, eval_every, success streak) of a training run: the options given, else
-    a continued run's own, else the defaults; RunConfigError when a continued run would stop
-    at once."""
+    a continued run's own, else the defaults (the budget: default_episodes, the scenario's,
+    episode_budget); RunConfigError when a continued run would stop at once."""
     if continued is None:
         return (
-            DEFAULT_EPISODES if args.episodes is None else args.episodes,
+            default_episodes if args.episodes is None else args.episodes,
             DEFAULT_EVAL_EVERY if args.eval_every is None else args.eval_every,
             DEFAULT_STREAK if args.success_streak is None else args.success_streak,
         )
     saved = continued.summary
-    episodes = _given(args.episodes, saved.get('episode_budget'), DEFAULT_EPISODES)
+    episodes = _given(args.episodes, saved.get('episode_budget'), default_episodes)
     eval_every = _given(args.eval_every, saved.get('eval_every'), DEFAULT_EVAL_EVERY)
     streak = _given(args.success_streak, saved.get('success_streak'), DEFAULT_STREAK)
     from stealth_bringup.episode_scores import EpisodeScorer

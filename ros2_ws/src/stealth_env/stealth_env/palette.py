@@ -63,5 +63,5 @@ RETURN = '#253494'  # the moving average of the return, and the optimum's return
 STREAK = START  # where the greedy success streak that ended the run began
 PLOT_INK = 'black'  # edges, epsilon, and the optimum of the experiments' plots
 PLOT_PAPER = 'white'  # the fill of the greedy-evaluation legend mark
-LEARNERS = {'qlearning': PATHS[0], 'sarsa': PATHS[1], 'dyna': PATHS[2]}
+LEARNERS = {'qlearning': PATHS[0], 'sarsa': PATHS[1], 'dyna': PATHS[2], 'prioritized': PATHS[4]}
 TRACKS = {'full': PATHS[0], 'sensed': PATHS[1]}  # the benchmark's bars of each track

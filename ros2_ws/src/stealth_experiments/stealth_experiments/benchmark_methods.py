@@ -15,9 +15,9 @@ the Gym env's ``track='sensed'``). Which method runs on which track (``METHODS``
   track only. On the full track they would see every light from the start and plan Dark Path's
   way on it (with static lights their first plan is Dark Path's route), so they add nothing
   there.
-- ``qlearning``, ``sarsa``, ``dyna``: trained per scenario (``harness.run``) for a stated
-  budget of episodes, then one greedy episode: full track only (their state is the full
-  track's; the sensed track's observation is not a table key).
+- ``qlearning``, ``sarsa``, ``dyna``, ``prioritized``: trained per scenario (``harness.run``)
+  for a stated budget of episodes, then one greedy episode: full track only (their state is
+  the full track's; the sensed track's observation is not a table key).
 - ``policy``: a learned policy file (``--policy``, ``stealth_agent.policy_store``) played
   greedily: full track only for now (a tabular file's state is the full track's).
 

@@ -48,6 +48,7 @@ from stealth_experiments.harness import (
     DEFAULT_EPISODES,
     DEFAULT_EVAL_EVERY,
     MOVING_EPISODES,
+    PLANNING_UPDATES,
     baselines,
     default_budget,
     grid_specs,
@@ -122,7 +123,7 @@ def evaluate(
     settings = (
         f'Seeds {", ".join(map(str, seeds))}; training episodes per run: {budgets}; greedy '
         f'evaluation every {eval_every} episodes; slip {slip:g}. Learner settings (all '
-        f'learners): {_describe(tuned_config(learners[0], slip > 0))}.'
+        f'learners but the planning updates): {_describe(tuned_config(learners[0], slip > 0))}.'
     )
     settings += f' Success criterion: {criterion.describe()}.'
     return write_results(out, models, planned, results, settings, plots, criterion)
@@ -148,8 +149,9 @@ def _describe(config: LearnerConfig) -> str:
 
     return (
         f'alpha {schedule(config.alpha)}, epsilon {schedule(config.epsilon)}, gamma '
-        f'{config.gamma:g}, initial Q {config.initial_value:g}, Dyna-Q planning updates per step '
-        f'{config.n_planning}'
+        f'{config.gamma:g}, initial Q {config.initial_value:g}; planning updates per step: '
+        f'dyna {PLANNING_UPDATES["dyna"]}, prioritized up to {PLANNING_UPDATES["prioritized"]} '
+        f'(while a queued change exceeds theta {config.theta:g})'
     )
 
 

@@ -43,13 +43,17 @@ from stealth_env.reward import EpisodeOutcome
 from stealth_env.scenario import content_identity
 
 # Training episodes per run, per learner: each well past where every seed settled (README);
-# Dyna-Q's 20 planning updates make its episodes ~5x dearer and it needs ~1/6 as many.
-DEFAULT_EPISODES = {'qlearning': 1500, 'sarsa': 1500, 'dyna': 500}
+# Dyna-Q's 20 planning updates make its episodes ~5x dearer and it needs ~1/6 as many;
+# prioritized sweeping settled by episode 120 wherever it settled (bench_learners); the seeds
+# that had not by 300 (exposure and bounce variants) had not by 600 either.
+DEFAULT_EPISODES = {'qlearning': 1500, 'sarsa': 1500, 'dyna': 500, 'prioritized': 300}
 # Scenarios with the phase in the state (moving lights) have phase_bins times the states: each
 # learner gets a larger budget there (README: Q-learning settled at 2580 on simple-maze-moving,
 # 5730 on lgfloor-moving and 11,610-11,740 on floorplan-moving, where 6000 never reached the
-# goal; Dyna-Q at 1110 on lgfloor-moving and 1810 on floorplan-moving, where 1000 was too few).
-MOVING_EPISODES = {'qlearning': 15000, 'sarsa': 15000, 'dyna': 3000}
+# goal; Dyna-Q at 1110 on lgfloor-moving and 1810 on floorplan-moving, where 1000 was too few;
+# prioritized sweeping within 5 % at 200 on simple-maze-moving, 280 on map1-moving and 580 on
+# lgfloor-moving, seed 0; floorplan-moving not measured).
+MOVING_EPISODES = {'qlearning': 15000, 'sarsa': 15000, 'dyna': 3000, 'prioritized': 1500}
 DEFAULT_EVAL_EVERY = 10
 WITHIN = 0.05  # of the optimal return: the old criterion, kept for settled_within only
 BASELINES = ('A*', 'Dark Path', 'value iteration')
@@ -57,8 +61,14 @@ BASELINES = ('A*', 'Dark Path', 'value iteration')
 SENSED_BASELINES = {'replan (unknown dark)': 'dark', 'replan (unknown lit)': 'lit'}
 # Settings a sweep may vary (RunSpec.params), over tuned_config's: alpha (constant), epsilon (its
 # start; it decays exponentially to 0 with time constant epsilon_decay episodes), gamma,
-# initial_value (initial Q) and n_planning (Dyna-Q's planning updates per step).
-PARAMETERS = ('alpha', 'epsilon', 'epsilon_decay', 'gamma', 'initial_value', 'n_planning')
+# initial_value (initial Q), n_planning (Dyna-Q's and prioritized sweeping's planning updates
+# per step) and theta (prioritized sweeping's priority threshold).
+PARAMETERS = (
+    'alpha', 'epsilon', 'epsilon_decay', 'gamma', 'initial_value', 'n_planning', 'theta',
+)  # fmt: skip
+# Planning updates per real step: Dyna-Q's, and prioritized sweeping's at most (it stops when
+# its queue runs dry, so a larger cap costs only where values still change).
+PLANNING_UPDATES = {'dyna': 20, 'prioritized': 200}
 # The success criterion's options (stealth_env.path_scores.Criterion), carried in
 # RunSpec.params beside the learner's settings so that they travel with a run to any worker;
 # absent, the defaults.
@@ -78,13 +88,14 @@ def tuned_config(learner: str, stochastic: bool = False) -> LearnerConfig:
     policy, and with a detection penalty of 1000 a 10 % chance of a random step next to a lit
     cell makes hovering in the dark look better than the door to the goal (with epsilon fixed at
     0.1 its greedy policy timed out instead of reaching the goal). Dyna-Q plans 20 updates per
-    step.
+    step; prioritized sweeping up to 200, while a queued change exceeds theta 0.01.
     """
-    canonical_learner_name(learner)
+    name = canonical_learner_name(learner)
     return LearnerConfig(
         alpha=Schedule.fixed(0.3 if stochastic else 1.0),
         epsilon=Schedule('exponential', 0.1, 0.0, 100.0),
-        n_planning=20,
+        n_planning=PLANNING_UPDATES.get(name, 20),
+        theta=0.01,
     )
 
 
@@ -115,6 +126,7 @@ def configured(learner: str, stochastic: bool = False, params=()) -> LearnerConf
         epsilon=epsilon,
         initial_value=float(values.get('initial_value', config.initial_value)),
         n_planning=n_planning,
+        theta=float(values.get('theta', config.theta)),
     )
 
 

@@ -91,6 +91,7 @@ ROS_PARAMETERS = {
     'gamma': 'gamma',
     'initial_value': 'initialvalue',
     'n_planning': 'n',
+    'theta': 'theta',
     'epsilon': 'epsilon',
     'epsilon_decay': 'epsilon_decay_episodes',
 }
