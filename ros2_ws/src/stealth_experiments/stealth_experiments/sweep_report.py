@@ -281,8 +281,8 @@ def write_report(
         f'{len(nodes)} Ray node(s), host(s) {", ".join(hosts) or "-"}.\n\n'
         f'## Best configuration per scenario\n\nscore: greedy return relative to the optimum '
         f'(1 = optimal) minus 0.01 x the fraction of the budget spent before every greedy '
-        f'evaluation met the success criterion ({DEFAULT_CRITERION.describe()}; in-process '
-        f'runs; a ROS run: within 5 % of the optimal return), mean over seeds. met criterion: '
+        f'evaluation met the success criterion ({DEFAULT_CRITERION.describe()}; a ROS run: '
+        f'as its episodes.csv says), mean over seeds. met criterion: '
         f'runs that settled on it.\n\n{best_table}\n## Runs\n\n{table}'
     )
     if plots and best:

@@ -11,7 +11,8 @@ the report. A run that raises is a record with status ``failed`` and its error.
 
 The objective (what optuna maximises and "best" means): the greedy return relative to the
 optimum, ``1 - (optimum - greedy) / |optimum|`` (1 at the optimum), minus 0.01 x the fraction
-of the budget spent before it stayed within 5 % (1 when it never did), mean over the seeds.
+of the budget spent before it stayed on the success criterion (1 when it never did), mean over
+the seeds.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ import time
 import numpy as np
 from stealth_env.reward import EpisodeOutcome
 
-from stealth_experiments.harness import RunResult, RunSpec, run, settled_within
+from stealth_experiments.harness import RunResult, RunSpec, run, settled, settled_within
 from stealth_experiments.sweep_stop import MARK, TRIAL_MARK, scratch_prefix
 
 SPEED_WEIGHT = 0.01
@@ -189,7 +190,7 @@ def _run_ros(trial: dict, seed: int, scratch: Path):
         np.array([EpisodeOutcome[t['outcome']] for t in training], dtype=np.int8),
         np.array(eval_at),
         np.array(eval_returns),
-        settled_within(eval_at, eval_returns, optimum),
+        ros_settled(eval_at, greedy, optimum),
         final,
         time.perf_counter() - started,
         int(summary.get('steps') or 0),
@@ -208,6 +209,16 @@ def _why(summary: dict, log: Path) -> str:
 
 
 # --- records ------------------------------------------------------------------------------------
+
+
+def ros_settled(eval_at, greedy_rows, optimum: float) -> int | None:
+    """Episodes until a ROS run's greedy evaluations stayed on the success criterion, read from
+    episodes.csv's ``meets_criterion`` column; a run whose file predates the scores falls back
+    on the old return criterion."""
+    if greedy_rows and 'meets_criterion' in greedy_rows[0]:
+        return settled(eval_at, [row['meets_criterion'] == 'True' for row in greedy_rows])
+    returns = [float(row['total_reward']) for row in greedy_rows]
+    return settled_within(eval_at, returns, optimum)
 
 
 def score(greedy: float, optimum: float, episodes_to_within, budget: int) -> float:

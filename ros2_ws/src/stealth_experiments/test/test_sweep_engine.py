@@ -16,7 +16,7 @@ from stealth_experiments.sweep_engine import EngineError, check_address
 from stealth_experiments.sweep_plan import make_trial
 from stealth_experiments.sweep_pool import Progress, lost_records, scenarios_of
 from stealth_experiments.sweep_report import SweepStore
-from stealth_experiments.sweep_trials import objective
+from stealth_experiments.sweep_trials import objective, ros_settled
 
 
 @pytest.fixture
@@ -138,3 +138,17 @@ def test_failed_runs_are_one_line_each_with_their_own_error(tmp_path):
     failed, runs = failed_runs(tmp_path)
     assert runs == 2
     assert failed == [f'{bad["id"]} seed 0: ValueError: a ROS trial has no slip']
+
+
+def test_a_ros_trial_settles_on_the_criterion_column_not_the_return():
+    """A ROS run's greedy returns can beat the optimum's (the goal reward follows the continuous
+    pose) while its path does not meet the criterion: the criterion column decides."""
+    eval_at = [10, 20, 30]
+    rows = [
+        {'total_reward': '1035.0', 'meets_criterion': 'False'},
+        {'total_reward': '1035.0', 'meets_criterion': 'True'},
+        {'total_reward': '1035.0', 'meets_criterion': 'True'},
+    ]
+    assert ros_settled(eval_at, rows, optimum=989.6) == 20
+    old = [{'total_reward': r['total_reward']} for r in rows]  # an episodes.csv before scores
+    assert ros_settled(eval_at, old, optimum=989.6) == 10
