@@ -332,6 +332,8 @@ class Navigation:
     def _back_off_step(self) -> None:
         """Drive the back-off on (the node's tick), then plan again from where it ended."""
         latest = self.robot.tracker.latest
+        if latest is None:  # odometry started over (its clock went back): wait for the next
+            return
         step = self.back_off.update(latest.t, latest.pose)
         if not isinstance(step, BackedOff):
             self.robot.send(step)
