@@ -1,8 +1,8 @@
 """One navigation of the navigator node: plan with the planner server's action (as Nav2's BT
 does), follow the path with the project's controller over the robot's topics, replan when the
-robot is blocked, strays or falls behind a timed path (a recovery), and end with an
-:class:`Outcome`. Nothing here blocks the executor: answers, odometry and the node's steady
-tick move it on.
+robot is blocked (backing off first, ``back_off``), strays or falls behind a timed path (a
+recovery), and end with an :class:`Outcome`. Nothing here blocks the executor: answers,
+odometry and the node's steady tick move it on.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from stealth_env.topic_moves import STOP, Pose
 from stealth_node_kit.conversions import seconds, time_msg, yaw_quaternion
 
 from stealth_nav2 import navigation_goals as codes
+from stealth_nav2.back_off import BackedOff, BackOff, backs_off
 from stealth_nav2.navigation_goals import ViaPoses
 from stealth_nav2.path_following import Arrived, PathFollower, Replan, TimedPose
 
@@ -42,6 +43,7 @@ class Stage:
     WAITING = 'waiting for the robot pose'
     PLANNING = 'planning'
     FOLLOWING = 'following'
+    BACKING_OFF = 'backing off'
     DONE = 'done'
 
 
@@ -66,6 +68,7 @@ class Navigation:
         self.stage = Stage.WAITING
         self.recoveries = 0
         self.follower: PathFollower | None = None
+        self.back_off: BackOff | None = None
         self.plans = 0
         self.started_wall = time.monotonic()
         self.started_robot: float | None = None  # the robot's clock at the start (s)
@@ -119,6 +122,8 @@ class Navigation:
                 self._recover(f'strayed {off:.2f} m off the path')
             elif behind is not None:
                 self._recover(behind.reason, counted=False)
+        elif self.stage == Stage.BACKING_OFF:
+            self._back_off_step()
 
     def cancel(self) -> None:
         """The goal was cancelled: stop the robot now."""
@@ -284,13 +289,15 @@ class Navigation:
             return
         verdict = self.follower.move_ended(end.outcome, end.message, end.t, end.estimate)
         if isinstance(verdict, Replan):
-            self._recover(verdict.reason, verdict.recovery)
+            self._recover(verdict.reason, verdict.recovery, backs_off(verdict,
+                          self.node.back_off_settings))  # fmt: skip
         else:
             self._next_move()
 
-    def _recover(self, reason: str, counted: bool = True) -> None:
+    def _recover(self, reason: str, counted: bool = True, back_off: bool = False) -> None:
         """Plan again from where the robot is: a recovery (given up after max_recoveries), or,
-        for a robot behind a timed path's schedule, a plain replan."""
+        for a robot behind a timed path's schedule, a plain replan. A blocked robot backs off
+        first (``back_off``: then the replan from where it stopped)."""
         self.robot.cancel()
         limit = self.node.values['max_recoveries']
         if counted and self.recoveries >= limit:
@@ -300,14 +307,43 @@ class Navigation:
             return
         here = self.robot.tracker.estimate
         at = f' at ({here.x:.2f}, {here.y:.2f})' if here is not None else ''
+        self.follower = None
         if counted:
             self.recoveries += 1
+        latest = self.robot.tracker.latest
+        if back_off and latest is not None:
+            settings = self.node.back_off_settings
+            recovery = f'(recovery {self.recoveries})'
+            self.node.get_logger().warning(
+                f'backing off {settings.distance:.2f} m {recovery}{at}: {reason}'
+            )
+            self.stage = Stage.BACKING_OFF
+            self.back_off = BackOff(latest.pose, latest.t, settings)
+            self._back_off_step()
+            return
+        if counted:
             self.node.get_logger().warning(
                 f'replanning (recovery {self.recoveries}){at}: {reason}'
             )
         else:
             self.node.get_logger().info(f'replanning{at}: {reason}')
-        self.follower = None
+        self._plan()
+
+    def _back_off_step(self) -> None:
+        """Drive the back-off on (the node's tick), then plan again from where it ended."""
+        latest = self.robot.tracker.latest
+        if latest is None:  # odometry started over (its clock went back): wait for the next
+            return
+        step = self.back_off.update(latest.t, latest.pose)
+        if not isinstance(step, BackedOff):
+            self.robot.send(step)
+            return
+        self.robot.send(STOP)
+        self.back_off = None
+        here = self.robot.tracker.estimate
+        at = f' at ({here.x:.2f}, {here.y:.2f})' if here is not None else ''
+        short = f' (stopped short: {step.short})' if step.short else ''
+        self.node.get_logger().info(f'backed off {step.travelled:.2f} m{short}: replanning{at}')
         self._plan()
 
     # --- the end --------------------------------------------------------------------------------

@@ -77,6 +77,7 @@ from stealth_node_kit.parameters import StartupError, declare_parameters, non_fi
 from stealth_node_kit.running import StartupNode, run_node
 
 from stealth_nav2 import navigation_goals as codes
+from stealth_nav2.back_off import BackOffSettings
 from stealth_nav2.navigation_goals import Frames, WaypointRun, goal_in_map, planner_for
 from stealth_nav2.navigation_run import Navigation, Outcome
 from stealth_nav2.navigator_parameters import PARAMETERS
@@ -173,6 +174,12 @@ class Navigator(StartupNode):
 
     def _sensor_timeout(self) -> float:
         return self.values['sensor_timeout']
+
+    @property
+    def back_off_settings(self) -> BackOffSettings:
+        values = self.values
+        return BackOffSettings(values['back_off_distance'], values['back_off_speed'],
+                               values['stall_time'])  # fmt: skip
 
     @property
     def follow_settings(self) -> FollowSettings:

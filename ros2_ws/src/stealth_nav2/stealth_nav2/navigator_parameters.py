@@ -37,13 +37,19 @@ PARAMETERS = {
         30.0, "Wall-clock s to wait for a plan (the planner server's answer).", (0.1, 3600.0)
     ),
     'max_recoveries': Param(
-        5, 'Replans (blocked, strayed, late) a goal may take before it is aborted.', (0, 1000)
+        5, 'Recoveries (blocked: back off and replan; strayed or timed out: replan) a goal '
+        'may take before it is aborted.', (0, 1000)
     ),
     'max_lateness': Param(
         1.5, "s of the robot's clock a timed path's pose may be reached after its stamp (beyond "
         'the time the plan took) before the robot replans (not a recovery); half a step of the '
         'shipped moving-light scenarios.', (0.0, 3600.0),
     ),
+    'back_off_distance': Param(
+        0.2, "m a blocked robot drives straight backwards (Nav2's BackUp) before it replans, as "
+        'the same recovery; 0: replan at once.', (0.0, 2.0),
+    ),
+    'back_off_speed': Param(0.1, 'm/s of the back-off.', (0.01, 1.0)),
     'stray_distance': Param(0.5, 'm off the path that make the robot replan.', (0.05, 100.0)),
     'goal_tolerance': Param(
         0.25, "m from the path's last pose that count as arrived (as Nav2's "

@@ -23,7 +23,8 @@ whose stamps rise is **timed**, and its stamps bind:
   turn or drive has finished (which always does, so replanning cannot keep the robot from
   getting on), and at each leg's end;
 - **recoveries**: a move that ends BUMPED (blocked) or TIMED_OUT, and a robot more than
-  ``stray_distance`` off its leg, ask for a new plan as a recovery (the navigator counts them).
+  ``stray_distance`` off its leg, ask for a new plan as a recovery (the navigator counts them);
+  a blocked one backs off first (``back_off``).
 """
 
 from __future__ import annotations
@@ -182,6 +183,7 @@ class Replan(NamedTuple):
 
     reason: str
     recovery: bool = True
+    blocked: bool = False  # the move ended BUMPED: back off first (``back_off``)
 
 
 class Arrived(NamedTuple):
@@ -261,7 +263,8 @@ class PathFollower:
         """The running move ended: None to go on (``next_move``), or a :class:`Replan`."""
         if outcome is not MoveOutcome.DONE:
             what = 'blocked' if outcome is MoveOutcome.BUMPED else 'the move timed out'
-            return Replan(f'{what}: {message}' if message else what)
+            blocked = outcome is MoveOutcome.BUMPED
+            return Replan(f'{what}: {message}' if message else what, blocked=blocked)
         if self._holding:  # the hold at the end of the leg is over
             self._holding = False
             self.leg += 1
