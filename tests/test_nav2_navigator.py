@@ -4,6 +4,7 @@ clients called the way nav2_simple_commander's BasicNavigator calls them (wait f
 send_goal_async with a feedback callback, get_result_async, cancel_goal_async; GetState on
 ``bt_navigator/get_state`` and ``amcl/get_state`` as waitUntilNav2Active does)."""
 
+from dataclasses import astuple
 import math
 import re
 import time
@@ -21,14 +22,21 @@ from stealth_env.planners import optimal_path
 from stealth_env.scenario import find_scenario, load_scenario
 from stealth_env.task import StealthTask
 from stealth_node_kit.conversions import quaternion_yaw, seconds, yaw_quaternion
+from stealth_sim.odometry_noise import MotionNoise
 from test_env_node import ros_args, start_sim, wait_for_log
 from test_nav2_planner import stamped
 
 INSTALL = REPO_ROOT / 'ros2_ws/install/stealth_nav2/lib/stealth_nav2'
 NAVIGATOR, PLANNER = INSTALL / 'navigator', INSTALL / 'planner_server'
 SCENARIO = 'lgfloor'
-# Simulated time at 4x, odometry (and so the control period) every 0.1 s simulated (25 ms wall).
-SIM = {'real_time_factor': 4.0, 'idle_period': 0.025, 'publish_rate': 10.0}
+# Simulated time at 2x (slack for a loaded machine), odometry (and so the control period) every
+# 0.1 s simulated (50 ms wall).
+SIM = {'real_time_factor': 2.0, 'idle_period': 0.025, 'publish_rate': 10.0}
+# A robot with a quarter of the simulator's default odometry noise: lgfloor's covert way runs
+# 0.1 m from the east corridor's wall, and at the default noise the estimate drifts by about
+# that much, so the robot sometimes meets the wall there and its recoveries (back off, replan)
+# cannot move it sideways (docs/nav2.md says so). What these tests check is the navigator.
+SIM.update({f'odom_alpha{i}': value / 4 for i, value in enumerate(astuple(MotionNoise()), 1)})
 SIM_TIME = {'use_sim_time': True}
 
 
@@ -184,7 +192,10 @@ def test_a_timed_path_through_the_sweeping_light_keeps_its_stamps_unseen(
     scenario, _, _, navigator = start_all(node_processes, 'lgfloor-moving')
     commander.wait_until_active()
     plans = []
-    commander.node.create_subscription(Path, 'plan', plans.append, 10)
+    listener = commander.node.create_subscription(Path, 'plan', plans.append, 10)
+    deadline = time.monotonic() + 20.0  # plan is volatile: be matched before the goal goes
+    while listener.get_publisher_count() < 1 and time.monotonic() < deadline:
+        time.sleep(0.05)
     task = StealthTask(scenario, 'hard')
     started = time.monotonic()
     handle = commander.send('to_pose', NavigateToPose.Goal(pose=stamped(task.goal.x, task.goal.y)))

@@ -82,6 +82,11 @@ PARAMETERS = {
                            (0.0, 1.0), read_only=True),
     'stall_time': Param(1.0, "s (robot's clock) without progress while driving: blocked.",
                         (0.05, 60.0), read_only=True),
+    'command_latency': Param(
+        1.0, 'When a command takes effect after the odom it answers, in odom periods: 1 a robot '
+        'that takes it at its next control cycle, 0 a simulator in lockstep with its controller '
+        "(stealth_sim's real_time_factor 0).", (0.0, 1.0), read_only=True,
+    ),
     'max_linear_speed': Param(Limits.max_linear_speed, "m/s (the robot's limit or lower).",
                               (0.01, 5.0), read_only=True),
     'max_angular_speed': Param(Limits.max_angular_speed, 'rad/s.', (0.01, 10.0), read_only=True),
