@@ -21,7 +21,7 @@ import sys
 
 import numpy as np
 from stealth_env.path_scores import DEFAULT_CRITERION
-from stealth_experiments.sweep_engine import run_grid
+from stealth_experiments.experiments import run_grid
 
 # Every shipped scenario whose lights stand still (the -moving ones have their own budgets).
 SCENARIOS = (

@@ -36,10 +36,7 @@ from pathlib import Path
 import socket
 import time
 
-from tqdm import tqdm
-
 from stealth_experiments import sweep_stop
-from stealth_experiments.harness import DEFAULT_EVAL_EVERY, RunResult, RunSpec, default_budget, run
 from stealth_experiments.sweep_pool import DEFAULT_MAX_FAILURES, Pool, Progress, scenarios_of
 from stealth_experiments.sweep_trials import objective, run_trial
 
@@ -344,51 +341,8 @@ class _TuneProgress:
 # --- the harness's grid (`make compare`) ---------------------------------------------------------
 
 
-def run_grid(
-    scenarios: Sequence[str],
-    learners: Sequence[str],
-    seeds: Sequence[int],
-    *,
-    episodes: int | None = None,
-    eval_every: int = DEFAULT_EVAL_EVERY,
-    slip: float = 0.0,
-    goal: str | None = None,
-    jobs: int = 1,
-    policy_dir: str | None = None,
-    progress: bool = True,
-) -> list[RunResult]:
-    """The harness's grid (`make compare`): every scenario x learner x seed, on ``jobs`` CPUs of a
-    local Ray (the engine of `stealth sweep` too) or, with ``jobs`` 1, one after another in this
-    process without Ray; results in grid order.
-    episodes: per run, None for each learner's DEFAULT_EPISODES."""
-    specs = [
-        RunSpec(
-            scenario,
-            learner,
-            seed,
-            episodes or default_budget(learner, scenario),
-            eval_every,
-            slip,
-            goal,
-            policy_dir,
-        )
-        for scenario in scenarios
-        for learner in learners
-        for seed in seeds
-    ]
-    if jobs <= 1:  # one after another in this process: no engine to start
-        bar = tqdm(total=len(specs), desc='runs', unit='run', disable=not progress)
-        results = []
-        for spec in specs:
-            results.append(run(spec))
-            bar.update()
-        bar.close()
-        return results
-    return run_specs(specs, jobs=jobs, progress=progress)
-
-
 def run_specs(specs, *, jobs: int, progress: bool = True):
-    """harness.run_grid's engine: each RunSpec a trial on a local Ray with ``jobs`` CPUs;
+    """experiments.run_grid's engine: each RunSpec a trial on a local Ray with ``jobs`` CPUs;
     RunResults in the order of ``specs``, policies written where their spec says."""
     import base64
 
