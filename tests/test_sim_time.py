@@ -44,18 +44,33 @@ def _domain_of(run, timeout: float = 60.0) -> int:
     raise AssertionError(f'no ROS_DOMAIN_ID announced:\n{seen}{run.stderr_path.read_text()}')
 
 
-def _use_sim_time(probe: SpinningNode, node: str) -> bool | None:
-    """The node's use_sim_time as its parameter service answers (None: no answer)."""
-    client = probe.node.create_client(GetParameters, f'/{node}/get_parameters')
+def _use_sim_time(probe: SpinningNode, nodes: tuple[str, ...], run) -> dict[str, bool | None]:
+    """Each node's use_sim_time as its parameter service answers (None: no answer). All are
+    asked at once, while the run lives: a short run may end before a one-by-one probe is done."""
+    clients = {
+        node: probe.node.create_client(GetParameters, f'/{node}/get_parameters') for node in nodes
+    }
     try:
-        if not probe.spin_until(client.service_is_ready, 60.0):
-            return None
-        future = client.call_async(GetParameters.Request(names=['use_sim_time']))
-        if not probe.spin_until(future.done, 20.0):
-            return None
-        return future.result().values[0].bool_value
+        probe.spin_until(
+            lambda: run.poll() is not None or all(c.service_is_ready() for c in clients.values()),
+            60.0,
+        )
+        request = GetParameters.Request(names=['use_sim_time'])
+        futures = {
+            node: client.call_async(request)
+            for node, client in clients.items()
+            if client.service_is_ready()
+        }
+        probe.spin_until(lambda: all(f.done() for f in futures.values()), 20.0)
+        return {
+            node: futures[node].result().values[0].bool_value
+            if node in futures and futures[node].done()
+            else None
+            for node in nodes
+        }
     finally:
-        probe.node.destroy_client(client)
+        for client in clients.values():
+            probe.node.destroy_client(client)
 
 
 def test_a_topics_run_is_on_simulated_time_faster_than_the_wall(system, monkeypatch):
@@ -66,7 +81,7 @@ def test_a_topics_run_is_on_simulated_time_faster_than_the_wall(system, monkeypa
 
     scenario = test_system.short_scenario(system.tmp_path)
     run = system.start(
-        'train', '--scenario', str(scenario), '--goal', 'easy', '--episodes', '3', '--seed', '3',
+        'train', '--scenario', str(scenario), '--goal', 'easy', '--episodes', '8', '--seed', '3',
         '--set', 'environment.robot_interface=topics', '--name', 'topics', log='topics.txt',
     )  # fmt: skip
     domain = _domain_of(run)
@@ -81,12 +96,16 @@ def test_a_topics_run_is_on_simulated_time_faster_than_the_wall(system, monkeypa
         clocks = []
         best_effort = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
         probe.node.create_subscription(Clock, '/clock', clocks.append, best_effort)
-        answers = {node: _use_sim_time(probe, node) for node in RUN_NODES}
+        answers = _use_sim_time(probe, RUN_NODES, run)
         assert probe.spin_until(lambda: len(clocks) > 1, 30.0), 'no /clock'
         probe.close()
     finally:
         context.try_shutdown()
-    assert answers == dict.fromkeys(RUN_NODES, True)
+    assert answers == dict.fromkeys(RUN_NODES, True), (
+        f'run ended ({run.returncode}) before every node answered'
+        if run.poll() is not None
+        else 'a node did not answer or is not on simulated time'
+    )
 
     assert run.wait(600) == 0, run.stderr_path.read_text()
     directory = system.runs / 'topics'
