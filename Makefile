@@ -28,9 +28,11 @@ underlay_of = $(firstword $(foreach prefix,$(subst :, ,$(AMENT_PREFIX_PATH)),\
 UNDERLAY_VENDORED := $(foreach pkg,$(VENDORED),$(call underlay_of,$(pkg)))
 SKIPPED_VENDORED := $(notdir $(UNDERLAY_VENDORED))
 SKIP_PACKAGES := $(if $(SKIPPED_VENDORED),--packages-skip $(SKIPPED_VENDORED))
+# The learning extra (jax, flax, optax: requirements-learn.in), heavy, so not in make setup/run.
+LEARN_STAMP := $(STAMPS)/learn-$(call hash_files,requirements-learn.in requirements.lock)
 BUILD_STAMP := $(STAMPS)/build-$(shell (echo $(VENV_STAMP) $(UNDERLAY_VENDORED); printf '%s\n' $(WS_SOURCES); cat $(WS_SOURCES)) | sha256sum | cut -c1-16)
 
-.PHONY: help setup venv build test test-packages test-system lint format clean distclean
+.PHONY: help setup venv learn build test test-packages test-system lint format clean distclean
 
 help: ## List the targets
 	@grep -hE '^[a-zA-Z_-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -62,6 +64,14 @@ $(VENV_STAMP):
 	@$(PYTHON) scripts/fix_ros_wheels.py
 	@mkdir -p $(STAMPS) && rm -f $(STAMPS)/venv-* && echo "$@" > $@
 
+learn: $(LEARN_STAMP) ## Install the learning extra (jax, flax, optax, pinned; ~400 MB of CPU wheels)
+
+$(LEARN_STAMP): $(VENV_STAMP)
+	@echo "setup: installing the learning extra (requirements-learn.in: jax, flax, optax) into .venv"
+	@VIRTUAL_ENV=$(VENV) $(VENV)/bin/uv pip install --quiet --compile-bytecode --python $(PYTHON) \
+		-r requirements-learn.in -c requirements.lock
+	@mkdir -p $(STAMPS) && rm -f $(STAMPS)/learn-* && echo "$@" > $@
+
 build: $(BUILD_STAMP) ## colcon build the workspace (symlink install)
 
 $(BUILD_STAMP): $(VENV_STAMP)
@@ -84,13 +94,13 @@ test: setup ## Build if needed, run every package's tests (colcon test) and the 
 	$(MAKE) --no-print-directory test-system || status=1; \
 	if [ $$status -ne 0 ]; then echo "make test: FAILED (see above)"; fi; exit $$status
 
-test-packages: setup ## colcon test: each package's pytest suite
+test-packages: setup $(LEARN_STAMP) ## colcon test: each package's pytest suite
 	@cd $(WS) && $(ROS_ENV) && rc=0 && \
 	colcon test $(SKIP_PACKAGES) --return-code-on-test-failure --event-handlers console_direct+ status- \
 		--pytest-args -q -p no:cacheprovider || rc=$$?; \
 	colcon test-result --verbose || rc=1; exit $$rc
 
-test-system: setup $(JS_STAMP) $(WS_STAMP) ## The top-level system tests in tests/
+test-system: setup $(LEARN_STAMP) $(JS_STAMP) $(WS_STAMP) ## The top-level system tests in tests/
 	@$(ROS_ENV) && python -m pytest tests -q -p no:cacheprovider
 
 lint: venv ## ruff check and format check over the whole repository
@@ -133,5 +143,5 @@ eval:
 	@echo 'make eval is now make compare' >&2
 	@$(MAKE) --no-print-directory compare
 
-bench: setup ## Benchmarks, each a ratio measured in the same run; writes bench/results.json
+bench: setup $(LEARN_STAMP) ## Benchmarks, each a ratio measured in the same run; writes bench/results.json
 	@$(ROS_ENV) && python bench/run_all.py

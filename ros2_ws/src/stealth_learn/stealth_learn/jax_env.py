@@ -1,0 +1,306 @@
+"""stealth-nav as pure JAX functions, gymnax / PureJaxRL style: jit and vmap over many
+environments and over many generated scenarios at once, explicit PRNG keys.
+
+    env, params = build(['map1'], track='full', layout='vector')   # params: a batch of 1
+    one = env.scenario(params, 0)                                  # unbatched, one scenario
+    obs, state = env.reset(key, one)
+    obs, state, reward, done, info = env.step(key, state, action, one)
+    # many environments of one scenario, and many scenarios (one each):
+    obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, one)
+    obs, state, reward, done, info = jax.vmap(env.step)(keys, state, actions, params)
+
+The step is a handful of gathers in tables computed once by the numpy core
+(``stealth_learn.env_tables``, from ``stealth_env``'s lattice model: the light law, occlusion,
+moving lights' bins, exposure, step sampling and rewards of ``StealthTask``), so it judges every
+step as the Gym env does: the same arrivals, float32 of the same rewards, the same outcomes,
+the same states and, on track 'sensed', the same sensed light (``test_jax_env`` checks it on
+generated scenarios). Only the random draws differ: slip and 'probabilistic' detection draw from
+the key, not NumPy's generator (an env without either, ``stochastic`` False, draws nothing).
+
+Semantics (gymnax's): ``step`` resets an environment whose episode ended, returning the new
+episode's first observation and state; ``info`` holds the finished step's ``outcome`` (-1 none,
+else ``reward.EpisodeOutcome``: 0 success, 1 detected, 2 timeout), ``terminated`` (goal or
+detection), ``truncated`` (the step limit), ``visibility`` (the light the step was judged on),
+``steps`` and ``episode_return`` (undiscounted, so far, this step included), ``direction`` (the
+move made, after any slip) and ``final_observation``. ``done`` = terminated or truncated.
+Actions are 0-3 the moves, then wait and turns as ``task.action_names``; an action beyond a
+scenario's own (``params.action_mask``) stays in place, out-of-range ones are clipped.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from functools import partial
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from stealth_learn.env_tables import Dims, TaskArrays, Tables, unknown_grids
+from stealth_learn.jax_deps import jax, jnp, struct
+from stealth_learn.obs_layout import CHANNELS, VECTOR, layout_id
+
+NO_OUTCOME = -1
+
+
+@struct.dataclass
+class EnvParams:
+    """One scenario's tables as jax arrays (a leading batch axis when stacked): see
+    ``env_tables.Tables`` for each field."""
+
+    successors: jax.Array
+    step_visibility: jax.Array
+    detect_p: jax.Array
+    free_reward: jax.Array
+    lit: jax.Array
+    caught_reward: jax.Array
+    goal: jax.Array
+    position: jax.Array
+    node_light: jax.Array
+    move_light: jax.Array
+    free: jax.Array
+    goal_cells: jax.Array
+    sense_bits: jax.Array
+    perpendicular: jax.Array
+    action_mask: jax.Array
+    unknown_light: jax.Array  # (Rp, Cp) the sensed memory at a start (-1 nodes, -2 none)
+    unknown_moves: jax.Array  # (2, Rp, Cp)
+    start: jax.Array
+    start_lit: jax.Array
+    step_limit: jax.Array
+    slip: jax.Array
+    goal_xy: jax.Array
+
+
+@struct.dataclass
+class EnvState:
+    place: jax.Array  # int32: layer * rows * cols + row * cols + col
+    steps: jax.Array  # int32: actions taken this episode
+    lit: jax.Array  # bool: the last judged light reached the threshold
+    episode_return: jax.Array  # float32
+    node_memory: jax.Array  # (Rp, Cp) float32: last light sensed; (0, 0) on track 'full'
+    node_seen: jax.Array  # (Rp, Cp) int32: the step it was sensed at, -1 never
+    move_memory: jax.Array  # (2, Rp, Cp) float32
+    move_seen: jax.Array  # (2, Rp, Cp) int32
+
+
+class Observation(NamedTuple):
+    """Layout 'grid' (``obs_layout``): the (rows, cols, 7) grid and the (8,) vector."""
+
+    grid: jax.Array
+    vector: jax.Array
+
+
+def params_of(tables: Tables) -> EnvParams:
+    """One scenario's EnvParams (jax arrays) from its padded tables."""
+    light, moves = unknown_grids(tables)
+    fields = {name: getattr(tables, name) for name in EnvParams.__dataclass_fields__
+              if hasattr(tables, name)}  # fmt: skip
+    fields.update(
+        unknown_light=light,
+        unknown_moves=moves,
+        start=np.int32(tables.start),
+        start_lit=np.bool_(tables.start_lit),
+        step_limit=np.int32(tables.step_limit),
+        slip=np.float32(tables.slip),
+        goal_xy=np.asarray(tables.goal_xy, np.float32),
+    )
+    return EnvParams(**{name: jnp.asarray(value) for name, value in fields.items()})
+
+
+def stack(params: Sequence[EnvParams]) -> EnvParams:
+    """A batch of scenarios' params (same Dims) along a new leading axis, for vmap."""
+    return jax.tree.map(lambda *leaves: jnp.stack(leaves), *params)
+
+
+class StealthJaxEnv:
+    """The environment's static side: dims, track, layout and whether it draws random numbers.
+    Its methods are pure functions of (key, state, action, params); jit-compiled per instance.
+    """
+
+    def __init__(self, dims: Dims, track: str = 'full', layout: str = 'grid', stochastic=False):
+        self.layout_id = layout_id(layout, track, dims.rows, dims.cols)
+        self.dims, self.track, self.layout = dims, track, layout
+        self.stochastic = bool(stochastic)
+
+    @property
+    def num_actions(self) -> int:
+        return self.dims.actions
+
+    def scenario(self, params: EnvParams, index: int) -> EnvParams:
+        """Scenario ``index``'s params out of a stacked batch."""
+        return jax.tree.map(lambda leaf: leaf[index], params)
+
+    # --- the gymnax interface --------------------------------------------------------------
+
+    @partial(jax.jit, static_argnums=0)
+    def reset(self, key: jax.Array, params: EnvParams):
+        """(obs, state) of a new episode at the scenario's start (the key is unused: the start
+        is fixed; kept for gymnax's signature)."""
+        return self.reset_env(key, params)
+
+    @partial(jax.jit, static_argnums=0)
+    def step(self, key: jax.Array, state: EnvState, action, params: EnvParams):
+        """(obs, state, reward, done, info), resetting an environment whose episode ended."""
+        key_step, key_reset = jax.random.split(key)
+        obs_st, state_st, reward, done, info = self.step_env(key_step, state, action, params)
+        obs_re, state_re = self.reset_env(key_reset, params)
+        state = jax.tree.map(lambda r, s: jax.lax.select(done, r, s), state_re, state_st)
+        obs = jax.tree.map(lambda r, s: jax.lax.select(done, r, s), obs_re, obs_st)
+        return obs, state, reward, done, {**info, 'final_observation': obs_st}
+
+    def reset_env(self, key: jax.Array, params: EnvParams):
+        del key
+        state = EnvState(
+            place=params.start,
+            steps=jnp.int32(0),
+            lit=params.start_lit,
+            episode_return=jnp.float32(0.0),
+            node_memory=params.unknown_light,
+            node_seen=jnp.full(params.unknown_light.shape, -1, jnp.int32),
+            move_memory=params.unknown_moves,
+            move_seen=jnp.full(params.unknown_moves.shape, -1, jnp.int32),
+        )
+        if self.track == 'sensed':
+            state = self._sense(state, params)
+        return self.observe(state, params), state
+
+    def step_env(self, key: jax.Array, state: EnvState, action, params: EnvParams):
+        """One step without the reset: (obs, state, reward, done, info)."""
+        action = jnp.clip(jnp.asarray(action, jnp.int32), 0, self.dims.actions - 1)
+        direction, detected = action, None
+        place = state.place
+        if self.stochastic:
+            k_slip, k_side, k_detect = jax.random.split(key, 3)
+            sideways = params.perpendicular[action]
+            slips = (sideways[0] >= 0) & (jax.random.uniform(k_slip) < params.slip)
+            side = sideways[jax.random.randint(k_side, (), 0, 2)]
+            direction = jnp.where(slips, side, action)
+            detected = jax.random.uniform(k_detect) < params.detect_p[place, direction]
+        else:  # threshold detection: the probability is 1 or 0
+            detected = params.detect_p[place, direction] > 0.5
+        arrival = params.successors[place, direction]
+        goal = params.goal[arrival]
+        reward = jnp.where(
+            detected, params.caught_reward[arrival], params.free_reward[place, direction]
+        )
+        steps = state.steps + 1
+        terminated = detected | goal
+        truncated = ~terminated & (steps >= params.step_limit)
+        outcome = jnp.where(detected, 1, jnp.where(goal, 0, jnp.where(truncated, 2, NO_OUTCOME)))
+        episode_return = state.episode_return + reward
+        state = state.replace(
+            place=arrival,
+            steps=steps,
+            lit=params.lit[place, direction],
+            episode_return=episode_return,
+        )
+        if self.track == 'sensed':
+            state = self._sense(state, params)
+        info = {
+            'outcome': outcome.astype(jnp.int32),
+            'terminated': terminated,
+            'truncated': truncated,
+            'visibility': params.step_visibility[place, direction],
+            'steps': steps,
+            'episode_return': episode_return,
+            'direction': direction,
+        }
+        return self.observe(state, params), state, reward, terminated | truncated, info
+
+    # --- sensing and observations ----------------------------------------------------------
+
+    def _where(self, place):
+        """(layer, row, col) of a place."""
+        dims = self.dims
+        layer, cell = jnp.divmod(place, dims.cells)
+        row, col = jnp.divmod(cell, dims.cols)
+        return layer, row, col
+
+    def _sense(self, state: EnvState, params: EnvParams) -> EnvState:
+        """Remember what is in sight from the robot's node: the light of its layer (bin and
+        heading) on the nodes and moves of its window that the mask marks."""
+        side = self.dims.side
+        layer, row, col = self._where(state.place)
+        cell = state.place % self.dims.cells
+        bits = jnp.unpackbits(params.sense_bits[cell])[: 3 * side * side]
+        mask = bits.reshape(3, side, side).astype(bool)
+        window = (side, side)
+        truth = jax.lax.dynamic_slice(params.node_light[layer], (row, col), window)
+        old = jax.lax.dynamic_slice(state.node_memory, (row, col), window)
+        seen = jax.lax.dynamic_slice(state.node_seen, (row, col), window)
+        node_memory = jax.lax.dynamic_update_slice(
+            state.node_memory, jnp.where(mask[0], truth, old), (row, col)
+        )
+        node_seen = jax.lax.dynamic_update_slice(
+            state.node_seen, jnp.where(mask[0], state.steps, seen), (row, col)
+        )
+        truth = jax.lax.dynamic_slice(params.move_light[layer], (0, row, col), (2, *window))
+        old = jax.lax.dynamic_slice(state.move_memory, (0, row, col), (2, *window))
+        seen = jax.lax.dynamic_slice(state.move_seen, (0, row, col), (2, *window))
+        move_memory = jax.lax.dynamic_update_slice(
+            state.move_memory, jnp.where(mask[1:], truth, old), (0, row, col)
+        )
+        move_seen = jax.lax.dynamic_update_slice(
+            state.move_seen, jnp.where(mask[1:], state.steps, seen), (0, row, col)
+        )
+        return state.replace(
+            node_memory=node_memory, node_seen=node_seen, move_memory=move_memory,
+            move_seen=move_seen,
+        )  # fmt: skip
+
+    def vector(self, state: EnvState, params: EnvParams) -> jax.Array:
+        """(8,) float32, ``obs_layout.VECTOR``."""
+        position = params.position[state.place]
+        x, y = position[0], position[1]
+        return jnp.stack([
+            x, y, position[2], position[3], state.lit.astype(jnp.float32),
+            state.steps / params.step_limit, params.goal_xy[0] - x, params.goal_xy[1] - y,
+        ]).astype(jnp.float32)  # fmt: skip
+
+    def observe(self, state: EnvState, params: EnvParams) -> Any:
+        """The observation of a state in this env's layout (``obs_layout``)."""
+        vector = self.vector(state, params)
+        if self.layout == 'vector':
+            return vector
+        dims, w = self.dims, self.dims.window
+        layer, row, col = self._where(state.place)
+        crop = (slice(w, w + dims.rows), slice(w, w + dims.cols))
+        if self.track == 'sensed':
+            light, moves = state.node_memory[crop], state.move_memory[:, crop[0], crop[1]]
+            age = jnp.where(state.node_seen[crop] >= 0, state.steps - state.node_seen[crop], -1)
+        else:
+            light = params.node_light[layer][crop]
+            moves = params.move_light[layer][:, crop[0], crop[1]]
+            age = jnp.zeros((dims.rows, dims.cols), jnp.int32)
+        robot = jnp.zeros((dims.rows, dims.cols), jnp.float32).at[row, col].set(1.0)
+        grid = jnp.stack(
+            [params.free.astype(jnp.float32), robot, params.goal_cells.astype(jnp.float32),
+             light, moves[0], moves[1], age.astype(jnp.float32)],
+            axis=-1,
+        )  # fmt: skip
+        return Observation(grid, vector)
+
+
+def build(
+    scenarios: Sequence,
+    track: str = 'full',
+    layout: str = 'grid',
+    slip: float = 0.0,
+    dims: Dims | None = None,
+) -> tuple[StealthJaxEnv, EnvParams]:
+    """An env and the stacked params of ``scenarios`` (each a scenario name, path or
+    ``Scenario``, or a (scenario, goal) pair), padded to ``dims`` (default: the least covering
+    them all). ``stochastic`` is set when slip > 0 or any scenario detects by chance."""
+    arrays = [
+        TaskArrays(*(item if isinstance(item, tuple) else (item, None)), track=track)
+        for item in scenarios
+    ]
+    if not arrays:
+        raise ValueError('scenarios: expected at least one scenario')
+    dims = Dims.union(a.dims for a in arrays) if dims is None else dims
+    params = stack([params_of(a.tables(dims, slip)) for a in arrays])
+    probabilistic = any(a.task.scenario.detection_mode != 'threshold' for a in arrays)
+    return StealthJaxEnv(dims, track, layout, stochastic=slip > 0 or probabilistic), params
+
+
+__all__ = ['CHANNELS', 'VECTOR', 'EnvParams', 'EnvState', 'Observation', 'StealthJaxEnv', 'build']
