@@ -163,23 +163,23 @@ def _pad(arrays: TaskArrays, dims: Dims, slip: float) -> Tables:
         successors[:, own_actions:] = np.arange(model.size)[:, None]
         visibility[:, own_actions:] = model.visibility[:, None]
     judged = _judgements(task, model, successors, visibility)
-    P, A = dims.places, dims.actions
+    places, actions = dims.places, dims.actions
     out = {
-        'successors': np.repeat(np.arange(P, dtype=np.int32)[:, None], A, axis=1),
-        'step_visibility': np.zeros((P, A), np.float32),
-        'detect_p': np.zeros((P, A), np.float32),
-        'free_reward': np.zeros((P, A), np.float32),
-        'lit': np.zeros((P, A), bool),
+        'successors': np.repeat(np.arange(places, dtype=np.int32)[:, None], actions, axis=1),
+        'step_visibility': np.zeros((places, actions), np.float32),
+        'detect_p': np.zeros((places, actions), np.float32),
+        'free_reward': np.zeros((places, actions), np.float32),
+        'lit': np.zeros((places, actions), bool),
     }
     out['successors'][place_of] = place_of[successors]
     out['step_visibility'][place_of] = visibility
     for name in ('detect_p', 'free_reward', 'lit'):
         out[name][place_of] = judged[name]
-    caught_reward = np.zeros(P, np.float32)
+    caught_reward = np.zeros(places, np.float32)
     caught_reward[place_of] = judged['caught_reward']
-    goal = np.zeros(P, bool)
+    goal = np.zeros(places, bool)
     goal[place_of] = judged['goal']
-    position = np.zeros((P, 4), np.float32)
+    position = np.zeros((places, 4), np.float32)
     states = model.states
     position[place_of, :2] = states[:, :2]
     if task.timing is not None:
@@ -191,7 +191,7 @@ def _pad(arrays: TaskArrays, dims: Dims, slip: float) -> Tables:
     free[sensing.grid_row, sensing.grid_col] = True
     goal_cells = np.zeros((dims.rows, dims.cols), bool)
     goal_cells[sensing.grid_row, sensing.grid_col] = model.goal[:n]
-    perpendicular = np.full((A, 2), NO_ACTION, np.int32)
+    perpendicular = np.full((actions, 2), NO_ACTION, np.int32)
     for action in range(own_actions):
         if PERPENDICULAR[action]:
             perpendicular[action] = PERPENDICULAR[action]
@@ -208,7 +208,7 @@ def _pad(arrays: TaskArrays, dims: Dims, slip: float) -> Tables:
         goal_cells=goal_cells,
         sense_bits=_sense_bits(arrays, dims) if arrays.track == 'sensed' else _no_bits(dims),
         perpendicular=perpendicular,
-        action_mask=np.arange(A) < own_actions,
+        action_mask=np.arange(actions) < own_actions,
         start=int(place_of[model.start]),
         start_lit=start_visibility >= scenario.detection_threshold,
         step_limit=int(task.step_limit),

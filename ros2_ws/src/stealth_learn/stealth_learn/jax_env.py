@@ -35,7 +35,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from stealth_learn.env_tables import Dims, TaskArrays, Tables, unknown_grids
+from stealth_learn.env_tables import Dims, Tables, TaskArrays, unknown_grids
 from stealth_learn.jax_deps import jax, jnp, struct
 from stealth_learn.obs_layout import CHANNELS, VECTOR, layout_id
 
@@ -67,6 +67,7 @@ class EnvParams:
     start: jax.Array
     start_lit: jax.Array
     step_limit: jax.Array
+    time_step: jax.Array  # float32 1 / step_limit (a product, the same in and out of vmap)
     slip: jax.Array
     goal_xy: jax.Array
 
@@ -101,6 +102,7 @@ def params_of(tables: Tables) -> EnvParams:
         start=np.int32(tables.start),
         start_lit=np.bool_(tables.start_lit),
         step_limit=np.int32(tables.step_limit),
+        time_step=np.float32(1.0 / tables.step_limit),
         slip=np.float32(tables.slip),
         goal_xy=np.asarray(tables.goal_xy, np.float32),
     )
@@ -252,10 +254,11 @@ class StealthJaxEnv:
         """(8,) float32, ``obs_layout.VECTOR``."""
         position = params.position[state.place]
         x, y = position[0], position[1]
-        return jnp.stack([
-            x, y, position[2], position[3], state.lit.astype(jnp.float32),
-            state.steps / params.step_limit, params.goal_xy[0] - x, params.goal_xy[1] - y,
-        ]).astype(jnp.float32)  # fmt: skip
+        time_used = state.steps.astype(jnp.float32) * params.time_step
+        goal_dx, goal_dy = params.goal_xy[0] - x, params.goal_xy[1] - y
+        lit = state.lit.astype(jnp.float32)
+        vector = [x, y, position[2], position[3], lit, time_used, goal_dx, goal_dy]
+        return jnp.stack(vector).astype(jnp.float32)
 
     def observe(self, state: EnvState, params: EnvParams) -> Any:
         """The observation of a state in this env's layout (``obs_layout``)."""
