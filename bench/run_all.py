@@ -28,7 +28,8 @@ import traceback
 BENCH_DIR = Path(__file__).resolve().parent
 REPOSITORY = BENCH_DIR.parent
 # The pure-Python cores the benches use (stealth_experiments: the experiment harness, which
-# writes its reports with stealth_bringup's run outputs; stealth_nav2: the covert planner's).
+# writes its reports with stealth_bringup's run outputs; stealth_nav2: the covert planner's;
+# stealth_learn: the JAX environment).
 PACKAGES = (
     'stealth_sim',
     'stealth_env',
@@ -37,6 +38,7 @@ PACKAGES = (
     'stealth_experiments',
     'stealth_node_kit',
     'stealth_nav2',
+    'stealth_learn',
 )
 DEFAULT_OUT = BENCH_DIR / 'results.json'
 RATIO_WORDS = ('ratio', 'speedup', 'per_optimum', 'relative')

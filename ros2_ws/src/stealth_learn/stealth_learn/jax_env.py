@@ -68,8 +68,13 @@ class EnvParams:
     start_lit: jax.Array
     step_limit: jax.Array
     time_step: jax.Array  # float32 1 / step_limit (a product, the same in and out of vmap)
+    vector_base: jax.Array  # (P, 8) float32: the vector of each place, lit and time_used 0
     slip: jax.Array
     goal_xy: jax.Array
+    # Track 'sensed': the memory after sensing at the start (node_memory, node_seen,
+    # move_memory, move_seen), filled by ``StealthJaxEnv.with_first_memory`` (``build`` does),
+    # so an auto-reset reads it instead of sensing again; None: sensed at each reset.
+    first_memory: Any = None
 
 
 @struct.dataclass
@@ -105,6 +110,7 @@ def params_of(tables: Tables) -> EnvParams:
         time_step=np.float32(1.0 / tables.step_limit),
         slip=np.float32(tables.slip),
         goal_xy=np.asarray(tables.goal_xy, np.float32),
+        vector_base=_vector_base(tables),
     )
     return EnvParams(**{name: jnp.asarray(value) for name, value in fields.items()})
 
@@ -112,6 +118,20 @@ def params_of(tables: Tables) -> EnvParams:
 def stack(params: Sequence[EnvParams]) -> EnvParams:
     """A batch of scenarios' params (same Dims) along a new leading axis, for vmap."""
     return jax.tree.map(lambda *leaves: jnp.stack(leaves), *params)
+
+
+_LIT, _TIME = (
+    np.eye(len(VECTOR), dtype=np.float32)[VECTOR.index(k)] for k in ('lit', 'time_used')
+)
+
+
+def _vector_base(tables: Tables) -> np.ndarray:
+    """(P, 8) float32: x, y, phase, heading, 0, 0, and the goal's offset, per place."""
+    base = np.zeros((len(tables.position), len(VECTOR)), np.float32)
+    base[:, :4] = tables.position
+    base[:, 6] = np.float32(tables.goal_xy[0]) - tables.position[:, 0]
+    base[:, 7] = np.float32(tables.goal_xy[1]) - tables.position[:, 1]
+    return base
 
 
 class StealthJaxEnv:
@@ -152,19 +172,37 @@ class StealthJaxEnv:
 
     def reset_env(self, key: jax.Array, params: EnvParams):
         del key
+        light, moves = params.unknown_light, params.unknown_moves
+        if self.track == 'full':  # nothing sensed, nothing remembered: no memory to carry
+            light, moves = jnp.zeros((0, 0), jnp.float32), jnp.zeros((2, 0, 0), jnp.float32)
         state = EnvState(
             place=params.start,
             steps=jnp.int32(0),
             lit=params.start_lit,
             episode_return=jnp.float32(0.0),
-            node_memory=params.unknown_light,
-            node_seen=jnp.full(params.unknown_light.shape, -1, jnp.int32),
-            move_memory=params.unknown_moves,
-            move_seen=jnp.full(params.unknown_moves.shape, -1, jnp.int32),
+            node_memory=light,
+            node_seen=jnp.full(light.shape, -1, jnp.int32),
+            move_memory=moves,
+            move_seen=jnp.full(moves.shape, -1, jnp.int32),
         )
-        if self.track == 'sensed':
+        if self.track == 'sensed' and params.first_memory is not None:
+            memory = dict(zip(('node_memory', 'node_seen', 'move_memory', 'move_seen'),
+                              params.first_memory, strict=True))  # fmt: skip
+            state = state.replace(**memory)
+        elif self.track == 'sensed':
             state = self._sense(state, params)
         return self.observe(state, params), state
+
+    def with_first_memory(self, params: EnvParams, batched: bool = True) -> EnvParams:
+        """``params`` with ``first_memory`` filled (track 'sensed'; unchanged otherwise)."""
+        if self.track != 'sensed':
+            return params
+
+        def first(one):
+            state = self.reset_env(None, one.replace(first_memory=None))[1]
+            return (state.node_memory, state.node_seen, state.move_memory, state.move_seen)
+
+        return params.replace(first_memory=jax.jit(jax.vmap(first) if batched else first)(params))
 
     def step_env(self, key: jax.Array, state: EnvState, action, params: EnvParams):
         """One step without the reset: (obs, state, reward, done, info)."""
@@ -251,14 +289,11 @@ class StealthJaxEnv:
         )  # fmt: skip
 
     def vector(self, state: EnvState, params: EnvParams) -> jax.Array:
-        """(8,) float32, ``obs_layout.VECTOR``."""
-        position = params.position[state.place]
-        x, y = position[0], position[1]
+        """(8,) float32, ``obs_layout.VECTOR``: the place's row of ``vector_base`` with lit and
+        the time used (one gather and a fused update: the step's largest cost otherwise)."""
         time_used = state.steps.astype(jnp.float32) * params.time_step
-        goal_dx, goal_dy = params.goal_xy[0] - x, params.goal_xy[1] - y
         lit = state.lit.astype(jnp.float32)
-        vector = [x, y, position[2], position[3], lit, time_used, goal_dx, goal_dy]
-        return jnp.stack(vector).astype(jnp.float32)
+        return params.vector_base[state.place] + lit * _LIT + time_used * _TIME
 
     def observe(self, state: EnvState, params: EnvParams) -> Any:
         """The observation of a state in this env's layout (``obs_layout``)."""
@@ -303,7 +338,8 @@ def build(
     dims = Dims.union(a.dims for a in arrays) if dims is None else dims
     params = stack([params_of(a.tables(dims, slip)) for a in arrays])
     probabilistic = any(a.task.scenario.detection_mode != 'threshold' for a in arrays)
-    return StealthJaxEnv(dims, track, layout, stochastic=slip > 0 or probabilistic), params
+    env = StealthJaxEnv(dims, track, layout, stochastic=slip > 0 or probabilistic)
+    return env, env.with_first_memory(params)
 
 
 __all__ = ['CHANNELS', 'VECTOR', 'EnvParams', 'EnvState', 'Observation', 'StealthJaxEnv', 'build']
