@@ -21,9 +21,11 @@ node), so the JAX environment inherits their rules rather than copying them:
   stays in place as a blocked move does (it waits where lights move); ``action_mask`` says which
   are the scenario's own. Slip picks one of ``planners.PERPENDICULAR``'s two moves.
 - **Sensing** (track 'sensed'): for each node, the nodes and moves in sight (``Sensing.visible``)
-  as a bit mask over a window of ``2 * window + 1`` nodes a side centred on the robot
-  (``window`` = sensing range / step distance, rounded up), packed with ``np.packbits``.
-  Tracing every node costs about 10 ms a node, so only the sensed track does it.
+  as a bit mask over a window of ``2 * window + 1`` nodes a side (``window`` = sensing range /
+  step distance, rounded up) around the robot, packed with ``np.packbits``. The window is
+  centred on the robot but kept inside the grid (``window_start``), so the memory needs no
+  margin; a grid smaller than the window is padded to it (track 'sensed' only). Tracing every
+  node costs about 10 ms a node, so only the sensed track does it.
 """
 
 from __future__ import annotations
@@ -85,8 +87,7 @@ class Dims:
 @dataclasses.dataclass(frozen=True)
 class Tables:
     """One scenario's padded tables (numpy); ``jax_env.EnvParams`` holds them as jax arrays.
-    Shapes: P places, A actions, R x C grid, L layers, W the window side, Rp = R + 2 * window
-    (and Cp likewise: the light grids are padded by the window so it never clips)."""
+    Shapes: P places, A actions, R x C grid, L layers, W the window side."""
 
     successors: np.ndarray  # (P, A) int32: the place a step leads to
     step_visibility: np.ndarray  # (P, A) float32: the light the step is judged on
@@ -96,8 +97,8 @@ class Tables:
     caught_reward: np.ndarray  # (P,) float32: the reward for being detected arriving there
     goal: np.ndarray  # (P,) bool: within the goal's radius
     position: np.ndarray  # (P, 4) float32: x, y (state grid, m), phase, heading (0 if none)
-    node_light: np.ndarray  # (L, Rp, Cp) float32: the light on each node; -2 no node
-    move_light: np.ndarray  # (L, 2, Rp, Cp) float32: up [0] and right [1] moves; -2 none
+    node_light: np.ndarray  # (L, R, C) float32: the light on each node; -2 no node
+    move_light: np.ndarray  # (L, 2, R, C) float32: up [0] and right [1] moves; -2 none
     free: np.ndarray  # (R, C) bool: a valid lattice node
     goal_cells: np.ndarray  # (R, C) bool
     sense_bits: np.ndarray  # (R * C, bytes) uint8: packed (3, W, W) masks; (R * C, 0) on 'full'
@@ -128,6 +129,8 @@ class TaskArrays:
         rows, cols = self.sensing.shape
         scenario = self.task.scenario
         window = math.ceil(self.sensing.range / scenario.step_distance - 1e-9)
+        if track == 'sensed':  # the window fits in the grid (see "Sensing")
+            rows, cols = max(rows, 2 * window + 1), max(cols, 2 * window + 1)
         self.dims = Dims(rows, cols, self.model.layers, self.model.num_actions, window)
 
     def tables(self, dims: Dims | None = None, slip: float = 0.0) -> Tables:
@@ -250,45 +253,53 @@ def _judgements(task, model, successors, visibility) -> dict:
 
 
 def _light_grids(arrays: TaskArrays, dims: Dims) -> tuple[np.ndarray, np.ndarray]:
-    """(L, Rp, Cp) node light and (L, 2, Rp, Cp) move light of every layer (the truth the robot
-    senses: ``Sensing.truth``), -2 where no node or move is, padded by the window."""
-    model, sensing, w = arrays.model, arrays.sensing, dims.window
+    """(L, R, C) node light and (L, 2, R, C) move light of every layer (the truth the robot
+    senses: ``Sensing.truth``), -2 where no node or move is."""
+    model, sensing = arrays.model, arrays.sensing
     rows, cols = sensing.shape
-    node_light = np.full((dims.layers, dims.rows + 2 * w, dims.cols + 2 * w), NO_PLACE, np.float32)
+    node_light = np.full((dims.layers, dims.rows, dims.cols), NO_PLACE, np.float32)
     move_light = np.full((dims.layers, 2, *node_light.shape[1:]), NO_PLACE, np.float32)
     for layer in range(model.layers):
         nodes, moves = sensing.truth(layer * sensing.n)
-        node_light[layer, w : w + rows, w : w + cols] = sensing.grid(nodes)
-        move_light[layer, :, w : w + rows, w : w + cols] = sensing.move_grid(moves)
+        node_light[layer, :rows, :cols] = sensing.grid(nodes)
+        move_light[layer, :, :rows, :cols] = sensing.move_grid(moves)
     return node_light, move_light
 
 
 def unknown_grids(tables: Tables) -> tuple[np.ndarray, np.ndarray]:
     """The sensed memory at an episode's start: -1 (never sensed) on every node and move, -2
-    where none is; padded like the light grids."""
+    where none is."""
     return (
         np.where(tables.node_light[0] != NO_PLACE, UNKNOWN, NO_PLACE).astype(np.float32),
         np.where(tables.move_light[0] != NO_PLACE, UNKNOWN, NO_PLACE).astype(np.float32),
     )
 
 
+def window_start(position, size: int, side: int):
+    """The first row (or col) of the sensing window around ``position`` in a grid of ``size``:
+    centred, moved inside the grid at its edges (numpy or jax arrays alike)."""
+    return (position - side // 2).clip(0, size - side)
+
+
 def _sense_bits(arrays: TaskArrays, dims: Dims) -> np.ndarray:
-    """(R * C, bytes) uint8: per cell, the (3, W, W) mask of what is in sight from its node,
-    centred on it ([0] nodes, [1] moves up, [2] moves right), bit-packed."""
-    sensing, w, side = arrays.sensing, dims.window, dims.side
+    """(R * C, bytes) uint8: per cell, the (3, W, W) mask of what is in sight from its node
+    over its window (``window_start``: [0] nodes, [1] moves up, [2] moves right), bit-packed."""
+    if dims.rows < dims.side or dims.cols < dims.side:
+        raise TableError(
+            f'dims {dims}: the sensed track needs rows and cols >= the window side {dims.side}'
+        )
+    sensing, side = arrays.sensing, dims.side
     masks = np.zeros((dims.cells, 3, side, side), bool)
     rows, cols = sensing.grid_row, sensing.grid_col
+    top, left = window_start(rows, dims.rows, side), window_start(cols, dims.cols, side)
     move_rows, move_cols = rows[sensing.move_from], cols[sensing.move_from]
     channel = 1 + (sensing.move_direction == 3).astype(np.int64)  # 3: RIGHT
     for node in range(sensing.n):
         nodes, moves = sensing.visible(node)
         here = rows[node] * dims.cols + cols[node]
-        masks[here, 0, rows[nodes] - rows[node] + w, cols[nodes] - cols[node] + w] = True
+        masks[here, 0, rows[nodes] - top[node], cols[nodes] - left[node]] = True
         masks[
-            here,
-            channel[moves],
-            move_rows[moves] - rows[node] + w,
-            move_cols[moves] - cols[node] + w,
+            here, channel[moves], move_rows[moves] - top[node], move_cols[moves] - left[node]
         ] = True
     return np.packbits(masks.reshape(dims.cells, -1), axis=1)
 

@@ -35,7 +35,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from stealth_learn.env_tables import Dims, Tables, TaskArrays, unknown_grids
+from stealth_learn.env_tables import Dims, Tables, TaskArrays, unknown_grids, window_start
 from stealth_learn.jax_deps import jax, jnp, struct
 from stealth_learn.obs_layout import CHANNELS, VECTOR, layout_id
 
@@ -62,8 +62,8 @@ class EnvParams:
     sense_bits: jax.Array
     perpendicular: jax.Array
     action_mask: jax.Array
-    unknown_light: jax.Array  # (Rp, Cp) the sensed memory at a start (-1 nodes, -2 none)
-    unknown_moves: jax.Array  # (2, Rp, Cp)
+    unknown_light: jax.Array  # (R, C) the sensed memory at a start (-1 nodes, -2 none)
+    unknown_moves: jax.Array  # (2, R, C)
     start: jax.Array
     start_lit: jax.Array
     step_limit: jax.Array
@@ -83,10 +83,10 @@ class EnvState:
     steps: jax.Array  # int32: actions taken this episode
     lit: jax.Array  # bool: the last judged light reached the threshold
     episode_return: jax.Array  # float32
-    node_memory: jax.Array  # (Rp, Cp) float32: last light sensed; (0, 0) on track 'full'
-    node_seen: jax.Array  # (Rp, Cp) int32: the step it was sensed at, -1 never
-    move_memory: jax.Array  # (2, Rp, Cp) float32
-    move_seen: jax.Array  # (2, Rp, Cp) int32
+    node_memory: jax.Array  # (R, C) float32: last light sensed; (0, 0) on track 'full'
+    node_seen: jax.Array  # (R, C) int32: the step it was sensed at, -1 never
+    move_memory: jax.Array  # (2, R, C) float32
+    move_seen: jax.Array  # (2, R, C) int32
 
 
 class Observation(NamedTuple):
@@ -260,8 +260,10 @@ class StealthJaxEnv:
         """Remember what is in sight from the robot's node: the light of its layer (bin and
         heading) on the nodes and moves of its window that the mask marks."""
         side = self.dims.side
+        dims = self.dims
         layer, row, col = self._where(state.place)
-        cell = state.place % self.dims.cells
+        row, col = window_start(row, dims.rows, side), window_start(col, dims.cols, side)
+        cell = state.place % dims.cells
         bits = jnp.unpackbits(params.sense_bits[cell])[: 3 * side * side]
         mask = bits.reshape(3, side, side).astype(bool)
         window = (side, side)
@@ -300,17 +302,16 @@ class StealthJaxEnv:
         vector = self.vector(state, params)
         if self.layout == 'vector':
             return vector
-        dims, w = self.dims, self.dims.window
-        layer, row, col = self._where(state.place)
-        crop = (slice(w, w + dims.rows), slice(w, w + dims.cols))
+        dims = self.dims
+        layer, cell = jnp.divmod(state.place, dims.cells)
         if self.track == 'sensed':
-            light, moves = state.node_memory[crop], state.move_memory[:, crop[0], crop[1]]
-            age = jnp.where(state.node_seen[crop] >= 0, state.steps - state.node_seen[crop], -1)
+            light, moves, seen = state.node_memory, state.move_memory, state.node_seen
+            age = jnp.where(seen >= 0, state.steps - seen, -1)
         else:
-            light = params.node_light[layer][crop]
-            moves = params.move_light[layer][:, crop[0], crop[1]]
+            light, moves = params.node_light[layer], params.move_light[layer]
             age = jnp.zeros((dims.rows, dims.cols), jnp.int32)
-        robot = jnp.zeros((dims.rows, dims.cols), jnp.float32).at[row, col].set(1.0)
+        cells = jnp.arange(dims.cells, dtype=jnp.int32).reshape(dims.rows, dims.cols)
+        robot = (cells == cell).astype(jnp.float32)  # a compare, not a scatter: cheap in vmap
         grid = jnp.stack(
             [params.free.astype(jnp.float32), robot, params.goal_cells.astype(jnp.float32),
              light, moves[0], moves[1], age.astype(jnp.float32)],
