@@ -24,6 +24,7 @@ LAYERS = (
     'stealth_env',
     'stealth_agent',
     'stealth_nav2',
+    'stealth_learn',
     'stealth_tools',
     'stealth_bringup',
     'stealth_experiments',
@@ -43,6 +44,8 @@ MAY_IMPORT = {
         'stealth_env',
         'stealth_agent',
     },
+    # Learning across buildings: the environment's core (tables from its lattice model), no ROS.
+    'stealth_learn': {'stealth_env'},
     'stealth_tools': {'stealth_interfaces', 'stealth_node_kit'},
     'stealth_bringup': set(LAYERS) - {'stealth_bringup', 'stealth_experiments'},
     'stealth_experiments': {'stealth_env', 'stealth_agent', 'stealth_tools', 'stealth_bringup'},

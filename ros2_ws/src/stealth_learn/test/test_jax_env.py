@@ -104,9 +104,10 @@ def test_full_track_equals_gym(generated, name, expected):
     assert expected <= outcomes
 
 
-@pytest.mark.parametrize('name', ['moving', 'still'])
+@pytest.mark.parametrize('name', ['moving', 'still', 'simple-maze-moving'])
 def test_sensed_track_equals_gym(generated, name):
-    scenario = generated[name]
+    """Including simple-maze-moving, whose 30 x 30 lattice is padded to the 33-node window."""
+    scenario = generated.get(name, name)
     rows, cols = gym_env(scenario, 'sensed').sensor.sensing.shape
     task = gym_env(scenario).task
     sensed_any = False
