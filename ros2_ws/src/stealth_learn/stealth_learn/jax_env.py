@@ -72,7 +72,7 @@ class EnvParams:
     slip: jax.Array
     goal_xy: jax.Array
     # Track 'sensed': the memory after sensing at the start (node_memory, node_seen,
-    # move_memory, move_seen), filled by ``StealthJaxEnv.with_first_memory`` (``build`` does),
+    # move_memory), filled by ``StealthJaxEnv.with_first_memory`` (``build`` does),
     # so an auto-reset reads it instead of sensing again; None: sensed at each reset.
     first_memory: Any = None
 
@@ -86,7 +86,6 @@ class EnvState:
     node_memory: jax.Array  # (R, C) float32: last light sensed; (0, 0) on track 'full'
     node_seen: jax.Array  # (R, C) int32: the step it was sensed at, -1 never
     move_memory: jax.Array  # (2, R, C) float32
-    move_seen: jax.Array  # (2, R, C) int32
 
 
 class Observation(NamedTuple):
@@ -165,9 +164,11 @@ class StealthJaxEnv:
         """(obs, state, reward, done, info), resetting an environment whose episode ended."""
         key_step, key_reset = jax.random.split(key)
         obs_st, state_st, reward, done, info = self.step_env(key_step, state, action, params)
-        obs_re, state_re = self.reset_env(key_reset, params)
+        _, state_re = self.reset_env(key_reset, params)
         state = jax.tree.map(lambda r, s: jax.lax.select(done, r, s), state_re, state_st)
-        obs = jax.tree.map(lambda r, s: jax.lax.select(done, r, s), obs_re, obs_st)
+        # The observation of the state kept (the reset's or the step's): one observation built,
+        # not two selected between (the grid is most of a sensed step's memory traffic).
+        obs = self.observe(state, params)
         return obs, state, reward, done, {**info, 'final_observation': obs_st}
 
     def reset_env(self, key: jax.Array, params: EnvParams):
@@ -183,10 +184,9 @@ class StealthJaxEnv:
             node_memory=light,
             node_seen=jnp.full(light.shape, -1, jnp.int32),
             move_memory=moves,
-            move_seen=jnp.full(moves.shape, -1, jnp.int32),
         )
         if self.track == 'sensed' and params.first_memory is not None:
-            memory = dict(zip(('node_memory', 'node_seen', 'move_memory', 'move_seen'),
+            memory = dict(zip(('node_memory', 'node_seen', 'move_memory'),
                               params.first_memory, strict=True))  # fmt: skip
             state = state.replace(**memory)
         elif self.track == 'sensed':
@@ -200,7 +200,7 @@ class StealthJaxEnv:
 
         def first(one):
             state = self.reset_env(None, one.replace(first_memory=None))[1]
-            return (state.node_memory, state.node_seen, state.move_memory, state.move_seen)
+            return (state.node_memory, state.node_seen, state.move_memory)
 
         return params.replace(first_memory=jax.jit(jax.vmap(first) if batched else first)(params))
 
@@ -278,16 +278,11 @@ class StealthJaxEnv:
         )
         truth = jax.lax.dynamic_slice(params.move_light[layer], (0, row, col), (2, *window))
         old = jax.lax.dynamic_slice(state.move_memory, (0, row, col), (2, *window))
-        seen = jax.lax.dynamic_slice(state.move_seen, (0, row, col), (2, *window))
         move_memory = jax.lax.dynamic_update_slice(
             state.move_memory, jnp.where(mask[1:], truth, old), (0, row, col)
         )
-        move_seen = jax.lax.dynamic_update_slice(
-            state.move_seen, jnp.where(mask[1:], state.steps, seen), (0, row, col)
-        )
         return state.replace(
             node_memory=node_memory, node_seen=node_seen, move_memory=move_memory,
-            move_seen=move_seen,
         )  # fmt: skip
 
     def vector(self, state: EnvState, params: EnvParams) -> jax.Array:
