@@ -268,3 +268,16 @@ def test_slip_moves_sideways():
     assert set(np.asarray(directions).tolist()) == {2, 3}  # up slips left or right
     deterministic, _ = build(['map1'], layout='vector')
     assert not deterministic.stochastic
+
+
+def test_padded_actions_wait_where_lights_move():
+    """Where lights move, an action beyond the scenario's own is its wait, step for step."""
+    own_env, _ = build(['simple-maze-moving'])
+    dims = own_env.dims
+    env, params = build(['simple-maze-moving'], dims=Dims(dims.rows, dims.cols, 8, 7, 16))
+    one = env.scenario(params, 0)
+    for table in ('successors', 'step_visibility', 'detect_p', 'free_reward', 'lit'):
+        values = np.asarray(getattr(one, table))
+        np.testing.assert_array_equal(values[:, 5], values[:, 4])
+        np.testing.assert_array_equal(values[:, 6], values[:, 4])
+    assert np.asarray(one.action_mask).tolist() == [True] * 5 + [False] * 2
