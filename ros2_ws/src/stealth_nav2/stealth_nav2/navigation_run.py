@@ -240,7 +240,8 @@ class Navigation:
             return
         try:
             self.follower = PathFollower(poses, self.robot.tracker.estimate,
-                                         self.node.follow_settings, now)  # fmt: skip
+                                         self.node.follow_settings, now,
+                                         self.node.keep_clear(self.via.poses[-1]))  # fmt: skip
         except ValueError as error:
             self._fail(self._code(codes.UNKNOWN), f"the planner's path: {error}")
             return
@@ -263,9 +264,10 @@ class Navigation:
         if isinstance(step, Arrived):
             # The planner's path ends where its task counts the goal reached (within the
             # scenario's goal radius, which may stop short of a goal in the light): the end of
-            # the path is the one to reach, not the goal pose itself.
-            end, estimate = self.follower.poses[-1], self.robot.tracker.estimate
-            off = math.dist(end[:2], estimate[:2])
+            # the path is the one to reach (moved off a wall: its last leg's), not the goal
+            # pose itself.
+            end, estimate = self.follower.end, self.robot.tracker.estimate
+            off = math.dist(end, estimate[:2])
             if off > self.node.values['goal_tolerance']:
                 self._recover(f'the path ended {off:.2f} m from its last pose')
                 return

@@ -50,6 +50,17 @@ PARAMETERS = {
         'the same recovery; 0: replan at once.', (0.0, 2.0),
     ),
     'back_off_speed': Param(0.1, 'm/s of the back-off.', (0.01, 1.0)),
+    'clearance_margin': Param(
+        0.25, 'm the navigator keeps between the robot and walls beyond robot_radius, as far as '
+        'moving each drive of the path sideways by up to clearance_shift gives it (the map from '
+        'the map topic; the localisation may be this far off the truth); 0: drive the path as '
+        'planned.', (0.0, 1.0),
+    ),
+    'clearance_shift': Param(
+        0.2, 'm a drive of the path may be moved sideways off a wall: keep it under half the '
+        "planner's lattice step, so each corner stays in its lattice node's cell (the light "
+        'the planner judged); 0: drive the path as planned.', (0.0, 1.0),
+    ),
     'stray_distance': Param(0.5, 'm off the path that make the robot replan.', (0.05, 100.0)),
     'goal_tolerance': Param(
         0.25, "m from the path's last pose that count as arrived (as Nav2's "

@@ -29,7 +29,7 @@ whose stamps rise is **timed**, and its stamps bind:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 import dataclasses
 import enum
 import math
@@ -204,9 +204,11 @@ class PathFollower:
         start: Pose,
         settings: FollowSettings,
         now: float | None = None,
+        keep_clear: Callable[[list[Leg]], list[Leg]] | None = None,
     ):
         """``now``: the robot's clock as the path arrives; a timed path that is already late
-        then (planning took time) is allowed that much more lateness."""
+        then (planning took time) is allowed that much more lateness. ``keep_clear``: what
+        moves the legs off walls (``leg_clearance``), if anything."""
         problem = path_problem(poses)
         if problem:
             raise ValueError(problem)
@@ -216,6 +218,8 @@ class PathFollower:
         late = 0.0 if now is None or not self.timed else now - self.poses[0].t
         self.max_lateness = settings.max_lateness + max(0.0, late)
         self.legs = legs_of(self.poses, start, settings)
+        if keep_clear is not None:
+            self.legs = keep_clear(self.legs)
         self.leg = 0  # the leg running or next
         self._heading = start.yaw  # the heading the robot starts the next leg with
         self._due: float | None = None  # when the running leg is due to end (timed paths)
@@ -231,6 +235,14 @@ class PathFollower:
             return 0
         pairs = zip(self.poses, self.poses[1:], strict=False)
         return sum(math.dist(a[:2], b[:2]) <= SAME_PLACE and b.t > a.t for a, b in pairs)
+
+    @property
+    def end(self) -> tuple[float, float]:
+        """Where the robot is to end up: the last leg's end (the path's last pose, unless the
+        legs were moved off a wall)."""
+        if self.legs:
+            return self.legs[-1].x, self.legs[-1].y
+        return self.poses[-1].x, self.poses[-1].y
 
     @property
     def done(self) -> bool:
