@@ -131,7 +131,8 @@ class Navigator(StartupNode):
         self.add_on_set_parameters_callback(self._validate)
         values = self.values
         self.frames = Frames(values['map_frame'], values['odom_frame'], values['robot_frame'])
-        self.topic_config = topic_config(values, values['robot_radius'])
+        self.topic_config = dataclasses.replace(topic_config(values, values['robot_radius']),
+                                                lookahead=values['lookahead_distance'])
         self.watch = SensorWatch(values['sensor_timeout'], values['localisation_travel'])
         self.robot = TopicRobot(self, self.topic_config, self.frames.map, None, None,
                                 values['unresponsive_moves'], self._sensor_timeout)  # fmt: skip

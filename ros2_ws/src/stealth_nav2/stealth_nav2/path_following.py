@@ -22,6 +22,8 @@ whose stamps rise is **timed**, and its stamps bind:
   (not a recovery: Nav2 replans as it goes too). Checked as a leg runs once the plan's first
   turn or drive has finished (which always does, so replanning cannot keep the robot from
   getting on), and at each leg's end;
+- **steering**: each drive follows its leg's line (``MoveGoal.line_from``), steering back onto
+  it a lookahead ahead when a localisation update moved the estimate off it;
 - **recoveries**: a move that ends BUMPED (blocked) or TIMED_OUT, and a robot more than
   ``stray_distance`` off its leg, ask for a new plan as a recovery (the navigator counts them);
   a blocked one backs off first (``back_off``).
@@ -266,7 +268,7 @@ class PathFollower:
                 self._due = max(leg.arrive_by, now + self._soonest(leg))
             if leg.kind is LegKind.TURN:
                 return Move(MoveGoal(leg.heading), limits, self.leg)
-            return Move(go_to(leg.x, leg.y), self._paced(leg, now), self.leg)
+            return Move(go_to(leg.x, leg.y, (leg.x0, leg.y0)), self._paced(leg, now), self.leg)
         return Arrived(max(0.0, now - self.poses[-1].t) if self.timed else 0.0)
 
     def move_ended(
