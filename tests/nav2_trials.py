@@ -24,6 +24,7 @@ import rclpy  # noqa: E402
 from action_msgs.msg import GoalStatus  # noqa: E402
 from geometry_msgs.msg import PoseWithCovarianceStamped  # noqa: E402
 from nav2_msgs.action import NavigateToPose  # noqa: E402
+from rclpy.signals import SignalHandlerOptions  # noqa: E402
 from ros_support import NodeProcesses, reserved_domain_id, ros_environment  # noqa: E402
 from stealth_env.scenario import find_scenario, load_scenario  # noqa: E402
 from stealth_env.task import StealthTask  # noqa: E402
@@ -78,7 +79,9 @@ def one_run(
         if pythonpath:  # another copy of the packages (say, the code before a change)
             processes.env['PYTHONPATH'] = f"{pythonpath}:{processes.env['PYTHONPATH']}"
         context = rclpy.Context()
-        rclpy.init(context=context, domain_id=domain)
+        # Ctrl-C stops the runs (and their processes) rather than only this context.
+        rclpy.init(context=context, domain_id=domain,
+                   signal_handler_options=SignalHandlerOptions.NO)  # fmt: skip
         commander = None
         try:
             start_sim(processes, scenario, seed=seed, **SIM)

@@ -22,7 +22,7 @@ from stealth_env.topic_moves import STOP, Pose
 from stealth_node_kit.conversions import seconds, time_msg, yaw_quaternion
 
 from stealth_nav2 import navigation_goals as codes
-from stealth_nav2.back_off import BackedOff, BackOff, backs_off
+from stealth_nav2.back_off import BackedOff, BackOff, backs_off, nearest_bearing
 from stealth_nav2.navigation_goals import ViaPoses
 from stealth_nav2.path_following import Arrived, PathFollower, Replan, TimedPose
 
@@ -315,12 +315,14 @@ class Navigation:
         latest = self.robot.tracker.latest
         if back_off and latest is not None:
             settings = self.node.back_off_settings
-            recovery = f'(recovery {self.recoveries})'
+            self.back_off = BackOff(latest.pose, latest.t, settings, self._turn_to_nearest())
+            turn = self.back_off.turn
+            how = f' (turning {turn:+.2f} rad to face the nearest obstacle)' if turn else ''
             self.node.get_logger().warning(
-                f'backing off {settings.distance:.2f} m {recovery}{at}: {reason}'
+                f'backing off {settings.distance:.2f} m{how} (recovery {self.recoveries}){at}: '
+                f'{reason}'
             )
             self.stage = Stage.BACKING_OFF
-            self.back_off = BackOff(latest.pose, latest.t, settings)
             self._back_off_step()
             return
         if counted:
@@ -330,6 +332,15 @@ class Navigation:
         else:
             self.node.get_logger().info(f'replanning{at}: {reason}')
         self._plan()
+
+    def _turn_to_nearest(self) -> float:
+        """The turn that faces the scan's nearest return (0: none, or straight back-offs)."""
+        scan = self.robot.scan
+        if not self.node.back_off_settings.turn_to_nearest or scan is None:
+            return 0.0
+        bearing = nearest_bearing(scan.ranges, scan.angle_min, scan.angle_increment,
+                                  scan.range_min, scan.range_max)  # fmt: skip
+        return 0.0 if bearing is None else bearing
 
     def _back_off_step(self) -> None:
         """Drive the back-off on (the node's tick), then plan again from where it ended."""

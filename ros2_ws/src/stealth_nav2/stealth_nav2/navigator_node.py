@@ -189,7 +189,8 @@ class Navigator(StartupNode):
     def back_off_settings(self) -> BackOffSettings:
         values = self.values
         return BackOffSettings(values['back_off_distance'], values['back_off_speed'],
-                               values['stall_time'])  # fmt: skip
+                               values['stall_time'],
+                               turn_to_nearest=values['back_off_from_nearest'])  # fmt: skip
 
     def _on_map(self, message: OccupancyGrid) -> None:
         try:

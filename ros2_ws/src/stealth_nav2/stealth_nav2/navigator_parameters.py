@@ -51,6 +51,11 @@ PARAMETERS = {
         'the same recovery; 0: replan at once.', (0.0, 2.0),
     ),
     'back_off_speed': Param(0.1, 'm/s of the back-off.', (0.01, 1.0)),
+    'back_off_from_nearest': Param(
+        True, 'Turn in place until the nearest return of the scan is dead ahead before backing '
+        'off, so the back-off moves straight away from it (sideways off a wall met at an angle); '
+        "false: straight back, as Nav2's BackUp.",
+    ),
     'clearance_margin': Param(
         0.25, 'm the navigator keeps between the robot and walls beyond robot_radius, as far as '
         'moving each drive of the path sideways by up to clearance_shift gives it (the map from '
