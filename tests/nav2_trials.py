@@ -19,11 +19,11 @@ import time
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 
-import numpy as np  # noqa: E402
-import rclpy  # noqa: E402
 from action_msgs.msg import GoalStatus  # noqa: E402
 from geometry_msgs.msg import PoseWithCovarianceStamped  # noqa: E402
 from nav2_msgs.action import NavigateToPose  # noqa: E402
+import numpy as np  # noqa: E402
+import rclpy  # noqa: E402
 from rclpy.signals import SignalHandlerOptions  # noqa: E402
 from ros_support import NodeProcesses, reserved_domain_id, ros_environment  # noqa: E402
 from stealth_env.scenario import find_scenario, load_scenario  # noqa: E402
@@ -77,7 +77,7 @@ def one_run(
         os.environ.pop('ROS_LOCALHOST_ONLY', None)
         processes = NodeProcesses(domain, log_dir)
         if pythonpath:  # another copy of the packages (say, the code before a change)
-            processes.env['PYTHONPATH'] = f"{pythonpath}:{processes.env['PYTHONPATH']}"
+            processes.env['PYTHONPATH'] = f'{pythonpath}:{processes.env["PYTHONPATH"]}'
         context = rclpy.Context()
         # Ctrl-C stops the runs (and their processes) rather than only this context.
         rclpy.init(context=context, domain_id=domain,
@@ -140,8 +140,11 @@ def main() -> int:
     parser.add_argument('--timeout', type=float, default=600.0, help='wall s per goal')
     parser.add_argument('--set', nargs='*', default=[], metavar='NAME:=VALUE',
                         help="the navigator's parameters")  # fmt: skip
-    parser.add_argument('--pythonpath', default='',
-                        help="put first on the nodes' PYTHONPATH (another copy of the code)")
+    parser.add_argument(
+        '--pythonpath',
+        default='',
+        help="put first on the nodes' PYTHONPATH (another copy of the code)",
+    )
     args = parser.parse_args()
     params = dict(item.split(':=', 1) for item in args.set)
     log_root = pathlib.Path(tempfile.mkdtemp(prefix='nav2_trials_'))

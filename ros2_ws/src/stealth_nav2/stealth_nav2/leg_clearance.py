@@ -13,8 +13,8 @@ that keeps it furthest (in ``LEVELS`` steps of the margin). A shift is at most `
 across the drive, so with ``max_shift`` under half the lattice step each corner stays in its
 lattice node's cell; the drives' ends move with them (two perpendicular drives meet where their
 shifted lines cross), but the path's last pose moves only towards the goal (the planner put it
-within the goal's radius). A shift never makes a drive worse than it was: a drive whose shifted version,
-corners included, keeps less clearance than the planned one is driven as planned.
+within the goal's radius). A shift never makes a drive worse than it was: a straight run whose
+shifted drives, corners included, keep less clearance than planned is driven as planned.
 
 The light is the planner's business: shifts are small and away from walls. The package's tests
 walk the shifted legs of the shipped scenarios' covert paths in the light model.

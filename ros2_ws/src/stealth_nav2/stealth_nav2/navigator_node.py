@@ -57,7 +57,6 @@ from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped
 from lifecycle_msgs.msg import State
 from lifecycle_msgs.srv import GetState
-from nav_msgs.msg import OccupancyGrid
 from nav2_msgs.action import (
     ComputePathThroughPoses,
     ComputePathToPose,
@@ -66,6 +65,7 @@ from nav2_msgs.action import (
     NavigateToPose,
 )
 from nav2_msgs.msg import MissedWaypoint
+from nav_msgs.msg import OccupancyGrid
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
 from rclpy.clock import Clock, ClockType
@@ -131,8 +131,9 @@ class Navigator(StartupNode):
         self.add_on_set_parameters_callback(self._validate)
         values = self.values
         self.frames = Frames(values['map_frame'], values['odom_frame'], values['robot_frame'])
-        self.topic_config = dataclasses.replace(topic_config(values, values['robot_radius']),
-                                                lookahead=values['lookahead_distance'])
+        self.topic_config = dataclasses.replace(
+            topic_config(values, values['robot_radius']), lookahead=values['lookahead_distance']
+        )
         self.watch = SensorWatch(values['sensor_timeout'], values['localisation_travel'])
         self.robot = TopicRobot(self, self.topic_config, self.frames.map, None, None,
                                 values['unresponsive_moves'], self._sensor_timeout)  # fmt: skip

@@ -70,7 +70,7 @@ PARAMETERS = {
     'lookahead_distance': Param(
         0.6, 'm ahead along a drive of the path the robot steers for when its estimate is off the '
         "drive's line (pure pursuit, as Nav2's Regulated Pure Pursuit lookahead_dist), rather "
-        'than at the drive\'s far end.', (0.05, 5.0), read_only=True,
+        "than at the drive's far end.", (0.05, 5.0), read_only=True,
     ),
     'stray_distance': Param(0.5, 'm off the path that make the robot replan.', (0.05, 100.0)),
     'goal_tolerance': Param(

@@ -49,7 +49,8 @@ def test_a_drive_along_a_wall_moves_off_it_by_the_least_shift_that_gives_the_mar
     clearance = Clearance(room([(0.0, 0.0, 1.15, 4.0)]), SETTINGS)
     legs = legs_of(path((1.5, 0.5), (1.5, 3.5)), Pose(1.5, 0.5, math.pi / 2), FollowSettings())
     assert clearance.level(1.5, 0.5, 1.5, 3.5) < LEVELS
-    assert clearance.shift(legs[0].x0, legs[0].y0, legs[0].x, legs[0].y) == pytest.approx(-0.1)  # negative: to the right
+    leg = legs[0]
+    assert clearance.shift(leg.x0, leg.y0, leg.x, leg.y) == pytest.approx(-0.1)  # to the right
     shifted = keep_clear(legs, clearance, goal=(1.6, 3.5))
     assert drives(shifted) == [(1.5, 0.5, 1.6, 3.5)]  # from where the robot stands
     assert clearance.level(1.6, 0.5, 1.6, 3.5) == LEVELS
@@ -119,8 +120,10 @@ def test_turns_and_waits_move_with_the_drive_that_ends_there():
 def test_the_follower_drives_the_shifted_legs_and_ends_at_the_last_ones_end():
     clearance = Clearance(room([(0.0, 0.0, 1.15, 4.0)]), SETTINGS)
     poses = path((1.5, 0.5), (1.5, 3.5))
-    follower = PathFollower(poses, Pose(1.5, 0.5, math.pi / 2), FollowSettings(),
-                            keep_clear=lambda legs: keep_clear(legs, clearance, (2.0, 3.5)))  # fmt: skip
+    follower = PathFollower(
+        poses, Pose(1.5, 0.5, math.pi / 2), FollowSettings(),
+        keep_clear=lambda legs: keep_clear(legs, clearance, (2.0, 3.5)),
+    )  # fmt: skip
     move = follower.next_move(0.0)
     assert isinstance(move, Move)
     assert move.goal.target == (pytest.approx(1.6), pytest.approx(3.5))
