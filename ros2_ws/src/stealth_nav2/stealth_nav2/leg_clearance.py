@@ -5,8 +5,8 @@ and the legs of a path (``path_following.legs_of``).
 The covert planner's path runs through lattice nodes, and a node may lie a few centimetres
 beyond the robot's radius from a wall (lgfloor's east corridor: 0.15 m; a jut of wall at
 (-0.75, 5.0): 0.05 m). The controller steers the localisation estimate onto the path, and the
-estimate is off the truth by up to ~0.1 m at the simulator's default odometry noise, so the
-real robot meets such walls and stops (blocked). Each drive is therefore moved sideways, as a
+estimate is off the truth by 0.1-0.18 m at times at the simulator's default odometry noise
+(measured on lgfloor), so the real robot meets such walls and stops (blocked). Each drive is therefore moved sideways, as a
 whole, by the least shift (at most ``max_shift``) that keeps the disc ``robot_radius + margin``
 from every blocked cell along it, or, where no shift within ``max_shift`` does, by the shift
 that keeps it furthest (in ``LEVELS`` steps of the margin). A shift is at most ``max_shift``
