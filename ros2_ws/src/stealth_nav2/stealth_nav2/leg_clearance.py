@@ -6,10 +6,11 @@ The covert planner's path runs through lattice nodes, and a node may lie a few c
 beyond the robot's radius from a wall (lgfloor's east corridor: 0.15 m; a jut of wall at
 (-0.75, 5.0): 0.05 m). The controller steers the localisation estimate onto the path, and the
 estimate is off the truth by 0.1-0.18 m at times at the simulator's default odometry noise
-(measured on lgfloor), so the real robot meets such walls and stops (blocked). Each drive is therefore moved sideways, as a
-whole, by the least shift (at most ``max_shift``) that keeps the disc ``robot_radius + margin``
-from every blocked cell along it, or, where no shift within ``max_shift`` does, by the shift
-that keeps it furthest (in ``LEVELS`` steps of the margin). A shift is at most ``max_shift``
+(measured on lgfloor), so the real robot meets such walls and stops (blocked). Each straight
+run of drives is therefore moved sideways, as a whole, by the least shift (at most
+``max_shift``) that keeps the disc ``robot_radius + margin`` from every blocked cell beside it,
+or, where no shift within ``max_shift`` does, by the shift that keeps it furthest (in
+``LEVELS`` steps of the margin). A shift is at most ``max_shift``
 across the drive, so with ``max_shift`` under half the lattice step each corner stays in its
 lattice node's cell; the drives' ends move with them (two perpendicular drives meet where their
 shifted lines cross), but the path's last pose moves only towards the goal (the planner put it
