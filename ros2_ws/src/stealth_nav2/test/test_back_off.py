@@ -39,18 +39,23 @@ def test_a_zero_distance_replans_at_once():
     assert not backs_off(replan, BackOffSettings(distance=0.0))
 
 
-def drive(back_off: BackOff, start: Pose, t: float, blocked_after: float = math.inf):
-    """Integrate the commands on a robot facing start.yaw (it cannot go more than
-    ``blocked_after`` metres back); the commands and the end."""
+def drive(back_off: BackOff, start: Pose, t: float = 0.0, blocked_after: float = math.inf):
+    """A diff-drive robot on perfect odometry under the back-off's commands (it cannot get more
+    than ``blocked_after`` metres from ``start``): the commands, the end and its pose."""
     pose, commands = start, []
-    for _ in range(1000):
+    for _ in range(2000):
         step = back_off.update(t, pose)
         if isinstance(step, BackedOff):
             return commands, step, pose
         commands.append(step)
-        back = min(back_off.travelled(pose) - step.linear * PERIOD, blocked_after)
-        pose = Pose(start.x - back * math.cos(start.yaw), start.y - back * math.sin(start.yaw),
-                    start.yaw)  # fmt: skip
+        yaw = pose.yaw + step.angular * PERIOD
+        x = pose.x + step.linear * PERIOD * math.cos(yaw)
+        y = pose.y + step.linear * PERIOD * math.sin(yaw)
+        away = math.dist((x, y), start[:2])
+        if away > blocked_after:  # stopped where it is blocked
+            x = start.x + (x - start.x) * blocked_after / away
+            y = start.y + (y - start.y) * blocked_after / away
+        pose = Pose(x, y, yaw)
         t += PERIOD
     raise AssertionError('the back-off never ended')
 
@@ -105,28 +110,12 @@ def test_the_nearest_return_of_the_scan_gives_the_bearing_to_face():
     assert nearest_bearing([math.inf, math.nan], -0.1, 0.1) is None
 
 
-def run_back_off(back_off: BackOff, start: Pose, t: float = 0.0):
-    """A diff-drive robot on perfect odometry under the back-off's commands: the commands and
-    the pose it ends at."""
-    pose, commands = start, []
-    for _ in range(2000):
-        step = back_off.update(t, pose)
-        if isinstance(step, BackedOff):
-            return commands, step, pose
-        commands.append(step)
-        yaw = pose.yaw + step.angular * PERIOD
-        pose = Pose(pose.x + step.linear * PERIOD * math.cos(yaw),
-                    pose.y + step.linear * PERIOD * math.sin(yaw), yaw)  # fmt: skip
-        t += PERIOD
-    raise AssertionError('the back-off never ended')
-
-
 def test_a_back_off_turns_to_face_the_nearest_obstacle_then_backs_straight_away_from_it():
     """A robot heading south (-y) met a wall beside it on its right (west, x < 0) at its
     front corner: turning to face it (-pi/4 here, its right front), then backing off, takes it
     away from the wall, east, as straight back (north) would not."""
     start = Pose(0.0, 0.0, -math.pi / 2)
-    commands, end, pose = run_back_off(BackOff(start, 0.0, SETTINGS, turn=-math.pi / 4), start)
+    commands, end, pose = drive(BackOff(start, 0.0, SETTINGS, turn=-math.pi / 4), start)
     turning = [c for c in commands if c.angular != 0.0]
     assert turning and all(c.linear == 0.0 and c.angular < 0 for c in turning)
     assert commands.index(turning[-1]) < next(k for k, c in enumerate(commands) if c.linear)
@@ -134,7 +123,7 @@ def test_a_back_off_turns_to_face_the_nearest_obstacle_then_backs_straight_away_
     assert pose.yaw == pytest.approx(-3 * math.pi / 4, abs=SETTINGS.turn_tolerance)
     assert pose.x > 0.13 and pose.y > 0.13  # away from the obstacle at the front right
     straight = BackOff(start, 0.0, SETTINGS)
-    _, _, pose = run_back_off(straight, start)
+    _, _, pose = drive(straight, start)
     assert pose.x == pytest.approx(0.0) and pose.y > 0.19  # Nav2's BackUp: straight back
 
 
