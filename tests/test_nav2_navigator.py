@@ -4,7 +4,6 @@ clients called the way nav2_simple_commander's BasicNavigator calls them (wait f
 send_goal_async with a feedback callback, get_result_async, cancel_goal_async; GetState on
 ``bt_navigator/get_state`` and ``amcl/get_state`` as waitUntilNav2Active does)."""
 
-from dataclasses import astuple
 import math
 import re
 import time
@@ -22,7 +21,6 @@ from stealth_env.planners import optimal_path
 from stealth_env.scenario import find_scenario, load_scenario
 from stealth_env.task import StealthTask
 from stealth_node_kit.conversions import quaternion_yaw, seconds, yaw_quaternion
-from stealth_sim.odometry_noise import MotionNoise
 from test_env_node import ros_args, start_sim, wait_for_log
 from test_nav2_planner import stamped
 
@@ -30,13 +28,8 @@ INSTALL = REPO_ROOT / 'ros2_ws/install/stealth_nav2/lib/stealth_nav2'
 NAVIGATOR, PLANNER = INSTALL / 'navigator', INSTALL / 'planner_server'
 SCENARIO = 'lgfloor'
 # Simulated time at 2x (slack for a loaded machine), odometry (and so the control period) every
-# 0.1 s simulated (50 ms wall).
+# 0.1 s simulated (50 ms wall); the simulator's default odometry noise.
 SIM = {'real_time_factor': 2.0, 'idle_period': 0.025, 'publish_rate': 10.0}
-# A robot with a quarter of the simulator's default odometry noise: lgfloor's covert way runs
-# 0.1 m from the east corridor's wall, and at the default noise the estimate drifts by about
-# that much, so the robot sometimes meets the wall there and its recoveries (back off, replan)
-# cannot move it sideways (docs/nav2.md says so). What these tests check is the navigator.
-SIM.update({f'odom_alpha{i}': value / 4 for i, value in enumerate(astuple(MotionNoise()), 1)})
 SIM_TIME = {'use_sim_time': True}
 
 

@@ -194,17 +194,24 @@ class MoveGoal(NamedTuple):
     Turn to ``heading`` (rad, map frame), then drive ``distance`` (m; 0: only the turn); or,
     with a ``target`` (x, y in m, map frame), turn to face it and drive there, as the
     simulator's GO_TO (heading and distance then follow from where the move starts); or, with
-    ``hold`` > 0, stand still that long (s of the robot's clock), as the simulator's HOLD."""
+    ``hold`` > 0, stand still that long (s of the robot's clock), as the simulator's HOLD.
+
+    ``line_from`` (x, y), with a target: the drive follows the line from there to the target (a
+    leg of a path), steering back onto it ``TopicConfig.lookahead`` ahead (pure pursuit) when
+    the estimate is off it (a localisation update moved it), instead of aiming at the target,
+    which on a long leg would take metres to come back."""
 
     heading: float
     distance: float = 0.0
     target: tuple[float, float] | None = None
     hold: float = 0.0
+    line_from: tuple[float, float] | None = None
 
 
-def go_to(x: float, y: float) -> MoveGoal:
-    """The move to the point (x, y) of the map frame."""
-    return MoveGoal(0.0, 0.0, (float(x), float(y)))
+def go_to(x: float, y: float, line_from: tuple[float, float] | None = None) -> MoveGoal:
+    """The move to the point (x, y) of the map frame (along the line from ``line_from``)."""
+    line = None if line_from is None else (float(line_from[0]), float(line_from[1]))
+    return MoveGoal(0.0, 0.0, (float(x), float(y)), 0.0, line)
 
 
 def hold_goal(seconds: float) -> MoveGoal:
@@ -244,6 +251,7 @@ class TopicConfig:
     # When a command takes effect after the odometry it answers, in odometry periods: 1 (a
     # robot that takes it at its next control cycle) to 0 (a simulator in lockstep).
     command_latency: float = 1.0
+    lookahead: float = 0.6  # m along a move's line (MoveGoal.line_from) it steers for
 
 
 class MoveStage(enum.Enum):
@@ -281,10 +289,10 @@ class TopicMove:
             dx, dy = move.target[0] - start.x, move.target[1] - start.y
             distance = math.hypot(dx, dy)
             if distance <= controller.position_tolerance:  # there already: no turn, no drive
-                move = MoveGoal(start.yaw, 0.0, move.target)
+                move = MoveGoal(start.yaw, 0.0, move.target, 0.0, move.line_from)
             else:
-                move = MoveGoal(math.atan2(dy, dx), distance, move.target)
-        self.move = MoveGoal(wrap_angle(move.heading), move.distance, move.target, move.hold)
+                move = MoveGoal(math.atan2(dy, dx), distance, move.target, 0.0, move.line_from)
+        self.move = move._replace(heading=wrap_angle(move.heading))
         self.start_time = t
         self.start = start
         limits = config.limits
@@ -346,7 +354,7 @@ class TopicMove:
         return Command(0.0, self._turn_rate(error, odom.angular, period))
 
     def _start_drive(self, estimate: Pose) -> None:
-        heading, distance, target, _ = self.move
+        heading, distance, target = self.move.heading, self.move.distance, self.move.target
         self._target = target or (
             estimate.x + distance * math.cos(heading),
             estimate.y + distance * math.sin(heading),
@@ -369,7 +377,7 @@ class TopicMove:
             remaining = free
         if self._stalled(t, odom):
             return self._brake(MoveOutcome.BUMPED)
-        aim = math.atan2(dy, dx) if remaining > controller.aim_distance else heading
+        aim = self._aim(estimate, dx, dy) if remaining > controller.aim_distance else heading
         error = wrap_angle(aim - estimate.yaw)
         limits = self.config.limits
         # Signed: past the target (a command that came late at speed), it backs up to it.
@@ -410,6 +418,21 @@ class TopicMove:
             return self._braking(t, estimate, odom, period)
         self._start_drive(estimate)
         return self._drive(t, estimate, odom, math.inf, period)
+
+    def _aim(self, estimate: Pose, dx: float, dy: float) -> float:
+        """The direction to steer in: at the target, or, following a line, at the point
+        ``lookahead`` ahead of the robot along it (never beyond the target)."""
+        line_from = self.move.line_from
+        if line_from is None:
+            return math.atan2(dy, dx)
+        (ax, ay), (tx, ty) = line_from, self._target
+        length = math.hypot(tx - ax, ty - ay)
+        if length <= 0:
+            return math.atan2(dy, dx)
+        ux, uy = (tx - ax) / length, (ty - ay) / length
+        along = (estimate.x - ax) * ux + (estimate.y - ay) * uy
+        ahead = min(max(along, 0.0) + self.config.lookahead, length)
+        return math.atan2(ay + ahead * uy - estimate.y, ax + ahead * ux - estimate.x)
 
     def _remaining(self, estimate: Pose) -> float:
         """How far the target lies ahead along the drive's line (negative: behind; 0 before

@@ -169,6 +169,11 @@ class TopicRobot:
         return f'{moves}; reset by driving to the start)'
 
     @property
+    def scan(self) -> LaserScan | None:
+        """The latest laser scan (None before one came)."""
+        return self._scan
+
+    @property
     def busy(self) -> bool:
         return self._move is not None or self._ending is not None or bool(self._moves)
 

@@ -339,3 +339,40 @@ def test_a_robot_drives_home_along_the_route(maze):
     truth = robot.sim.ground_truth
     assert math.dist(truth[:2], start[:2]) < 0.15
     assert abs(wrap_angle(truth.yaw - start.yaw)) < 0.1
+
+
+def drive_kinematic(move: MoveGoal, start: Pose, period=0.1):
+    """A perfect diff-drive robot (estimate = odometry = truth) under the controller: its
+    Finished and the poses it passed."""
+    from stealth_sim.kinematics import integrate, limited_velocity
+
+    pose, linear, angular, t = start, 0.0, 0.0, 0.0
+    controller = TopicMove(move, pose, t, TopicConfig(limits=LIMITS))
+    poses = [pose]
+    for _ in range(5000):
+        result = controller.update(t, pose, Odom(t, pose, linear, angular), math.inf, period)
+        if isinstance(result, Finished):
+            return result, poses
+        linear = limited_velocity(linear, result.linear, LIMITS.max_linear_speed,
+                                  LIMITS.max_linear_accel, period)  # fmt: skip
+        angular = limited_velocity(angular, result.angular, LIMITS.max_angular_speed,
+                                   LIMITS.max_angular_accel, period)  # fmt: skip
+        pose = integrate(pose, linear, angular, period)
+        t += period
+        poses.append(pose)
+    raise AssertionError('the move never finished')
+
+
+def test_a_drive_along_a_line_steers_back_onto_it_within_the_lookahead():
+    """A path's leg from (0, 0) to (8, 0), the estimate 0.15 m to its left (a localisation
+    update moved it): following the line, the robot is back on it (within 3 cm) 2 m on; aiming
+    at the far end, as a move without a line does, it is still 0.1 m off there."""
+    start = Pose(0.0, 0.15, 0.0)
+    along, plain = (drive_kinematic(m, start) for m in (go_to(8.0, 0.0, (0.0, 0.0)),
+                                                        go_to(8.0, 0.0)))  # fmt: skip
+    for (result, poses), back_on in ((along, True), (plain, False)):
+        assert result.outcome == MoveOutcome.DONE
+        assert math.dist(poses[-1][:2], (8.0, 0.0)) <= 0.02
+        beyond = [abs(p.y) for p in poses if p.x >= 2.0]
+        assert (max(beyond) < 0.03) is back_on, max(beyond)
+    assert go_to(1.0, 2.0).line_from is None  # the environment's moves: no line

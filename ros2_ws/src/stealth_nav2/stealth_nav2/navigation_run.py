@@ -22,7 +22,7 @@ from stealth_env.topic_moves import STOP, Pose
 from stealth_node_kit.conversions import seconds, time_msg, yaw_quaternion
 
 from stealth_nav2 import navigation_goals as codes
-from stealth_nav2.back_off import BackedOff, BackOff, backs_off
+from stealth_nav2.back_off import BackedOff, BackOff, backs_off, nearest_bearing
 from stealth_nav2.navigation_goals import ViaPoses
 from stealth_nav2.path_following import Arrived, PathFollower, Replan, TimedPose
 
@@ -240,7 +240,8 @@ class Navigation:
             return
         try:
             self.follower = PathFollower(poses, self.robot.tracker.estimate,
-                                         self.node.follow_settings, now)  # fmt: skip
+                                         self.node.follow_settings, now,
+                                         self.node.keep_clear(self.via.poses[-1]))  # fmt: skip
         except ValueError as error:
             self._fail(self._code(codes.UNKNOWN), f"the planner's path: {error}")
             return
@@ -263,9 +264,10 @@ class Navigation:
         if isinstance(step, Arrived):
             # The planner's path ends where its task counts the goal reached (within the
             # scenario's goal radius, which may stop short of a goal in the light): the end of
-            # the path is the one to reach, not the goal pose itself.
-            end, estimate = self.follower.poses[-1], self.robot.tracker.estimate
-            off = math.dist(end[:2], estimate[:2])
+            # the path is the one to reach (moved off a wall: its last leg's), not the goal
+            # pose itself.
+            end, estimate = self.follower.end, self.robot.tracker.estimate
+            off = math.dist(end, estimate[:2])
             if off > self.node.values['goal_tolerance']:
                 self._recover(f'the path ended {off:.2f} m from its last pose')
                 return
@@ -313,12 +315,14 @@ class Navigation:
         latest = self.robot.tracker.latest
         if back_off and latest is not None:
             settings = self.node.back_off_settings
-            recovery = f'(recovery {self.recoveries})'
+            self.back_off = BackOff(latest.pose, latest.t, settings, self._turn_to_nearest())
+            turn = self.back_off.turn
+            how = f' (turning {turn:+.2f} rad to face the nearest obstacle)' if turn else ''
             self.node.get_logger().warning(
-                f'backing off {settings.distance:.2f} m {recovery}{at}: {reason}'
+                f'backing off {settings.distance:.2f} m{how} (recovery {self.recoveries}){at}: '
+                f'{reason}'
             )
             self.stage = Stage.BACKING_OFF
-            self.back_off = BackOff(latest.pose, latest.t, settings)
             self._back_off_step()
             return
         if counted:
@@ -328,6 +332,15 @@ class Navigation:
         else:
             self.node.get_logger().info(f'replanning{at}: {reason}')
         self._plan()
+
+    def _turn_to_nearest(self) -> float:
+        """The turn that faces the scan's nearest return (0: none, or straight back-offs)."""
+        scan = self.robot.scan
+        if not self.node.back_off_settings.turn_to_nearest or scan is None:
+            return 0.0
+        bearing = nearest_bearing(scan.ranges, scan.angle_min, scan.angle_increment,
+                                  scan.range_min, scan.range_max)  # fmt: skip
+        return 0.0 if bearing is None else bearing
 
     def _back_off_step(self) -> None:
         """Drive the back-off on (the node's tick), then plan again from where it ended."""

@@ -33,7 +33,9 @@ stamped with the robot's clock.
 
 ``cmd_vel`` (out), ``odom``, ``amcl_pose`` (map frame, transient local), ``scan``,
 ``ground_truth`` (in), ``initialpose`` (unused here): ``stealth_env.topic_robot``'s, all names
-relative (remap to plug in any robot).
+relative (remap to plug in any robot). ``map`` (nav_msgs/OccupancyGrid, transient local, in):
+the map the legs are kept off walls on (``stealth_nav2.leg_clearance``; until it comes, the
+path is driven as planned).
 
 ## Services
 
@@ -63,6 +65,7 @@ from nav2_msgs.action import (
     NavigateToPose,
 )
 from nav2_msgs.msg import MissedWaypoint
+from nav_msgs.msg import OccupancyGrid
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalResponse
 from rclpy.clock import Clock, ClockType
@@ -74,14 +77,17 @@ from stealth_env.topic_moves import Odom, PoseTracker
 from stealth_env.topic_robot import TOPICS, TopicRobot
 from stealth_node_kit.conversions import time_msg, yaw_quaternion
 from stealth_node_kit.parameters import StartupError, declare_parameters, non_finite
+from stealth_node_kit.qos import kept_qos
 from stealth_node_kit.running import StartupNode, run_node
 
 from stealth_nav2 import navigation_goals as codes
 from stealth_nav2.back_off import BackOffSettings
+from stealth_nav2.leg_clearance import Clearance, ClearanceSettings, keep_clear
 from stealth_nav2.navigation_goals import Frames, WaypointRun, goal_in_map, planner_for
 from stealth_nav2.navigation_run import Navigation, Outcome
 from stealth_nav2.navigator_parameters import PARAMETERS
 from stealth_nav2.path_following import FollowSettings
+from stealth_nav2.scene_source import SceneError, map_from_message
 from stealth_nav2.sensor_watch import SensorWatch
 
 NODE_NAME = 'bt_navigator'
@@ -125,7 +131,9 @@ class Navigator(StartupNode):
         self.add_on_set_parameters_callback(self._validate)
         values = self.values
         self.frames = Frames(values['map_frame'], values['odom_frame'], values['robot_frame'])
-        self.topic_config = topic_config(values, values['robot_radius'])
+        self.topic_config = dataclasses.replace(
+            topic_config(values, values['robot_radius']), lookahead=values['lookahead_distance']
+        )
         self.watch = SensorWatch(values['sensor_timeout'], values['localisation_travel'])
         self.robot = TopicRobot(self, self.topic_config, self.frames.map, None, None,
                                 values['unresponsive_moves'], self._sensor_timeout)  # fmt: skip
@@ -139,6 +147,9 @@ class Navigator(StartupNode):
             self, ComputePathThroughPoses, 'compute_path_through_poses'
         )
         self.task: Task | None = None
+        self._map = None  # the occupancy map from the map topic
+        self._clearance: Clearance | None = None  # its footprints, for the current settings
+        self.create_subscription(OccupancyGrid, 'map', self._on_map, kept_qos(1))
         self._servers = [
             self._serve(NavigateToPose, 'navigate_to_pose', self._execute_to_pose),
             self._serve(NavigateThroughPoses, 'navigate_through_poses', self._execute_through),
@@ -179,7 +190,29 @@ class Navigator(StartupNode):
     def back_off_settings(self) -> BackOffSettings:
         values = self.values
         return BackOffSettings(values['back_off_distance'], values['back_off_speed'],
-                               values['stall_time'])  # fmt: skip
+                               values['stall_time'],
+                               turn_to_nearest=values['back_off_from_nearest'])  # fmt: skip
+
+    def _on_map(self, message: OccupancyGrid) -> None:
+        try:
+            self._map, _ = map_from_message(message)
+        except SceneError as error:
+            self.get_logger().error(f'{self.resolve_topic_name("map")}: map ignored, {error}')
+            return
+        self._clearance = None
+
+    def keep_clear(self, goal):
+        """What moves a path's legs off walls (towards ``goal`` at the end), or None (no map
+        yet, or clearance off)."""
+        values = self.values
+        settings = ClearanceSettings(values['robot_radius'], values['clearance_margin'],
+                                     values['clearance_shift'])  # fmt: skip
+        if self._map is None or settings.margin <= 0 or settings.max_shift <= 0:
+            return None
+        if self._clearance is None or self._clearance.settings != settings:
+            self._clearance = Clearance(self._map, settings)
+        clearance = self._clearance
+        return lambda legs: keep_clear(legs, clearance, (goal.x, goal.y))
 
     @property
     def follow_settings(self) -> FollowSettings:

@@ -27,8 +27,9 @@ PARAMETERS = {
         'localisation_travel on odom) that abort a navigation.', (0.1, 600.0),
     ),
     'localisation_travel': Param(
-        1.0, 'm the robot may drive on odom without an amcl_pose before the localisation counts '
-        'as silent (AMCL publishes only after moving).', (0.0, 100.0),
+        1.0, 'm the robot may move on odom (from where it was at the last amcl_pose) without an '
+        'amcl_pose before the localisation counts as silent (AMCL publishes only after moving '
+        'update_min_d away).', (0.0, 100.0),
     ),
     'server_timeout': Param(
         5.0, 'Wall-clock s to wait for the planner server to be there.', (0.1, 600.0)
@@ -50,6 +51,27 @@ PARAMETERS = {
         'the same recovery; 0: replan at once.', (0.0, 2.0),
     ),
     'back_off_speed': Param(0.1, 'm/s of the back-off.', (0.01, 1.0)),
+    'back_off_from_nearest': Param(
+        True, 'Turn in place until the nearest return of the scan is dead ahead before backing '
+        'off, so the back-off moves straight away from it (sideways off a wall met at an angle); '
+        "false: straight back, as Nav2's BackUp.",
+    ),
+    'clearance_margin': Param(
+        0.25, 'm the navigator keeps between the robot and walls beyond robot_radius, as far as '
+        'moving each drive of the path sideways by up to clearance_shift gives it (the map from '
+        'the map topic; the localisation may be this far off the truth); 0: drive the path as '
+        'planned.', (0.0, 1.0),
+    ),
+    'clearance_shift': Param(
+        0.2, 'm a drive of the path may be moved sideways off a wall: keep it under half the '
+        "planner's lattice step, so each corner stays in its lattice node's cell (the light "
+        'the planner judged); 0: drive the path as planned.', (0.0, 1.0),
+    ),
+    'lookahead_distance': Param(
+        0.6, 'm ahead along a drive of the path the robot steers for when its estimate is off the '
+        "drive's line (pure pursuit, as Nav2's Regulated Pure Pursuit lookahead_dist), rather "
+        "than at the drive's far end.", (0.05, 5.0), read_only=True,
+    ),
     'stray_distance': Param(0.5, 'm off the path that make the robot replan.', (0.05, 100.0)),
     'goal_tolerance': Param(
         0.25, "m from the path's last pose that count as arrived (as Nav2's "

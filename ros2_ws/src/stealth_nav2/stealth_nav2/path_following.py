@@ -22,6 +22,8 @@ whose stamps rise is **timed**, and its stamps bind:
   (not a recovery: Nav2 replans as it goes too). Checked as a leg runs once the plan's first
   turn or drive has finished (which always does, so replanning cannot keep the robot from
   getting on), and at each leg's end;
+- **steering**: each drive follows its leg's line (``MoveGoal.line_from``), steering back onto
+  it a lookahead ahead when a localisation update moved the estimate off it;
 - **recoveries**: a move that ends BUMPED (blocked) or TIMED_OUT, and a robot more than
   ``stray_distance`` off its leg, ask for a new plan as a recovery (the navigator counts them);
   a blocked one backs off first (``back_off``).
@@ -29,7 +31,7 @@ whose stamps rise is **timed**, and its stamps bind:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 import dataclasses
 import enum
 import math
@@ -204,9 +206,11 @@ class PathFollower:
         start: Pose,
         settings: FollowSettings,
         now: float | None = None,
+        keep_clear: Callable[[list[Leg]], list[Leg]] | None = None,
     ):
         """``now``: the robot's clock as the path arrives; a timed path that is already late
-        then (planning took time) is allowed that much more lateness."""
+        then (planning took time) is allowed that much more lateness. ``keep_clear``: what
+        moves the legs off walls (``leg_clearance``), if anything."""
         problem = path_problem(poses)
         if problem:
             raise ValueError(problem)
@@ -216,6 +220,8 @@ class PathFollower:
         late = 0.0 if now is None or not self.timed else now - self.poses[0].t
         self.max_lateness = settings.max_lateness + max(0.0, late)
         self.legs = legs_of(self.poses, start, settings)
+        if keep_clear is not None:
+            self.legs = keep_clear(self.legs)
         self.leg = 0  # the leg running or next
         self._heading = start.yaw  # the heading the robot starts the next leg with
         self._due: float | None = None  # when the running leg is due to end (timed paths)
@@ -231,6 +237,14 @@ class PathFollower:
             return 0
         pairs = zip(self.poses, self.poses[1:], strict=False)
         return sum(math.dist(a[:2], b[:2]) <= SAME_PLACE and b.t > a.t for a, b in pairs)
+
+    @property
+    def end(self) -> tuple[float, float]:
+        """Where the robot is to end up: the last leg's end (the path's last pose, unless the
+        legs were moved off a wall)."""
+        if self.legs:
+            return self.legs[-1].x, self.legs[-1].y
+        return self.poses[-1].x, self.poses[-1].y
 
     @property
     def done(self) -> bool:
@@ -254,7 +268,7 @@ class PathFollower:
                 self._due = max(leg.arrive_by, now + self._soonest(leg))
             if leg.kind is LegKind.TURN:
                 return Move(MoveGoal(leg.heading), limits, self.leg)
-            return Move(go_to(leg.x, leg.y), self._paced(leg, now), self.leg)
+            return Move(go_to(leg.x, leg.y, (leg.x0, leg.y0)), self._paced(leg, now), self.leg)
         return Arrived(max(0.0, now - self.poses[-1].t) if self.timed else 0.0)
 
     def move_ended(

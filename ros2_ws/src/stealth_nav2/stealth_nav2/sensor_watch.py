@@ -3,10 +3,11 @@ a line saying which instead of waiting for ever. Plain Python: times are wall-cl
 (the robot's own clock stops with it), given by the caller.
 
 Odometry comes steadily: silent after ``timeout`` without a message. A localisation such as
-AMCL publishes only after the robot has moved (its ``update_min_d``), so ``amcl_pose`` is silent
-only once the odometry has carried the robot ``travel`` metres since the last one *and*
-``timeout`` has passed: a robot holding still for a moving light is not mistaken for a dead
-localisation.
+AMCL publishes only after the robot has moved (its ``update_min_d``: a displacement from where it
+last updated, not a distance driven), so ``amcl_pose`` is silent only once the odometry has
+carried the robot ``travel`` metres away from where it was at the last one *and* ``timeout`` has
+passed: a robot holding still for a moving light, or going back and forth by a wall (backing
+off and meeting it again), is not mistaken for a dead localisation.
 """
 
 from __future__ import annotations
@@ -22,7 +23,8 @@ class SensorWatch:
         self.travel = travel
         self._odom: tuple[float, Pose] | None = None  # (wall time, pose) of the latest
         self._estimate_wall: float | None = None
-        self._travelled = 0.0  # m on odometry since the latest estimate
+        self._origin: Pose | None = None  # the odometry pose at the latest estimate
+        self._travelled = 0.0  # m: the furthest the odometry got from there since
         self._started = -math.inf  # wall time the watched navigation started
 
     def restart(self, now: float) -> None:
@@ -34,12 +36,14 @@ class SensorWatch:
         self._started = now
 
     def odom(self, now: float, pose: Pose) -> None:
-        if self._odom is not None:
-            self._travelled += math.dist(self._odom[1][:2], pose[:2])
+        if self._origin is None:
+            self._origin = pose
+        self._travelled = max(self._travelled, math.dist(self._origin[:2], pose[:2]))
         self._odom = (now, pose)
 
     def estimate(self, now: float) -> None:
         self._estimate_wall = now
+        self._origin = self._odom[1] if self._odom is not None else None
         self._travelled = 0.0
 
     def silent(self, now: float, odom_topic: str = 'odom', estimate_topic: str = 'amcl_pose'):

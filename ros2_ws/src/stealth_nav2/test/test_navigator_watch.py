@@ -38,3 +38,24 @@ def test_no_amcl_pose_at_all_is_noticed_after_the_timeout():
     watch.restart(10.0)
     watch.odom(12.5, Pose(0, 0, 0))
     assert watch.silent(12.5) == 'no amcl_pose for 2 s (is the localisation running?)'
+
+
+def test_going_back_and_forth_by_a_wall_is_not_travel_for_the_localisation():
+    """AMCL updates on displacement (update_min_d): backing off 0.2 m and meeting the wall again,
+    over and over, moves it nowhere, so its silence then is no failure; once the robot is a
+    metre from where the last amcl_pose found it, it is."""
+    watch = SensorWatch(timeout=2.0, travel=1.0)
+    watch.restart(0.0)
+    watch.odom(0.0, Pose(5.0, 0, 0))
+    watch.estimate(0.0)
+    t = 0.0
+    for _ in range(10):  # 4 m driven, never more than 0.2 m from where it was
+        for x in (4.8, 5.0):
+            t += 0.5
+            watch.odom(t, Pose(x, 0, 0))
+    assert watch.silent(t) == ''
+    watch.odom(t + 0.5, Pose(6.2, 0, 0))
+    assert watch.silent(t + 0.5) == (
+        f'no amcl_pose for {t + 0.5:.1f} s while the robot drove 1.2 m on odom (is the '
+        'localisation running?)'
+    )
