@@ -15,7 +15,7 @@ import os
 from pathlib import Path
 import shlex
 
-from stealth_env.path_scores import DEFAULT_CRITERION, Criterion
+from stealth_env.path_scores import DEFAULT_CRITERION, OPTIMUM_GAMMA, Criterion
 from stealth_tools.bag_files import next_recording_file
 
 from stealth_bringup.episode_budget import STATE_ACTIONS_PER_EPISODE, default_episode_budget
@@ -349,6 +349,12 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
     notes = _check_parameters(args, parameters, params_dir)
     if budget_note is not None:
         notes.append(budget_note)
+    gamma = parameters['agent'].values.get('gamma', OPTIMUM_GAMMA)
+    if mode == 'train' and gamma != OPTIMUM_GAMMA:
+        notes.append(
+            f'agent gamma {gamma:g}: the success criterion judges against the undiscounted '
+            'optimum, which a discounting learner may not converge to where lights move'
+        )
     if mode != 'train':
         notes += source_notes
     if continued is not None and not policy_path.is_file():

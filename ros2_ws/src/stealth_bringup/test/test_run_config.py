@@ -16,6 +16,7 @@ from stealth_bringup.run_config import (
     run_directory,
     write_params_file,
 )
+from stealth_env.path_scores import OPTIMUM_GAMMA
 import yaml
 
 CONFIG = Path(__file__).resolve().parent.parent / 'config'
@@ -32,6 +33,12 @@ def test_the_shipped_parameter_files_are_valid_and_leave_the_managed_ones_to_the
     assert values, f'{node}.yaml sets nothing'
     managed = {key.split('.', 1)[1] for key in MANAGED if key.startswith(f'{node}.')}
     assert not managed & values.keys(), f'{node}.yaml sets what the run decides'
+
+
+def test_the_agent_learns_undiscounted_as_the_criterion_s_optimum_is():
+    """stealth train's learner discounts as value iteration's optimum does (path_scores), so a
+    converged policy can meet the success criterion where lights move."""
+    assert read_params_file(CONFIG / 'agent.yaml', 'agent')['gamma'] == OPTIMUM_GAMMA
 
 
 def test_a_params_file_is_read_for_its_node(tmp_path):

@@ -7,6 +7,7 @@ import pytest
 from stealth_env.gym_env import lattice_model
 from stealth_env.path_scores import (
     DEFAULT_CRITERION,
+    OPTIMUM_GAMMA,
     Criterion,
     CriterionError,
     PathScores,
@@ -15,6 +16,7 @@ from stealth_env.path_scores import (
     failures,
     mean_scores,
     meets_criterion,
+    optimum_path,
     replay_actions,
 )
 from stealth_env.planners import follow, value_iteration, walk
@@ -172,3 +174,30 @@ def test_the_legend_text_gives_ratios_against_the_optimum():
     text = describe(PathScores(SUCCESS, 11, 5.5, 0.3, 1.1), OPTIMUM)
     assert text == 'success, 11 steps, 5.5 m (1.10x), exposure 1.10 (+0.10), peak 0.30'
     assert describe(OPTIMUM) == 'success, 10 steps, 5.0 m, exposure 1.00, peak 0.20'
+
+
+@pytest.mark.parametrize(
+    ('scenario', 'fewer_steps', 'more_light'),
+    [('simple-maze-moving', 1, 0.114), ('floorplan-moving', 1, 1.167)],
+)
+def test_a_learner_converged_at_the_optimum_s_gamma_meets_the_criterion(
+    scenario, fewer_steps, more_light
+):
+    """What a converged learner's greedy policy is: value iteration's at its gamma. At
+    OPTIMUM_GAMMA (the learners' default) it is the criterion's optimum; at 0.99 it saves a
+    wait step by walking through more light, and fails the criterion by that light."""
+    model = lattice_model(scenario)
+    reference = PathScores.of_path(optimum_path(model))
+
+    def converged(gamma):
+        values = value_iteration(model, gamma=gamma)
+        return PathScores.of_path(walk(model, follow(model, lambda i: int(values.policy[i]))))
+
+    assert OPTIMUM_GAMMA == 1.0
+    assert meets_criterion(converged(OPTIMUM_GAMMA), reference)
+    discounted = converged(0.99)
+    assert discounted.reached and discounted.path_length == reference.path_length
+    assert discounted.steps == reference.steps - fewer_steps
+    excess = discounted.accumulated_exposure - reference.accumulated_exposure
+    assert excess == pytest.approx(more_light, abs=1e-3)
+    assert failures(discounted, reference) == [f'exposure +{more_light:.3f} > +0.1']
