@@ -10,7 +10,11 @@ Everything happens in the odometry callback (one control step per message, in th
 time) and the node's housekeeping tick (the watchdogs of :mod:`stealth_env.robot_watch`: a robot
 that stops publishing ``odom`` for ``move_timeout`` fails its move, its drive home or its
 teleport; under ``use_sim_time`` that is simulated time, and a ``/clock`` that stops advancing
-for ``clock_timeout`` wall seconds fails them too); nothing blocks the executor.
+for ``clock_timeout`` wall seconds fails them too); nothing blocks the executor. Only odometry
+wakes the node: ``amcl_pose``, ``scan``, ``ground_truth`` and (under ``use_sim_time``)
+``/clock`` wait in their queues until the next odometry message or tick takes them, before it
+(``stealth_node_kit.on_demand``): a simulator in lockstep sends all five every control period,
+and a wake-up for each cost the node most of its time.
 
 Commands answer the latest odometry, one per message: a simulator may run in lockstep with
 this controller (``stealth_sim.lockstep``: the next control period once the command for the
@@ -45,6 +49,7 @@ from rclpy.qos import (
 from sensor_msgs.msg import LaserScan
 from stealth_node_kit.conversions import seconds, yaw_quaternion
 from stealth_node_kit.endpoints import QUIET_PUBLISHER, QUIET_SUBSCRIPTION
+from stealth_node_kit.on_demand import OnDemand, clock_on_demand
 from stealth_node_kit.qos import kept_qos
 from stealth_sim.move_executor import MoveOutcome
 
@@ -133,18 +138,32 @@ class TopicRobot:
         node.create_subscription(
             Odometry, TOPICS['odom'], self._on_odom, sensor, event_callbacks=quiet
         )
+        # Taken when odometry comes (and at each tick), not each on its own wake-up.
+        self._pending = OnDemand()
+        clock_on_demand(node, self._pending)  # under use_sim_time: /clock first
         node.create_subscription(
             PoseWithCovarianceStamped,
             TOPICS['estimate'],
             self._on_estimate,
             ESTIMATE_QOS,
             event_callbacks=quiet,
+            callback_group=self._pending,
         )
         node.create_subscription(
-            LaserScan, TOPICS['scan'], self._on_scan, sensor, event_callbacks=quiet
+            LaserScan,
+            TOPICS['scan'],
+            self._on_scan,
+            sensor,
+            event_callbacks=quiet,
+            callback_group=self._pending,
         )
         self._truth_sub = node.create_subscription(
-            Odometry, TOPICS['truth'], self._on_truth, sensor, event_callbacks=quiet
+            Odometry,
+            TOPICS['truth'],
+            self._on_truth,
+            sensor,
+            event_callbacks=quiet,
+            callback_group=self._pending,
         )
         self._cmd_pub = node.create_publisher(
             Twist, TOPICS['cmd_vel'], 10, event_callbacks=QUIET_PUBLISHER
@@ -330,6 +349,7 @@ class TopicRobot:
         move's end stops waiting for the truth; and a robot that stops publishing odometry (or
         whose /clock stops) while it has something to do fails it, as a simulator that does not
         answer does."""
+        self._pending.drain()
         wall = time.monotonic()
         waiting = self.busy or self._on_placed is not None
         sim_time = self.sim_time()
@@ -374,6 +394,7 @@ class TopicRobot:
             )
 
     def _on_odom(self, message: Odometry) -> None:
+        self._pending.drain()  # what came before it: the clock, estimate, scan, ground truth
         pose = pose_of(message.pose.pose)
         problem = pose_problem(*pose)
         twist = message.twist.twist
@@ -445,6 +466,7 @@ class TopicRobot:
 
     def _end(self, end: MoveEnd) -> None:
         self._moves = []
+        self._pending.drain()  # the ground truth of the end may have come meanwhile
         if end.outcome is not None and self._truth_sub.get_publisher_count():
             truth = self._truth
             if truth is None or truth[0] < end.t:  # its ground truth is still on the way

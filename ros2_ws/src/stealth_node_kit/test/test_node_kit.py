@@ -226,3 +226,79 @@ def test_kept_qos_keeps_the_last_messages_for_late_readers():
     assert (qos.history, qos.depth) == (HistoryPolicy.KEEP_LAST, 7)
     assert qos.reliability == ReliabilityPolicy.RELIABLE
     assert qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
+
+
+def _spin_until(context, node, done, timeout=10.0):
+    import time
+
+    from rclpy.executors import SingleThreadedExecutor
+
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    deadline = time.monotonic() + timeout
+    while not done() and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.05)
+    executor.remove_node(node)
+
+
+def test_an_on_demand_subscription_waits_for_drain_and_then_gets_every_message(ros_context):
+    """The executor never runs its callback; drain() runs it once per message, oldest first,
+    while an ordinary subscription of the same node keeps waking the executor."""
+    import os
+
+    from std_msgs.msg import Int64
+    from stealth_node_kit.on_demand import OnDemand
+
+    topic = f'on_demand_{os.getpid()}'
+    node = ros_context('kit_on_demand')
+    group = OnDemand()
+    drained, woken = [], []
+    node.create_subscription(Int64, topic, lambda m: drained.append(m.data), 10,
+                             callback_group=group)  # fmt: skip
+    node.create_subscription(Int64, topic + '_woken', lambda m: woken.append(m.data), 10)
+    publisher = node.create_publisher(Int64, topic, 10)
+    woken_publisher = node.create_publisher(Int64, topic + '_woken', 10)
+    context = node.context
+    _spin_until(context, node, lambda: publisher.get_subscription_count() == 1)
+    for value in (1, 2, 3):
+        publisher.publish(Int64(data=value))
+    woken_publisher.publish(Int64(data=7))
+    _spin_until(context, node, lambda: woken == [7])
+    assert woken == [7]
+    assert drained == []  # the executor spun, and never took it
+    assert group.drain() == 3
+    assert drained == [1, 2, 3]
+    assert group.drain() == 0  # nothing is taken twice
+
+
+def test_the_clock_on_demand_moves_the_node_clock_only_when_drained(ros_context):
+    """Under use_sim_time the node's clock follows /clock once drained; without it there is no
+    /clock subscription to move."""
+    import os
+
+    from rclpy.parameter import Parameter
+    from rosgraph_msgs.msg import Clock
+    from stealth_node_kit.conversions import time_msg
+    from stealth_node_kit.on_demand import OnDemand, clock_on_demand
+
+    namespace = f'/on_demand_{os.getpid()}'
+    assert not clock_on_demand(ros_context('kit_wall_clock', namespace=namespace), OnDemand())
+    node = ros_context(
+        'kit_sim_clock',
+        namespace=namespace,
+        parameter_overrides=[Parameter('use_sim_time', value=True)],
+        cli_args=['--ros-args', '-r', f'/clock:={namespace}/clock'],
+    )
+    group = OnDemand()
+    assert clock_on_demand(node, group)
+    publisher = node.create_publisher(Clock, f'{namespace}/clock', 10)
+    _spin_until(node.context, node, lambda: publisher.get_subscription_count() == 1)
+    publisher.publish(Clock(clock=time_msg(42.5)))
+    waits = []  # each wait set the executor builds asks the group once per entity
+    group.can_execute = lambda entity: waits.append(entity) and False
+    _spin_until(node.context, node, lambda: False, timeout=0.5)
+    assert node.get_clock().now().nanoseconds == 0  # the executor did not take it
+    # ...and did not busy-wait on it: a pending message raised its events (Fast DDS)
+    assert len(waits) < 200
+    assert group.drain() == 1
+    assert node.get_clock().now().nanoseconds == 42_500_000_000

@@ -41,6 +41,9 @@ rest may change while running, checked by the same ``sim_config`` that builds th
 
 Time is simulated, published on ``clock`` with the periodic topics (to nodes under
 ``use_sim_time``; a new subscriber gets the current time at once, even while it stands still).
+Under ``use_sim_time`` the node's own ROS clock takes its ``/clock`` when it publishes the next
+one (``stealth_node_kit.on_demand``): nothing here reads it, and a wake-up for it each control
+period was a cost of its own.
 A move over the service runs as fast as the CPU allows when
 ``real_time_factor`` is 0, or held to that multiple of wall time. Between moves, with a factor
 > 0, simulated time flows at that multiple of wall time. With the factor 0 it stands still
@@ -80,6 +83,7 @@ from stealth_node_kit import rl_contract
 from stealth_node_kit.conversions import quaternion_yaw, time_msg
 from stealth_node_kit.endpoints import QUIET_PUBLISHER, warn_publisher, warn_subscription
 from stealth_node_kit.in_process import InProcessServices
+from stealth_node_kit.on_demand import OnDemand, clock_on_demand
 from stealth_node_kit.parameters import StartupError, declare_parameters
 from stealth_node_kit.qos import kept_qos
 from stealth_node_kit.running import StartupNode, run_node
@@ -148,6 +152,10 @@ class SimulatorNode(StartupNode):
         self._pacer = RealTimePacer(self.sim.time)
         self._lockstep = Lockstep(self.publish_period)  # factor 0 under cmd_vel
         self._clock_readers = 0  # /clock subscribers when it was last published
+        # Under use_sim_time the node hears its own /clock: taken when it publishes the next,
+        # not on a wake-up of its own every control period.
+        self._own_clock = OnDemand()
+        clock_on_demand(self, self._own_clock)
 
         latched = kept_qos(1)
         # rclpy gives every endpoint default QoS event handlers, each an entity the executor
@@ -436,6 +444,7 @@ class SimulatorNode(StartupNode):
             self._publish_estimate(only_if_subscribed=True)
 
     def _publish_clock(self) -> None:
+        self._own_clock.drain()
         self._clock_readers = self.clock_pub.get_subscription_count()
         if self._clock_readers:
             self.clock_pub.publish(ClockMsg(clock=time_msg(self.sim.time)))

@@ -64,6 +64,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock as ClockMessage
 from stealth_node_kit.full_disk import EXIT_DISK_FULL, disk_full_message, is_disk_full
+from stealth_node_kit.on_demand import OnDemand, clock_on_demand
 from stealth_node_kit.running import StartupNode
 
 from stealth_tools.bag_format import (
@@ -143,6 +144,11 @@ class Recorder(StartupNode):
         self.recorded: dict[str, object] = {}
         self.skipped: set[str] = set()
         self.use_sim_time = bool(self.get_parameter('use_sim_time').value)
+        # Its ROS clock is read only at those moments: /clock waits in its queue till then,
+        # rather than waking the recorder at each message (the recorded /clock is another
+        # subscription, taken in batches).
+        self._clock_messages = OnDemand()
+        clock_on_demand(self, self._clock_messages)
         self._told_waiting_for_clock = False
         # (subscription, message type, topic) of every recorded topic, for taking a batch
         self._queues: list[tuple[object, object, str]] = []
@@ -181,7 +187,7 @@ class Recorder(StartupNode):
 
     def _clock_started(self) -> bool:
         """Under sim time, nothing is recorded before /clock (log times would be 0)."""
-        if not self.use_sim_time or self.get_clock().now().nanoseconds > 0:
+        if not self.use_sim_time or self._now_ns() > 0:
             return True
         if not self._told_waiting_for_clock:
             self.get_logger().info('use_sim_time set: waiting for /clock before recording')
@@ -251,11 +257,16 @@ class Recorder(StartupNode):
         """(log time, publish time) in ns of a message taken now with this message info; in
         batches under use_sim_time, the wall time of reception instead (see _on_sim_time)."""
         if self.use_sim_time and not self._batch_period:
-            return self.get_clock().now().nanoseconds, info.get('source_timestamp', 0)
+            return self._now_ns(), info.get('source_timestamp', 0)
         received = info.get('received_timestamp', 0)
         if self.use_sim_time:
             received = received or time.time_ns()
-        return received or self.get_clock().now().nanoseconds, info.get('source_timestamp', 0)
+        return received or self._now_ns(), info.get('source_timestamp', 0)
+
+    def _now_ns(self) -> int:
+        """The ROS clock now (ns), with the latest /clock taken first under use_sim_time."""
+        self._clock_messages.drain()
+        return self.get_clock().now().nanoseconds
 
     def _on_sim_time(self, batch: list) -> list:
         """A batch in order of reception (wall ns) with log times in simulated time: that of
@@ -265,7 +276,7 @@ class Recorder(StartupNode):
             if topic == '/clock':
                 clock = deserialize_message(data, ClockMessage).clock
                 self._sim_ns = clock.sec * 1_000_000_000 + clock.nanosec
-            log_time = self._sim_ns or self.get_clock().now().nanoseconds
+            log_time = self._sim_ns or self._now_ns()
             stamped.append((log_time, publish_time, topic, data))
         return stamped
 
