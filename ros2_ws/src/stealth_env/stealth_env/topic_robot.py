@@ -189,7 +189,8 @@ class TopicRobot:
 
     @property
     def scan(self) -> LaserScan | None:
-        """The latest laser scan (None before one came)."""
+        """The latest laser scan (None before one came), including any waiting to be taken."""
+        self._pending.drain()
         return self._scan
 
     @property
