@@ -19,7 +19,7 @@ from stealth_learn.obs_layout import check_layout, layout_id
 
 FORMAT = 'stealth-generalist-v1'
 HEADER = '__header__'
-ARCHITECTURE = ('iterations', 'hidden', 'features')
+ARCHITECTURE = ('iterations', 'hidden', 'features', 'threshold')
 
 
 class PolicyFileError(ValueError):
@@ -43,7 +43,7 @@ def save(path, params, track: str, architecture: dict, extra: dict | None = None
         'format': FORMAT,
         'layout': policy_layout(track),
         'track': track,
-        'architecture': {name: int(architecture[name]) for name in ARCHITECTURE},
+        'architecture': {name: architecture[name] for name in ARCHITECTURE},
         **(extra or {}),
     }
     arrays = {f'params/{key}': np.asarray(value) for key, value in _flatten(params).items()}

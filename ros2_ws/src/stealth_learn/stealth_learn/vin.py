@@ -12,8 +12,9 @@ light field feeds ``iterations`` Bellman backups over the lattice's four moves, 
 decision is the attention on the robot's cell (its Q values are the logits).
 
 - **Reward** (learned): per cell and move, a small MLP of the move's features (the light on
-  the move, the light of the node entered, whether it is the goal, its distance to the goal's
-  centre: the reward's distance term) and the cell's
+  the move, whether that reaches the detection threshold, the light of the node entered,
+  whether it is the goal, its distance to the goal's centre: the reward's distance term) and
+  the cell's
   3x3 neighbourhood (a 3x3 convolution over free, goal and node light) gives R_a.
 - **Transition**: the lattice's moves as shifts of the value map (0 up: row + 1, 1 down, 2 left:
   col - 1, 3 right, ``planners.PERPENDICULAR``'s numbering); a move that does not exist (light
@@ -72,11 +73,13 @@ def goal_distance(goal):
 
 class Vin(nn.Module):
     """See the module docstring. ``iterations``: Bellman backups; ``hidden``: the reward MLP's
-    width; ``features``: the 3x3 convolution's channels."""
+    width; ``features``: the 3x3 convolution's channels; ``threshold``: the detection threshold
+    of the scenarios it is for (the generator's ``THRESHOLD``), a fixed input feature."""
 
     iterations: int = 200
     hidden: int = 32
     features: int = 8
+    threshold: float = 0.3
 
     def setup(self):
         self.context = nn.Conv(self.features, (3, 3), padding='SAME', name='context')
@@ -97,6 +100,7 @@ class Vin(nn.Module):
             entered = jnp.stack(
                 [
                     jnp.where(exists[..., action], lights[..., action], 0.0),
+                    (lights[..., action] >= self.threshold).astype(jnp.float32),
                     _shift(node_light, action, 0.0),
                     _shift(goal, action, 0.0),
                     _shift(distance, action, 0.0),

@@ -15,7 +15,7 @@ from stealth_learn.obs_layout import LayoutError, layout_id
 from stealth_learn.train_generalist import loss_fn
 from stealth_learn.vin import ROBOT, Vin, move_features
 
-ARCH = {'iterations': 60, 'hidden': 8, 'features': 4}
+ARCH = {'iterations': 60, 'hidden': 8, 'features': 4, 'threshold': 0.3}
 
 
 @pytest.fixture(scope='module')
