@@ -2,7 +2,7 @@
 range only), imitate value iteration's optimal moves on every cell (``generalist_data``), pick
 the checkpoint by validation seeds only, and write the weights and the training curve.
 
-    python -m stealth_learn.train_generalist            # the shipped weights: ~7 min on 2 loaded cores
+    python -m stealth_learn.train_generalist   # the shipped weights: ~7 min, 2 loaded cores
     python -m stealth_learn.train_generalist --train 8 --steps 40 --out /tmp/g.npz  # a smoke run
 
 Curriculum: the first half of the steps on the small buildings only, then all sizes.

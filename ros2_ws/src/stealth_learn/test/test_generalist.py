@@ -132,12 +132,16 @@ def test_act_is_the_rollouts_attention(still_sample):
 
 @pytest.mark.skipif(not Path(DEFAULT_POLICY).is_file(), reason='no shipped weights')
 def test_shipped_weights_cross_unseen_test_buildings(tmp_path):
-    """Three generated test-range buildings (30 x 30 m, 4 static lights), never trained on:
-    the shipped policy reaches each goal undetected near value iteration's return."""
+    """Four generated test-range buildings (30 x 30 m, 4 static lights; seeds 1,000,000 on),
+    never trained on: measured on 30 of them, the shipped policy crossed all undetected at
+    value iteration's return (1.000), so each of these must reach the goal undetected within
+    the issue's 0.97 of value iteration's return (and the untrained network must not)."""
     policy = GeneralistPolicy.load(DEFAULT_POLICY, layout_id('grid', 'full', 60, 60))
-    scenarios = unseen_scenarios(3, Options(), tmp_path)
-    assert len(scenarios) == 3
+    untrained = GeneralistPolicy.untrained(policy.header['architecture'])
+    scenarios = unseen_scenarios(4, Options(), tmp_path, offset=20)
+    assert len(scenarios) == 4
     for scenario in scenarios:
         episode = rollout(policy, scenario)
         assert episode.outcome == 0, episode
-        assert episode.episode_return >= 0.9 * episode.optimal_return, episode
+        assert episode.episode_return >= 0.97 * episode.optimal_return, episode
+    assert rollout(untrained, scenarios[0]).outcome != 0
