@@ -27,6 +27,7 @@ from stealth_env.scenario_generator import GenerationError, Options
 
 from stealth_learn import generalist_data as data
 from stealth_learn import policy_file
+from stealth_learn.env_tables import TaskArrays
 from stealth_learn.jax_deps import jax, jnp
 from stealth_learn.jax_env import build
 from stealth_learn.vin import ROBOT, Vin, logits_of_cells
@@ -100,7 +101,7 @@ def rollout(policy: GeneralistPolicy, scenario) -> Episode:
     limit = int(one.step_limit)
     carry, _ = jax.lax.scan(body, (state, jnp.asarray(False), info0), None, length=limit)
     info = carry[2]
-    model = env_model(scenario)
+    model = TaskArrays(scenario).model
     optimum = value_iteration(model)
     path = follow(model, lambda i: int(optimum.policy[i]))
     return Episode(
@@ -111,12 +112,6 @@ def rollout(policy: GeneralistPolicy, scenario) -> Episode:
         optimum.optimal_return,
         len(path) - 1,
     )
-
-
-def env_model(scenario):
-    from stealth_learn.env_tables import TaskArrays
-
-    return TaskArrays(scenario).model
 
 
 def summary(episodes) -> dict:

@@ -18,9 +18,9 @@ from stealth_env.scenario import load_scenario
 from stealth_env.scenario_generator import SEED_RANGES, GenerationError, Options, generate
 
 from stealth_learn.env_tables import TaskArrays
+from stealth_learn.obs_layout import CHANNELS
 from stealth_learn.vin import NUM_MOVES
 
-CHANNELS = 7  # obs_layout.CHANNELS
 TIE = 1e-3  # actions within this of the best q are all optimal (ties are common in the dark)
 
 
@@ -113,7 +113,7 @@ def batch(samples, dims: tuple[int, int] | None = None):
     ``dims`` (default: the largest), walls there as ``env_tables`` pads."""
     rows = max(s.grid.shape[0] for s in samples) if dims is None else dims[0]
     cols = max(s.grid.shape[1] for s in samples) if dims is None else dims[1]
-    grid = np.zeros((len(samples), rows, cols, CHANNELS), np.float32)
+    grid = np.zeros((len(samples), rows, cols, len(CHANNELS)), np.float32)
     grid[..., 3:6] = -2.0  # obs_layout: no node, no move
     optimal = np.zeros((len(samples), rows, cols, NUM_MOVES), bool)
     weight = np.zeros((len(samples), rows, cols), np.float32)

@@ -1,4 +1,4 @@
-"""The generalist's weights file: one ``.npz`` (small: the network has ~1,000 parameters) with
+"""The generalist's weights file: one ``.npz`` (5 KB: the network has ~700 parameters) with
 the parameters and a JSON header naming the observation layout, the track and the architecture,
 so a policy trained for another layout or track is refused at load naming both layouts, and a
 missing or corrupt file is named with its path (issue 30's bad-input rules).

@@ -92,12 +92,10 @@ def loss_fn(model, variables, grid, optimal, weight):
 
 def accuracy(model, variables, grid, optimal, weight) -> float:
     """Fraction of loss cells whose argmax is an optimal move."""
-    import numpy as np_
-
     from stealth_learn.vin import logits_of_cells
 
-    logits = np_.asarray(logits_of_cells(model, variables, grid))
-    chosen = np_.take_along_axis(optimal, logits.argmax(-1)[..., None], -1)[..., 0]
+    logits = np.asarray(logits_of_cells(model, variables, grid))
+    chosen = np.take_along_axis(optimal, logits.argmax(-1)[..., None], -1)[..., 0]
     return float((chosen * weight).sum() / max(weight.sum(), 1.0))
 
 
