@@ -145,3 +145,21 @@ def test_shipped_weights_cross_unseen_test_buildings(tmp_path):
         assert episode.outcome == 0, episode
         assert episode.episode_return >= 0.97 * episode.optimal_return, episode
     assert rollout(untrained, scenarios[0]).outcome != 0
+
+
+def test_the_training_command_writes_a_loadable_policy_and_its_curve(tmp_path, capsys):
+    """The one command, tiny: training seeds generated, validation selects, weights and PNG
+    written, the weights load for the grid layout with their architecture and training record."""
+    from stealth_learn import train_generalist
+
+    out = tmp_path / 'g.npz'
+    argv = ['--train', '2', '--validation', '1', '--steps', '2', '--every', '1', '--iterations']
+    assert train_generalist.main([*argv, '20', '--out', str(out)]) == 0
+    params, header = policy_file.load(out, layout_id('grid', 'full', 40, 40))
+    assert header['training']['train_scenarios'] == 4
+    assert header['training']['selected_step'] in (1, 2)
+    assert out.with_suffix('.png').read_bytes()[:4] == b'\x89PNG'
+    assert 'wrote' in capsys.readouterr().out
+    with pytest.raises(SystemExit) as error:
+        train_generalist.main(['--steps', '0'])
+    assert error.value.code == 2
