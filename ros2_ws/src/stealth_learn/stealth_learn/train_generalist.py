@@ -2,10 +2,10 @@
 range only), imitate value iteration's optimal moves on every cell (``generalist_data``), pick
 the checkpoint by validation seeds only, and write the weights and the training curve.
 
-    python -m stealth_learn.train_generalist   # the shipped weights: ~7 min, 2 loaded cores
+    python -m stealth_learn.train_generalist   # the shipped weights: ~4-7 min, 2 cores
     python -m stealth_learn.train_generalist --train 8 --steps 40 --out /tmp/g.npz  # a smoke run
 
-Curriculum: the first half of the steps on the small buildings only, then all sizes.
+Curriculum: the first half of the steps on the smallest buildings only, then all sizes.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from stealth_learn import generalist_data as data
 from stealth_learn import policy_file
 
 DEFAULT_OUT = Path(__file__).resolve().parent / 'policies' / 'generalist-full.npz'
-SIZES = ((20, 20, 3), (30, 30, 4))  # width, height (m), lights: the curriculum's two sizes
+SIZES = ((20, 20, 3), (30, 30, 4), (40, 40, 6))  # width, height (m), lights: the curriculum
 
 
 def parse_args(argv=None) -> argparse.Namespace:
@@ -112,7 +112,7 @@ def train(args, log=print) -> dict:
     for index, (width, height, lights) in enumerate(SIZES):
         options = Options(width=width, height=height, lights=lights)
         for name, count in (('train', args.train), ('validation', args.validation)):
-            seeds = data.seeds_of(name, count, offset=index * 5_000)
+            seeds = data.seeds_of(name, count, offset=index * 3_000)
             sets[name].append(data.load_samples(seeds, options, directory, log))
             log(f'{name} {width}x{height} m: {len(sets[name][-1])} scenarios')
     generated = time.monotonic() - started

@@ -156,7 +156,7 @@ def test_the_training_command_writes_a_loadable_policy_and_its_curve(tmp_path, c
     argv = ['--train', '2', '--validation', '1', '--steps', '2', '--every', '1', '--iterations']
     assert train_generalist.main([*argv, '20', '--out', str(out)]) == 0
     params, header = policy_file.load(out, layout_id('grid', 'full', 40, 40))
-    assert header['training']['train_scenarios'] == 4
+    assert header['training']['train_scenarios'] == 2 * len(train_generalist.SIZES)
     assert header['training']['selected_step'] in (1, 2)
     assert out.with_suffix('.png').read_bytes()[:4] == b'\x89PNG'
     assert 'wrote' in capsys.readouterr().out
