@@ -10,11 +10,12 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
     ],
+    package_data={package_name: ['policies/*.npz', 'policies/*.png']},
     install_requires=['setuptools'],
     extras_require={'test': ['pytest']},
     zip_safe=True,
     maintainer='stealth-nav developers',
     maintainer_email='dev@stealth-nav.org',
-    description='The training environment in JAX, equal to StealthTask (issue 30).',
+    description='The JAX training environment (equal to StealthTask) and the generalist.',
     license='Apache-2.0',
 )

@@ -1,0 +1,182 @@
+"""The lights-known generalist as a policy, and its evaluation on generated test scenarios in
+the JAX environment against value iteration's optimum and the same network untrained.
+
+    policy = GeneralistPolicy.load(path, env.layout_id)     # refused for another layout
+    action = policy.act(observation.grid)                   # the grid of jax_env's 'grid' layout
+
+    python -m stealth_learn.generalist --test 30            # the report's figures
+
+The light field is static on this track, so the value map depends only on the grid's static
+channels: ``rollout`` computes it once per episode and attends at the robot's cell each step,
+which is exactly what ``act`` gives step by step (``test_generalist`` checks they agree).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+from pathlib import Path
+import sys
+import tempfile
+import time
+
+import numpy as np
+from stealth_env.planners import follow, value_iteration
+from stealth_env.scenario_generator import GenerationError, Options
+
+from stealth_learn import generalist_data as data
+from stealth_learn import policy_file
+from stealth_learn.env_tables import TaskArrays
+from stealth_learn.jax_deps import jax, jnp
+from stealth_learn.jax_env import build
+from stealth_learn.vin import ROBOT, Vin, logits_of_cells
+
+DEFAULT_POLICY = Path(__file__).resolve().parent / 'policies' / 'generalist-full.npz'
+
+
+class GeneralistPolicy:
+    """The network and its parameters; decisions come from the parameters alone."""
+
+    def __init__(self, params, architecture: dict, header: dict | None = None):
+        self.model = Vin(**architecture)
+        self.variables = {'params': jax.tree_util.tree_map(jnp.asarray, params)}
+        self.header = header or {}
+        self._logits = jax.jit(lambda v, g: logits_of_cells(self.model, v, g))
+
+    @classmethod
+    def load(cls, path, env_layout: str) -> GeneralistPolicy:
+        params, header = policy_file.load(path, env_layout)
+        return cls(params, header['architecture'], header)
+
+    @classmethod
+    def untrained(cls, architecture: dict, seed: int = 0) -> GeneralistPolicy:
+        """The same architecture at its initialisation (the issue's untrained comparison)."""
+        model = Vin(**architecture)
+        grid = jnp.zeros((1, 4, 4, 7), jnp.float32)
+        return cls(model.init(jax.random.PRNGKey(seed), grid)['params'], architecture)
+
+    def cell_logits(self, grid) -> np.ndarray:
+        """(R, C, 4) the logits of every cell of one grid (R, C, 7)."""
+        return np.asarray(self._logits(self.variables, jnp.asarray(grid)[None]))[0]
+
+    def act(self, grid) -> int:
+        """The move (0 up, 1 down, 2 left, 3 right) at the robot's cell of one grid."""
+        row, col = np.unravel_index(
+            int(np.argmax(np.asarray(grid)[..., ROBOT])), np.asarray(grid).shape[:2]
+        )
+        return int(np.argmax(self.cell_logits(grid)[row, col]))
+
+
+@dataclasses.dataclass(frozen=True)
+class Episode:
+    name: str
+    outcome: int  # reward.EpisodeOutcome: 0 success, 1 detected, 2 timeout
+    episode_return: float
+    steps: int
+    optimal_return: float
+    optimal_steps: int
+
+
+def rollout(policy: GeneralistPolicy, scenario) -> Episode:
+    """One greedy episode of ``policy`` on ``scenario`` in the JAX environment, and value
+    iteration's return and path length on the same scenario."""
+    env, params = build([scenario], track='full', layout='grid')
+    one = env.scenario(params, 0)
+    obs, state = env.reset(jax.random.PRNGKey(0), one)
+    logits = policy.cell_logits(np.asarray(obs.grid))
+    actions = jnp.asarray(logits.argmax(-1).reshape(-1))  # per cell of the padded grid
+    cells = env.dims.cells
+
+    def body(carry, _):
+        state, done, info = carry
+        action = actions[state.place % cells]
+        _, after, _, step_done, step_info = env.step_env(None, state, action, one)
+        keep = lambda new, old: jax.tree_util.tree_map(  # noqa: E731
+            lambda a, b: jnp.where(done, b, a), new, old
+        )
+        return (keep(after, state), done | step_done, keep(step_info, info)), None
+
+    _, _, _, _, info0 = env.step_env(None, state, 0, one)
+    limit = int(one.step_limit)
+    carry, _ = jax.lax.scan(body, (state, jnp.asarray(False), info0), None, length=limit)
+    info = carry[2]
+    model = TaskArrays(scenario).model
+    optimum = value_iteration(model)
+    path = follow(model, lambda i: int(optimum.policy[i]))
+    return Episode(
+        getattr(scenario, 'name', str(scenario)),
+        int(info['outcome']),
+        float(info['episode_return']),
+        int(info['steps']),
+        optimum.optimal_return,
+        len(path) - 1,
+    )
+
+
+def summary(episodes) -> dict:
+    """Undetected success rate, return relative to value iteration's, path length ratio."""
+    success = [e.outcome == 0 for e in episodes]
+    both = [e for e in episodes if e.outcome == 0]
+    return {
+        'scenarios': len(episodes),
+        'success_rate': float(np.mean(success)),
+        'detected': int(sum(e.outcome == 1 for e in episodes)),
+        'timeouts': int(sum(e.outcome == 2 for e in episodes)),
+        'return_ratio': float(
+            sum(e.episode_return for e in episodes) / sum(e.optimal_return for e in episodes)
+        ),
+        'path_length_ratio': float(np.mean([e.steps / e.optimal_steps for e in both]))
+        if both
+        else float('nan'),
+    }
+
+
+def unseen_scenarios(count: int, options: Options, directory: Path, offset: int = 0):
+    """``count`` generated scenarios of the test seed range (a seed not proven is skipped)."""
+    out = []
+    for seed in data.seeds_of('test', count, offset):
+        try:
+            out.append(data.scenario_of(seed, options, directory))
+        except GenerationError:
+            continue
+    return out
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(
+        prog='python -m stealth_learn.generalist',
+        description='Evaluate the lights-known generalist and the same network untrained on '
+        'generated test scenarios (test seed range), against value iteration.',
+    )
+    parser.add_argument('--policy', type=Path, default=DEFAULT_POLICY)
+    parser.add_argument('--test', type=int, default=30, help='test scenarios')
+    parser.add_argument('--width', type=int, default=30)
+    parser.add_argument('--height', type=int, default=30)
+    parser.add_argument('--lights', type=int, default=4)
+    args = parser.parse_args(argv)
+    try:
+        options = Options(width=args.width, height=args.height, lights=args.lights)
+        options.check()
+        policy = GeneralistPolicy.load(args.policy, policy_file.policy_layout('full'))
+    except (GenerationError, policy_file.PolicyFileError, ValueError) as error:
+        print(f'generalist: {error}', file=sys.stderr)
+        return 2
+    started = time.monotonic()
+    scenarios = unseen_scenarios(args.test, options, Path(tempfile.mkdtemp(prefix='test-')))
+    untrained = GeneralistPolicy.untrained(policy.header['architecture'])
+    for name, who in (('generalist', policy), ('untrained', untrained)):
+        episodes = [rollout(who, s) for s in scenarios]
+        figures = summary(episodes)
+        print(
+            f'{name}: '
+            + ', '.join(
+                f'{k} {v:.3f}' if isinstance(v, float) else f'{k} {v}' for k, v in figures.items()
+            )
+        )
+    print(f'{time.monotonic() - started:.0f} s, load {os.getloadavg()[0]:.1f}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

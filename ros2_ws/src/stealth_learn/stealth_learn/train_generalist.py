@@ -1,0 +1,244 @@
+"""Train the lights-known generalist from nothing: generate the training scenarios (training seed
+range only), imitate value iteration's optimal moves on every cell (``generalist_data``), pick
+the checkpoint by validation seeds only, and write the weights and the training curve.
+
+    python -m stealth_learn.train_generalist   # the shipped weights: ~4-7 min, 2 cores
+    python -m stealth_learn.train_generalist --train 8 --steps 40 --out /tmp/g.npz  # a smoke run
+
+Curriculum: the first half of the steps on the smallest buildings only, then all sizes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+import sys
+import tempfile
+import time
+
+import numpy as np
+from stealth_env.scenario_generator import THRESHOLD, GenerationError, Options
+
+from stealth_learn import generalist_data as data
+from stealth_learn import policy_file
+
+DEFAULT_OUT = Path(__file__).resolve().parent / 'policies' / 'generalist-full.npz'
+SIZES = ((20, 20, 3), (30, 30, 4), (40, 40, 6))  # width, height (m), lights: the curriculum
+
+
+def parse_args(argv=None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog='python -m stealth_learn.train_generalist', description=__doc__.split('\n\n')[0]
+    )
+    parser.add_argument(
+        '--out',
+        type=Path,
+        default=DEFAULT_OUT,
+        help='the weights file (.npz); the curve beside it (.png)',
+    )
+    parser.add_argument(
+        '--train', type=int, default=48, help='training scenarios per size (training seeds)'
+    )
+    parser.add_argument(
+        '--validation',
+        type=int,
+        default=10,
+        help='validation scenarios per size (validation seeds)',
+    )
+    parser.add_argument('--steps', type=int, default=2000, help='optimiser steps')
+    parser.add_argument('--batch', type=int, default=6, help='scenarios per step')
+    parser.add_argument(
+        '--iterations', type=int, default=150, help='Bellman backups while training (tied weights)'
+    )
+    parser.add_argument(
+        '--eval-iterations',
+        type=int,
+        default=240,
+        help='Bellman backups at decision time (covers 30 x 30 m paths)',
+    )
+    parser.add_argument('--hidden', type=int, default=32)
+    parser.add_argument('--features', type=int, default=8)
+    parser.add_argument('--lr', type=float, default=5e-3)
+    parser.add_argument('--every', type=int, default=50, help='validate every N steps')
+    parser.add_argument('--seed', type=int, default=0, help='the initialisation and batches')
+    args = parser.parse_args(argv)
+    for name in (
+        'train',
+        'validation',
+        'steps',
+        'batch',
+        'iterations',
+        'eval_iterations',
+        'hidden',
+        'features',
+        'every',
+    ):
+        if getattr(args, name) < 1:
+            parser.error(f'--{name.replace("_", "-")}: expected a positive whole number')
+    return args
+
+
+def loss_fn(model, variables, grid, optimal, weight):
+    """Weighted cross-entropy of the optimal set: -log P(any optimal move), per loss cell."""
+    from stealth_learn.jax_deps import jax, jnp
+    from stealth_learn.vin import logits_of_cells
+
+    logits = logits_of_cells(model, variables, grid)
+    log_p = jax.nn.log_softmax(logits, axis=-1)
+    picked = jax.nn.logsumexp(jnp.where(optimal, log_p, -1e9), axis=-1)
+    return -(picked * weight).sum() / jnp.maximum(weight.sum(), 1.0)
+
+
+def accuracy(model, variables, grid, optimal, weight) -> float:
+    """Fraction of loss cells whose argmax is an optimal move."""
+    from stealth_learn.vin import logits_of_cells
+
+    logits = np.asarray(logits_of_cells(model, variables, grid))
+    chosen = np.take_along_axis(optimal, logits.argmax(-1)[..., None], -1)[..., 0]
+    return float((chosen * weight).sum() / max(weight.sum(), 1.0))
+
+
+def train(args, log=print) -> dict:
+    """Generate, train, select; returns the run's record (curve, selection, timing)."""
+    import optax
+
+    from stealth_learn.jax_deps import jax, jnp
+    from stealth_learn.vin import Vin
+
+    started = time.monotonic()
+    directory = Path(tempfile.mkdtemp(prefix='generalist-'))
+    sets = {'train': [], 'validation': []}
+    for index, (width, height, lights) in enumerate(SIZES):
+        options = Options(width=width, height=height, lights=lights)
+        for name, count in (('train', args.train), ('validation', args.validation)):
+            seeds = data.seeds_of(name, count, offset=index * 3_000)
+            sets[name].append(data.load_samples(seeds, options, directory, log))
+            log(f'{name} {width}x{height} m: {len(sets[name][-1])} scenarios')
+    generated = time.monotonic() - started
+    model = Vin(args.iterations, args.hidden, args.features, THRESHOLD)
+    rng = np.random.default_rng(args.seed)
+    small, every_size = sets['train'][0], sum(sets['train'], [])
+    # one padded size per phase: a new batch shape would compile the step again
+    shapes = [_shape(small), _shape(every_size)]
+    validation = [data.batch(samples) for samples in sets['validation']]
+    variables = model.init(jax.random.PRNGKey(args.seed), jnp.asarray(validation[0][0][:1]))
+    optimiser = optax.chain(
+        optax.clip_by_global_norm(1.0),
+        optax.adam(optax.cosine_decay_schedule(args.lr, args.steps, alpha=0.1)),
+    )
+    state = optimiser.init(variables)
+
+    @jax.jit
+    def update(variables, state, grid, optimal, weight):
+        loss, grads = jax.value_and_grad(lambda v: loss_fn(model, v, grid, optimal, weight))(
+            variables
+        )
+        updates, state = optimiser.update(grads, state, variables)
+        return optax.apply_updates(variables, updates), state, loss
+
+    evaluate = jax.jit(lambda v, g, o, w: loss_fn(model, v, g, o, w))
+    curve = {'step': [], 'train_loss': [], 'validation_loss': [], 'validation_accuracy': []}
+    best = (np.inf, None, -1)
+    losses = []
+    for step in range(1, args.steps + 1):
+        phase = int(step > args.steps // 2)
+        pool = (small, every_size)[phase]
+        picked = [pool[i] for i in rng.choice(len(pool), min(args.batch, len(pool)), False)]
+        grid, optimal, weight = data.batch(picked, shapes[phase])
+        variables, state, loss = update(variables, state, grid, optimal, weight)
+        losses.append(float(loss))
+        if step % args.every == 0 or step == args.steps:
+            v_loss = float(np.mean([evaluate(variables, *b) for b in validation]))
+            v_acc = float(np.mean([accuracy(model, variables, *b) for b in validation]))
+            curve['step'].append(step)
+            curve['train_loss'].append(float(np.mean(losses[-args.every :])))
+            curve['validation_loss'].append(v_loss)
+            curve['validation_accuracy'].append(v_acc)
+            log(
+                f'step {step}: train loss {curve["train_loss"][-1]:.4f}, validation loss '
+                f'{v_loss:.4f}, accuracy {v_acc:.4f} ({time.monotonic() - started:.0f} s)'
+            )
+            if v_loss < best[0]:
+                best = (v_loss, jax.tree_util.tree_map(np.asarray, variables['params']), step)
+    return {
+        'params': best[1],
+        'selected_step': best[2],
+        'validation_loss': best[0],
+        'curve': curve,
+        'generate_seconds': generated,
+        'seconds': time.monotonic() - started,
+        'train_scenarios': len(every_size),
+    }
+
+
+def _shape(samples) -> tuple[int, int]:
+    return max(s.grid.shape[0] for s in samples), max(s.grid.shape[1] for s in samples)
+
+
+def plot_curve(curve: dict, path: Path) -> Path:
+    """The training curve (losses and validation accuracy) as a PNG."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    from matplotlib import pyplot as plt
+
+    figure, (left, right) = plt.subplots(1, 2, figsize=(9, 3.5))
+    left.plot(curve['step'], curve['train_loss'], label='training (mean since last point)')
+    left.plot(curve['step'], curve['validation_loss'], label='validation')
+    left.set(xlabel='optimiser step', ylabel='imitation loss', yscale='log')
+    left.legend()
+    right.plot(curve['step'], curve['validation_accuracy'], color='C2')
+    right.set(xlabel='optimiser step', ylabel='validation: optimal-move accuracy', ylim=(0, 1))
+    figure.suptitle('Generalist (VIN), lights known: imitation of value iteration')
+    figure.tight_layout()
+    figure.savefig(path, dpi=90)
+    plt.close(figure)
+    return path
+
+
+def main(argv=None) -> int:
+    args = parse_args(argv)
+    threads = os.environ.get('XLA_FLAGS', '')
+    print(
+        f'training on {os.cpu_count()} cores (XLA_FLAGS={threads!r}); '
+        f'load {os.getloadavg()[0]:.1f}',
+        flush=True,
+    )
+    try:
+        record = train(args, log=lambda line: print(line, flush=True))
+    except (GenerationError, data.DataError) as error:
+        print(f'train_generalist: {error}', file=sys.stderr)
+        return 2
+    architecture = {
+        'iterations': args.eval_iterations,
+        'hidden': args.hidden,
+        'features': args.features,
+        'threshold': THRESHOLD,
+    }
+    extra = {
+        'training': {
+            'train_iterations': args.iterations,
+            'steps': args.steps,
+            'batch': args.batch,
+            'lr': args.lr,
+            'seed': args.seed,
+            'train_scenarios': record['train_scenarios'],
+            'selected_step': record['selected_step'],
+            'validation_loss': record['validation_loss'],
+            'seconds': round(record['seconds'], 1),
+            'sizes': [list(s) for s in SIZES],
+        }
+    }
+    path = policy_file.save(args.out, record['params'], 'full', architecture, extra)
+    picture = plot_curve(record['curve'], args.out.with_suffix('.png'))
+    print(
+        f'wrote {path} (selected step {record["selected_step"]}) and {picture}; '
+        f'{record["seconds"]:.0f} s ({record["generate_seconds"]:.0f} s generating), '
+        f'load {os.getloadavg()[0]:.1f}'
+    )
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

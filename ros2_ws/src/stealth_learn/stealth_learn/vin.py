@@ -1,0 +1,148 @@
+"""The generalist's network: a value-iteration network (Tamar et al., NeurIPS 2016) over the
+grid observation of ``jax_env`` (layout 'grid', ``obs_layout.CHANNELS``), lights known.
+
+    model = Vin(iterations=200)
+    params = model.init(key, grid[None])             # grid: (rows, cols, 7), any size
+    logits = model.apply(params, grid[None])          # (1, actions): the robot's cell's
+    q = model.apply(params, grid[None], method=Vin.q_map)   # (1, rows, cols, actions)
+
+Why this shape: a building the policy has never seen is a new grid, so the network is fully
+convolutional (any rows x cols) and plans instead of memorising: a learned reward map from the
+light field feeds ``iterations`` Bellman backups over the lattice's four moves, and the
+decision is the attention on the robot's cell (its Q values are the logits).
+
+- **Reward** (learned): per cell and move, a small MLP of the move's features (the light on
+  the move, whether that reaches the detection threshold, the light of the node entered,
+  whether it is the goal, its distance to the goal's centre: the reward's distance term) and
+  the cell's
+  3x3 neighbourhood (a 3x3 convolution over free, goal and node light) gives R_a.
+- **Transition**: the lattice's moves as shifts of the value map (0 up: row + 1, 1 down, 2 left:
+  col - 1, 3 right, ``planners.PERPENDICULAR``'s numbering); a move that does not exist (light
+  -2 on it: a wall) is masked out. The four shifts are VIN's transition kernels, fixed to the
+  lattice rather than learned, so the recurrence stays exact over hundreds of iterations.
+- **Value**: V_0 = 0; V_{k+1} = G on goal cells (G learned), max_a (R_a + V_k(after a)) on
+  free cells. ``iterations`` must cover the longest covert path (60-120 steps on 30 x 30 m
+  buildings); the weights are tied, so it can change at decision time.
+- **Decision**: logits = scale * Q(robot's cell) (scale learned), masked moves at -1e9.
+"""
+
+from __future__ import annotations
+
+from flax import linen as nn  # noqa: I001 (after jax_deps: its one-line missing-extra error)
+
+from stealth_learn.jax_deps import jax, jnp
+
+NUM_MOVES = 4  # up, down, left, right: static lights without exposure have no wait or turns
+NO_MOVE = -2.0  # obs_layout: the light where no node or move is
+MASKED = -1e9
+FREE, ROBOT, GOAL, LIGHT, MOVE_UP, MOVE_RIGHT = range(6)
+
+
+def _shift(array, action: int, fill):
+    """``array`` (..., rows, cols) seen from each cell's neighbour after ``action``: out[r, c] =
+    array[r + 1, c] for up, [r - 1, c] down, [r, c - 1] left, [r, c + 1] right; ``fill``
+    beyond the edge."""
+    pad = [(0, 0)] * (array.ndim - 2)
+    if action == 0:
+        return jnp.pad(array[..., 1:, :], pad + [(0, 1), (0, 0)], constant_values=fill)
+    if action == 1:
+        return jnp.pad(array[..., :-1, :], pad + [(1, 0), (0, 0)], constant_values=fill)
+    if action == 2:
+        return jnp.pad(array[..., :, :-1], pad + [(0, 0), (1, 0)], constant_values=fill)
+    return jnp.pad(array[..., :, 1:], pad + [(0, 0), (0, 1)], constant_values=fill)
+
+
+def move_features(grid):
+    """(light on each move (B, R, C, 4), the move exists (B, R, C, 4)) from the grid's node and
+    move channels: up and right are the grid's own, down and left the neighbour's up / right."""
+    up, right = grid[..., MOVE_UP], grid[..., MOVE_RIGHT]
+    lights = jnp.stack([up, _shift(up, 1, NO_MOVE), _shift(right, 2, NO_MOVE), right], axis=-1)
+    return lights, lights > NO_MOVE + 0.5
+
+
+def goal_distance(goal):
+    """(B, R, C) each cell's distance to the goal cells' centre (tens of lattice steps): the
+    reward's distance term (``reward.step_reward``) that no local feature gives."""
+    rows = jnp.arange(goal.shape[-2], dtype=jnp.float32)[:, None]
+    cols = jnp.arange(goal.shape[-1], dtype=jnp.float32)[None, :]
+    total = jnp.maximum(goal.sum(axis=(-2, -1)), 1.0)[..., None, None]
+    centre_row = (goal * rows).sum(axis=(-2, -1))[..., None, None] / total
+    centre_col = (goal * cols).sum(axis=(-2, -1))[..., None, None] / total
+    return jnp.hypot(rows - centre_row, cols - centre_col) / 10.0
+
+
+class Vin(nn.Module):
+    """See the module docstring. ``iterations``: Bellman backups; ``hidden``: the reward MLP's
+    width; ``features``: the 3x3 convolution's channels; ``threshold``: the detection threshold
+    of the scenarios it is for (the generator's ``THRESHOLD``), a fixed input feature."""
+
+    iterations: int = 200
+    hidden: int = 32
+    features: int = 8
+    threshold: float = 0.3
+
+    def setup(self):
+        self.context = nn.Conv(self.features, (3, 3), padding='SAME', name='context')
+        self.reward_hidden = nn.Dense(self.hidden, name='reward_hidden')
+        self.reward_out = nn.Dense(1, name='reward_out')
+        self.goal_value = self.param('goal_value', nn.initializers.normal(1.0), ())
+        self.scale = self.param('scale', nn.initializers.ones, ())
+
+    def rewards(self, grid):
+        """(B, R, C, 4) the learned reward of each move from each cell."""
+        free, goal, light = grid[..., FREE], grid[..., GOAL], grid[..., LIGHT]
+        node_light = jnp.where(free > 0.5, light, 0.0)
+        context = nn.relu(self.context(jnp.stack([free, goal, node_light], axis=-1)))
+        lights, exists = move_features(grid)
+        distance = goal_distance(goal)
+        per_move = []
+        for action in range(NUM_MOVES):
+            entered = jnp.stack(
+                [
+                    jnp.where(exists[..., action], lights[..., action], 0.0),
+                    (lights[..., action] >= self.threshold).astype(jnp.float32),
+                    _shift(node_light, action, 0.0),
+                    _shift(goal, action, 0.0),
+                    _shift(distance, action, 0.0),
+                ],
+                axis=-1,
+            )
+            per_move.append(jnp.concatenate([entered, context], axis=-1))
+        stacked = jnp.stack(per_move, axis=-2)  # (B, R, C, 4, 3 + features)
+        hidden = nn.relu(self.reward_hidden(stacked))
+        return self.reward_out(hidden)[..., 0]
+
+    def q_map(self, grid):
+        """(B, R, C, 4) the action values after ``iterations`` backups; masked moves MASKED."""
+        grid = jnp.asarray(grid, jnp.float32)
+        rewards = self.rewards(grid)
+        _, exists = move_features(grid)
+        free, goal = grid[..., FREE] > 0.5, grid[..., GOAL] > 0.5
+        goal_value = self.goal_value
+
+        def backup(values):
+            after = jnp.stack([_shift(values, a, 0.0) for a in range(NUM_MOVES)], axis=-1)
+            return jnp.where(exists, rewards + after, MASKED)
+
+        def iterate(values, _):
+            best = backup(values).max(axis=-1)
+            values = jnp.where(goal, goal_value, jnp.where(free, best, 0.0))
+            return values, None
+
+        values = jnp.where(goal, goal_value, 0.0)
+        values, _ = jax.lax.scan(iterate, values, None, length=self.iterations)
+        return backup(values)
+
+    def __call__(self, grid):
+        """(B, 4) logits of the robot's cell (the grid's robot channel)."""
+        q = self.q_map(grid)
+        robot = jnp.asarray(grid, jnp.float32)[..., ROBOT]
+        at_robot = jnp.einsum('brc,brca->ba', robot, q)
+        return jnp.where(at_robot <= MASKED / 2, MASKED, self.scale * at_robot)
+
+
+def logits_of_cells(model: Vin, variables, grid):
+    """(B, R, C, 4) every cell's logits at once (the attention at every cell: what the
+    imitation loss reads)."""
+    q = model.apply(variables, grid, method=Vin.q_map)
+    return jnp.where(q <= MASKED / 2, MASKED, variables['params']['scale'] * q)
