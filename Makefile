@@ -32,7 +32,7 @@ SKIP_PACKAGES := $(if $(SKIPPED_VENDORED),--packages-skip $(SKIPPED_VENDORED))
 LEARN_STAMP := $(STAMPS)/learn-$(call hash_files,requirements-learn.in requirements.lock)
 BUILD_STAMP := $(STAMPS)/build-$(shell (echo $(VENV_STAMP) $(UNDERLAY_VENDORED); printf '%s\n' $(WS_SOURCES); cat $(WS_SOURCES)) | sha256sum | cut -c1-16)
 
-.PHONY: help setup venv learn build test test-packages test-system lint format clean distclean
+.PHONY: help setup venv learn generalist build test test-packages test-system lint format clean distclean
 
 help: ## List the targets
 	@grep -hE '^[a-zA-Z_-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -134,6 +134,9 @@ distclean: clean ## Also remove .venv and the JS tools' node_modules
 RUN_ARGS ?= --scenario simple-maze --goal easy
 run: setup ## The main job: train the agent on the default scenario (runs/<name>/)
 	@$(ROS_ENV) && stealth train $(RUN_ARGS)
+
+generalist: setup $(LEARN_STAMP) ## Train the lights-known generalist from nothing (runs/generalist/; about 4 min on 2 cores)
+	@$(ROS_ENV) && python -m stealth_learn.train_generalist --out runs/generalist/generalist-full.npz
 
 compare: setup ## Learners vs A*, Dark Path and value iteration on every scenario, on local Ray (runs/eval/)
 	@$(ROS_ENV) && python -m stealth_experiments.experiments --out runs/eval

@@ -149,11 +149,13 @@ def main(argv=None) -> int:
         description='Evaluate the lights-known generalist and the same network untrained on '
         'generated test scenarios (test seed range), against value iteration.',
     )
-    parser.add_argument('--policy', type=Path, default=DEFAULT_POLICY)
-    parser.add_argument('--test', type=int, default=30, help='test scenarios')
-    parser.add_argument('--width', type=int, default=30)
-    parser.add_argument('--height', type=int, default=30)
-    parser.add_argument('--lights', type=int, default=4)
+    parser.add_argument(
+        '--policy', type=Path, default=DEFAULT_POLICY, help='the weights file (default: shipped)'
+    )
+    parser.add_argument('--test', type=int, default=30, help='generated test scenarios (30)')
+    parser.add_argument('--width', type=int, default=30, help='building width, m (30)')
+    parser.add_argument('--height', type=int, default=30, help='building height, m (30)')
+    parser.add_argument('--lights', type=int, default=4, help='searchlights per building (4)')
     args = parser.parse_args(argv)
     try:
         options = Options(width=args.width, height=args.height, lights=args.lights)

@@ -57,9 +57,9 @@ def parse_args(argv=None) -> argparse.Namespace:
         default=240,
         help='Bellman backups at decision time (covers 30 x 30 m paths)',
     )
-    parser.add_argument('--hidden', type=int, default=32)
-    parser.add_argument('--features', type=int, default=8)
-    parser.add_argument('--lr', type=float, default=5e-3)
+    parser.add_argument('--hidden', type=int, default=32, help="the reward network's width")
+    parser.add_argument('--features', type=int, default=8, help='convolution channels')
+    parser.add_argument('--lr', type=float, default=5e-3, help='peak learning rate (cosine)')
     parser.add_argument('--every', type=int, default=50, help='validate every N steps')
     parser.add_argument('--seed', type=int, default=0, help='the initialisation and batches')
     args = parser.parse_args(argv)
