@@ -350,7 +350,7 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
     if budget_note is not None:
         notes.append(budget_note)
     gamma = parameters['agent'].values.get('gamma', OPTIMUM_GAMMA)
-    if mode == 'train' and gamma != OPTIMUM_GAMMA:
+    if mode == 'train' and gamma != OPTIMUM_GAMMA and scenario.has_moving_lights:
         notes.append(
             f'agent gamma {gamma:g}: the success criterion judges against the undiscounted '
             'optimum, which a discounting learner may not converge to where lights move'

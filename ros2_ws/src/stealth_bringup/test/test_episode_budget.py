@@ -43,10 +43,13 @@ def test_a_run_without_episodes_gets_its_scenarios_budget_and_says_so(tmp_path):
     assert given.episodes == 50 and not any('budget' in note for note in given.notes)
 
 
-def test_a_discounting_agent_is_told_the_criterion_is_undiscounted(tmp_path):
-    plan = plan_of('--set', 'agent.gamma=0.99', runs_dir=tmp_path / 'a')
+def test_a_discounting_agent_is_told_the_criterion_is_undiscounted_where_lights_move(tmp_path):
+    moving = ('--scenario', 'simple-maze-moving', '--episodes', '50')
+    plan = plan_of(*moving, '--set', 'agent.gamma=0.99', runs_dir=tmp_path / 'a')
     assert plan.notes == [
         'agent gamma 0.99: the success criterion judges against the undiscounted optimum, '
         'which a discounting learner may not converge to where lights move'
     ]
-    assert plan_of('--set', 'agent.gamma=1.0', runs_dir=tmp_path / 'b').notes == []
+    assert plan_of(*moving, '--set', 'agent.gamma=1.0', runs_dir=tmp_path / 'b').notes == []
+    # Still lights: the discounted and undiscounted optima are the same route (path_scores).
+    assert plan_of('--set', 'agent.gamma=0.99', runs_dir=tmp_path / 'c').notes == []

@@ -35,10 +35,12 @@ def test_the_shipped_parameter_files_are_valid_and_leave_the_managed_ones_to_the
     assert not managed & values.keys(), f'{node}.yaml sets what the run decides'
 
 
-def test_the_agent_learns_undiscounted_as_the_criterion_s_optimum_is():
-    """stealth train's learner discounts as value iteration's optimum does (path_scores), so a
-    converged policy can meet the success criterion where lights move."""
-    assert read_params_file(CONFIG / 'agent.yaml', 'agent')['gamma'] == OPTIMUM_GAMMA
+def test_the_agent_discounts_through_ros_unlike_the_in_process_learners():
+    """Through ROS the goal's reward varies with the continuous pose by far more than a step
+    costs, so an undiscounted greedy policy circled near the goal: stealth train's agent
+    discounts (agent.yaml says why), the in-process learners do not (OPTIMUM_GAMMA)."""
+    gamma = read_params_file(CONFIG / 'agent.yaml', 'agent')['gamma']
+    assert 0.9 <= gamma < OPTIMUM_GAMMA
 
 
 def test_a_params_file_is_read_for_its_node(tmp_path):
