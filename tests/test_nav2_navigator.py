@@ -140,6 +140,8 @@ def until_reached(truths, task, radius: float):
 def test_navigate_to_lgfloors_hard_goal_unseen_with_feedback(commander, node_processes):
     scenario, _, _, navigator = start_all(node_processes)
     commander.wait_until_active()
+    # The ground truth is heard before the robot moves, so the way is judged from its start.
+    assert commander.spin_until(lambda: commander.truths, 30.0), 'no ground truth'
     task = StealthTask(scenario, 'hard')
     gx, gy = task.goal.x, task.goal.y
     started = time.monotonic()
@@ -184,6 +186,7 @@ def test_a_timed_path_through_the_sweeping_light_keeps_its_stamps_unseen(
     judged on the ground truth at its own time."""
     scenario, _, _, navigator = start_all(node_processes, 'lgfloor-moving')
     commander.wait_until_active()
+    assert commander.spin_until(lambda: commander.truths, 30.0), 'no ground truth'
     plans = []
     listener = commander.node.create_subscription(Path, 'plan', plans.append, 10)
     deadline = time.monotonic() + 20.0  # plan is volatile: be matched before the goal goes
