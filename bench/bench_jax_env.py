@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import time
 
+from bench_gym import steps_per_second
 import gymnasium as gym
 import jax
 import jax.numpy as jnp
@@ -33,16 +34,6 @@ SENSED_ENVS = (
 SCAN_STEPS = 500  # per environment, per timed call
 REPEATS = 3  # interleaved; the best of each is kept
 TARGET = 100.0
-
-
-def gym_steps_per_second(env: gym.Env, actions: list[int]) -> float:
-    env.reset(seed=0)
-    started = time.perf_counter()
-    for action in actions:
-        _, _, terminated, truncated, _ = env.step(action)
-        if terminated or truncated:
-            env.reset()
-    return len(actions) / (time.perf_counter() - started)
 
 
 def jax_runner(track: str, layout: str, envs: int, steps: int):
@@ -85,7 +76,7 @@ def measure(track: str, layout: str, envs: int, gym_steps: int) -> dict:
     actions = np.random.default_rng(0).integers(theirs.action_space.n, size=gym_steps).tolist()
     best = {'jax': 0.0, 'gym': 0.0}
     for _ in range(REPEATS):
-        best['gym'] = max(best['gym'], gym_steps_per_second(theirs, actions))
+        best['gym'] = max(best['gym'], steps_per_second(theirs, actions))
         best['jax'] = max(best['jax'], ours())
     return best
 
