@@ -99,9 +99,11 @@ def accuracy(model, variables, grid, optimal, weight) -> float:
     return float((chosen * weight).sum() / max(weight.sum(), 1.0))
 
 
-def train(args, log=print) -> dict:
-    """Generate, train, select; returns the run's record (curve, selection, timing)."""
+def train(args, log=print, progress: bool = False) -> dict:
+    """Generate, train, select; returns the run's record (curve, selection, timing).
+    ``progress``: a bar over the optimiser steps (``log`` then writes above it)."""
     import optax
+    from tqdm import tqdm
 
     from stealth_learn.jax_deps import jax, jnp
     from stealth_learn.vin import Vin
@@ -141,13 +143,15 @@ def train(args, log=print) -> dict:
     curve = {'step': [], 'train_loss': [], 'validation_loss': [], 'validation_accuracy': []}
     best = (np.inf, None, -1)
     losses = []
-    for step in range(1, args.steps + 1):
+    bar = tqdm(range(1, args.steps + 1), desc='training', unit='step', disable=not progress)
+    for step in bar:
         phase = int(step > args.steps // 2)
         pool = (small, every_size)[phase]
         picked = [pool[i] for i in rng.choice(len(pool), min(args.batch, len(pool)), False)]
         grid, optimal, weight = data.batch(picked, shapes[phase])
         variables, state, loss = update(variables, state, grid, optimal, weight)
         losses.append(float(loss))
+        bar.set_postfix(loss=f'{losses[-1]:.4f}', refresh=False)
         if step % args.every == 0 or step == args.steps:
             v_loss = float(np.mean([evaluate(variables, *b) for b in validation]))
             v_acc = float(np.mean([accuracy(model, variables, *b) for b in validation]))
@@ -197,6 +201,12 @@ def plot_curve(curve: dict, path: Path) -> Path:
     return path
 
 
+def _write_above_bar(line: str) -> None:
+    from tqdm import tqdm
+
+    tqdm.write(line)
+
+
 def main(argv=None) -> int:
     args = parse_args(argv)
     threads = os.environ.get('XLA_FLAGS', '')
@@ -206,7 +216,7 @@ def main(argv=None) -> int:
         flush=True,
     )
     try:
-        record = train(args, log=lambda line: print(line, flush=True))
+        record = train(args, log=_write_above_bar, progress=True)
     except (GenerationError, data.DataError) as error:
         print(f'train_generalist: {error}', file=sys.stderr)
         return 2
