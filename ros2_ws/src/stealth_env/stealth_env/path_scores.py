@@ -234,6 +234,20 @@ def meets_criterion(
     return not failures(scores, optimum, options)
 
 
+def score_columns(
+    scores: PathScores, optimum: PathScores, options: Criterion = DEFAULT_CRITERION
+) -> dict:
+    """The score columns every report writes of a path against the optimum's (episodes.csv,
+    the harness's runs.csv): path_over_optimum (path length ratio), exposure_over_optimum
+    (accumulated exposure excess) and meets_criterion."""
+    versus = compare(scores, optimum)
+    return {
+        'path_over_optimum': versus.path_ratio,
+        'exposure_over_optimum': versus.exposure_excess,
+        'meets_criterion': meets_criterion(scores, optimum, options),
+    }
+
+
 def optimum_path(model: LatticeModel) -> PathResult:
     """Value iteration's path on the model (no slip, undiscounted: ``OPTIMUM_GAMMA``), walked:
     what the criterion compares an episode against (``planners.optimal_path`` of the model)."""
