@@ -9,9 +9,8 @@ import dataclasses
 
 from stealth_env.path_scores import (
     DEFAULT_CRITERION,
-    EXPOSURE_TOLERANCE_RANGE,
-    MAX_PATH_RATIO_RANGE,
     OPTION_FLAGS,
+    OPTION_RANGES,
     Criterion,
     CriterionError,
     check_option,
@@ -53,18 +52,17 @@ def criterion_option(name: str, low: float, high: float):
     return parse
 
 
-# The criterion's options: (field of Criterion, metavar, range, what the option bounds).
+# The criterion's options: (field of Criterion, metavar, what the option bounds); their ranges
+# and flags are path_scores'.
 CRITERION_OPTIONS = (
     (
         'max_path_ratio',
         'R',
-        MAX_PATH_RATIO_RANGE,
         "a greedy path on the lattice at most R times as long as value iteration's optimum",
     ),
     (
         'exposure_tolerance',
         'E',
-        EXPOSURE_TOLERANCE_RANGE,
         "the greedy path's accumulated exposure (visibility summed over its steps) at most "
         "the optimum's + E",
     ),
@@ -76,7 +74,8 @@ def add_criterion_options(parser: argparse.ArgumentParser, resumable: bool = Fal
     greedy episodes are judged by (stealth train's streak counts them, the harness settles on
     them); None when not given (``criterion_of``: the defaults; --resume: the run's)."""
     resumed = ", with --resume the run's" if resumable else ''
-    for name, metavar, (low, high), bound in CRITERION_OPTIONS:
+    for name, metavar, bound in CRITERION_OPTIONS:
+        low, high = OPTION_RANGES[name]
         parser.add_argument(
             OPTION_FLAGS[name],
             type=criterion_option(name, low, high),
