@@ -20,17 +20,17 @@ model's bins), which matches the ROS run only as far as the simulator's step tim
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 from stealth_env.path_scores import (
     DEFAULT_CRITERION,
     Criterion,
     PathScores,
-    compare,
-    meets_criterion,
     optimum_path,
     polyline_length,
     replay_actions,
+    score_columns,
 )
 from stealth_env.planners import LatticeModel, PathResult
 from stealth_env.reward import EpisodeOutcome
@@ -102,16 +102,12 @@ class EpisodeScorer:
         except ValueError:
             return fields
         lattice = PathScores.of_path(walked)
-        versus = compare(lattice, optimum)
         outcome = summary['outcome']
         if walked.outcome is EpisodeOutcome.DETECTED:  # seen on the lattice: not covert
             outcome = EpisodeOutcome.DETECTED.name
-        judged = PathScores(
-            EpisodeOutcome[outcome] if outcome in EpisodeOutcome.__members__ else None,
-            lattice.steps,
-            lattice.path_length,
-            lattice.peak_exposure,
-            lattice.accumulated_exposure,
+        judged = dataclasses.replace(
+            lattice,
+            outcome=EpisodeOutcome[outcome] if outcome in EpisodeOutcome.__members__ else None,
         )
         fields.update(
             lattice_outcome='' if walked.outcome is None else walked.outcome.name,
@@ -119,8 +115,6 @@ class EpisodeScorer:
             lattice_path_length=lattice.path_length,
             lattice_peak_visibility=lattice.peak_exposure,
             lattice_accumulated_visibility=lattice.accumulated_exposure,
-            path_over_optimum=versus.path_ratio,
-            exposure_over_optimum=versus.exposure_excess,
-            meets_criterion=meets_criterion(judged, optimum, self.criterion),
+            **score_columns(judged, optimum, self.criterion),
         )
         return fields

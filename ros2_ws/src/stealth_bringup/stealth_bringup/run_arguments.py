@@ -9,8 +9,8 @@ import dataclasses
 
 from stealth_env.path_scores import (
     DEFAULT_CRITERION,
-    EXPOSURE_TOLERANCE_RANGE,
-    MAX_PATH_RATIO_RANGE,
+    OPTION_FLAGS,
+    OPTION_RANGES,
     Criterion,
     CriterionError,
     check_option,
@@ -52,36 +52,44 @@ def criterion_option(name: str, low: float, high: float):
     return parse
 
 
+# The criterion's options: (field of Criterion, metavar, what the option bounds); their ranges
+# and flags are path_scores'.
+CRITERION_OPTIONS = (
+    (
+        'max_path_ratio',
+        'R',
+        "a greedy path on the lattice at most R times as long as value iteration's optimum",
+    ),
+    (
+        'exposure_tolerance',
+        'E',
+        "the greedy path's accumulated exposure (visibility summed over its steps) at most "
+        "the optimum's + E",
+    ),
+)
+
+
 def add_criterion_options(parser: argparse.ArgumentParser, resumable: bool = False) -> None:
     """--max-path-ratio, --exposure-tolerance: the success criterion (stealth_env.path_scores)
     greedy episodes are judged by (stealth train's streak counts them, the harness settles on
     them); None when not given (``criterion_of``: the defaults; --resume: the run's)."""
     resumed = ", with --resume the run's" if resumable else ''
-    low, high = MAX_PATH_RATIO_RANGE
-    parser.add_argument(
-        '--max-path-ratio',
-        type=criterion_option('max_path_ratio', low, high),
-        metavar='R',
-        help='success criterion: a greedy path on the lattice at most R times as long as '
-        f"value iteration's optimum ([{low:g}, {high:g}]; default: "
-        f'{DEFAULT_CRITERION.max_path_ratio:g}{resumed})',
-    )
-    low, high = EXPOSURE_TOLERANCE_RANGE
-    parser.add_argument(
-        '--exposure-tolerance',
-        type=criterion_option('exposure_tolerance', low, high),
-        metavar='E',
-        help="success criterion: the greedy path's accumulated exposure (visibility summed over "
-        f"its steps) at most the optimum's + E ([{low:g}, {high:g}]; default: "
-        f'{DEFAULT_CRITERION.exposure_tolerance:g}{resumed})',
-    )
+    for name, metavar, bound in CRITERION_OPTIONS:
+        low, high = OPTION_RANGES[name]
+        parser.add_argument(
+            OPTION_FLAGS[name],
+            type=criterion_option(name, low, high),
+            metavar=metavar,
+            help=f'success criterion: {bound} ([{low:g}, {high:g}]; default: '
+            f'{getattr(DEFAULT_CRITERION, name):g}{resumed})',
+        )
 
 
 def criterion_of(args: argparse.Namespace) -> Criterion:
     """The criterion the options ask for: each given option over the defaults."""
     given = {
         name: getattr(args, name)
-        for name in ('max_path_ratio', 'exposure_tolerance')
+        for name, *_ in CRITERION_OPTIONS
         if getattr(args, name, None) is not None
     }
     return dataclasses.replace(DEFAULT_CRITERION, **given)

@@ -48,6 +48,10 @@ EPSILON = 1e-9  # rounding allowed at a bound (1.1 x 5.0 m is 5.500000000000001 
 # Validated ranges: (low, high), both included.
 MAX_PATH_RATIO_RANGE = (1.0, 10.0)
 EXPOSURE_TOLERANCE_RANGE = (0.0, 100.0)
+OPTION_RANGES = {
+    'max_path_ratio': MAX_PATH_RATIO_RANGE,
+    'exposure_tolerance': EXPOSURE_TOLERANCE_RANGE,
+}
 # Each option's name on a command line, for the one line that names it.
 OPTION_FLAGS = {
     'max_path_ratio': '--max-path-ratio',
@@ -188,10 +192,7 @@ class Criterion:
     exposure_tolerance: float = DEFAULT_EXPOSURE_TOLERANCE
 
     def __post_init__(self) -> None:
-        for name, (low, high) in (
-            ('max_path_ratio', MAX_PATH_RATIO_RANGE),
-            ('exposure_tolerance', EXPOSURE_TOLERANCE_RANGE),
-        ):
+        for name, (low, high) in OPTION_RANGES.items():
             object.__setattr__(self, name, check_option(name, getattr(self, name), low, high))
 
     def describe(self) -> str:
@@ -232,6 +233,20 @@ def meets_criterion(
     """Whether ``scores`` meet the success criterion against the optimum's (module
     docstring). The one test every caller uses."""
     return not failures(scores, optimum, options)
+
+
+def score_columns(
+    scores: PathScores, optimum: PathScores, options: Criterion = DEFAULT_CRITERION
+) -> dict:
+    """The score columns every report writes of a path against the optimum's (episodes.csv,
+    the harness's runs.csv): path_over_optimum (path length ratio), exposure_over_optimum
+    (accumulated exposure excess) and meets_criterion."""
+    versus = compare(scores, optimum)
+    return {
+        'path_over_optimum': versus.path_ratio,
+        'exposure_over_optimum': versus.exposure_excess,
+        'meets_criterion': meets_criterion(scores, optimum, options),
+    }
 
 
 def optimum_path(model: LatticeModel) -> PathResult:

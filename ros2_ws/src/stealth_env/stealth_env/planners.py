@@ -491,13 +491,16 @@ def follow(
     model: LatticeModel, choose: Callable[[int], int], limit: int | None = None
 ) -> list[int]:
     """The deterministic path of places (no slip) from the start taking action choose(i) at
-    place i, until a step ends the episode or the step limit."""
+    place i, until a step ends the episode, the step limit, or a place without an action
+    (choose(i) < 0: a policy that never saw it)."""
     limit = model.task.step_limit if limit is None else limit
     seen = model.step_seen
     path = [model.start]
     for _ in range(limit):
         here = path[-1]
-        action = choose(here)
+        action = int(choose(here))
+        if action < 0:
+            break
         i = int(model.successors[here, action])
         path.append(i)
         if model.goal[i] or seen[here, action]:

@@ -100,6 +100,17 @@ def test_value_iteration_beats_every_path_and_its_own_path_earns_it(model):
     assert value_iteration(model, gamma=0.99).optimal_return < optimum.optimal_return
 
 
+def test_follow_stops_at_a_place_without_an_action(model):
+    """A policy with no action (-1) at a place (one that never saw it) ends the path there,
+    rather than taking the last action (what index -1 would)."""
+    best = value_iteration(model).policy
+    full = follow(model, lambda i: int(best[i]))
+    assert len(full) > 3
+    actions = best.copy()
+    actions[full[2]] = -1
+    assert follow(model, lambda i: actions[i]) == full[:3]
+
+
 def test_a_short_horizon_binds(model):
     short = value_iteration(model, horizon=10)
     assert not short.converged and short.optimal_return < 0  # the goal is out of reach

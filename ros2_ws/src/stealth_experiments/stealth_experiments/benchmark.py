@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable, Sequence
-import os
 from pathlib import Path
 import sys
 import time
@@ -42,6 +41,7 @@ from stealth_experiments.benchmark_plan import (
 )
 from stealth_experiments.benchmark_report import write_csv, write_plot, write_summary
 from stealth_experiments.harness import DEFAULT_EPISODES, MOVING_EPISODES
+from stealth_experiments.options import add_episodes_option, add_output_options
 from stealth_experiments.sweep_pool import duration as _duration
 
 PROG = 'stealth benchmark'
@@ -96,28 +96,12 @@ def parser() -> argparse.ArgumentParser:
         help='default: all but policy (policy too with --policy): vi, astar, dark-path, '
         'replan-dark, replan-lit, ' + ', '.join(LEARNERS) + ', policy',
     )
-    p.add_argument(
-        '--episodes',
-        type=int,
-        help="the learners' training budget per scenario, in episodes (default: the harness's, "
-        + ', '.join(f'{name} {n}' for name, n in DEFAULT_EPISODES.items())
-        + '; where lights move '
-        + ', '.join(f'{name} {n}' for name, n in MOVING_EPISODES.items())
-        + ')',
+    add_episodes_option(
+        p, "the learners' training budget per scenario, in episodes (default: the harness's, "
     )
     p.add_argument('--seed', type=int, default=0, help="learners' and episodes' seed (default 0)")
     p.add_argument('--policy', type=Path, help='a learned policy file (method policy)')
-    p.add_argument(
-        '--jobs',
-        type=int,
-        default=os.cpu_count() or 1,
-        help='CPUs of the local Ray the trials go to; 1: one after another in this process, no '
-        'Ray (default: the CPU count, %(default)s)',
-    )
-    p.add_argument(
-        '--out', type=Path, default=DEFAULT_OUT, help='output directory (default: %(default)s)'
-    )
-    p.add_argument('--no-plots', action='store_true', help='skip benchmark.png')
+    add_output_options(p, 'trials', DEFAULT_OUT, 'benchmark.png')
     return p
 
 

@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Sequence
-import os
 from pathlib import Path
 import sys
 
@@ -45,9 +44,7 @@ from stealth_env.path_scores import DEFAULT_CRITERION, Criterion
 from tqdm import tqdm
 
 from stealth_experiments.harness import (
-    DEFAULT_EPISODES,
     DEFAULT_EVAL_EVERY,
-    MOVING_EPISODES,
     PLANNING_UPDATES,
     baselines,
     default_budget,
@@ -57,6 +54,7 @@ from stealth_experiments.harness import (
     tuned_config,
 )
 from stealth_experiments.harness_report import write_results
+from stealth_experiments.options import add_episodes_option, add_output_options
 
 DEFAULT_SCENARIOS = (
     'simple-maze',
@@ -178,15 +176,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         '--seeds', nargs='+', type=int, default=list(DEFAULT_SEEDS), help='default: %(default)s'
     )
-    parser.add_argument(
-        '--episodes',
-        type=int,
-        help='training episodes per run (default per learner: '
-        + ', '.join(f'{name} {budget}' for name, budget in DEFAULT_EPISODES.items())
-        + '; where lights move: '
-        + ', '.join(f'{name} {budget}' for name, budget in MOVING_EPISODES.items())
-        + ')',
-    )
+    add_episodes_option(parser, 'training episodes per run (default per learner: ')
     parser.add_argument(
         '--eval-every',
         type=int,
@@ -200,17 +190,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         help='probability of moving sideways (default: %(default)s)',
     )
     parser.add_argument('--goal', help="goal name (default: each scenario's default goal)")
-    parser.add_argument(
-        '--jobs',
-        type=int,
-        default=os.cpu_count() or 1,
-        help='CPUs of the local Ray the runs go to; 1: one after another in this process, no Ray '
-        '(default: the CPU count, %(default)s)',
-    )
-    parser.add_argument(
-        '--out', type=Path, default=DEFAULT_OUT, help='output directory (default: %(default)s)'
-    )
-    parser.add_argument('--no-plots', action='store_true', help='skip the pictures')
+    add_output_options(parser, 'runs', DEFAULT_OUT, 'the pictures')
     add_criterion_options(parser)
     args = parser.parse_args(argv)
     if (args.episodes is not None and args.episodes < 1) or args.eval_every < 1:

@@ -18,9 +18,8 @@ from stealth_env.path_scores import (
     DEFAULT_CRITERION,
     Criterion,
     PathScores,
-    compare,
     describe,
-    meets_criterion,
+    score_columns,
 )
 from stealth_env.planners import LatticeModel
 from stealth_env.reward import EpisodeOutcome
@@ -65,14 +64,10 @@ def _outcome_name(value) -> str:
 def scores_columns(summary: dict, reference: PathScores, criterion: Criterion) -> dict:
     """The score columns of a path's summary (RunResult.final's keys) against the optimum's:
     ratios, whether it meets the criterion, the criterion's options."""
-    scores = PathScores.of_summary(summary)
-    versus = compare(scores, reference)
     return {
         'optimal_path_length_m': reference.path_length,
         'optimal_accumulated_visibility': reference.accumulated_exposure,
-        'path_over_optimum': versus.path_ratio,
-        'exposure_over_optimum': versus.exposure_excess,
-        'meets_criterion': meets_criterion(scores, reference, criterion),
+        **score_columns(PathScores.of_summary(summary), reference, criterion),
         'max_path_ratio': criterion.max_path_ratio,
         'exposure_tolerance': criterion.exposure_tolerance,
     }

@@ -48,6 +48,7 @@ from stealth_env.planners import (
     LatticeModel,
     astar,
     dark_path,
+    follow,
     value_iteration,
 )
 from stealth_env.reward import RewardWeights
@@ -241,9 +242,10 @@ class CovertPlanner:
                 clock.check('value iteration')
             else:
                 greedy = cached
-            path = _follow(model, greedy)
+            path = follow(model, lambda i: greedy[i])
         elif planner_id == 'policy':
-            path = _follow(model, self._policy_actions(setting, model))
+            actions = self._policy_actions(setting, model)
+            path = follow(model, lambda i: actions[i])
         elif planner_id == 'dark_path':
             path = dark_path(model, self.dark_path_weight)
         else:
@@ -438,22 +440,6 @@ def _fitting_node(lattice: MoveLattice, x: float, y: float, steps: float):
             if lattice.is_valid(candidate) and distance <= best_distance:
                 best, best_distance = candidate, distance
     return best
-
-
-def _follow(model: LatticeModel, actions: np.ndarray) -> list[int] | None:
-    """The places from the model's start taking actions[place] until the goal, a seen step,
-    the step limit, or a place without an action (-1): as ``planners.follow``."""
-    seen = model.step_seen
-    path = [model.start]
-    for _ in range(model.task.step_limit):
-        here = path[-1]
-        action = int(actions[here])
-        if action < 0:
-            break
-        path.append(int(model.successors[here, action]))
-        if model.goal[path[-1]] or seen[here, action]:
-            break
-    return path
 
 
 def _judge(model: LatticeModel, path, planner_id: str, goal: Pose) -> None:

@@ -1,9 +1,23 @@
 """The navigator node's parameters (navigator_node declares them), importable without rclpy."""
 
-from stealth_env.topic_moves import Limits
+from stealth_env.env_parameters import PARAMETERS as ENV_PARAMETERS
 from stealth_node_kit.param_table import Param
 
+from stealth_nav2.back_off import BackOffSettings
 from stealth_nav2.navigation_goals import PLANNER_IDS
+from stealth_nav2.path_following import FollowSettings
+
+# The defaults of the settings the parameters make (navigator_node), written once, there.
+_FOLLOW = FollowSettings()
+_BACK_OFF = BackOffSettings()
+
+
+def _moves(name: str, description: str) -> Param:
+    """A parameter of the moves over topics: the navigator drives the robot with the
+    environment's code (``env_parameters.topic_config``, ``TopicRobot``), so the environment's
+    entry (default, range, read-only) under the navigator's own description."""
+    return ENV_PARAMETERS[name]._replace(description=description)
+
 
 PARAMETERS = {
     'planner_id': Param(
@@ -42,17 +56,20 @@ PARAMETERS = {
         'may take before it is aborted.', (0, 1000)
     ),
     'max_lateness': Param(
-        1.5, "s of the robot's clock a timed path's pose may be reached after its stamp (beyond "
+        _FOLLOW.max_lateness,
+        "s of the robot's clock a timed path's pose may be reached after its stamp (beyond "
         'the time the plan took) before the robot replans (not a recovery); half a step of the '
         'shipped moving-light scenarios.', (0.0, 3600.0),
     ),
     'back_off_distance': Param(
-        0.2, "m a blocked robot drives straight backwards (Nav2's BackUp) before it replans, as "
+        _BACK_OFF.distance,
+        "m a blocked robot drives straight backwards (Nav2's BackUp) before it replans, as "
         'the same recovery; 0: replan at once.', (0.0, 2.0),
     ),
-    'back_off_speed': Param(0.1, 'm/s of the back-off.', (0.01, 1.0)),
+    'back_off_speed': Param(_BACK_OFF.speed, 'm/s of the back-off.', (0.01, 1.0)),
     'back_off_from_nearest': Param(
-        True, 'Turn in place until the nearest return of the scan is dead ahead before backing '
+        _BACK_OFF.turn_to_nearest,
+        'Turn in place until the nearest return of the scan is dead ahead before backing '
         'off, so the back-off moves straight away from it (sideways off a wall met at an angle); '
         "false: straight back, as Nav2's BackUp.",
     ),
@@ -72,7 +89,9 @@ PARAMETERS = {
         "drive's line (pure pursuit, as Nav2's Regulated Pure Pursuit lookahead_dist), rather "
         "than at the drive's far end.", (0.05, 5.0), read_only=True,
     ),
-    'stray_distance': Param(0.5, 'm off the path that make the robot replan.', (0.05, 100.0)),
+    'stray_distance': Param(
+        _FOLLOW.stray_distance, 'm off the path that make the robot replan.', (0.05, 100.0)
+    ),
     'goal_tolerance': Param(
         0.25, "m from the path's last pose that count as arrived (as Nav2's "
         "xy_goal_tolerance; the covert planner's path ends where its task counts the goal "
@@ -91,28 +110,28 @@ PARAMETERS = {
         "came) for nav2_simple_commander's waitUntilNav2Active; '' when a real lifecycle "
         'localiser runs.', read_only=True,
     ),
-    'unresponsive_moves': Param(
-        3, 'Moves in a row that time out without the robot moving before it counts as not '
-        'responding to cmd_vel.', (1, 1000), read_only=True,
+    'unresponsive_moves': _moves(
+        'unresponsive_moves', 'Moves in a row that time out without the robot moving before it '
+        'counts as not responding to cmd_vel.'
     ),
     'robot_radius': Param(
         0.2, 'm: the disc the scan check sweeps ahead (an obstacle it would touch before the '
         "leg's end stops the robot short of it, blocked: a recovery); the simulator's robot.",
         (0.0, 5.0), read_only=True,
     ),
-    'bump_distance': Param(0.05, 'm to an obstacle in the scan that ends a move blocked.',
-                           (0.0, 1.0), read_only=True),
-    'stall_time': Param(1.0, "s (robot's clock) without progress while driving: blocked.",
-                        (0.05, 60.0), read_only=True),
-    'command_latency': Param(
-        1.0, 'When a command takes effect after the odom it answers, in odom periods: 1 a robot '
-        'that takes it at its next control cycle, 0 a simulator in lockstep with its controller '
-        "(stealth_sim's real_time_factor 0).", (0.0, 1.0), read_only=True,
+    'bump_distance': _moves(
+        'bump_distance', 'm to an obstacle in the scan that ends a move blocked.'
     ),
-    'max_linear_speed': Param(Limits.max_linear_speed, "m/s (the robot's limit or lower).",
-                              (0.01, 5.0), read_only=True),
-    'max_angular_speed': Param(Limits.max_angular_speed, 'rad/s.', (0.01, 10.0), read_only=True),
-    'max_linear_accel': Param(Limits.max_linear_accel, 'm/s^2.', (0.01, 20.0), read_only=True),
-    'max_angular_accel': Param(Limits.max_angular_accel, 'rad/s^2.', (0.01, 50.0),
-                               read_only=True),
+    'stall_time': _moves(
+        'stall_time', "s (robot's clock) without progress while driving: blocked."
+    ),
+    'command_latency': _moves(
+        'command_latency', 'When a command takes effect after the odom it answers, in odom '
+        'periods: 1 a robot that takes it at its next control cycle, 0 a simulator in lockstep '
+        "with its controller (stealth_sim's real_time_factor 0)."
+    ),
+    'max_linear_speed': _moves('max_linear_speed', "m/s (the robot's limit or lower)."),
+    'max_angular_speed': _moves('max_angular_speed', 'rad/s.'),
+    'max_linear_accel': _moves('max_linear_accel', 'm/s^2.'),
+    'max_angular_accel': _moves('max_angular_accel', 'rad/s^2.'),
 }  # fmt: skip
