@@ -61,9 +61,9 @@ def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog=PROG,
         description='Benchmark the planners, the replanning baselines, the tabular learners, '
-        'a learned policy and the generalist on a test set of scenarios, on the full-knowledge and the sensed '
-        'track: results.csv, summary.md (success rate, normalised regret, path and exposure '
-        "against value iteration's optimum) and benchmark.png.",
+        'a learned policy and the generalist on a test set of scenarios, on the full-knowledge '
+        'and the sensed track: results.csv, summary.md (success rate, normalised regret, path '
+        "and exposure against value iteration's optimum) and benchmark.png.",
         epilog='Tracks per method: value iteration (the oracle), A* and the generalist on both; '
         'Dark Path, the learners and policy on the full track only; the replanners on the sensed '
         'track only. The generalist needs the learning extra (make learn): a default method only '
