@@ -28,7 +28,6 @@ from stealth_experiments.benchmark_methods import (
     METHODS,
     TRACKS,
     failed_row,
-    generalist_policy,
     learning_extra,
     method_name,
     run_case,
@@ -220,8 +219,12 @@ def _methods(args) -> list[str]:
         names.append('generalist')
     if 'generalist' in names and learning_extra():
         # a missing, corrupt or foreign weights file: refused here, one line naming it
-        # (PolicyFileError, LayoutError: ValueErrors)
-        generalist_policy(str(args.policy_file.resolve()) if args.policy_file else None)
+        # (PolicyFileError, LayoutError: ValueErrors); numpy only: no jax in this process
+        # before Ray forks its workers
+        from stealth_learn import policy_file
+
+        path = args.policy_file or policy_file.SHIPPED
+        policy_file.load(path, policy_file.policy_layout('full'))
     if 'policy' in names:
         if not args.policy:
             raise ValueError('--methods policy needs --policy FILE')
@@ -300,6 +303,8 @@ def _settings(args, methods: list[str], count: int, elapsed: float, cases: int) 
                 + ') per scenario goal'
             )
         budget += ', then one greedy episode.'
+    if 'generalist' in methods:
+        budget += f' Generalist weights: {args.policy_file or "the shipped generalist-full.npz"}.'
     where = 'one after another' if args.jobs <= 1 else f'local Ray, {args.jobs} CPUs'
     return (
         f'Tracks: {", ".join(args.tracks)}. Methods: {", ".join(methods)}.{budget} Seed '
