@@ -23,8 +23,9 @@ the Gym env's ``track='sensed'``). Which method runs on which track (``METHODS``
 - ``generalist``: the lights-known generalist of ``stealth_learn`` (``--policy-file``, default
   the shipped ``generalist-full.npz``), trained on generated buildings, never on these; each
   decision from its parameters (``stealth_learn.generalist_agent``): on the full track the value
-  map of the lights as they stand now, on the sensed track of what was sensed so far (never
-  sensed: dark, as ``replan (unknown dark)``). It needs the learning extra (``make learn``);
+  map of the most light each node and move gets over the lights' cycle (the lights themselves
+  where they stand still), on the sensed track of what was sensed so far (never sensed: dark,
+  as ``replan (unknown dark)``). It needs the learning extra (``make learn``);
   without it its rows fail with the one line saying so, and the other methods run.
 
 Every row is measured the same way: one episode (a planner's path walked through the task,

@@ -10,10 +10,12 @@ The grid is ``generalist_data.grid_of`` (the channels the network trained on: fr
 light on each node and along each move; robot and age 0, the decision being read at the robot's
 cell), with the light of what the agent knows:
 
-- Track 'full': the lights as they stand now, the layer (bin, heading) of the robot's place.
-  The value map depends on that light only, so it is computed once per layer: once per episode
-  with static lights; with moving lights once per bin, each decision on the lights as they
-  stand now (a reactive use of a network trained on static lights).
+- Track 'full': the lights known. ``lights='cycle'`` (the default): at each node and move the
+  most light it gets over the lights' cycle (the bins of the robot's heading), so the map is
+  computed once per episode and a way it finds dark is dark whenever the robot passes; with
+  static lights this is simply the lights. ``lights='now'``: the lights as they stand now (the
+  layer of the robot's place: bin and heading), one map per layer: each decision on the lights
+  of that moment, a reactive use of a network trained on still lights.
 - Track 'sensed': the Gym env's sensed observation, what was sensed so far (its last value),
   with a node or move never sensed (-1) entering as ``unknown``: 'dark' (0: the optimistic rule
   of ``replan (unknown dark)``) or 'lit' (the detection threshold where a lamp could reach it,
@@ -37,6 +39,7 @@ from stealth_learn.obs_layout import CHANNELS
 from stealth_learn.vin import NUM_MOVES
 
 UNKNOWN_RULES = ('dark', 'lit')
+LIGHT_RULES = ('cycle', 'now')
 LIGHT_CHANNELS = slice(CHANNELS.index('light'), CHANNELS.index('move_right') + 1)
 _KEPT = 64  # value maps kept per agent (moving lights' bins; the sensed track's latest)
 
@@ -60,11 +63,13 @@ class GeneralistAgent:
     """``act(observation) -> action`` on ``env`` (module docstring). ``env`` is read for its
     robot's place (``env.node``); its scenario and goal give the floor plan's grid."""
 
-    def __init__(self, policy: GeneralistPolicy, env, unknown: str = 'dark'):
-        if unknown not in UNKNOWN_RULES:
-            rules = ', '.join(UNKNOWN_RULES)
-            raise ValueError(f'unknown: expected one of {rules}, got {unknown!r}')
-        self.policy, self.env, self.unknown = policy, env, unknown
+    def __init__(self, policy: GeneralistPolicy, env, unknown: str = 'dark', lights='cycle'):
+        for name, value, rules in (('unknown', unknown, UNKNOWN_RULES),
+                                   ('lights', lights, LIGHT_RULES)):  # fmt: skip
+            if value not in rules:
+                raise ValueError(f'{name}: expected one of {", ".join(rules)}, got {value!r}')
+        self.policy, self.env, self.unknown, self.lights = policy, env, unknown, lights
+        self.bins = int(env.model.cycle_bins)
         arrays = TaskArrays(env.scenario, model=env.model)
         self.tables = arrays.tables()
         sensing = arrays.sensing
@@ -81,7 +86,13 @@ class GeneralistAgent:
     def grid(self, observation) -> np.ndarray:
         """(R, C, 7) the grid the network reads for this observation (module docstring)."""
         if self.env.track == 'full':
-            return grid_of(self.tables, int(self.env.node) // self.nodes)
+            layer = int(self.env.node) // self.nodes
+            if self.lights == 'now':
+                return grid_of(self.tables, layer)
+            first = layer - layer % self.bins  # the robot's heading's first bin
+            cycle = slice(first, first + self.bins)
+            light = self.tables.node_light[cycle].max(axis=0)
+            return grid_of(self.tables, 0, light, self.tables.move_light[cycle].max(axis=0))
         light = np.asarray(observation['light'], np.float32)
         moves = np.asarray(observation['moves'], np.float32)
         light = np.where(light == -1.0, self.assumed, light)

@@ -1,6 +1,7 @@
 """The generalist as an agent of the Gym env: on the full track its grid is the JAX env's
-observation (the lights as they stand now, moving ones too) with one value map per light layer;
-on the sensed track the belief, unknown dark, with a value map per sensed field."""
+observation (the lights as they stand now, moving ones too) with one value map per light layer,
+or the most light over the cycle with one map per episode; on the sensed track the belief,
+unknown dark, with a value map per sensed field."""
 
 import numpy as np
 import pytest
@@ -21,7 +22,7 @@ def policy():
 def test_full_track_grid_is_the_jax_envs_with_a_value_map_per_layer(generated, policy):
     scenario = generated['moving']
     gym = StealthNavEnv(scenario)
-    agent = GeneralistAgent(policy, gym)
+    agent = GeneralistAgent(policy, gym, lights='now')
     env, params = build([scenario], track='full')
     one = env.scenario(params, 0)
     observation, _ = gym.reset(seed=0)
@@ -41,6 +42,23 @@ def test_full_track_grid_is_the_jax_envs_with_a_value_map_per_layer(generated, p
             break
     assert len(layers) > 1  # the lights moved under it
     assert agent.value_maps == len(layers)
+
+
+def test_full_track_cycle_is_the_most_light_over_the_bins_one_map_an_episode(generated, policy):
+    gym = StealthNavEnv(generated['moving'])
+    agent = GeneralistAgent(policy, gym)
+    assert agent.lights == 'cycle' and agent.bins > 1
+    observation, _ = gym.reset(seed=0)
+    grid = agent.grid(observation)
+    tables = agent.tables
+    np.testing.assert_array_equal(grid[..., LIGHT], tables.node_light[: agent.bins].max(axis=0))
+    assert (grid[..., LIGHT] >= tables.node_light[: agent.bins]).all()
+    for _ in range(40):
+        observation, _, terminated, truncated, _ = gym.step(agent.act(observation))
+        np.testing.assert_array_equal(agent.grid(observation), grid)
+        if terminated or truncated:
+            break
+    assert agent.value_maps == 1
 
 
 def test_sensed_track_belief_is_the_observation_with_unknown_dark(generated, policy):
@@ -70,5 +88,7 @@ def test_an_unknown_rule_that_does_not_exist_is_refused(generated, policy):
     gym = StealthNavEnv(generated['still'], track='sensed')
     with pytest.raises(ValueError, match="unknown: expected one of dark, lit, got 'grey'"):
         GeneralistAgent(policy, gym, unknown='grey')
+    with pytest.raises(ValueError, match="lights: expected one of cycle, now, got 'then'"):
+        GeneralistAgent(policy, gym, lights='then')
     with pytest.raises(ValueError, match='iterations: expected >= 1, got 0'):
         load_policy(iterations=0)
