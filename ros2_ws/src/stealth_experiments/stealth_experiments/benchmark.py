@@ -27,6 +27,7 @@ from stealth_experiments.benchmark_methods import (
     METHODS,
     TRACKS,
     failed_row,
+    learning_extra,
     method_name,
     run_case,
 )
@@ -46,18 +47,26 @@ from stealth_experiments.sweep_pool import duration as _duration
 
 PROG = 'stealth benchmark'
 DEFAULT_OUT = Path('runs/benchmark')
-DEFAULT_METHODS = tuple(m for m in METHODS if m != 'policy')
+# The generalist is a default method where the learning extra is installed (default_methods).
+DEFAULT_METHODS = tuple(m for m in METHODS if m not in ('policy', 'generalist'))
+
+
+def default_methods() -> list[str]:
+    """DEFAULT_METHODS, and the generalist when the learning extra is installed."""
+    return [*DEFAULT_METHODS, *(['generalist'] if learning_extra() else [])]
 
 
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog=PROG,
-        description='Benchmark the planners, the replanning baselines, the tabular learners and '
-        'a learned policy on a test set of scenarios, on the full-knowledge and the sensed '
-        'track: results.csv, summary.md (success rate, normalised regret, path and exposure '
-        "against value iteration's optimum) and benchmark.png.",
-        epilog='Tracks per method: value iteration (the oracle) and A* on both; Dark Path, the '
-        'learners and policy on the full track only; the replanners on the sensed track only. '
+        description='Benchmark the planners, the replanning baselines, the tabular learners, '
+        'a learned policy and the generalist on a test set of scenarios, on the full-knowledge '
+        'and the sensed track: results.csv, summary.md (success rate, normalised regret, path '
+        "and exposure against value iteration's optimum) and benchmark.png.",
+        epilog='Tracks per method: value iteration (the oracle), A* and the generalist on both; '
+        'Dark Path, the learners and policy on the full track only; the replanners on the sensed '
+        'track only. The generalist needs the learning extra (make learn): a default method only '
+        'where it is installed; asked for without it, its rows fail saying so and the rest run. '
         f'Test scenarios are generated from seed {TEST_SEED:,} on (the test range) into the '
         'cache once. A scenario that cannot be read is named and its rows marked failed; the '
         'rest run. Ctrl-C or SIGTERM writes what is done, marks the rest interrupted and exits '
@@ -93,14 +102,22 @@ def parser() -> argparse.ArgumentParser:
         '--methods',
         nargs='+',
         metavar='METHOD',
-        help='default: all but policy (policy too with --policy): vi, astar, dark-path, '
-        'replan-dark, replan-lit, ' + ', '.join(LEARNERS) + ', policy',
+        help='default: all but policy (policy too with --policy; generalist where the '
+        'learning extra is installed): vi, astar, dark-path, replan-dark, replan-lit, '
+        + ', '.join(LEARNERS)
+        + ', policy, generalist',
     )
     add_episodes_option(
         p, "the learners' training budget per scenario, in episodes (default: the harness's, "
     )
     p.add_argument('--seed', type=int, default=0, help="learners' and episodes' seed (default 0)")
     p.add_argument('--policy', type=Path, help='a learned policy file (method policy)')
+    p.add_argument(
+        '--policy-file',
+        type=Path,
+        help="the generalist's weights (method generalist; default: the shipped "
+        'stealth_learn/policies/generalist-full.npz)',
+    )
     add_output_options(p, 'trials', DEFAULT_OUT, 'benchmark.png')
     return p
 
@@ -118,6 +135,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f'{PROG}: {error}', file=sys.stderr)
         return 1
     say = _say
+    if 'generalist' in methods and not learning_extra():
+        say(f'{PROG}: generalist needs the learning extra (jax, flax, optax): install it with '
+            'make learn; its rows are marked failed')  # fmt: skip
     try:
         args.out.mkdir(parents=True, exist_ok=True)
     except OSError as error:
@@ -136,6 +156,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     laid = trials(
         cases, methods, args.tracks, episodes=args.episodes, seed=args.seed,
         policy=str(args.policy.resolve()) if args.policy else None,
+        policy_file=str(args.policy_file.resolve()) if args.policy_file else None,
     )  # fmt: skip
     say(f'benchmark: {len(cases)} scenario goals x {len(methods)} methods: {len(laid)} trials')
     started = time.monotonic()
@@ -175,9 +196,19 @@ def _say(line: str) -> None:
 
 
 def _methods(args) -> list[str]:
-    names = [method_name(m) for m in args.methods] if args.methods else list(DEFAULT_METHODS)
+    names = [method_name(m) for m in args.methods] if args.methods else default_methods()
     if args.policy and 'policy' not in names:
         names.append('policy')
+    if args.policy_file and 'generalist' not in names:
+        names.append('generalist')
+    if 'generalist' in names and learning_extra():
+        # a missing, corrupt or foreign weights file: refused here, one line naming it
+        # (PolicyFileError, LayoutError: ValueErrors); numpy only: no jax in this process
+        # before Ray forks its workers
+        from stealth_learn import policy_file
+
+        path = args.policy_file or policy_file.SHIPPED
+        policy_file.load(path, policy_file.policy_layout('full'))
     if 'policy' in names:
         if not args.policy:
             raise ValueError('--methods policy needs --policy FILE')
@@ -256,6 +287,8 @@ def _settings(args, methods: list[str], count: int, elapsed: float, cases: int) 
                 + ') per scenario goal'
             )
         budget += ', then one greedy episode.'
+    if 'generalist' in methods:
+        budget += f' Generalist weights: {args.policy_file or "the shipped generalist-full.npz"}.'
     where = 'one after another' if args.jobs <= 1 else f'local Ray, {args.jobs} CPUs'
     return (
         f'Tracks: {", ".join(args.tracks)}. Methods: {", ".join(methods)}.{budget} Seed '

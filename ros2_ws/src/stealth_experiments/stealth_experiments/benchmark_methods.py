@@ -20,6 +20,13 @@ the Gym env's ``track='sensed'``). Which method runs on which track (``METHODS``
   the full track's; the sensed track's observation is not a table key).
 - ``policy``: a learned policy file (``--policy``, ``stealth_agent.policy_store``) played
   greedily: full track only for now (a tabular file's state is the full track's).
+- ``generalist``: the lights-known generalist of ``stealth_learn`` (``--policy-file``, default
+  the shipped ``generalist-full.npz``), trained on generated buildings, never on these; each
+  decision from its parameters (``stealth_learn.generalist_agent``): on the full track the value
+  map of the most light each node and move gets over the lights' cycle (the lights themselves
+  where they stand still), on the sensed track of what was sensed so far (never sensed: dark,
+  as ``replan (unknown dark)``). It needs the learning extra (``make learn``);
+  without it its rows fail with the one line saying so, and the other methods run.
 
 Every row is measured the same way: one episode (a planner's path walked through the task,
 ``planners.walk``, or an episode on the Gym env), its outcome, return (undiscounted, the
@@ -30,6 +37,8 @@ sum over the episode's steps of the judge's step visibility (the most light alon
 
 from __future__ import annotations
 
+import functools
+import importlib.util
 import time
 
 import numpy as np
@@ -54,6 +63,7 @@ METHODS = {
     'replan (unknown lit)': ('sensed',),
     **dict.fromkeys(LEARNER_NAMES, ('full',)),
     'policy': ('full',),
+    'generalist': TRACKS,
 }
 LEARNERS = tuple(LEARNER_NAMES)
 REPLANNERS = {'replan (unknown dark)': 'dark', 'replan (unknown lit)': 'lit'}
@@ -103,7 +113,8 @@ def run_case(trial: dict) -> list[dict]:
     on each of ``trial['tracks']``; one row per track, a failed row (with its error) where the
     method raised. Keys of ``trial``: id, scenario, goal, method, tracks, file (the scenario
     file, for the rows), episodes (learners' budget, None: the harness's default), seed,
-    policy (a policy file's path, for method 'policy')."""
+    policy (a policy file's path, for method 'policy'), policy_file (the generalist's weights,
+    None: the shipped ones)."""
     rows = []
     for track in trial['tracks']:
         started = time.perf_counter()
@@ -195,6 +206,8 @@ def _episode(trial: dict, track: str, model, optimum, vi_walk) -> tuple[dict, in
         return run(spec).final, budget
     if method == 'policy':
         return _play_policy(trial), None
+    if method == 'generalist':
+        return _play_generalist(trial, track), None
     raise ValueError(f'unknown method {method!r}')
 
 
@@ -208,3 +221,27 @@ def _play_policy(trial: dict) -> dict:
     agent = ProtocolAgent(saved.learner, saved.index, rng, learning=False)
     _, info = play_episode(env, agent, seed=trial['seed'])
     return env.stats.summary(EpisodeOutcome[info['outcome']])._asdict()
+
+
+def _play_generalist(trial: dict, track: str) -> dict:
+    """One greedy episode of the generalist on ``track`` (its imports here: the learning extra's
+    MissingExtraError, one line naming make learn, fails this row only)."""
+    from stealth_learn.generalist_agent import GeneralistAgent
+
+    env = StealthNavEnv(trial['scenario'], trial['goal'], track=track)
+    agent = GeneralistAgent(generalist_policy(trial.get('policy_file')), env)
+    return play(env, agent.act, seed=trial['seed'])
+
+
+@functools.lru_cache(maxsize=2)
+def generalist_policy(path: str | None):
+    """The generalist's weights (None: the shipped ones), loaded once per process: its compiled
+    network is reused by the trials that follow."""
+    from stealth_learn.generalist_agent import load_policy
+
+    return load_policy(path)
+
+
+def learning_extra() -> bool:
+    """Whether the learning extra (jax, flax) is installed, without importing it."""
+    return all(importlib.util.find_spec(name) is not None for name in ('jax', 'flax'))

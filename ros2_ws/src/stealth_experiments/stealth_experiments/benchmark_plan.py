@@ -114,6 +114,7 @@ def trials(
     episodes: int | None = None,
     seed: int = 0,
     policy: str | None = None,
+    policy_file: str | None = None,
 ) -> list[dict]:
     """One trial per case and method that runs on one of ``tracks`` at least, in that order."""
     laid = []
@@ -134,6 +135,7 @@ def trials(
                 'episodes': episodes,
                 'seed': seed,
                 'policy': policy,
+                'policy_file': policy_file,
             })  # fmt: skip
     return laid
 

@@ -5,6 +5,8 @@ one trial of each kind on a shipped scenario."""
 import csv
 import math
 from pathlib import Path
+import subprocess
+import sys
 
 import pytest
 from stealth_env.gym_env import lattice_model
@@ -19,7 +21,14 @@ from stealth_experiments.benchmark_methods import (
     regret,
     run_case,
 )
-from stealth_experiments.benchmark_plan import Case, file_case, generated_cases, set_cases, trials
+from stealth_experiments.benchmark_plan import (
+    TEST_SEED,
+    Case,
+    file_case,
+    generated_cases,
+    set_cases,
+    trials,
+)
 from stealth_experiments.benchmark_report import summarise, write_csv, write_summary
 from stealth_experiments.harness import RunSpec, policy_path, run
 
@@ -30,8 +39,8 @@ REQUIRED = (
 )  # fmt: skip
 
 
-def _trial(method, tracks=TRACKS, scenario=SCENARIO, **extra):
-    case = Case(scenario, scenario, 'easy', scenario)
+def _trial(method, tracks=TRACKS, scenario=SCENARIO, goal='easy', **extra):
+    case = Case(scenario, Path(scenario).stem, goal, scenario)
     laid = trials([case], [method], list(tracks), episodes=extra.pop('episodes', 50), **extra)
     return laid[0]
 
@@ -240,3 +249,57 @@ def test_the_test_set_generates_test_seeds_once_and_names_a_broken_cached_file(t
     shipped = [(c.label, c.goal) for c in set_cases('test', 1, cache)[1:]]
     assert shipped[:3] == [('simple-maze', goal) for goal in ('easy', 'medium', 'hard')]
     assert len(shipped) == 12
+
+
+# --- the generalist ------------------------------------------------------------------------
+
+
+def test_the_generalist_crosses_a_small_unseen_building_on_both_tracks(tmp_path):
+    """A 20 x 20 m generated test-range building (static lights): the shipped weights reach
+    the goal undetected on the full track; the sensed track runs its episode on the belief."""
+    pytest.importorskip('jax')
+    from stealth_env.scenario_generator import Options, generate
+
+    path = generate(TEST_SEED + 3, Options(width=20, height=20, lights=3)).write(tmp_path)
+    rows = {r['track']: r for r in run_case(_trial('generalist', scenario=str(path), goal=None))}
+    assert {r['status'] for r in rows.values()} == {'ok'}, rows
+    full = rows['full']
+    assert full['success'] and full['return'] >= 0.97 * full['vi_return'], full
+    assert rows['sensed']['steps'] > 0 and rows['sensed']['outcome'] != 'none'
+
+
+def test_the_generalist_without_its_weights_is_refused_in_one_line(tmp_path, capsys):
+    pytest.importorskip('jax')
+    missing = tmp_path / 'none.npz'
+    rows = run_case(_trial('generalist', policy_file=str(missing)))
+    assert [r['status'] for r in rows] == ['failed', 'failed']
+    assert all(f'{missing}: no such policy file' in r['error'] for r in rows)
+    out = tmp_path / 'out'
+    argv = ['simple-maze', '--methods', 'generalist', '--policy-file', str(missing)]
+    assert benchmark.main([*argv, '--out', str(out)]) == 1
+    _, err = capsys.readouterr()
+    assert err.startswith(f'stealth benchmark: {missing}: no such policy file')
+    assert err.count('\n') == 1
+
+
+def test_without_the_learning_extra_the_generalist_rows_fail_naming_make_learn():
+    """jax missing (in a process of its own): the generalist is no default method, and asked
+    for, its rows fail with the extra's one line naming make learn while the others run."""
+    script = (
+        "import sys; sys.modules['jax'] = None\n"
+        'from stealth_experiments import benchmark\n'
+        "assert 'generalist' not in benchmark.default_methods()\n"
+        'from stealth_experiments.benchmark_methods import run_case\n'
+        'from stealth_experiments.benchmark_plan import Case, trials\n'
+        "case = Case('simple-maze', 'simple-maze', 'easy', 'simple-maze')\n"
+        "for trial in trials([case], ['generalist', 'A*'], ['full']):\n"
+        "    row = run_case(trial)[0]; print(row['method'], row['status'], row['error'])\n"
+    )
+    done = subprocess.run(
+        [sys.executable, '-c', script], capture_output=True, text=True, timeout=120
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    generalist, astar = done.stdout.splitlines()
+    assert generalist.startswith('generalist failed MissingExtraError: stealth_learn needs')
+    assert 'make learn' in generalist
+    assert astar == 'A* ok '

@@ -119,11 +119,15 @@ class Tables:
 class TaskArrays:
     """One scenario and goal on its lattice model, before padding (``dims`` its own sizes)."""
 
-    def __init__(self, scenario: str | Scenario, goal: str | None = None, track: str = 'full'):
+    def __init__(
+        self, scenario: str | Scenario, goal: str | None = None, track: str = 'full', model=None
+    ):
+        """``model``: the scenario and goal's lattice model when the caller has it (a Gym env's
+        ``model``), instead of building it again."""
         if track not in TRACKS:
             raise TableError(f'track: expected one of {", ".join(TRACKS)}, got {track!r}')
         self.track = track
-        self.model = lattice_model(scenario, goal)
+        self.model = lattice_model(scenario, goal) if model is None else model
         self.task = self.model.task
         self.sensing = Sensing(self.model)
         rows, cols = self.sensing.shape

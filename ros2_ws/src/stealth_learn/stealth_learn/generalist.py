@@ -32,7 +32,7 @@ from stealth_learn.jax_deps import jax, jnp
 from stealth_learn.jax_env import build
 from stealth_learn.vin import ROBOT, Vin, logits_of_cells
 
-DEFAULT_POLICY = Path(__file__).resolve().parent / 'policies' / 'generalist-full.npz'
+DEFAULT_POLICY = policy_file.SHIPPED
 
 
 class GeneralistPolicy:

@@ -85,11 +85,14 @@ def sample_of(seed: int, scenario) -> Sample:
     return Sample(seed, scenario.name, grid, optimal, weight, optimum.optimal_return)
 
 
-def grid_of(tables) -> np.ndarray:
-    """(R, C, 7) the grid observation of layer 0 without the robot (``jax_env.observe``)."""
+def grid_of(tables, layer: int = 0, light=None, moves=None) -> np.ndarray:
+    """(R, C, 7) the grid observation without the robot (``jax_env.observe``): the light of
+    ``layer`` (bin and heading), or the given ``light`` (R, C) and ``moves`` (2, R, C), a
+    sensed belief; age 0."""
     free = tables.free.astype(np.float32)
     zero = np.zeros_like(free)
-    light, moves = tables.node_light[0], tables.move_light[0]
+    if light is None:
+        light, moves = tables.node_light[layer], tables.move_light[layer]
     return np.stack(
         [free, zero, tables.goal_cells.astype(np.float32), light, moves[0], moves[1], zero],
         axis=-1,

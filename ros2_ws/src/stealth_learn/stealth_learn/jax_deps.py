@@ -14,6 +14,7 @@ class MissingExtraError(ImportError):
 
 
 try:
+    from flax import linen as nn
     from flax import struct
     import jax
     import jax.numpy as jnp
@@ -24,4 +25,4 @@ except ImportError as error:  # one line, not the import machinery's traceback c
         f'install it with {INSTALL_HINT}'
     ) from None
 
-__all__ = ['INSTALL_HINT', 'MissingExtraError', 'jax', 'jnp', 'struct']
+__all__ = ['INSTALL_HINT', 'MissingExtraError', 'jax', 'jnp', 'nn', 'struct']

@@ -18,6 +18,7 @@ import numpy as np
 from stealth_learn.obs_layout import check_layout, layout_id
 
 FORMAT = 'stealth-generalist-v1'
+SHIPPED = Path(__file__).resolve().parent / 'policies' / 'generalist-full.npz'  # lights known
 HEADER = '__header__'
 ARCHITECTURE = ('iterations', 'hidden', 'features', 'threshold')
 

@@ -28,9 +28,7 @@ decision is the attention on the robot's cell (its Q values are the logits).
 
 from __future__ import annotations
 
-from flax import linen as nn  # noqa: I001 (after jax_deps: its one-line missing-extra error)
-
-from stealth_learn.jax_deps import jax, jnp
+from stealth_learn.jax_deps import jax, jnp, nn
 
 NUM_MOVES = 4  # up, down, left, right: static lights without exposure have no wait or turns
 NO_MOVE = -2.0  # obs_layout: the light where no node or move is

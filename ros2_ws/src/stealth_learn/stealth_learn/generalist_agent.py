@@ -1,0 +1,123 @@
+"""The lights-known generalist as an agent of the Gym env (``stealth_env.gym_env.StealthNavEnv``)
+on either track: every decision comes from the trained parameters (the value map of the grid,
+read at the robot's cell); no planner runs.
+
+    policy = load_policy(path)                       # default: the shipped generalist-full.npz
+    agent = GeneralistAgent(policy, env)             # env: a StealthNavEnv, track full or sensed
+    action = agent.act(observation)                  # 0-3, the moves (it never waits or turns)
+
+The grid is ``generalist_data.grid_of`` (the channels the network trained on: free, goal, the
+light on each node and along each move; robot and age 0, the decision being read at the robot's
+cell), with the light of what the agent knows:
+
+- Track 'full': the lights known. ``lights='cycle'`` (the default): at each node and move the
+  most light it gets over the lights' cycle (the bins of the robot's heading), so the map is
+  computed once per episode and a way it finds dark is dark whenever the robot passes; with
+  static lights this is simply the lights. ``lights='now'``: the lights as they stand now (the
+  layer of the robot's place: bin and heading), one map per layer: each decision on the lights
+  of that moment, a reactive use of a network trained on still lights.
+- Track 'sensed': the Gym env's sensed observation, what was sensed so far (its last value),
+  with a node or move never sensed (-1) entering as ``unknown``: 'dark' (0: the optimistic rule
+  of ``replan (unknown dark)``) or 'lit' (the detection threshold where a lamp could reach it,
+  ``replanning.lamp_reach``, as ``replan (unknown lit)``). The value map is recomputed whenever
+  the sensed light changes: the network replanning on its belief.
+
+The policy file is the full track's (layout ``stealth-grid-v1/full``): on the sensed track the
+same network reads the belief grid, so no other file is needed (nor accepted).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from stealth_env.replanning import lamp_reach
+
+from stealth_learn import policy_file
+from stealth_learn.env_tables import TaskArrays
+from stealth_learn.generalist import DEFAULT_POLICY, GeneralistPolicy
+from stealth_learn.generalist_data import grid_of
+from stealth_learn.obs_layout import CHANNELS
+from stealth_learn.vin import NUM_MOVES
+
+UNKNOWN_RULES = ('dark', 'lit')
+LIGHT_RULES = ('cycle', 'now')
+LIGHT_CHANNELS = slice(CHANNELS.index('light'), CHANNELS.index('move_right') + 1)
+_KEPT = 64  # value maps kept per agent (moving lights' bins; the sensed track's latest)
+
+
+def load_policy(path=None, iterations: int | None = None) -> GeneralistPolicy:
+    """The lights-known generalist of ``path`` (default: the shipped weights), with its Bellman
+    backups at decision time set to ``iterations`` (default: the file's). PolicyFileError or
+    LayoutError, one line naming the path."""
+    path = DEFAULT_POLICY if path is None else path
+    policy = GeneralistPolicy.load(path, policy_file.policy_layout('full'))
+    if iterations is None:
+        return policy
+    if iterations < 1:
+        raise ValueError(f'iterations: expected >= 1, got {iterations}')
+    architecture = {**policy.header['architecture'], 'iterations': int(iterations)}
+    params = policy.variables['params']
+    return GeneralistPolicy(params, architecture, {**policy.header, 'architecture': architecture})
+
+
+class GeneralistAgent:
+    """``act(observation) -> action`` on ``env`` (module docstring). ``env`` is read for its
+    robot's place (``env.node``); its scenario and goal give the floor plan's grid."""
+
+    def __init__(self, policy: GeneralistPolicy, env, unknown: str = 'dark', lights='cycle'):
+        for name, value, rules in (('unknown', unknown, UNKNOWN_RULES),
+                                   ('lights', lights, LIGHT_RULES)):  # fmt: skip
+            if value not in rules:
+                raise ValueError(f'{name}: expected one of {", ".join(rules)}, got {value!r}')
+        self.policy, self.env, self.unknown, self.lights = policy, env, unknown, lights
+        self.bins = int(env.model.cycle_bins)
+        arrays = TaskArrays(env.scenario, model=env.model)
+        self.tables = arrays.tables()
+        sensing = arrays.sensing
+        self.nodes = sensing.n
+        self.row, self.col = sensing.grid_row, sensing.grid_col
+        self.assumed = np.zeros(self.tables.free.shape, np.float32)
+        if env.track == 'sensed' and unknown == 'lit':
+            reach = lamp_reach(env.model)
+            threshold = env.scenario.detection_threshold
+            self.assumed[self.row, self.col] = np.where(reach, threshold, 0.0)
+        self._maps: dict[bytes, np.ndarray] = {}
+        self.value_maps = 0  # value maps computed (each a full pass of the network)
+
+    def grid(self, observation) -> np.ndarray:
+        """(R, C, 7) the grid the network reads for this observation (module docstring)."""
+        if self.env.track == 'full':
+            layer = int(self.env.node) // self.nodes
+            if self.lights == 'now':
+                return grid_of(self.tables, layer)
+            first = layer - layer % self.bins  # the robot's heading's first bin
+            cycle = slice(first, first + self.bins)
+            light = self.tables.node_light[cycle].max(axis=0)
+            return grid_of(self.tables, 0, light, self.tables.move_light[cycle].max(axis=0))
+        light = np.asarray(observation['light'], np.float32)
+        moves = np.asarray(observation['moves'], np.float32)
+        light = np.where(light == -1.0, self.assumed, light)
+        ends = np.maximum(light, _shifted(light))  # a move's estimate: the larger end's
+        moves = np.where(moves == -1.0, ends, moves)
+        return grid_of(self.tables, 0, light, moves)
+
+    def act(self, observation) -> int:
+        """The move with the highest logit at the robot's cell (never a wait or a turn)."""
+        grid = self.grid(observation)
+        key = grid[..., LIGHT_CHANNELS].tobytes()
+        logits = self._maps.get(key)
+        if logits is None:
+            if len(self._maps) >= _KEPT:
+                self._maps.clear()
+            logits = self._maps[key] = self.policy.cell_logits(grid)
+            self.value_maps += 1
+        node = int(self.env.node) % self.nodes
+        return int(np.argmax(logits[self.row[node], self.col[node], :NUM_MOVES]))
+
+
+def _shifted(light: np.ndarray) -> np.ndarray:
+    """(2, R, C): the node a move up ([0]) and right ([1]) leads to, its light (-2 beyond)."""
+    up = np.full_like(light, -2.0)
+    right = np.full_like(light, -2.0)
+    up[:-1] = light[1:]
+    right[:, :-1] = light[:, 1:]
+    return np.stack([up, right])
