@@ -45,8 +45,8 @@ from stealth_env.scenario import content_identity
 
 # Training episodes per run, per learner: each well past where every seed settled (README);
 # Dyna-Q's 20 planning updates make its episodes ~5x dearer and it needs ~1/6 as many;
-# prioritized sweeping settled by episode 120 wherever it settled (bench_learners); the seeds
-# that had not by 300 (exposure and bounce variants) had not by 600 either.
+# prioritized sweeping, exploring by optimism, settled on every seed of every static scenario by
+# episode 160 (map1-exposure; bench_learners, 2026-11-28).
 DEFAULT_EPISODES = {'qlearning': 1500, 'sarsa': 1500, 'dyna': 500, 'prioritized': 300}
 # Scenarios with the phase in the state (moving lights) have phase_bins times the states: each
 # learner gets a larger budget there (README: Q-learning settled at 2580 on simple-maze-moving,
