@@ -9,15 +9,16 @@ the median over seeds of those episodes, its final greedy return over the optimu
 prioritized sweeping's episodes relative to Q-learning's (target <= 0.1x) and Dyna-Q's
 (target <= 0.5x). SARSA is left out: it is no faster than Q-learning and doubles the bench.
 
-Run: PYTHONPATH=ros2_ws/src/stealth_sim:ros2_ws/src/stealth_env:ros2_ws/src/stealth_agent:\
-ros2_ws/src/stealth_experiments python bench/bench_learners.py [scenario ...]
+Run: source scripts/ros_env.sh && python bench/bench_learners.py [scenario ...] (or with
+PYTHONPATH holding every ros2_ws/src/stealth_* package: the harness's command line needs
+stealth_bringup and stealth_tools too); also part of `make bench`.
 """
 
 from __future__ import annotations
 
+import argparse
 import math
 import os
-import sys
 
 import numpy as np
 from stealth_env.path_scores import DEFAULT_CRITERION
@@ -110,8 +111,16 @@ def run(report=print, scenarios=SCENARIOS) -> dict:
     return figures
 
 
-def main() -> None:
-    run(scenarios=tuple(sys.argv[1:]) or SCENARIOS)
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(prog='bench_learners', description=__doc__.split('\n\n')[0])
+    parser.add_argument(
+        'scenarios',
+        nargs='*',
+        metavar='scenario',
+        help=f'scenarios to bench (default: {" ".join(SCENARIOS)})',
+    )
+    args = parser.parse_args(argv)
+    run(scenarios=tuple(args.scenarios) or SCENARIOS)
 
 
 if __name__ == '__main__':

@@ -146,3 +146,35 @@ def test_fewer_episodes_than_dyna_with_as_many_planning_updates():
     sweeping, dyna, qlearning = (np.array(c) for c in counts.values())
     assert np.all(sweeping <= dyna) and sweeping.mean() < dyna.mean(), counts
     assert sweeping.mean() * 10 <= qlearning.mean(), counts
+
+
+def settled_on_the_optimum(initial_value: float, seed: int, episodes: int = 60) -> int | None:
+    """The episode from which the greedy route stays optimal (undiscounted, epsilon 0, so only
+    the initial Q explores), or None when the last one is not."""
+    mdp = GridMDP(DYNA_MAZE.layout, step_reward=-1.0, goal_reward=10.0, max_steps=200)
+    config = LearnerConfig(
+        gamma=1.0,
+        alpha=Schedule.fixed(1.0),
+        epsilon=Schedule.fixed(0.0),
+        initial_value=initial_value,
+        n_planning=200,
+    )
+    learner = make_learner('prioritized', 4, config)
+    agent = ProtocolAgent(learner, StateIndex(), np.random.default_rng(seed))
+    optimal, since = mdp.optimal_return(1.0), None
+    for episode in range(1, episodes + 1):
+        run_episode(agent, mdp)
+        achieved = greedy_return(learner, agent.index, mdp, 1.0)
+        good = achieved is not None and abs(achieved - optimal) < 1e-9
+        since = (since or episode) if good else None
+    return since
+
+
+def test_optimism_at_the_goal_reward_finds_the_optimum_where_q_0_keeps_the_first_route():
+    """The harness's exploration (tuned_config): untried pairs worth the goal reward, epsilon 0.
+    Q 0 is optimistic only until the goal is found; then the first route found stands (seed 7:
+    2 steps longer for good)."""
+    seeds = range(8)
+    optimistic = [settled_on_the_optimum(10.0, seed) for seed in seeds]
+    assert all(s is not None and s <= 5 for s in optimistic), optimistic
+    assert settled_on_the_optimum(0.0, 7) is None

@@ -36,7 +36,7 @@ from collections.abc import Sequence
 from pathlib import Path
 import sys
 
-from stealth_agent.learners import LEARNER_NAMES, LearnerConfig
+from stealth_agent.learners import LEARNER_NAMES, LearnerConfig, canonical_learner_name
 from stealth_agent.schedules import Schedule
 from stealth_bringup.run_arguments import add_criterion_options, criterion_of
 from stealth_env.gym_env import lattice_model
@@ -45,6 +45,7 @@ from tqdm import tqdm
 
 from stealth_experiments.harness import (
     DEFAULT_EVAL_EVERY,
+    OPTIMISTIC,
     PLANNING_UPDATES,
     baselines,
     default_budget,
@@ -121,8 +122,13 @@ def evaluate(
     settings = (
         f'Seeds {", ".join(map(str, seeds))}; training episodes per run: {budgets}; greedy '
         f'evaluation every {eval_every} episodes; slip {slip:g}. Learner settings (all '
-        f'learners but the planning updates): {_describe(tuned_config(learners[0], slip > 0))}.'
+        f'learners but the planning updates): {_describe(tuned_config("qlearning", slip > 0))}.'
     )
+    if any(canonical_learner_name(name) in OPTIMISTIC for name in learners):
+        settings += (
+            ' Prioritized sweeping explores by optimism instead: a state-action its model has '
+            "not seen is worth the scenario's goal reward, epsilon 0."
+        )
     settings += f' Success criterion: {criterion.describe()}.'
     return write_results(out, models, planned, results, settings, plots, criterion)
 
