@@ -20,6 +20,8 @@ _TITLE = re.compile(r'^stealth-nav: (?P<scenario>.+) \((?P<goal>[^()]+)\)$')
 
 def rollout_source(args):
     """(scenario, goal, policy path, params dir, notes) of `stealth rollout`."""
+    if getattr(args, 'learner', None) is not None:
+        return plugin_source(args)
     from stealth_agent.policy_store import PolicyFileError, load_policy
 
     from stealth_bringup.run_outputs import read_run_summary
@@ -90,3 +92,22 @@ def same_content(policy: Path, saved: dict, scenario) -> list[str]:
             'give --scenario the scenario file it was trained on, or train a policy on this one'
         )
     return []
+
+
+def plugin_source(args):
+    """(scenario, goal, weights path, params dir, notes) of `stealth rollout --learner NAME`:
+    the plugin loads its weights here, before anything starts, so a missing extra or a bad
+    weights file stops the run in one line (naming what to install, or the path)."""
+    from stealth_agent.policy_plugins import PluginError, load_policy
+
+    if args.scenario is None:
+        raise RunConfigError(
+            f'--learner {args.learner}: give --scenario (any, with static lights)'
+        )
+    try:
+        policy = load_policy(args.learner, args.policy or '')
+    except PluginError as error:
+        raise RunConfigError(str(error)) from None
+    scenario = load_run_scenario(args.scenario)
+    goal = check_goal(scenario, args.goal, None)
+    return scenario, goal, Path(policy.path), args.params_dir, []

@@ -13,6 +13,7 @@ import dataclasses
 from pathlib import Path
 
 import numpy as np
+from stealth_env.grid_observation import stack
 from stealth_env.planners import value_iteration
 from stealth_env.scenario import load_scenario
 from stealth_env.scenario_generator import SEED_RANGES, GenerationError, Options, generate
@@ -86,14 +87,9 @@ def sample_of(seed: int, scenario) -> Sample:
 
 
 def grid_of(tables) -> np.ndarray:
-    """(R, C, 7) the grid observation of layer 0 without the robot (``jax_env.observe``)."""
-    free = tables.free.astype(np.float32)
-    zero = np.zeros_like(free)
-    light, moves = tables.node_light[0], tables.move_light[0]
-    return np.stack(
-        [free, zero, tables.goal_cells.astype(np.float32), light, moves[0], moves[1], zero],
-        axis=-1,
-    ).astype(np.float32)
+    """(R, C, 7) the grid observation of layer 0 without the robot (``jax_env.observe``;
+    ``stealth_env.grid_observation``'s, what the environment node sends)."""
+    return stack(tables.free, tables.goal_cells, tables.node_light[0], tables.move_light[0])
 
 
 def load_samples(seeds, options: Options, directory: Path, log=None) -> list[Sample]:
