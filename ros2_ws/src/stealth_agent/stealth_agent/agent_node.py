@@ -55,7 +55,8 @@ must not stand still with a stopped clock.
 ## Decision time
 
 Each answered state's time from the node's callback to its action published is kept; the
-totals line at exit gives its mean, median, p95 and max over the last DECISIONS_KEPT
+totals line at exit gives its mean, median, p95 and max over the last DECISIONS_KEPT, and the
+thread's CPU time of the same (wall minus CPU: waiting for a core on a loaded machine)
 (``bench/bench_generalist_ros.py``).
 
 ## Bad input
@@ -127,6 +128,7 @@ class AgentNode(StartupNode):
         self._summary_sub = None
         self._summary_unmatched_told = False
         self._decisions = deque(maxlen=DECISIONS_KEPT)  # s from a state's callback to its action
+        self._decisions_cpu = deque(maxlen=DECISIONS_KEPT)  # the thread's CPU s of the same
         self._clock_messages = OnDemand()
         clock_on_demand(self, self._clock_messages)
 
@@ -233,10 +235,11 @@ class AgentNode(StartupNode):
     # --- the loop's ports --------------------------------------------------------------------
 
     def _on_state(self, msg: RLStateReward, info: dict) -> None:
-        started, sent = time.perf_counter(), self._loop.actions_sent
+        started, cpu, sent = time.perf_counter(), time.thread_time(), self._loop.actions_sent
         self._loop.on_state(msg, info.get('publication_sequence_number'))
         if self._loop.actions_sent > sent:  # the decision time of an answered state
             self._decisions.append(time.perf_counter() - started)
+            self._decisions_cpu.append(time.thread_time() - cpu)
 
     def send_action(self, action: int) -> None:
         self._action_pub.publish(RLAction(action=action))
@@ -279,7 +282,9 @@ class AgentNode(StartupNode):
     def finish(self) -> None:
         """At exit: the totals (what a lost or doubled message would show in), then save."""
         loop = self._loop
-        line = totals_line(loop.states_received, loop.actions_sent, self._decisions)
+        line = totals_line(
+            loop.states_received, loop.actions_sent, self._decisions, self._decisions_cpu
+        )
         self.exit_logger().info(line)
         loop.save('shutdown')
 

@@ -33,6 +33,7 @@ class CachedGeneralist:
         self.policy = policy
         self.path = path
         self._plans: dict[bytes, np.ndarray] = {}
+        self._last: tuple[np.ndarray, np.ndarray] | None = None  # (static grid, its moves)
 
     def check(self, layout: str) -> None:
         """ValueError (obs_layout.LayoutError), one line naming both, unless this policy reads
@@ -40,7 +41,17 @@ class CachedGeneralist:
         check_layout(self.layout, policy_file.without_size(layout), str(self.path))
 
     def plan(self, grid: np.ndarray) -> np.ndarray:
-        """(R, C) int8: the move at every cell of ``grid`` (its robot channel ignored)."""
+        """(R, C) int8: the move at every cell of ``grid`` (its robot channel ignored). The
+        grid of the last call is compared in place (a decision's common case, ~10x cheaper
+        than hashing a copy); another grid is looked up by the hash of its static channels."""
+        last = self._last
+        if (
+            last is not None
+            and last[0].shape == grid.shape
+            and np.array_equal(grid[..., :ROBOT], last[0][..., :ROBOT])
+            and np.array_equal(grid[..., ROBOT + 1 :], last[0][..., ROBOT + 1 :])
+        ):
+            return last[1]
         static = np.array(grid, dtype=np.float32)
         static[..., ROBOT] = 0.0
         key = hashlib.blake2b(static.tobytes(), digest_size=16).digest() + bytes(
@@ -52,6 +63,7 @@ class CachedGeneralist:
             if len(self._plans) >= KEEP_PLANS:
                 self._plans.pop(next(iter(self._plans)))
             self._plans[key] = moves
+        self._last = (static, moves)
         return moves
 
     def __call__(self, grid: np.ndarray) -> int:
