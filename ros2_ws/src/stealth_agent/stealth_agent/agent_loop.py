@@ -74,6 +74,8 @@ class Ports(Protocol):
 
     def stop_summary_timer(self) -> None: ...
 
+    def accept_states(self) -> None: ...  # subscribe to the states, if not yet (a plugin's)
+
 
 class AgentLoop:
     """rl_agent's message handling over the plain-Python core; see the module docstring."""
@@ -197,6 +199,7 @@ class AgentLoop:
             f'grid observation {msg.layout} ({msg.rows} x {msg.cols}) planned on in '
             f'{seconds:.2f} s'
         )
+        self._ports.accept_states()
         early, self._early_state = self._early_state, None
         if early is not None:
             log.info('answering the state that came before the grid observation')

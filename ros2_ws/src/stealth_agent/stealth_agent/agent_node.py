@@ -12,7 +12,9 @@ Names and QoS from ``stealth_node_kit.rl_contract``; every type is stealth_inter
 * subscribes ``rl_env/rl_env_description`` (RLEnvDescription; reliable, transient local) and
   ``rl_env/rl_state_reward`` (RLStateReward; reliable, volatile);
 * subscribes ``rl_env/observation`` (GridObservation; reliable, transient local) when
-  ``agent`` is a policy plugin (``agent: generalist``: ``policy_plugins``, ``grid_agent``);
+  ``agent`` is a policy plugin (``agent: generalist``: ``policy_plugins``, ``grid_agent``); it
+  then subscribes ``rl_env/rl_state_reward`` only once it has planned on the first grid (the
+  environment waits for that reader before it starts an episode);
 * subscribes ``episode_summary_topic`` (EpisodeSummary, ``rl_env/episode_summary``; reliable,
   transient local), when the environment publishes it (stealth_env does): see Episode endings;
 * publishes ``rl_agent/rl_action`` (RLAction) after every non-terminal state, and
@@ -169,21 +171,17 @@ class AgentNode(StartupNode):
             rl_contract.DESCRIPTION_QOS,
             event_callbacks=QUIET_SUBSCRIPTION,
         )
-        self.create_subscription(
-            RLStateReward,
-            rl_contract.STATE,
-            self._on_state,
-            rl_contract.LOCKSTEP_QOS,
-            event_callbacks=warn_subscription(self.get_logger, INCOMPATIBLE_QOS),
-        )
-        if is_plugin(self.param('agent')):  # a policy plugin decides on the grid
-            self.create_subscription(
+        self._state_sub = None
+        if is_plugin(self.param('agent')):  # a policy plugin decides on the grid: states
+            self.create_subscription(  # only once it planned on one (accept_states)
                 GridObservation,
                 rl_contract.OBSERVATION,
                 self._loop.on_observation,
                 rl_contract.DESCRIPTION_QOS,
                 event_callbacks=QUIET_SUBSCRIPTION,
             )
+        else:
+            self.accept_states()
         summary_topic = self.param('episode_summary_topic')
         if summary_topic:
             self._summary_sub = self.create_subscription(
@@ -240,6 +238,19 @@ class AgentNode(StartupNode):
         if self._loop.actions_sent > sent:  # the decision time of an answered state
             self._decisions.append(time.perf_counter() - started)
             self._decisions_cpu.append(time.thread_time() - cpu)
+
+    def accept_states(self) -> None:
+        """Subscribe to the states (once). The environment starts an episode only when this
+        reader is matched, so a policy plugin, which subscribes once its plan is ready (loading
+        JAX and compiling take seconds), never has a first state time out unanswered."""
+        if self._state_sub is None:
+            self._state_sub = self.create_subscription(
+                RLStateReward,
+                rl_contract.STATE,
+                self._on_state,
+                rl_contract.LOCKSTEP_QOS,
+                event_callbacks=warn_subscription(self.get_logger, INCOMPATIBLE_QOS),
+            )
 
     def send_action(self, action: int) -> None:
         self._action_pub.publish(RLAction(action=action))

@@ -114,8 +114,9 @@ def test_the_loop_decides_on_the_grid_and_holds_a_state_until_it_comes(plugins):
     # The cell of (x, y) = (0.25, 2.25): row 0, col 2 (origin (-1, 2), 0.5 m cells).
     loop.on_state(state(0.25, 2.25), 1)
     assert node.actions == [] and node.told('warning', 'held until it arrives')
+    assert not node.accepting_states
     loop.on_observation(grid_msg())
-    assert node.actions == [2]
+    assert node.accepting_states and node.actions == [2]
     policy = loop.core.policy
     asked = policy.grids[-1]
     assert asked[0, 2, 1] == 1.0 and asked[..., 1].sum() == 1.0
