@@ -4,6 +4,7 @@ refused for (one line each). stealth_learn's equality with it: stealth_learn/tes
 
 import numpy as np
 import pytest
+from stealth_env.env_messages import grid_observation_msg
 from stealth_env.grid_observation import (
     CHANNELS,
     FullTrackGrid,
@@ -71,3 +72,16 @@ def test_observed_grid_only_where_one_grid_serves_a_run(maze):
     moving = StealthTask(load_scenario('simple-maze-moving'))
     with pytest.raises(ValueError, match=r"'simple-maze-moving' has \d+ layers"):
         observed_grid(moving, 'full', 'grid')
+
+
+def test_the_message_carries_the_grid_row_major(maze):
+    _, _, grid = maze
+    static = grid.static()
+    message = grid_observation_msg(static, grid.layout(), grid.geometry, 12.5)
+    assert message.header.frame_id == 'map' and message.header.stamp.sec == 12
+    assert (message.rows, message.cols, message.channels) == static.shape
+    assert list(message.channel_names) == list(CHANNELS)
+    assert message.layout == grid.layout()
+    assert (message.resolution, message.origin.x, message.origin.y) == pytest.approx(grid.geometry)
+    back = np.frombuffer(message.data, dtype=np.float32).reshape(static.shape)
+    np.testing.assert_array_equal(back, static)
