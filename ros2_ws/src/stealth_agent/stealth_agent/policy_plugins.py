@@ -28,7 +28,7 @@ import functools
 from importlib import metadata
 
 GROUP = 'stealth_agent.policies'
-INSTALL_HINT = 'make learn (the learning extra), then make build'
+INSTALL_HINT = 'make learn (the learning extra: jax, flax, optax)'
 
 
 class PluginError(ValueError):
@@ -54,7 +54,8 @@ def load_policy(name: str, path: str):
         known = ', '.join(plugin_names()) or 'none installed'
         raise PluginError(
             f'no policy plugin {name!r} in entry-point group {GROUP} ({known}): install the '
-            f'package that provides it (the generalist: stealth_learn, with {INSTALL_HINT})'
+            f'package that provides it (the generalist: stealth_learn, built by make setup, '
+            f'with {INSTALL_HINT})'
         )
     entry = entries[0]
     try:
