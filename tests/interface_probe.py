@@ -27,6 +27,7 @@ MESSAGE_NAMES = (
     'EpisodeSummary',
     'StepInfo',
     'AgentEpisodeInfo',
+    'GridObservation',
 )
 INTEGER_TYPES = {'int8', 'uint8', 'int16', 'uint16', 'int32', 'uint32', 'int64', 'uint64'}
 FLOAT_TYPES = {'float', 'double'}

@@ -18,4 +18,8 @@ setup(
     maintainer_email='dev@stealth-nav.org',
     description='The JAX training environment (equal to StealthTask) and the generalist.',
     license='Apache-2.0',
+    # The agent node's policy plugins (stealth_agent.policy_plugins): agent: generalist.
+    entry_points={
+        'stealth_agent.policies': ['generalist = stealth_learn.ros_policy:load'],
+    },
 )

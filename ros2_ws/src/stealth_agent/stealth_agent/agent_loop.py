@@ -8,7 +8,8 @@ endings (EpisodeEndMatcher pairs the two, SummaryWait paces the wait, on the wal
 the environment's leaving ends it, so the load of the machine never changes what is learned).
 A restarted environment (its description again, or its states' DDS sequence numbers starting
 again) drops the episode in progress. Each finished episode is reported, logged (progress) and,
-every save_every, saved.
+every save_every, saved. A policy plugin's core (``grid_agent``) also needs the environment's
+GridObservation: a state that comes before it is held, and answered when it arrives.
 
 The node passes itself in as the Ports (its parameters, logger, publishers, the summary timer
 that calls check_summary_wait, and whether an environment publishes summaries), so all of
@@ -27,13 +28,16 @@ from .agent_messages import (
     description_from_msg,
     episode_info,
     experiment_info,
+    grid_from_msg,
     keyed_description,
     keyed_state,
     outcome_ending,
     outcome_name,
     reported_reward,
 )
+from .agent_parameters import learns
 from .agent_setup import set_up_agent
+from .grid_agent import GridPolicyAgent
 from .policy_store import CONTENT_KEYS, save_policy
 from .progress import ProgressLog, evaluation_line
 from .protocol import (
@@ -70,6 +74,8 @@ class Ports(Protocol):
 
     def stop_summary_timer(self) -> None: ...
 
+    def accept_states(self) -> None: ...  # subscribe to the states, if not yet (a plugin's)
+
 
 class AgentLoop:
     """rl_agent's message handling over the plain-Python core; see the module docstring."""
@@ -84,7 +90,8 @@ class AgentLoop:
         self.disk_full = False  # a save failed for want of space: no more saves
         self.states_received = 0  # for the shutdown totals, as the environment logs its own
         self.actions_sent = 0
-        self._early_state = None  # the latest state before any description
+        self._early_state = None  # the latest state before any description (or grid)
+        self._early_grid = None  # a GridObservation before the core
         self._state_writers = StateWriters()
         self._endings = EpisodeEndMatcher()
         self._summary_wait = SummaryWait(ports.param('summary_wait'))
@@ -92,7 +99,7 @@ class AgentLoop:
     @property
     def learning_run(self) -> bool:
         """Whether this run learns (greedy evaluation episodes in between or not)."""
-        return not self._ports.param('evaluate')
+        return learns(self._ports.values())
 
     # --- the environment ---------------------------------------------------------------------
 
@@ -114,10 +121,13 @@ class AgentLoop:
             return
         self.description = description
         self._setup(description)
+        grid, self._early_grid = self._early_grid, None
+        if grid is not None and self.core is not None:
+            self.on_observation(grid)
         early, self._early_state = self._early_state, None
         if early is not None and self.core is not None:
             log.info('answering the state that came before the description')
-            self._handle_state(early)
+            self.on_state(early, None, count=False)
 
     def _description_again(self, description: EnvDescription) -> None:
         log = self._ports.get_logger()
@@ -170,11 +180,40 @@ class AgentLoop:
 
     # --- states ------------------------------------------------------------------------------
 
-    def on_state(self, msg, sequence: int | None) -> None:
+    def on_observation(self, msg) -> None:
+        """A GridObservation: the grid a policy plugin decides on (ignored by a learner)."""
+        if self.core is None:
+            self._early_grid = msg
+            return
+        if not isinstance(self.core, GridPolicyAgent):
+            return
+        log = self._ports.get_logger()
+        started = time.perf_counter()
+        try:
+            self.core.set_grid(grid_from_msg(msg))
+        except ValueError as error:  # BadInputError, or the policy refused the layout
+            log.error(f'{error}; grid observation ignored, the agent cannot act on it')
+            return
+        seconds = time.perf_counter() - started
+        log.info(
+            f'grid observation {msg.layout} ({msg.rows} x {msg.cols}) planned on in '
+            f'{seconds:.2f} s'
+        )
+        self._ports.accept_states()
+        early, self._early_state = self._early_state, None
+        if early is not None:
+            log.info('answering the state that came before the grid observation')
+            self.on_state(early, None, count=False)
+
+    def on_state(self, msg, sequence: int | None, count: bool = True) -> None:
         """An RLStateReward, with its DDS sequence number (None where the middleware gives
         none)."""
         log = self._ports.get_logger()
-        self.states_received += 1
+        self.states_received += count
+        if isinstance(self.core, GridPolicyAgent) and not self.core.ready and not msg.terminal:
+            self._early_state = msg  # answered when the grid arrives (on_observation)
+            log.warning('rl_state_reward before any rl_env/observation; held until it arrives')
+            return
         msg.state = keyed_state(msg.state, self._ports.param('state_features'))
         if self._state_writers.new_writer(sequence):
             note = self._drop_episode() if self.core is not None else ''

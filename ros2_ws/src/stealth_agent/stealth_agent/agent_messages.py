@@ -1,8 +1,8 @@
 """The agent's messages, to and from the plain-Python core (no rclpy).
 
-What the agent reads (RLEnvDescription; EpisodeSummary's outcome codes; the DDS sequence
-numbers of the states) and what it publishes at the end of an episode (RLExperimentInfo,
-AgentEpisodeInfo), so that the node only moves messages.
+What the agent reads (RLEnvDescription; GridObservation for a policy plugin; EpisodeSummary's
+outcome codes; the DDS sequence numbers of the states) and what it publishes at the end of an
+episode (RLExperimentInfo, AgentEpisodeInfo), so that the node only moves messages.
 """
 
 import dataclasses
@@ -15,6 +15,7 @@ from stealth_interfaces.msg import (
     RLExperimentInfo,
 )
 
+from .grid_agent import ObservedGrid
 from .learners import TabularLearner
 from .protocol import BadInputError, Ending, EnvDescription, EpisodeResult, parse_description
 
@@ -76,6 +77,21 @@ def keyed_description(description: EnvDescription, features: int) -> EnvDescript
             'environment.track sensed)'
         )
     return description
+
+
+def grid_from_msg(msg) -> ObservedGrid:
+    """A GridObservation as numpy; BadInputError naming the field that does not fit."""
+    shape = (int(msg.rows), int(msg.cols), int(msg.channels))
+    data = np.frombuffer(msg.data, dtype=np.float32) if len(msg.data) else np.zeros(0, np.float32)
+    if 0 in shape or data.size != shape[0] * shape[1] * shape[2]:
+        raise BadInputError(
+            f'GridObservation: data has {data.size} values, rows x cols x channels = '
+            f'{shape[0]} x {shape[1]} x {shape[2]} expected'
+        )
+    geometry = (float(msg.resolution), float(msg.origin.x), float(msg.origin.y))
+    if not (geometry[0] > 0 and all(np.isfinite(geometry))):
+        raise BadInputError(f'GridObservation: resolution {geometry[0]} must be > 0 (m)')
+    return ObservedGrid(str(msg.layout), data.reshape(shape).copy(), geometry)
 
 
 def keyed_state(state, features: int):

@@ -2,8 +2,8 @@
 
 Everything it decides is in the plain-Python core: what it does with each message in
 agent_loop.py, over protocol.py, learners.py, prioritized_sweeping.py, schedules.py,
-state_index.py, policy_store.py, agent_parameters.py, agent_setup.py, agent_messages.py and
-progress.py; this node translates messages and parameters.
+state_index.py, policy_store.py, agent_parameters.py, agent_setup.py, agent_messages.py,
+grid_agent.py, policy_plugins.py and progress.py; this node translates messages and parameters.
 
 ## Topics
 
@@ -11,6 +11,10 @@ Names and QoS from ``stealth_node_kit.rl_contract``; every type is stealth_inter
 
 * subscribes ``rl_env/rl_env_description`` (RLEnvDescription; reliable, transient local) and
   ``rl_env/rl_state_reward`` (RLStateReward; reliable, volatile);
+* subscribes ``rl_env/observation`` (GridObservation; reliable, transient local) when
+  ``agent`` is a policy plugin (``agent: generalist``: ``policy_plugins``, ``grid_agent``); it
+  then subscribes ``rl_env/rl_state_reward`` only once it has planned on the first grid (the
+  environment waits for that reader before it starts an episode);
 * subscribes ``episode_summary_topic`` (EpisodeSummary, ``rl_env/episode_summary``; reliable,
   transient local), when the environment publishes it (stealth_env does): see Episode endings;
 * publishes ``rl_agent/rl_action`` (RLAction) after every non-terminal state, and
@@ -50,6 +54,13 @@ every control period of the simulator (~5 ms of CPU per RL step in a topics run)
 wait stays on wall time: it waits for a message from the environment, not for the robot, and
 must not stand still with a stopped clock.
 
+## Decision time
+
+Each answered state's time from the node's callback to its action published is kept; the
+totals line at exit gives its mean, median, p95 and max over the last DECISIONS_KEPT, and the
+thread's CPU time of the same (wall minus CPU: waiting for a core on a loaded machine)
+(``bench/bench_generalist_ros.py``).
+
 ## Bad input
 
 An unusable description, a state before any description, a state whose length changes, a
@@ -57,12 +68,16 @@ non-finite reward, an unusable policy file: each is logged with what is wrong an
 skipped; the node stays up and the table is never touched by a rejected message.
 """
 
+from collections import deque
+import time
+
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
 from stealth_interfaces.msg import (
     AgentEpisodeInfo,
     EpisodeSummary,
+    GridObservation,
     RLAction,
     RLEnvDescription,
     RLExperimentInfo,
@@ -85,10 +100,13 @@ from .agent_parameters import (
     PARAMETERS,
     change_problem,
     learner_config,
+    learns,
     startup_problem,
 )
+from .policy_plugins import is_plugin
 from .progress import totals_line
 
+DECISIONS_KEPT = 100_000  # the latest decision times the totals line summarises
 # s of wall time between checks, while a terminal state waits for its summary, that the
 # environment is still there (only its leaving ends the wait; see SummaryWait).
 SUMMARY_CHECK_PERIOD = 0.5
@@ -99,8 +117,9 @@ INCOMPATIBLE_QOS = (
 
 
 class AgentNode(StartupNode):
-    """rl_agent for rl_msgs environments, with Q-learning, SARSA, Dyna-Q and prioritized sweeping:
-    the ROS shell of AgentLoop, which it serves as the loop's Ports."""
+    """rl_agent for rl_msgs environments, with Q-learning, SARSA, Dyna-Q and prioritized sweeping
+    (or a policy plugin's policy): the ROS shell of AgentLoop, which it serves as the loop's
+    Ports."""
 
     def __init__(self):
         super().__init__('agent')
@@ -110,6 +129,8 @@ class AgentNode(StartupNode):
         self._declared = False
         self._summary_sub = None
         self._summary_unmatched_told = False
+        self._decisions = deque(maxlen=DECISIONS_KEPT)  # s from a state's callback to its action
+        self._decisions_cpu = deque(maxlen=DECISIONS_KEPT)  # the thread's CPU s of the same
         self._clock_messages = OnDemand()
         clock_on_demand(self, self._clock_messages)
 
@@ -150,13 +171,17 @@ class AgentNode(StartupNode):
             rl_contract.DESCRIPTION_QOS,
             event_callbacks=QUIET_SUBSCRIPTION,
         )
-        self.create_subscription(
-            RLStateReward,
-            rl_contract.STATE,
-            self._on_state,
-            rl_contract.LOCKSTEP_QOS,
-            event_callbacks=warn_subscription(self.get_logger, INCOMPATIBLE_QOS),
-        )
+        self._state_sub = None
+        if is_plugin(self.param('agent')):  # a policy plugin decides on the grid: states
+            self.create_subscription(  # only once it planned on one (accept_states)
+                GridObservation,
+                rl_contract.OBSERVATION,
+                self._loop.on_observation,
+                rl_contract.DESCRIPTION_QOS,
+                event_callbacks=QUIET_SUBSCRIPTION,
+            )
+        else:
+            self.accept_states()
         summary_topic = self.param('episode_summary_topic')
         if summary_topic:
             self._summary_sub = self.create_subscription(
@@ -172,7 +197,8 @@ class AgentNode(StartupNode):
             clock=Clock(clock_type=ClockType.STEADY_TIME),
         )
         self._summary_timer.cancel()
-        mode = 'evaluating (greedy, no learning)' if self.param('evaluate') else 'learning'
+        learning = learns(self.values())
+        mode = 'learning' if learning else 'evaluating (greedy, no learning)'
         self.get_logger().info(
             f'agent {self.param("agent")} {mode}; waiting for rl_env/rl_env_description'
         )
@@ -207,7 +233,24 @@ class AgentNode(StartupNode):
     # --- the loop's ports --------------------------------------------------------------------
 
     def _on_state(self, msg: RLStateReward, info: dict) -> None:
+        started, cpu, sent = time.perf_counter(), time.thread_time(), self._loop.actions_sent
         self._loop.on_state(msg, info.get('publication_sequence_number'))
+        if self._loop.actions_sent > sent:  # the decision time of an answered state
+            self._decisions.append(time.perf_counter() - started)
+            self._decisions_cpu.append(time.thread_time() - cpu)
+
+    def accept_states(self) -> None:
+        """Subscribe to the states (once). The environment starts an episode only when this
+        reader is matched, so a policy plugin, which subscribes once its plan is ready (loading
+        JAX and compiling take seconds), never has a first state time out unanswered."""
+        if self._state_sub is None:
+            self._state_sub = self.create_subscription(
+                RLStateReward,
+                rl_contract.STATE,
+                self._on_state,
+                rl_contract.LOCKSTEP_QOS,
+                event_callbacks=warn_subscription(self.get_logger, INCOMPATIBLE_QOS),
+            )
 
     def send_action(self, action: int) -> None:
         self._action_pub.publish(RLAction(action=action))
@@ -250,7 +293,10 @@ class AgentNode(StartupNode):
     def finish(self) -> None:
         """At exit: the totals (what a lost or doubled message would show in), then save."""
         loop = self._loop
-        self.exit_logger().info(totals_line(loop.states_received, loop.actions_sent))
+        line = totals_line(
+            loop.states_received, loop.actions_sent, self._decisions, self._decisions_cpu
+        )
+        self.exit_logger().info(line)
         loop.save('shutdown')
 
 

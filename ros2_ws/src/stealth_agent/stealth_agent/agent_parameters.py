@@ -8,14 +8,17 @@ from collections.abc import Iterable, Mapping
 from stealth_node_kit import rl_contract
 from stealth_node_kit.param_table import Param
 
-from .learners import LearnerConfig, canonical_learner_name
+from .learners import LEARNER_NAMES, LearnerConfig, canonical_learner_name
+from .policy_plugins import is_plugin, plugin_names
 from .schedules import SCHEDULE_KINDS, Schedule
 
 PARAMETERS = {
     'agent': Param(
         'qlearning',
         'Learner: qlearning (rl_agent qlearner), sarsa, dyna or prioritized (prioritized '
-        'sweeping; also spelled prioritized_sweeping).',
+        'sweeping; also spelled prioritized_sweeping); or a policy plugin (policy_plugins: '
+        'generalist, from stealth_learn), greedy and not learning, its weights policy_file '
+        "('' = the ones it ships), its input the environment's rl_env/observation.",
         read_only=True,
     ),
     'seed': Param(
@@ -80,7 +83,10 @@ PARAMETERS = {
         read_only=True,
     ),
     'policy_file': Param(
-        '', 'Policy file (.npz) to save to and load from; empty = none.', read_only=True
+        '',
+        "Policy file (.npz) to save to and load from; empty = none (a policy plugin's: its "
+        'shipped weights).',
+        read_only=True,
     ),
     'grid_sha256': Param(
         '',
@@ -193,11 +199,12 @@ def change_problem(changes: Iterable[tuple[str, object]], current: Mapping | Non
     checks the whole set after)."""
     values = {}
     for name, value in changes:
-        if name == 'agent':
+        if name == 'agent' and not is_plugin(value):
             try:
                 canonical_learner_name(value)
-            except ValueError as error:
-                return str(error)
+            except ValueError:
+                names = ', '.join((*LEARNER_NAMES, *plugin_names()))
+                return f'unknown learner {value!r} (expected one of {names})'
         if name in STRING_CHOICES and value not in STRING_CHOICES[name]:
             choices = ', '.join(STRING_CHOICES[name])
             return f'{name} must be one of {choices}, got {value!r}'
@@ -214,10 +221,16 @@ def change_problem(changes: Iterable[tuple[str, object]], current: Mapping | Non
 
 def startup_problem(values: Mapping) -> str | None:
     """Why the declared parameters cannot make a usable agent, or None."""
-    if (values['evaluate'] or values['load_policy']) and not values['policy_file']:
+    plugin = is_plugin(values['agent'])
+    if (values['evaluate'] or values['load_policy']) and not values['policy_file'] and not plugin:
         return 'evaluate and load_policy need policy_file'
     try:
         learner_config(values)
     except ValueError as error:
         return str(error)
     return None
+
+
+def learns(values: Mapping) -> bool:
+    """Whether a run with these values learns: not evaluate, and a learner, not a policy."""
+    return not values['evaluate'] and not is_plugin(values['agent'])

@@ -1,7 +1,8 @@
 """The agent's core for an environment, built from the agent's parameters (no rclpy).
 
 A fresh table, or the one in the policy file (evaluate, load_policy) once it is checked against
-the environment; the seeded random generator (a resumed learning run continues the file's
+the environment, or a policy plugin's policy (``agent: generalist``: ``policy_plugins``, greedy,
+no table); the seeded random generator (a resumed learning run continues the file's
 random stream); and the log line saying what was built, so that a run's log tells how it
 started. An unusable policy file leaves the agent without a core: it must not act, nor
 overwrite the file.
@@ -14,7 +15,10 @@ import pathlib
 import numpy as np
 
 from .agent_parameters import learner_config
+from .grid_agent import GridPolicyAgent
 from .learners import canonical_learner_name, make_learner
+from .policy_plugins import PluginError, is_plugin
+from .policy_plugins import load_policy as load_plugin_policy
 from .policy_store import PolicyFileError, check_compatible, load_policy
 from .protocol import EnvDescription, ProtocolAgent
 from .state_index import StateIndex, mapping_from_description
@@ -39,6 +43,8 @@ def set_up_agent(description: EnvDescription, values: Mapping) -> AgentSetup:
         resolution=values['state_resolution'],
     )
     warnings = list(warnings)
+    if is_plugin(values['agent']):
+        return _plugin_agent(description, values, StateIndex(mapping), tuple(warnings))
     learner_name = canonical_learner_name(values['agent'])
     evaluate = values['evaluate']
     path = pathlib.Path(values['policy_file']) if values['policy_file'] else None
@@ -94,3 +100,24 @@ def set_up_agent(description: EnvDescription, values: Mapping) -> AgentSetup:
         f'from {source}; ' + ('evaluating (no learning)' if evaluate else 'learning')
     )
     return AgentSetup(core, tuple(warnings), summary=summary)
+
+
+def _plugin_agent(description: EnvDescription, values: Mapping, index, warnings) -> AgentSetup:
+    """A policy plugin's greedy agent, its weights from policy_file ('' the plugin's own)."""
+    name, path = values['agent'], values['policy_file']
+    try:
+        policy = load_plugin_policy(name, path)
+    except PluginError as error:
+        return AgentSetup(None, warnings, error=str(error))
+    if description.num_actions < 4:
+        return AgentSetup(None, warnings, error=f'policy {name} moves up, down, left and right: '
+                          f'the environment has {description.num_actions} actions')  # fmt: skip
+    core = GridPolicyAgent(name, policy, index, np.random.default_rng(values['seed']))
+    core.episode = values['first_episode']
+    summary = (
+        f'environment {description.title!r}: {description.num_actions} actions; policy {name} '
+        f'(plugin, layout {policy.layout}) from {path or "its shipped weights"}; evaluating '
+        '(no learning); its decisions need the grid on rl_env/observation (environment '
+        'observation_layout grid)'
+    )
+    return AgentSetup(core, warnings, summary=summary)

@@ -101,6 +101,22 @@ def evaluation_line(result: EpisodeResult, reward: float, learner_episodes: int)
     )
 
 
-def totals_line(states_received: int, actions_sent: int) -> str:
-    """At exit, as the environment logs its own: a lost or doubled message shows here."""
-    return f'totals: {states_received} states received, {actions_sent} actions sent'
+def totals_line(
+    states_received: int, actions_sent: int, decision_seconds=(), decision_cpu_seconds=()
+) -> str:
+    """At exit, as the environment logs its own: a lost or doubled message shows here; and the
+    decision time per action (from a state's arrival in the node's callback to its action
+    published: ``decision_seconds``, one per action, wall time; ``decision_cpu_seconds``, the
+    thread's CPU time of the same: wall minus CPU is waiting for a core on a loaded machine;
+    bench/bench_generalist_ros.py reads it)."""
+    line = f'totals: {states_received} states received, {actions_sent} actions sent'
+    if len(decision_seconds):
+        ms = np.asarray(decision_seconds, dtype=float) * 1e3
+        line += (
+            f'; decision time per action: mean {ms.mean():.3f} ms, median '
+            f'{np.median(ms):.3f} ms, p95 {np.percentile(ms, 95):.3f} ms, max {ms.max():.3f} ms'
+        )
+        if len(decision_cpu_seconds):
+            cpu = np.asarray(decision_cpu_seconds, dtype=float) * 1e3
+            line += f' (CPU mean {cpu.mean():.3f} ms, p95 {np.percentile(cpu, 95):.3f} ms)'
+    return line

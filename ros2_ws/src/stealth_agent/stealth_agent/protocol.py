@@ -196,7 +196,7 @@ class ProtocolAgent:
         """The first state of an episode: choose an action, its reward is ignored."""
         vector = self._check_state(state)
         row = self.index.row(vector)
-        action = self.learner.act(row, self.rng, greedy=not self.learning)
+        action = self.learner.act(row, self.rng) if self.learning else self._greedy(row, vector)
         self._s, self._a = row, action
         self.in_episode = True
         self.episode_reward = 0.0
@@ -212,11 +212,16 @@ class ProtocolAgent:
         if self.learning:
             action = self.learner.next_action(self._s, self._a, r, row, self.rng)
         else:
-            action = self.learner.greedy_action(row, self.rng)
+            action = self._greedy(row, vector)
         self._s, self._a = row, action
         self.episode_reward += r
         self.number_actions += 1
         return action
+
+    def _greedy(self, row: int, vector: np.ndarray) -> int:
+        """The greedy action in a state (its table row and its vector): the table's, ties
+        broken by the generator (grid_agent's policies override it)."""
+        return self.learner.greedy_action(row, self.rng)
 
     def last_action(self, reward) -> EpisodeResult:
         """A terminal state: Q += alpha * (r - Q), end the episode."""

@@ -31,6 +31,7 @@ class FakeNode:
         self.reports: list[tuple] = []
         self.summary_publisher = False
         self.timer_running = False
+        self.accepting_states = False
 
     def param(self, name):
         return self.params[name]
@@ -66,6 +67,9 @@ class FakeNode:
 
     def stop_summary_timer(self):
         self.timer_running = False
+
+    def accept_states(self):
+        self.accepting_states = True
 
     def told(self, level, part):
         return [text for lvl, text in self.logs if lvl == level and part in text]

@@ -70,3 +70,10 @@ def test_evaluation_and_totals_lines():
         'greedy evaluation, episode 9 (after 7 learning episodes): return -3.250 in 12 steps'
     )
     assert totals_line(120, 110) == 'totals: 120 states received, 110 actions sent'
+
+
+def test_totals_give_the_decision_times_when_kept():
+    assert totals_line(3, 2) == 'totals: 3 states received, 2 actions sent'
+    line = totals_line(3, 2, [0.001, 0.003], [0.0005, 0.0005])
+    assert 'decision time per action: mean 2.000 ms, median 2.000 ms' in line
+    assert 'max 3.000 ms (CPU mean 0.500 ms, p95 0.500 ms)' in line

@@ -3,7 +3,7 @@ launch.
 
     stealth train [--scenario NAME|PATH] [--goal G] [--episodes N] [--eval-every M]
                   [--success-streak K] [--seed S] [--set node.param=value ...] [--watch]
-    stealth rollout --run runs/<name> | --policy FILE [--episodes N]
+    stealth rollout --run runs/<name> | --policy FILE | --learner generalist --scenario S
 
 (`stealth eval`, rollout's old name, says so on stderr and runs it.)
 
@@ -39,7 +39,12 @@ from collections.abc import Sequence
 import sys
 import time
 
-from stealth_bringup.run_arguments import COMMAND_OF_MODE, rollout_parser, train_parser
+from stealth_bringup.run_arguments import (
+    COMMAND_OF_MODE,
+    check_rollout_source,
+    rollout_parser,
+    train_parser,
+)
 from stealth_bringup.run_config import RunConfigError
 from stealth_bringup.run_lifecycle import Run
 from stealth_bringup.run_plan import make_plan
@@ -50,6 +55,8 @@ def _main(mode: str, argv: Sequence[str] | None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = train_parser() if mode == 'train' else rollout_parser()
     args = parser.parse_args(argv)
+    if mode != 'train':
+        check_rollout_source(parser, args)
     prog = f'stealth {COMMAND_OF_MODE[mode]}'
     try:
         plan = make_plan(args, mode, argv)

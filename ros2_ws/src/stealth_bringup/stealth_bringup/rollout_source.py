@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from pathlib import Path
 import re
+import subprocess
+import sys
 
 from stealth_bringup.run_config import (
     RunConfigError,
@@ -20,6 +22,8 @@ _TITLE = re.compile(r'^stealth-nav: (?P<scenario>.+) \((?P<goal>[^()]+)\)$')
 
 def rollout_source(args):
     """(scenario, goal, policy path, params dir, notes) of `stealth rollout`."""
+    if getattr(args, 'learner', None) is not None:
+        return plugin_source(args)
     from stealth_agent.policy_store import PolicyFileError, load_policy
 
     from stealth_bringup.run_outputs import read_run_summary
@@ -90,3 +94,42 @@ def same_content(policy: Path, saved: dict, scenario) -> list[str]:
             'give --scenario the scenario file it was trained on, or train a policy on this one'
         )
     return []
+
+
+# The plugin's load in a child process: it may import JAX, which is multithreaded and must not
+# be in the orchestrator's process when it forks the nodes (JAX warns of deadlocks).
+_LOAD_PLUGIN = (
+    'import sys\n'
+    'from stealth_agent.policy_plugins import PluginError, load_policy\n'
+    'try:\n'
+    '    print(load_policy(sys.argv[1], sys.argv[2]).path)\n'
+    'except PluginError as error:\n'
+    '    sys.exit(str(error))\n'
+)
+PLUGIN_CHECK_TIMEOUT = 120.0  # s: importing JAX and reading the weights on a loaded machine
+
+
+def plugin_source(args):
+    """(scenario, goal, weights path, params dir, notes) of `stealth rollout --learner NAME`:
+    the plugin loads its weights before anything starts (in a child process), so a missing
+    extra or a bad weights file stops the run in one line (naming what to install, or the
+    path)."""
+    if args.scenario is None:
+        raise RunConfigError(
+            f'--learner {args.learner}: give --scenario (any, with static lights)'
+        )
+    scenario = load_run_scenario(args.scenario)
+    goal = check_goal(scenario, args.goal, None)
+    command = [sys.executable, '-c', _LOAD_PLUGIN, args.learner, args.policy or '']
+    try:
+        done = subprocess.run(
+            command, capture_output=True, text=True, timeout=PLUGIN_CHECK_TIMEOUT, check=False
+        )
+    except subprocess.TimeoutExpired:
+        raise RunConfigError(
+            f'--learner {args.learner}: loading it took over {PLUGIN_CHECK_TIMEOUT:g} s'
+        ) from None
+    if done.returncode != 0:
+        lines = done.stderr.strip().splitlines() or [f'exit code {done.returncode}']
+        raise RunConfigError(f'--learner {args.learner}: {lines[-1]}')
+    return scenario, goal, Path(done.stdout.strip().splitlines()[-1]), args.params_dir, []

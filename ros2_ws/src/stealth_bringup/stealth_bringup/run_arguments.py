@@ -272,9 +272,21 @@ def rollout_parser() -> argparse.ArgumentParser:
         'evaluate), on its scenario and record them: runs/<run>/eval-<time>/ for --run, else a '
         'new run directory.',
     )
-    source = parser.add_mutually_exclusive_group(required=True)
+    source = parser.add_mutually_exclusive_group()
     source.add_argument('--run', metavar='DIR', help='a training run directory (runs/<name>)')
-    source.add_argument('--policy', metavar='FILE', help='a policy file (.npz)')
+    source.add_argument(
+        '--policy',
+        metavar='FILE',
+        help="a policy file (.npz; with --learner: the plugin's weights)",
+    )
+    parser.add_argument(
+        '--learner',
+        metavar='NAME',
+        help='a policy plugin instead of a saved table (stealth_agent.policy_plugins: '
+        'generalist, the lights-known generalist, needs make learn) on any --scenario with '
+        'static lights; its weights --policy (default: the ones it ships); the environment '
+        'sends it the grid observation (observation_layout grid)',
+    )
     parser.add_argument(
         '--scenario',
         metavar='NAME|PATH',
@@ -290,3 +302,12 @@ def rollout_parser() -> argparse.ArgumentParser:
     )
     _common_options(parser, evaluating=True)
     return parser
+
+
+def check_rollout_source(parser, args) -> None:
+    """One of --run, --policy, --learner (argparse's group cannot say 'or --learner'); exits
+    2 with parser.error otherwise."""
+    if args.run is None and args.policy is None and args.learner is None:
+        parser.error('one of the arguments --run --policy --learner is required')
+    if args.learner is not None and args.run is not None:
+        parser.error('argument --learner: not allowed with argument --run')

@@ -211,7 +211,10 @@ class RunPlan:
     def describe(self) -> str:
         """One line: what is run on what, and until when."""
         if self.mode != 'train':
-            return f'{self.title}, policy {self.policy_path}, {self.episodes} greedy episodes'
+            grid = self.parameters['environment'].values.get('observation_layout') == 'grid'
+            policy = f'{self.parameters["agent"].values["agent"]} ' if grid else ''
+            episodes = f'{self.episodes} greedy episodes'
+            return f'{self.title}, policy {policy}{self.policy_path}, {episodes}'
         ending = f'up to {self.episodes} episodes'
         if self.continued is not None:
             done = len(self.continued.records)
@@ -335,6 +338,10 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
             runs_dir, default = Path(args.runs_dir), f'eval-{scenario.name}-{goal}-{stamp}'
         directory = run_directory(runs_dir, args.name, default)
         policy_path = source_policy
+        learner = getattr(args, 'learner', None)
+        if learner is not None:  # a policy plugin: the environment sends it the grid
+            parameters['agent'].values['agent'] = learner
+            parameters['environment'].values['observation_layout'] = 'grid'
         agent = {
             'policy_file': str(source_policy.resolve()),
             'evaluate': True,

@@ -98,3 +98,29 @@ def test_a_training_run_gives_the_agent_the_hashes_to_save(tmp_path):
     plan = make_plan(args, 'train', ['stealth', 'train'])
     identity = content_identity(load_scenario('simple-maze'))
     assert {key: plan.parameters['agent'].values[key] for key in identity} == identity
+
+
+def plugin_plan(runs_dir: Path, *argv: str):
+    parser = rollout_parser()
+    args = parser.parse_args([*argv, '--runs-dir', str(runs_dir)])
+    return make_plan(args, 'eval', ['stealth', 'rollout', *argv])
+
+
+def test_a_policy_plugin_runs_with_the_grid_sent_to_it(tmp_path):
+    pytest.importorskip('jax', reason='the generalist plugin needs the learning extra')
+    plan = plugin_plan(tmp_path, '--learner', 'generalist', '--scenario', 'simple-maze')
+    agent = plan.parameters['agent'].values
+    assert agent['agent'] == 'generalist' and agent['evaluate'] is True
+    assert agent['policy_file'].endswith('policies/generalist-full.npz')
+    assert plan.parameters['environment'].values['observation_layout'] == 'grid'
+    assert 'policy generalist ' in plan.describe()
+    with pytest.raises(RunConfigError, match=r'--learner generalist: .*none\.npz: no such'):
+        plugin_plan(tmp_path, '--learner', 'generalist', '--scenario', 'simple-maze',
+                    '--policy', str(tmp_path / 'none.npz'))  # fmt: skip
+
+
+def test_a_plugin_needs_a_scenario_and_must_exist(tmp_path):
+    with pytest.raises(RunConfigError, match='give --scenario'):
+        plugin_plan(tmp_path, '--learner', 'generalist')
+    with pytest.raises(RunConfigError, match="no policy plugin 'ppo'"):
+        plugin_plan(tmp_path, '--learner', 'ppo', '--scenario', 'simple-maze')

@@ -4,6 +4,10 @@ summaries) and hears (actions, experiment info), and whether an agent is there t
 first state (:func:`stealth_env.episode_flow.agent_connected` over the ROS graph). On the sensed
 track (a ``sensed_track.SensedTrack``) the description and every RLStateReward carry what the
 robot sensed (its layout: ``stealth_env.sensed_track``); StepInfo keeps the full track's state.
+With a ``grid_observation.FullTrackGrid`` (parameter observation_layout grid) the grid goes out
+with the description on ``rl_env/observation``, latched as the description is: with static
+lights every channel but the robot's is fixed, so once is enough and a recording stays small
+(the robot's cell is each state's x, y); sent per step it would be ~100 KB a step.
 """
 
 from __future__ import annotations
@@ -11,6 +15,7 @@ from __future__ import annotations
 from rclpy.qos import DurabilityPolicy
 from stealth_interfaces.msg import (
     EpisodeSummary,
+    GridObservation,
     RLAction,
     RLEnvDescription,
     RLExperimentInfo,
@@ -28,6 +33,7 @@ from stealth_node_kit.endpoints import (
 from stealth_env.env_messages import (
     description_msg,
     float32,
+    grid_observation_msg,
     state_reward_msg,
     step_info_msg,
     summary_msg,
@@ -39,6 +45,7 @@ TOPICS = {
     'state': rl_contract.STATE,
     'step_info': rl_contract.STEP_INFO,
     'summary': rl_contract.EPISODE_SUMMARY,
+    'observation': rl_contract.OBSERVATION,
     'action': rl_contract.ACTION,
     'experiment_info': rl_contract.EXPERIMENT_INFO,
 }
@@ -46,11 +53,18 @@ TOPICS = {
 
 class AgentLink:
     """The RL topics on `node`; `on_action` and `on_experiment_info` get the agent's messages;
-    `sensed`: the SensedTrack of track sensed (None: the full track)."""
+    `sensed`: the SensedTrack of track sensed (None: the full track); `grid`: the
+    FullTrackGrid to send on rl_env/observation (None: none)."""
 
-    def __init__(self, node, on_action, on_experiment_info, sensed=None):
+    def __init__(self, node, on_action, on_experiment_info, sensed=None, grid=None):
         self.node = node
         self.sensed = sensed
+        self.grid = grid
+        self._observation_pub = None
+        if grid is not None:
+            self._observation_pub = node.create_publisher(
+                GridObservation, TOPICS['observation'], rl_contract.DESCRIPTION_QOS
+            )
         self._last_state: list | None = None  # the last sensed state sent (an abort repeats it)
         self._description_pub = node.create_publisher(
             RLEnvDescription, TOPICS['description'], rl_contract.DESCRIPTION_QOS
@@ -126,6 +140,11 @@ class AgentLink:
         if self.sensed is not None:
             fields = self.sensed.description(fields)
         self._description_pub.publish(description_msg(fields))
+        if self.grid is not None:
+            t = self.node.get_clock().now().nanoseconds * 1e-9
+            grid = self.grid
+            message = grid_observation_msg(grid.static(), grid.layout(), grid.geometry, t)
+            self._observation_pub.publish(message)
 
     def publish_state(self, state, reward: float = 0.0, terminal: bool = False, start=None):
         """A first state (reward 0; `start`: the start pose (x, y, yaw)), or an abort's terminal

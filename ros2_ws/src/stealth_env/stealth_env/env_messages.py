@@ -2,7 +2,8 @@
 
 Plain functions over message classes (no node, no rclpy), so what the environment publishes can
 be checked without a running ROS graph: the simulator's ExecuteMove request for a move;
-RLEnvDescription, RLStateReward, StepInfo and EpisodeSummary of the RL loop; SearchlightArray,
+RLEnvDescription, RLStateReward, StepInfo and EpisodeSummary of the RL loop, and its
+GridObservation; SearchlightArray,
 the scene's MarkerArray, the visibility and sensed-light OccupancyGrids and the planned Path;
 and the check of the simulator's map against the scenario's. Every stamped message is in
 frame ``map``.
@@ -20,6 +21,7 @@ import numpy as np
 from std_msgs.msg import ColorRGBA
 from stealth_interfaces.msg import (
     EpisodeSummary,
+    GridObservation,
     RLEnvDescription,
     RLStateReward,
     Searchlight,
@@ -32,6 +34,7 @@ from stealth_sim.kinematics import Pose
 from visualization_msgs.msg import Marker, MarkerArray
 
 from stealth_env.episode_flow import PlanarPose
+from stealth_env.grid_observation import CHANNELS
 from stealth_env.markers import searchlight_fields
 from stealth_env.topic_moves import MoveGoal
 
@@ -97,6 +100,21 @@ def state_reward_msg(state, reward: float = 0.0, terminal: bool = False) -> RLSt
     """A state for the agent: a first state (reward 0), a step's result, or an abort's terminal
     state (reward 0: rl_msgs has no other way to end an episode)."""
     return RLStateReward(state=list(state), reward=reward, terminal=terminal)
+
+
+def grid_observation_msg(grid: np.ndarray, layout: str, geometry, t: float) -> GridObservation:
+    """GridObservation of a (rows, cols, channels) float32 grid (``grid_observation``), its
+    layout id and (resolution, origin x, origin y) (``grid_observation.lattice_geometry``)."""
+    grid = np.ascontiguousarray(grid, dtype=np.float32)
+    rows, cols, channels = grid.shape
+    message = GridObservation(layout=layout, rows=rows, cols=cols, channels=channels)
+    message.header.stamp, message.header.frame_id = time_msg(t), MAP_FRAME
+    message.channel_names = list(CHANNELS)
+    resolution, x, y = geometry
+    message.resolution = float(resolution)
+    message.origin = Point(x=float(x), y=float(y), z=0.0)
+    message.data = array.array('f', grid.tobytes())
+    return message
 
 
 def step_info_msg(

@@ -25,7 +25,8 @@ dropped silently).
   lights move or when a new viewer subscribes; with ``publish_plan`` (on under ``stealth train
   --watch``), ``planned_path`` (nav_msgs/Path): value iteration's optimum on the move lattice,
   once; with ``track: sensed`` (the robot that does not know the lights: the states carry what
-  it sensed, layout in ``stealth_env.sensed_track``), ``sensed_light`` (nav_msgs/OccupancyGrid).
+  it sensed, layout in ``stealth_env.sensed_track``), ``sensed_light`` (nav_msgs/OccupancyGrid);
+  with ``observation_layout: grid``, ``rl_env/observation`` (GridObservation, latched, once).
 * subscribes ``rl_agent/rl_action`` (RLAction) and ``rl_agent/rl_experiment_info``
   (RLExperimentInfo); reads the simulator's latched ``map`` once to check it is the scenario's
   (an error line if not).
@@ -108,6 +109,7 @@ from stealth_env.episode_flow import (
     is_finite_pose,
     progress_line,
 )
+from stealth_env.grid_observation import observed_grid
 from stealth_env.log_throttle import Throttle
 from stealth_env.reward import EpisodeOutcome
 from stealth_env.robot import MoveEnd, Robot
@@ -176,7 +178,11 @@ class EnvironmentNode(StartupNode):
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
 
         sensed = SensedTrack(self.task) if values['track'] == 'sensed' else None
-        self.agent = AgentLink(self, self._on_action, self._on_experiment_info, sensed)
+        try:
+            grid = observed_grid(self.task, values['track'], values['observation_layout'])
+        except ValueError as error:
+            raise StartupError(f'parameter observation_layout: {error}') from None
+        self.agent = AgentLink(self, self._on_action, self._on_experiment_info, sensed, grid)
         self.scene = ScenePublisher(
             self, self.scenario, self.task.goal.name, self._scene_time, self._steady, sensed
         )
@@ -202,7 +208,7 @@ class EnvironmentNode(StartupNode):
         )
 
     def _make_robot(self, values: dict) -> Robot:
-        teleport = None
+        teleport, self._move_timeout = None, lambda: self.move_timeout  # read at each move
         if self.reset_by_teleport:
             teleport = Teleport(self, self._in_process, self.reset_service, self._move_timeout)
         if values['robot_interface'] == 'service':
@@ -211,9 +217,6 @@ class EnvironmentNode(StartupNode):
         return TopicRobot(self, config, MAP_FRAME, self.task.lattice, teleport,
                           values['unresponsive_moves'], self._move_timeout,
                           lambda: self.clock_timeout)  # fmt: skip
-
-    def _move_timeout(self) -> float:
-        return self.move_timeout
 
     # --- parameters -----------------------------------------------------------------------------
 
@@ -473,11 +476,8 @@ class EnvironmentNode(StartupNode):
 
     def log_totals(self) -> None:
         """The counts that show nothing was lost (after Ctrl-C /rosout is gone: plain logger)."""
-        logger = (
-            self.get_logger()
-            if self.context.ok()
-            else rclpy.logging.get_logger(f'{NODE_NAME}.exit')
-        )
+        ok = self.context.ok()
+        logger = self.get_logger() if ok else rclpy.logging.get_logger(f'{NODE_NAME}.exit')
         note = ''
         if self.flow.in_episode:
             note = f'; episode {self.flow.episode} was running ({self.flow.steps} steps)'

@@ -10,12 +10,14 @@ from stealth_env.topic_moves import Limits, TopicConfig
 ROBOT_INTERFACES = ('service', 'topics')
 TRACKS = ('full', 'sensed')  # as gym_env.TRACKS (not imported: that pulls in gymnasium)
 RESET_MODES = ('teleport', 'drive')
+OBSERVATION_LAYOUTS = ('off', 'grid')  # grid_observation.observed_grid
 # The string parameters with a fixed set of values (the node refuses any other).
 CHOICES = {
     'judge_on': JUDGE_ON,
     'robot_interface': ROBOT_INTERFACES,
     'reset_mode': RESET_MODES,
     'track': TRACKS,
+    'observation_layout': OBSERVATION_LAYOUTS,
 }
 
 PARAMETERS = {
@@ -31,6 +33,11 @@ PARAMETERS = {
         'full', "What the agent is told: 'full' (the state; the lights known) or 'sensed' (the "
         'lights unknown: the state, then what the robot sensed so far, stealth_env.sensed_track; '
         'the sensed field also on sensed_light).', read_only=True,
+    ),
+    'observation_layout': Param(
+        'off', "Also send the agent an observation on rl_env/observation: 'grid' (track full, "
+        'static lights: stealth_env.grid_observation as GridObservation, once, latched; what the '
+        "generalist reads) or 'off' (nothing: recordings stay small).", read_only=True,
     ),
     'judge_on': Param(
         'true',

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from stealth_env.grid_observation import lattice_geometry
 from stealth_env.markers import visibility_levels
 from stealth_env.sensing import NO_PLACE, Sensor
 
@@ -101,7 +102,4 @@ class SensedTrack:
     def grid_geometry(self) -> tuple[float, float, float]:
         """(resolution, origin x, origin y) of a grid with one cell centred on each lattice node
         (row 0 southernmost), in the map frame."""
-        lattice = self.task.lattice
-        step = float(self.task.scenario.step_distance)
-        x, y = lattice.node_to_point((lattice.i_min, lattice.j_min))
-        return step, x - step / 2, y - step / 2
+        return lattice_geometry(self.task)

@@ -34,6 +34,7 @@ import dataclasses
 import math
 
 import numpy as np
+from stealth_env.grid_observation import light_grids
 from stealth_env.gym_env import TRACKS, lattice_model
 from stealth_env.planners import PERPENDICULAR
 from stealth_env.reward import detection_probability
@@ -264,9 +265,8 @@ def _light_grids(arrays: TaskArrays, dims: Dims) -> tuple[np.ndarray, np.ndarray
     node_light = np.full((dims.layers, dims.rows, dims.cols), NO_PLACE, np.float32)
     move_light = np.full((dims.layers, 2, *node_light.shape[1:]), NO_PLACE, np.float32)
     for layer in range(model.layers):
-        nodes, moves = sensing.truth(layer * sensing.n)
-        node_light[layer, :rows, :cols] = sensing.grid(nodes)
-        move_light[layer, :, :rows, :cols] = sensing.move_grid(moves)
+        node, moves = light_grids(sensing, layer * sensing.n)
+        node_light[layer, :rows, :cols], move_light[layer, :, :rows, :cols] = node, moves
     return node_light, move_light
 
 

@@ -13,6 +13,7 @@ import dataclasses
 from pathlib import Path
 
 import numpy as np
+from stealth_env.grid_observation import stack
 from stealth_env.planners import value_iteration
 from stealth_env.scenario import load_scenario
 from stealth_env.scenario_generator import SEED_RANGES, GenerationError, Options, generate
@@ -86,17 +87,13 @@ def sample_of(seed: int, scenario) -> Sample:
 
 
 def grid_of(tables, layer: int = 0, light=None, moves=None) -> np.ndarray:
-    """(R, C, 7) the grid observation without the robot (``jax_env.observe``): the light of
+    """(R, C, 7) the grid observation without the robot (``jax_env.observe``;
+    ``stealth_env.grid_observation``'s, what the environment node sends): the light of
     ``layer`` (bin and heading), or the given ``light`` (R, C) and ``moves`` (2, R, C), a
     sensed belief; age 0."""
-    free = tables.free.astype(np.float32)
-    zero = np.zeros_like(free)
     if light is None:
         light, moves = tables.node_light[layer], tables.move_light[layer]
-    return np.stack(
-        [free, zero, tables.goal_cells.astype(np.float32), light, moves[0], moves[1], zero],
-        axis=-1,
-    ).astype(np.float32)
+    return stack(tables.free, tables.goal_cells, light, moves)
 
 
 def load_samples(seeds, options: Options, directory: Path, log=None) -> list[Sample]:

@@ -17,15 +17,19 @@ Two layouts (``jax_env.StealthJaxEnv(layout=...)``):
   now (the robot's bin and heading); track 'sensed': the last value sensed, -1 never (exactly
   the Gym sensed observation's ``light`` and ``moves``).
 
-The layout id names layout, track and size, e.g. ``stealth-grid-v1/sensed/80x120``.
+The layout id names layout, track and size, e.g. ``stealth-grid-v1/sensed/80x120``. The grid's
+channels, ids and full-track construction are ``stealth_env.grid_observation``'s (what the
+environment node sends through ROS).
 """
 
 from __future__ import annotations
 
+from stealth_env import grid_observation
+from stealth_env.grid_observation import CHANNELS as CHANNELS  # re-exported
+from stealth_env.grid_observation import VERSION
+
 LAYOUTS = ('vector', 'grid')
-VERSION = 'v1'
 VECTOR = ('x', 'y', 'phase', 'heading', 'lit', 'time_used', 'goal_dx', 'goal_dy')
-CHANNELS = ('free', 'robot', 'goal', 'light', 'move_up', 'move_right', 'age')
 
 
 class LayoutError(ValueError):
@@ -42,7 +46,7 @@ def layout_id(layout: str, track: str, rows: int, cols: int) -> str:
                 f"layout 'vector' has no sensed light: track {track!r} needs layout 'grid'"
             )
         return f'stealth-vector-{VERSION}/full'
-    return f'stealth-grid-{VERSION}/{track}/{rows}x{cols}'
+    return grid_observation.layout_id(track, rows, cols)
 
 
 def check_layout(policy_layout: str, env_layout: str, source: str) -> None:

@@ -29,10 +29,10 @@ class PolicyFileError(ValueError):
 
 def policy_layout(track: str) -> str:
     """The generalist's layout for a track: the grid layout of any size."""
-    return _without_size(layout_id('grid', track, 0, 0))
+    return without_size(layout_id('grid', track, 0, 0))
 
 
-def _without_size(layout: str) -> str:
+def without_size(layout: str) -> str:
     parts = layout.split('/')
     return '/'.join(parts[:2]) if parts[0].startswith('stealth-grid-') else layout
 
@@ -83,7 +83,7 @@ def load(path, env_layout: str) -> tuple[dict, dict]:
         raise PolicyFileError(
             f'{path}: header field architecture: expected {", ".join(ARCHITECTURE)}'
         )
-    check_layout(str(header.get('layout')), _without_size(env_layout), str(path))
+    check_layout(str(header.get('layout')), without_size(env_layout), str(path))
     return _unflatten(flat), header
 
 

@@ -16,7 +16,8 @@ Decisions:
   neither block the writer nor grow its memory without end. Both ends used to differ (the
   environment KEEP_ALL, the agent KEEP_LAST 1000); history is not part of QoS matching, and
   the same runs give the same messages either way (the determinism test).
-- **The description** is latched (transient local, depth 1): a late agent still gets it.
+- **The description** is latched (transient local, depth 1): a late agent still gets it; so is
+  the grid observation (``OBSERVATION``, sent once: with static lights it never changes).
 - **Reports** (step info, episode summaries, the agent's episode info) are transient local and
   keep their latest messages, so a reader that (re)joins late, as a respawned recorder,
   monitor or agent does, gets what was published while it was away. Their readers keep all
@@ -32,6 +33,7 @@ ENV_DESCRIPTION = 'rl_env/rl_env_description'  # RLEnvDescription: once per envi
 STATE = 'rl_env/rl_state_reward'  # RLStateReward: each state, and the reward leading to it
 STEP_INFO = 'rl_env/step_info'  # StepInfo: what happened in each step
 EPISODE_SUMMARY = 'rl_env/episode_summary'  # EpisodeSummary: how each episode ended
+OBSERVATION = 'rl_env/observation'  # GridObservation: the grid (observation_layout grid)
 ACTION = 'rl_agent/rl_action'  # RLAction: the agent's answer to a non-terminal state
 EXPERIMENT_INFO = 'rl_agent/rl_experiment_info'  # RLExperimentInfo: one per episode
 AGENT_EPISODE_INFO = 'rl_agent/episode_info'  # AgentEpisodeInfo: one per episode

@@ -1,0 +1,96 @@
+"""The agent's core for a policy plugin (``policy_plugins``; parameter ``agent: generalist``):
+greedy decisions from the policy on the environment's grid observation, no table and no
+learning. Plain Python + numpy (no rclpy).
+
+The environment sends the grid once (GridObservation on ``rl_env/observation``, latched): with
+static lights every channel but the robot's is fixed. Each state's first two features are the
+robot's (x, y) in the map frame (the lattice node it stands on, the full track's state); the
+core sets that cell of the robot channel and asks the policy, which caches its plan per distinct
+grid, so a decision is a lookup. A state that comes before any grid waits for it
+(``AgentLoop``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from .protocol import BadInputError, ProtocolAgent
+from .state_index import StateIndex
+
+ROBOT = 1  # GridObservation.channel_names[1]
+
+
+@dataclasses.dataclass(frozen=True)
+class ObservedGrid:
+    """A GridObservation as numpy: its layout id, the (rows, cols, channels) float32 grid and
+    the geometry (resolution, origin x, origin y; m, map frame)."""
+
+    layout: str
+    grid: np.ndarray
+    geometry: tuple[float, float, float]
+
+    def cell_of(self, x: float, y: float) -> tuple[int, int]:
+        """(row, col) of map point (x, y); BadInputError outside the grid."""
+        resolution, x0, y0 = self.geometry
+        row, col = math.floor((y - y0) / resolution), math.floor((x - x0) / resolution)
+        rows, cols = self.grid.shape[:2]
+        if not (0 <= row < rows and 0 <= col < cols):
+            raise BadInputError(
+                f'state ({x:g}, {y:g}) lies outside the observation grid ({rows} x {cols} '
+                f'cells of {resolution:g} m from ({x0:g}, {y0:g}))'
+            )
+        return row, col
+
+
+@dataclasses.dataclass
+class PolicyStats:
+    """What the agent's reports read of a learner, for a policy that does not learn."""
+
+    name: str
+    episodes: int = 0
+    updates: int = 0
+    alpha: float = 0.0
+    epsilon: float = 0.0
+
+
+class GridPolicyAgent(ProtocolAgent):
+    """ProtocolAgent whose greedy action comes from a plugin policy on the grid observation."""
+
+    def __init__(self, name: str, policy, index: StateIndex, rng: np.random.Generator):
+        super().__init__(PolicyStats(name), index, rng, learning=False)
+        self.policy = policy
+        self.observed: ObservedGrid | None = None
+        self._work: np.ndarray | None = None  # the grid, the robot's cell set per decision
+
+    @property
+    def ready(self) -> bool:
+        """Whether a grid arrived (a state before it must wait)."""
+        return self.observed is not None
+
+    def set_grid(self, observed: ObservedGrid) -> None:
+        """A (new) grid from the environment: checked against the policy's layout (ValueError,
+        one line naming both), then planned on once, so the first decision is a lookup too."""
+        self.policy.check(observed.layout)
+        work = np.array(observed.grid, dtype=np.float32)
+        work[..., ROBOT] = 0.0
+        self.policy(work)  # the plan of this grid, cached by the policy
+        self.observed, self._work = observed, work
+
+    def set_learning(self, learning: bool) -> None:
+        if learning:
+            raise RuntimeError(f'policy {self.learner.name} does not learn')
+        super().set_learning(False)
+
+    def _greedy(self, row: int, vector: np.ndarray) -> int:
+        if self.observed is None:
+            raise BadInputError('no grid observation (rl_env/observation) yet')
+        r, c = self.observed.cell_of(float(vector[0]), float(vector[1]))
+        work = self._work
+        work[r, c, ROBOT] = 1.0
+        try:
+            return int(self.policy(work))
+        finally:
+            work[r, c, ROBOT] = 0.0

@@ -1,0 +1,150 @@
+"""Policy plugins (policy_plugins, grid_agent): the entry-point lookup and its one-line errors,
+and the agent loop deciding on the grid observation (a state before the grid is held). No ROS:
+the plugin here is this module's, registered by patching the entry points the lookup reads."""
+
+from importlib import metadata
+
+import numpy as np
+import pytest
+from stealth_agent import policy_plugins
+from stealth_agent.agent_loop import AgentLoop
+from stealth_agent.agent_messages import grid_from_msg
+from stealth_agent.agent_parameters import change_problem, learns
+from stealth_agent.policy_plugins import GROUP, PluginError, load_policy
+from stealth_agent.protocol import BadInputError
+from stealth_interfaces.msg import GridObservation, RLEnvDescription, RLStateReward
+from test_agent_loop import FakeNode
+
+ROWS, COLS = 3, 4
+GEOMETRY = (0.5, -1.0, 2.0)  # resolution, origin x, origin y (m)
+
+
+class RecordingPolicy:
+    """Answers the robot's column mod 4 and records every grid it was asked about."""
+
+    layout = 'test-grid/full'
+
+    def __init__(self, path):
+        self.path = path
+        self.grids = []
+
+    def check(self, layout):
+        if not layout.startswith(self.layout + '/'):
+            raise ValueError(f'{self.path}: trained for {self.layout!r}, got {layout!r}')
+
+    def __call__(self, grid):
+        self.grids.append(grid.copy())
+        row, col = np.unravel_index(int(np.argmax(grid[..., 1])), grid.shape[:2])
+        return int(col) % 4
+
+
+def load_recording(path):
+    if path == 'missing.npz':
+        raise OSError(f'{path}: no such policy file')
+    return RecordingPolicy(path)
+
+
+@pytest.fixture
+def plugins(monkeypatch):
+    """Entry points: 'recording' (this module's) and 'broken' (a module that does not exist)."""
+    entries = [
+        metadata.EntryPoint('recording', f'{__name__}:load_recording', GROUP),
+        metadata.EntryPoint('broken', 'no_such_module_for_stealth:load', GROUP),
+    ]
+    monkeypatch.setattr(policy_plugins.metadata, 'entry_points', lambda group: entries)
+    policy_plugins.plugin_names.cache_clear()
+    yield
+    policy_plugins.plugin_names.cache_clear()
+
+
+def grid_msg(layout=f'test-grid/full/{ROWS}x{COLS}', data=None):
+    grid = np.zeros((ROWS, COLS, 7), np.float32)
+    grid[..., 0] = 1.0
+    message = GridObservation(layout=layout, rows=ROWS, cols=COLS, channels=7)
+    message.resolution = GEOMETRY[0]
+    message.origin.x, message.origin.y = GEOMETRY[1], GEOMETRY[2]
+    message.data = grid.ravel().tolist() if data is None else data
+    return message
+
+
+def test_lookup_names_what_to_install(plugins):
+    assert policy_plugins.plugin_names() == ('broken', 'recording')
+    assert load_policy('recording', 'w.npz').path == 'w.npz'
+    with pytest.raises(PluginError) as missing:
+        load_policy('ppo', '')
+    assert "no policy plugin 'ppo'" in str(missing.value) and 'make learn' in str(missing.value)
+    with pytest.raises(PluginError) as broken:
+        load_policy('broken', '')
+    assert 'cannot be imported' in str(broken.value) and 'make learn' in str(broken.value)
+    with pytest.raises(PluginError, match='missing.npz: no such policy file'):
+        load_policy('recording', 'missing.npz')
+    for error in (missing, broken):
+        assert '\n' not in str(error.value)
+
+
+def test_a_plugin_is_an_agent_that_does_not_learn(plugins):
+    assert change_problem([('agent', 'recording')], None) is None
+    assert 'recording' in change_problem([('agent', 'ppo')], None)
+    assert not learns({'evaluate': False, 'agent': 'recording'})
+    assert learns({'evaluate': False, 'agent': 'qlearning'})
+
+
+def test_the_grid_message_is_read_and_checked():
+    observed = grid_from_msg(grid_msg())
+    assert observed.grid.shape == (ROWS, COLS, 7) and observed.geometry == GEOMETRY
+    assert observed.cell_of(-1.0 + 0.5 * 2.5, 2.0 + 0.5 * 1.5) == (1, 2)
+    with pytest.raises(BadInputError, match='outside the observation grid'):
+        observed.cell_of(10.0, 2.0)
+    with pytest.raises(BadInputError, match='data has 5 values'):
+        grid_from_msg(grid_msg(data=[0.0] * 5))
+
+
+def state(x, y, reward=0.0, terminal=False):
+    return RLStateReward(state=[x, y], reward=reward, terminal=terminal)
+
+
+def test_the_loop_decides_on_the_grid_and_holds_a_state_until_it_comes(plugins):
+    node = FakeNode(agent='recording')
+    loop = AgentLoop(node)
+    description = RLEnvDescription(
+        num_actions=4, min_state_range=[-1.0, 2.0], max_state_range=[1.0, 3.5], title='t'
+    )
+    loop.on_description(description)
+    assert loop.core is not None, node.logs
+    # The cell of (x, y) = (0.25, 2.25): row 0, col 2 (origin (-1, 2), 0.5 m cells).
+    loop.on_state(state(0.25, 2.25), 1)
+    assert node.actions == [] and node.told('warning', 'held until it arrives')
+    assert not node.accepting_states
+    loop.on_observation(grid_msg())
+    assert node.accepting_states and node.actions == [2]
+    policy = loop.core.policy
+    asked = policy.grids[-1]
+    assert asked[0, 2, 1] == 1.0 and asked[..., 1].sum() == 1.0
+    loop.on_state(state(-0.75, 3.25, reward=-1.0), 2)  # row 2, col 0
+    assert node.actions == [2, 0]
+    assert policy.grids[-1][2, 0, 1] == 1.0 and policy.grids[-1][..., 1].sum() == 1.0
+    loop.on_state(state(-0.75, 3.25, reward=5.0, terminal=True), 3)
+    assert len(node.reports) == 1 and loop.states_received == 3
+    assert loop.core.episode == 1 and not loop.core.learning
+
+
+def test_a_grid_of_another_layout_is_refused_naming_both(plugins):
+    node = FakeNode(agent='recording')
+    loop = AgentLoop(node)
+    loop.on_description(
+        RLEnvDescription(num_actions=4, min_state_range=[0.0, 0.0], max_state_range=[1.0, 1.0])
+    )
+    loop.on_observation(grid_msg(layout='other-grid/sensed/3x4'))
+    (line,) = node.told('error', 'grid observation ignored')
+    assert "'test-grid/full'" in line and "'other-grid/sensed/3x4'" in line
+    assert not loop.core.ready
+
+
+def test_an_unusable_plugin_leaves_the_agent_idle(plugins):
+    node = FakeNode(agent='recording', policy_file='missing.npz')
+    loop = AgentLoop(node)
+    loop.on_description(
+        RLEnvDescription(num_actions=4, min_state_range=[0.0, 0.0], max_state_range=[1.0, 1.0])
+    )
+    assert loop.core is None
+    assert node.told('error', 'missing.npz: no such policy file')

@@ -1,0 +1,51 @@
+"""The lights-known generalist through ROS, as a user runs it: `stealth rollout --learner
+generalist` on a shipped scenario it was never trained on (it was trained on generated
+buildings only) starts simulator, environment (observation_layout grid), agent (agent:
+generalist, the stealth_learn plugin) and recorder, and every episode reaches the goal
+undetected; the grid observation is recorded once, with the run. Needs the learning extra
+(make learn; make test-system installs it)."""
+
+import json
+
+import pytest
+import yaml
+
+try:
+    import jax  # noqa: F401
+except ImportError:
+    pytest.skip('the generalist needs jax: make learn', allow_module_level=True)
+
+from test_system import read_bag, system  # noqa: E402, F401 - the fixture
+
+
+def test_the_generalist_crosses_a_shipped_scenario_undetected(system, tmp_path):  # noqa: F811
+    result = system.run(
+        'rollout', '--learner', 'generalist', '--scenario', 'simple-maze', '--goal', 'easy',
+        '--episodes', '2', '--runs-dir', str(system.runs), '--name', 'generalist',
+        timeout=120,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr + result.stdout
+    run = system.runs / 'generalist'
+    summary = json.loads((run / 'summary.json').read_text())
+    assert summary['episodes'] == 2
+    assert summary['outcomes']['SUCCESS'] == 2, summary['outcomes']
+    params = {}
+    for node in ('agent', 'environment'):
+        text = (run / 'params' / f'{node}.yaml').read_text()
+        params[node] = yaml.safe_load(text)[node]['ros__parameters']
+    assert params['agent']['agent'] == 'generalist' and params['agent']['evaluate'] is True
+    assert params['environment']['observation_layout'] == 'grid'
+
+    _, messages, types = read_bag(run / 'recording.mcap')
+    assert types['/rl_env/observation'] == 'stealth_interfaces/msg/GridObservation'
+    (grid,) = messages['/rl_env/observation']  # sent once: static lights
+    assert grid.layout.startswith('stealth-grid-v1/full/') and grid.channels == 7
+    assert len(grid.data) == grid.rows * grid.cols * grid.channels
+    # The two episodes counted (the loop may run on into a third while the run stops).
+    steps = [step for step in messages['/rl_env/step_info'] if step.episode < 2]
+    assert not any(step.detected for step in steps)
+    assert [step.episode for step in steps if step.terminal] == [0, 1]
+    ends = {m.episode: m.outcome for m in messages['/rl_env/episode_summary'] if m.episode < 2}
+    assert ends == {0: 0, 1: 0}  # EpisodeSummary.SUCCESS
+    agent_log = (run / 'logs' / 'agent.log').read_text()
+    assert 'decision time per action' in agent_log
