@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import hashlib
 import os
 from pathlib import Path
 import sys
@@ -66,6 +67,51 @@ class GeneralistPolicy:
             int(np.argmax(np.asarray(grid)[..., ROBOT])), np.asarray(grid).shape[:2]
         )
         return int(np.argmax(self.cell_logits(grid)[row, col]))
+
+
+class PlanCache:
+    """Every cell's move (``GeneralistPolicy.act`` at each cell) for a grid, computed by the
+    network once per distinct grid and then looked up: with static lights a whole episode (or
+    run) reads one plan, and a decision costs a lookup. The robot channel is ignored (the
+    decision is read at the robot's cell); the last grid is compared in place (a decision's
+    common case, about 10x cheaper than hashing a copy), another looked up by the hash of its
+    static channels; the ``keep`` latest distinct plans are kept."""
+
+    def __init__(self, policy: GeneralistPolicy, keep: int = 64):
+        self.policy = policy
+        self.keep = keep
+        self.computed = 0  # plans computed (each a full pass of the network)
+        self._plans: dict[bytes, np.ndarray] = {}
+        self._last: tuple[np.ndarray, np.ndarray] | None = None  # (static grid, its moves)
+
+    def __len__(self) -> int:
+        return len(self._plans)
+
+    def moves(self, grid) -> np.ndarray:
+        """(R, C) int8: the move at every cell of ``grid`` (R, C, 7)."""
+        grid = np.asarray(grid)
+        last = self._last
+        if (
+            last is not None
+            and last[0].shape == grid.shape
+            and np.array_equal(grid[..., :ROBOT], last[0][..., :ROBOT])
+            and np.array_equal(grid[..., ROBOT + 1 :], last[0][..., ROBOT + 1 :])
+        ):
+            return last[1]
+        static = np.array(grid, dtype=np.float32)
+        static[..., ROBOT] = 0.0
+        key = hashlib.blake2b(static.tobytes(), digest_size=16).digest() + bytes(
+            str(static.shape), 'ascii'
+        )
+        moves = self._plans.get(key)
+        if moves is None:
+            moves = self.policy.cell_logits(static).argmax(axis=-1).astype(np.int8)
+            self.computed += 1
+            if len(self._plans) >= self.keep:
+                self._plans.pop(next(iter(self._plans)))
+            self._plans[key] = moves
+        self._last = (static, moves)
+        return moves
 
 
 @dataclasses.dataclass(frozen=True)

@@ -33,15 +33,12 @@ from stealth_env.replanning import lamp_reach
 
 from stealth_learn import policy_file
 from stealth_learn.env_tables import TaskArrays
-from stealth_learn.generalist import DEFAULT_POLICY, GeneralistPolicy
+from stealth_learn.generalist import DEFAULT_POLICY, GeneralistPolicy, PlanCache
 from stealth_learn.generalist_data import grid_of
-from stealth_learn.obs_layout import CHANNELS
-from stealth_learn.vin import NUM_MOVES
 
 UNKNOWN_RULES = ('dark', 'lit')
 LIGHT_RULES = ('cycle', 'now')
-LIGHT_CHANNELS = slice(CHANNELS.index('light'), CHANNELS.index('move_right') + 1)
-_KEPT = 64  # value maps kept per agent (moving lights' bins; the sensed track's latest)
+_KEPT = 64  # plans kept per agent (moving lights' bins; the sensed track's latest)
 
 
 def load_policy(path=None, iterations: int | None = None) -> GeneralistPolicy:
@@ -80,8 +77,7 @@ class GeneralistAgent:
             reach = lamp_reach(env.model)
             threshold = env.scenario.detection_threshold
             self.assumed[self.row, self.col] = np.where(reach, threshold, 0.0)
-        self._maps: dict[bytes, np.ndarray] = {}
-        self.value_maps = 0  # value maps computed (each a full pass of the network)
+        self.plans = PlanCache(policy, keep=_KEPT)
 
     def grid(self, observation) -> np.ndarray:
         """(R, C, 7) the grid the network reads for this observation (module docstring)."""
@@ -102,16 +98,14 @@ class GeneralistAgent:
 
     def act(self, observation) -> int:
         """The move with the highest logit at the robot's cell (never a wait or a turn)."""
-        grid = self.grid(observation)
-        key = grid[..., LIGHT_CHANNELS].tobytes()
-        logits = self._maps.get(key)
-        if logits is None:
-            if len(self._maps) >= _KEPT:
-                self._maps.clear()
-            logits = self._maps[key] = self.policy.cell_logits(grid)
-            self.value_maps += 1
+        moves = self.plans.moves(self.grid(observation))
         node = int(self.env.node) % self.nodes
-        return int(np.argmax(logits[self.row[node], self.col[node], :NUM_MOVES]))
+        return int(moves[self.row[node], self.col[node]])
+
+    @property
+    def value_maps(self) -> int:
+        """Value maps computed (each a full pass of the network)."""
+        return self.plans.computed
 
 
 def _shifted(light: np.ndarray) -> np.ndarray:

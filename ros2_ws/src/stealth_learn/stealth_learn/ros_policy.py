@@ -4,21 +4,20 @@
 runs it with ``agent: generalist`` without importing this package.
 
 With static lights the value map depends only on the grid's static channels (every channel but
-the robot's), so the policy plans once per distinct grid (all cells' moves from
-``GeneralistPolicy.cell_logits``, the same as ``act`` at each cell: tested) and each decision is
-a lookup at the robot's cell.
+the robot's), so the policy plans once per distinct grid (``generalist.PlanCache``: every
+cell's move from ``GeneralistPolicy.cell_logits``, the same as ``act`` at each cell: tested)
+and each decision is a lookup at the robot's cell.
 """
 
 from __future__ import annotations
 
-import hashlib
 from pathlib import Path
 
 import numpy as np
 from stealth_env.grid_observation import ROBOT
 
 from stealth_learn import policy_file
-from stealth_learn.generalist import DEFAULT_POLICY, GeneralistPolicy
+from stealth_learn.generalist import DEFAULT_POLICY, GeneralistPolicy, PlanCache
 from stealth_learn.obs_layout import check_layout
 
 KEEP_PLANS = 8  # distinct grids kept (one per building a run sees: usually one)
@@ -32,8 +31,7 @@ class CachedGeneralist:
     def __init__(self, policy: GeneralistPolicy, path: Path):
         self.policy = policy
         self.path = path
-        self._plans: dict[bytes, np.ndarray] = {}
-        self._last: tuple[np.ndarray, np.ndarray] | None = None  # (static grid, its moves)
+        self.plans = PlanCache(policy, keep=KEEP_PLANS)
 
     def check(self, layout: str) -> None:
         """ValueError (obs_layout.LayoutError), one line naming both, unless this policy reads
@@ -41,30 +39,8 @@ class CachedGeneralist:
         check_layout(self.layout, policy_file.without_size(layout), str(self.path))
 
     def plan(self, grid: np.ndarray) -> np.ndarray:
-        """(R, C) int8: the move at every cell of ``grid`` (its robot channel ignored). The
-        grid of the last call is compared in place (a decision's common case, ~10x cheaper
-        than hashing a copy); another grid is looked up by the hash of its static channels."""
-        last = self._last
-        if (
-            last is not None
-            and last[0].shape == grid.shape
-            and np.array_equal(grid[..., :ROBOT], last[0][..., :ROBOT])
-            and np.array_equal(grid[..., ROBOT + 1 :], last[0][..., ROBOT + 1 :])
-        ):
-            return last[1]
-        static = np.array(grid, dtype=np.float32)
-        static[..., ROBOT] = 0.0
-        key = hashlib.blake2b(static.tobytes(), digest_size=16).digest() + bytes(
-            str(static.shape), 'ascii'
-        )
-        moves = self._plans.get(key)
-        if moves is None:
-            moves = self.policy.cell_logits(static).argmax(axis=-1).astype(np.int8)
-            if len(self._plans) >= KEEP_PLANS:
-                self._plans.pop(next(iter(self._plans)))
-            self._plans[key] = moves
-        self._last = (static, moves)
-        return moves
+        """(R, C) int8: the move at every cell of ``grid`` (its robot channel ignored)."""
+        return self.plans.moves(grid)
 
     def __call__(self, grid: np.ndarray) -> int:
         """The move at the robot's cell (the robot channel's maximum)."""

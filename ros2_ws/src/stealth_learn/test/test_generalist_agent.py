@@ -6,12 +6,13 @@ unknown dark, with a value map per sensed field."""
 import numpy as np
 import pytest
 from stealth_env.gym_env import StealthNavEnv
-from stealth_learn.generalist_agent import LIGHT_CHANNELS, GeneralistAgent, load_policy
+from stealth_learn.generalist_agent import GeneralistAgent, load_policy
 from stealth_learn.jax_deps import jax
 from stealth_learn.jax_env import build
 from stealth_learn.obs_layout import CHANNELS
 
 LIGHT, MOVE_UP, MOVE_RIGHT = (CHANNELS.index(c) for c in ('light', 'move_up', 'move_right'))
+LIGHT_CHANNELS = slice(LIGHT, MOVE_RIGHT + 1)  # what the value map depends on
 
 
 @pytest.fixture(scope='module')

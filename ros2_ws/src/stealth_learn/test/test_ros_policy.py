@@ -48,11 +48,11 @@ def test_the_cached_plan_is_act_at_every_cell(generated):
         grid[row, col, ROBOT] = 1.0
         assert policy(grid) == policy.policy.act(grid), (row, col)
         grid[row, col, ROBOT] = 0.0
-    assert len(policy._plans) == 1  # one plan for every robot cell of one building
+    assert len(policy.plans) == 1  # one plan for every robot cell of one building
     other = grid.copy()
     other[..., 3] += 0.01
     policy.plan(other)
-    assert len(policy._plans) == 2
+    assert len(policy.plans) == 2
 
 
 def test_refusals_name_the_path_or_both_layouts(tmp_path):
