@@ -108,6 +108,10 @@ def run_nodes(
         rclpy.try_shutdown()
         return 0
     except Exception as error:  # StartupError, or rcl's own (e.g. a bad remapping)
+        if not rclpy.ok():
+            # rclpy's SIGINT handler shut the context down while the node was being built, and
+            # an rcl call failed on it before Python raised the KeyboardInterrupt: a stop too.
+            return 0
         logger.fatal(f'not starting: {_without_source_locations(error)}')
         rclpy.try_shutdown()
         return EXIT_CANNOT_START

@@ -4,6 +4,7 @@ import math
 
 from builtin_interfaces.msg import Time
 import pytest
+import rclpy
 from rclpy.parameter import Parameter
 from stealth_node_kit import running
 from stealth_node_kit.conversions import quaternion_yaw, seconds, time_msg, yaw_quaternion
@@ -66,6 +67,18 @@ def test_a_node_stopped_while_it_starts_exits_quietly(capfd):
 
     assert run_node(interrupted, 'kit_test', args=[]) == 0
     assert 'Traceback' not in capfd.readouterr().err
+
+
+def test_a_node_whose_context_is_shut_down_while_it_starts_exits_quietly(capfd):
+    """SIGINT shuts the context down (rclpy's handler) and an rcl call of the node being built
+    fails on it before Python raises KeyboardInterrupt: a stop, not a node that cannot start."""
+
+    def stopped_mid_build():
+        rclpy.shutdown()
+        raise RuntimeError('rcl node creation failed: the given context is not valid')
+
+    assert run_node(stopped_mid_build, 'kit_test', args=[]) == 0
+    assert 'not starting' not in capfd.readouterr().err
 
 
 @pytest.mark.parametrize('error', [StartupError('parameter map: required'), KeyboardInterrupt()])
