@@ -2,7 +2,7 @@
 over 1024 environments, 64 on the sensed track, a ``lax.scan`` of steps) against the Gym env's
 (``StealthNav-v0`` via ``gymnasium.make``, one environment, as bench_gym), in the same process,
 same scenario, random actions, resetting whenever an episode ends. Target (issue 30): at least
-100x on the full track.
+100x, on the full track (vector layout) and on the sensed track.
 
 Every observation feeds a checksum the scan returns, so XLA cannot drop the observation's work
 (a learner reads every observation). The sensed track is measured too, with its grid
@@ -98,7 +98,7 @@ def run(report=print) -> dict:
     ):
         best = measure(track, layout, envs, gym_steps)
         ratio = best['jax'] / best['gym']
-        target = f' (target >= {TARGET:g})' if layout == 'vector' else ''
+        target = f' (target >= {TARGET:g})' if layout == 'vector' or track == 'sensed' else ''
         report(f'  track {track}, layout {layout}, {envs} envs:')
         report(f'    JAX: {best["jax"]:,.0f} steps/s')
         report(f'    Gym: {best["gym"]:,.0f} steps/s')
@@ -110,6 +110,7 @@ def run(report=print) -> dict:
             f'jax_env_{name}_ratio': round(ratio, 2),
         })  # fmt: skip
     figures['jax_env_target_met'] = bool(figures['jax_env_full_ratio'] >= TARGET)
+    figures['jax_env_sensed_target_met'] = bool(figures['jax_env_sensed_ratio'] >= TARGET)
     return figures
 
 

@@ -21,11 +21,15 @@ node), so the JAX environment inherits their rules rather than copying them:
   stays in place as a blocked move does (it waits where lights move); ``action_mask`` says which
   are the scenario's own. Slip picks one of ``planners.PERPENDICULAR``'s two moves.
 - **Sensing** (track 'sensed'): for each node, the nodes and moves in sight (``Sensing.visible``)
-  as a bit mask over a window of ``2 * window + 1`` nodes a side (``window`` = sensing range /
-  step distance, rounded up) around the robot, packed with ``np.packbits``. The window is
-  centred on the robot but kept inside the grid (``window_start``), so the memory needs no
-  margin; a grid smaller than the window is padded to it (track 'sensed' only). Tracing every
-  node costs about 10 ms a node, so only the sensed track does it.
+  as a bit mask over the whole grid ([0] nodes, [1] moves up, [2] moves right), packed with
+  ``np.packbits``: ``R * C * 3 * R * C / 8`` bytes (0.96 MB for map1's 40 x 40 lattice), so the
+  step's memory update is one elementwise pass, which vmaps without gathers or scatters (a mask
+  over the sensing window around the robot made a smaller table (0.65 MB) but a window slice
+  per environment, which vmap makes a gather and a scatter: about 4x slower). A grid smaller
+  than the sensing window (``2 * window + 1`` nodes a side, ``window`` = sensing range / step
+  distance, rounded up) is still padded to it on track 'sensed', so layout ids stay those of
+  the window mask's tables. Tracing every node costs about 10 ms a node, so only the sensed
+  track does it.
 """
 
 from __future__ import annotations
@@ -88,7 +92,7 @@ class Dims:
 @dataclasses.dataclass(frozen=True)
 class Tables:
     """One scenario's padded tables (numpy); ``jax_env.EnvParams`` holds them as jax arrays.
-    Shapes: P places, A actions, R x C grid, L layers, W the window side."""
+    Shapes: P places, A actions, R x C grid, L layers."""
 
     successors: np.ndarray  # (P, A) int32: the place a step leads to
     step_visibility: np.ndarray  # (P, A) float32: the light the step is judged on
@@ -102,7 +106,7 @@ class Tables:
     move_light: np.ndarray  # (L, 2, R, C) float32: up [0] and right [1] moves; -2 none
     free: np.ndarray  # (R, C) bool: a valid lattice node
     goal_cells: np.ndarray  # (R, C) bool
-    sense_bits: np.ndarray  # (R * C, bytes) uint8: packed (3, W, W) masks; (R * C, 0) on 'full'
+    sense_bits: np.ndarray  # (R * C, bytes) uint8: packed (3, R, C) masks; (R * C, 0) on 'full'
     perpendicular: np.ndarray  # (A, 2) int32: the slip's sideways moves, -1 none
     action_mask: np.ndarray  # (A,) bool: the scenario's own actions
     start: int
@@ -134,7 +138,7 @@ class TaskArrays:
         rows, cols = self.sensing.shape
         scenario = self.task.scenario
         window = math.ceil(self.sensing.range / scenario.step_distance - 1e-9)
-        if track == 'sensed':  # the window fits in the grid (see "Sensing")
+        if track == 'sensed':  # padded to the window (see "Sensing")
             rows, cols = max(rows, 2 * window + 1), max(cols, 2 * window + 1)
         self.dims = Dims(rows, cols, self.model.layers, self.model.num_actions, window)
 
@@ -279,32 +283,19 @@ def unknown_grids(tables: Tables) -> tuple[np.ndarray, np.ndarray]:
     )
 
 
-def window_start(position, size: int, side: int):
-    """The first row (or col) of the sensing window around ``position`` in a grid of ``size``:
-    centred, moved inside the grid at its edges (numpy or jax arrays alike)."""
-    return (position - side // 2).clip(0, size - side)
-
-
 def _sense_bits(arrays: TaskArrays, dims: Dims) -> np.ndarray:
-    """(R * C, bytes) uint8: per cell, the (3, W, W) mask of what is in sight from its node
-    over its window (``window_start``: [0] nodes, [1] moves up, [2] moves right), bit-packed."""
-    if dims.rows < dims.side or dims.cols < dims.side:
-        raise TableError(
-            f'dims {dims}: the sensed track needs rows and cols >= the window side {dims.side}'
-        )
-    sensing, side = arrays.sensing, dims.side
-    masks = np.zeros((dims.cells, 3, side, side), bool)
+    """(R * C, bytes) uint8: per cell, the (3, R, C) mask of what is in sight from its node over
+    the whole grid ([0] nodes, [1] moves up, [2] moves right), bit-packed."""
+    sensing = arrays.sensing
+    masks = np.zeros((dims.cells, 3, dims.rows, dims.cols), bool)
     rows, cols = sensing.grid_row, sensing.grid_col
-    top, left = window_start(rows, dims.rows, side), window_start(cols, dims.cols, side)
     move_rows, move_cols = rows[sensing.move_from], cols[sensing.move_from]
     channel = 1 + (sensing.move_direction == 3).astype(np.int64)  # 3: RIGHT
     for node in range(sensing.n):
         nodes, moves = sensing.visible(node)
         here = rows[node] * dims.cols + cols[node]
-        masks[here, 0, rows[nodes] - top[node], cols[nodes] - left[node]] = True
-        masks[
-            here, channel[moves], move_rows[moves] - top[node], move_cols[moves] - left[node]
-        ] = True
+        masks[here, 0, rows[nodes], cols[nodes]] = True
+        masks[here, channel[moves], move_rows[moves], move_cols[moves]] = True
     return np.packbits(masks.reshape(dims.cells, -1), axis=1)
 
 

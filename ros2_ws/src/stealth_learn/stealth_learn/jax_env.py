@@ -35,7 +35,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from stealth_learn.env_tables import Dims, Tables, TaskArrays, unknown_grids, window_start
+from stealth_learn.env_tables import Dims, Tables, TaskArrays, unknown_grids
 from stealth_learn.jax_deps import jax, jnp, struct
 from stealth_learn.obs_layout import CHANNELS, VECTOR, layout_id
 
@@ -258,32 +258,17 @@ class StealthJaxEnv:
 
     def _sense(self, state: EnvState, params: EnvParams) -> EnvState:
         """Remember what is in sight from the robot's node: the light of its layer (bin and
-        heading) on the nodes and moves of its window that the mask marks."""
-        side = self.dims.side
+        heading) on the nodes and moves the cell's mask marks. The mask covers the whole grid,
+        so the update is one elementwise pass (no window slicing: vmapped, that is a scatter)."""
         dims = self.dims
-        layer, row, col = self._where(state.place)
-        row, col = window_start(row, dims.rows, side), window_start(col, dims.cols, side)
-        cell = state.place % dims.cells
-        bits = jnp.unpackbits(params.sense_bits[cell])[: 3 * side * side]
-        mask = bits.reshape(3, side, side).astype(bool)
-        window = (side, side)
-        truth = jax.lax.dynamic_slice(params.node_light[layer], (row, col), window)
-        old = jax.lax.dynamic_slice(state.node_memory, (row, col), window)
-        seen = jax.lax.dynamic_slice(state.node_seen, (row, col), window)
-        node_memory = jax.lax.dynamic_update_slice(
-            state.node_memory, jnp.where(mask[0], truth, old), (row, col)
-        )
-        node_seen = jax.lax.dynamic_update_slice(
-            state.node_seen, jnp.where(mask[0], state.steps, seen), (row, col)
-        )
-        truth = jax.lax.dynamic_slice(params.move_light[layer], (0, row, col), (2, *window))
-        old = jax.lax.dynamic_slice(state.move_memory, (0, row, col), (2, *window))
-        move_memory = jax.lax.dynamic_update_slice(
-            state.move_memory, jnp.where(mask[1:], truth, old), (0, row, col)
-        )
+        layer, cell = jnp.divmod(state.place, dims.cells)
+        bits = jnp.unpackbits(params.sense_bits[cell], count=3 * dims.cells)
+        mask = bits.reshape(3, dims.rows, dims.cols).astype(bool)
         return state.replace(
-            node_memory=node_memory, node_seen=node_seen, move_memory=move_memory,
-        )  # fmt: skip
+            node_memory=jnp.where(mask[0], params.node_light[layer], state.node_memory),
+            node_seen=jnp.where(mask[0], state.steps, state.node_seen),
+            move_memory=jnp.where(mask[1:], params.move_light[layer], state.move_memory),
+        )
 
     def vector(self, state: EnvState, params: EnvParams) -> jax.Array:
         """(8,) float32, ``obs_layout.VECTOR``: the place's row of ``vector_base`` with lit and
