@@ -17,10 +17,10 @@ The recovery, for a drive between two different nodes that ended BUMPED, once pe
 2. **Retry** the drive to the target node. Both points are moved sideways, as one line, by the
    least shift (at most ``max_shift``) that gives the middle of the drive the most clearance up
    to ``margin`` beyond the robot's radius (:class:`stealth_env.clearance.Clearance`, as the
-   navigator's legs are moved): through a generated door, 0.1 m towards its middle, 0.15 m from
-   either jamb. ``max_shift`` stays under half a lattice step, so the robot never leaves the cells
-   of the two nodes: the states, and the lattice exposure the step is judged on, are the ones
-   planned.
+   navigator's legs are moved): through a generated door, 0.1 m towards its middle, which leaves
+   the disc 0.15 m from the nearer jamb instead of 0.05 m. ``max_shift`` stays under half a
+   lattice step, so the robot never leaves the cells of the two nodes: the states, and the
+   lattice exposure the step is judged on, are the ones planned.
 
 The step is judged where the retry ends (its outcome is the step's). A retry that bumps too is a
 BUMPED step: the agent decides again, and an action asked again backs off and retries again, each
