@@ -11,7 +11,7 @@ filter's update distance), and bumps at once again, until the step limit.
 
 The recovery, for a drive between two different nodes that ended BUMPED, once per step:
 
-1. **Back off** to the start node (``go_to``): the robot turns away from what it touched (about
+1. **Back off** to the start node, moved sideways as in 2 (``go_to``): the robot turns away from what it touched (about
    half a turn: the filter updates after ``update_min_a``, 0.2 rad), drives back and turns again
    to go on, so the retry starts from a fresh estimate, off the contact.
 2. **Retry** the drive to the target node. Both points are moved sideways, as one line, by the
