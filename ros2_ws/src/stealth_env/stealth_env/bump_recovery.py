@@ -11,9 +11,10 @@ filter's update distance), and bumps at once again, until the step limit.
 
 The recovery, for a drive between two different nodes that ended BUMPED, once per step:
 
-1. **Back off** to the start node, moved sideways as in 2 (``go_to``): the robot turns away from what it touched (about
-   half a turn: the filter updates after ``update_min_a``, 0.2 rad), drives back and turns again
-   to go on, so the retry starts from a fresh estimate, off the contact.
+1. **Back off** to the start node, moved sideways as in 2 (``go_to``): the robot turns away
+   from what it touched (about half a turn: the filter updates after ``update_min_a``, 0.2 rad),
+   drives back and turns again to go on, so the retry starts from a fresh estimate, off the
+   contact.
 2. **Retry** the drive to the target node. Both points are moved sideways, as one line, by the
    least shift (at most ``max_shift``) that gives the middle of the drive the most clearance up
    to ``margin`` beyond the robot's radius (:class:`stealth_env.clearance.Clearance`, as the
