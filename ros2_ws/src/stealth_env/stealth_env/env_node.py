@@ -382,7 +382,7 @@ class EnvironmentNode(StartupNode):
 
     def _on_move_end(self, token: int, end: MoveEnd) -> None:
         """A move ended (DONE, BUMPED or TIMED_OUT) with these poses at this time: judge it, or
-        pad it to its step's slot first. A move that could not run ends the episode."""
+        first back a bumped drive off and retry it, or pad it. A move that cannot run aborts."""
         if end.outcome is None:
             self._abort(token, end.message)
             return
@@ -399,9 +399,9 @@ class EnvironmentNode(StartupNode):
         stamp = time_msg(end.t)
         t = seconds(stamp)
         self._sim_time = max(self._sim_time, t)
-        pad, note = self.flow.move_ended(token, t, end.outcome == DONE, (end.outcome, end.message))
-        if pad is not None:
-            self._run(token, pad)
+        then, note = self.flow.move_ended(token, t, end.outcome, (end.outcome, end.message))
+        if then is not None:  # a bumped drive's back-off or retry, or a hold to the slot's end
+            self._run(token, then)
             return
         outcome, message = note
         try:

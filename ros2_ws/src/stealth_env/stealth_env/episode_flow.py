@@ -9,7 +9,7 @@ rl_env) is made here, on top of the shared judging core ``stealth_env.task.Steal
     state = flow.reset_done(token)               # -> RUNNING: publish the first state (reward 0)
     problem = flow.accept_action(action)         # None: RUNNING -> MOVING
     move = flow.move_for_action(t)               # the move to run (sim/execute_move or topics)
-    pad, note = flow.move_ended(token, t, done, note)    # a hold to run first, or judge now:
+    then, note = flow.move_ended(token, t, outcome, note)  # a move to run first, or judge:
     report = flow.finish_move(token, estimate, truth, t)   # -> RUNNING or ENDED
     aborted = flow.abort(token, reason)          # the move failed: -> ENDED (ABORTED)
     problem = flow.experiment_info()             # None: the agent closed the episode, reset
@@ -52,6 +52,9 @@ Decisions:
   of the step's slot, or a whole slot when nothing is left of it (a wait that comes after a late
   step still takes time). Where lights are weighed by exposure, a turn (and a move the map
   blocks, which turns nothing on the lattice) turns in place to its lattice heading.
+- **Bumps** (``move_ended``): a drive between two lattice nodes that ended BUMPED backs off to
+  its start node and is retried once on its lattice line moved off the walls
+  (:mod:`stealth_env.bump_recovery`); the step is judged where the retry ends, with its outcome.
 - **Actions** are accepted only while the flow waits for one (RUNNING) and only when they are
   those of ``task.action_names`` (0-3 the moves, then 4 wait where lights move, then turn left
   and turn right where the scenario has turn actions); anything else is dropped with a
@@ -77,6 +80,9 @@ import enum
 import math
 from typing import NamedTuple
 
+from stealth_sim.move_executor import MoveOutcome
+
+from stealth_env.bump_recovery import BumpRecovery
 from stealth_env.exposure import heading_angle
 from stealth_env.reward import EpisodeOutcome
 from stealth_env.task import (
@@ -153,6 +159,7 @@ class Counts:
     episodes_started: int = 0
     episodes_withdrawn: int = 0  # first state sent, but the agent went away before acting
     off_schedule: int = 0  # steps that ended in another phase than their slot's (too slow)
+    retried: int = 0  # bumped drives backed off and retried (bump_recovery)
     outcomes: Counter = dataclasses.field(default_factory=Counter)  # by EpisodeOutcome name
 
     def describe(self) -> str:
@@ -174,6 +181,7 @@ class Counts:
                 if self.off_schedule
                 else ''
             )
+            + (f', {self.retried} bumped moves backed off and retried' if self.retried else '')
         )
 
 
@@ -212,6 +220,11 @@ class EpisodeFlow:
         self.origin = 0.0  # simulated time of the episode's reset: its clock's zero (s)
         # (token, note) of a move that ended before its step's slot while the hold padding it runs
         self._padded: tuple[int, object] | None = None
+        # The running step's drive between lattice nodes (start, target), when it is one, and
+        # (token, retry move or None once it runs) while its bump recovery runs.
+        self._drive: tuple[tuple[float, float], tuple[float, float]] | None = None
+        self._recovery: tuple[int, MoveGoal | None] | None = None
+        self._bump_recovery: BumpRecovery | None = None  # built at the first bump
 
     # --- episodes -------------------------------------------------------------------------------
 
@@ -380,6 +393,7 @@ class EpisodeFlow:
         if self.phase is not EpisodePhase.MOVING:
             raise FlowError(f'no action to execute while {self.phase.value}')
         task, state, action = self.task, self.state, self.action
+        self._drive = None
         if action == WAIT and task.action_names[action] == 'wait':
             return self.hold_move(self.step_time_left(t))
         x, y = task.move_target(*state[:2], action) if action < WAIT else state[:2]
@@ -388,6 +402,8 @@ class EpisodeFlow:
             return MoveGoal(
                 heading_angle(task.heading_after(task.heading_in(state), action, False))
             )
+        if not blocked:
+            self._drive = (task.move_start(*state[:2]), (x, y))
         return go_to(x, y)
 
     def hold_move(self, seconds: float) -> MoveGoal:
@@ -396,20 +412,43 @@ class EpisodeFlow:
             seconds = self.task.step_seconds
         return hold_goal(seconds)
 
-    def move_ended(self, token: int, t: float, done: bool, note):
-        """A move (or the hold padding it) ended at simulated time t (s), DONE or not: (hold,
-        None) while its step's slot has time left (run the hold under the same token, then call
-        again), else (None, note) to judge the step now. `note` is what to report about the
-        move (the node's outcome and message): a padded move's own note, unless the hold after
-        it was not DONE."""
+    def move_ended(self, token: int, t: float, outcome: int, note):
+        """A move (or the hold padding it) ended at simulated time t (s) with ``outcome`` (an
+        ExecuteMove outcome, ``move_executor.MoveOutcome``): (move, None) when another is to run
+        first under the same token (then call again): the back-off and then the retry of a drive
+        that bumped, a hold while its step's slot has time left; else (None, note) to judge the
+        step now. `note` is what to report about the move (the node's outcome and message): a
+        padded move's own note, unless the hold after it was not DONE."""
         padded, self._padded = self._padded, None
         if padded is not None and padded[0] == token:  # the hold after the move: judge it now
-            return None, padded[1] if done else note
+            return None, padded[1] if outcome == MoveOutcome.DONE else note
+        recovery = self._recovery_move(token, outcome == MoveOutcome.BUMPED)
+        if recovery is not None:
+            return recovery, None
         left = self.step_time_left(t) if token == self.token else 0.0
         if left >= SLOT_TOLERANCE:
             self._padded = (token, note)  # early: stand still to the slot's end
             return self.hold_move(left), None
         return None, note
+
+    def _recovery_move(self, token: int, bumped: bool) -> MoveGoal | None:
+        """The next move of a bumped drive's recovery (the back-off, then the retry), or None
+        when the step is to be judged (no bump, not a drive, or the retry has run)."""
+        recovery = self._recovery
+        if recovery is not None and recovery[0] == token:
+            self._recovery = (token, None)
+            return recovery[1]  # the back-off ended: the retry (None: the retry ended)
+        if not bumped or token != self.token or self._drive is None:
+            return None
+        if self._bump_recovery is None:
+            scenario = self.task.scenario
+            self._bump_recovery = BumpRecovery(
+                scenario.map, scenario.robot_radius, scenario.step_distance
+            )
+        back, retry = self._bump_recovery.points(*self._drive)
+        self._recovery = (token, go_to(*retry))
+        self.counts.retried += 1
+        return go_to(*back)
 
     def episode_time(self, t: float) -> float:
         """The episode's clock at simulated time t (s): the lights' time."""

@@ -266,11 +266,20 @@ class StealthTask:
         node is not valid (beside a wall, or an estimate gone astray) moves from the nearest
         valid node."""
         lattice = self.lattice
+        node = self._start_node(x, y)
+        successor = None if action == WAIT else lattice.successor(node, action)
+        return lattice.node_to_point(node if successor is None else successor)
+
+    def move_start(self, x: float, y: float) -> tuple[float, float]:
+        """The lattice node a move from (x, y) starts from (``move_target``'s)."""
+        return self.lattice.node_to_point(self._start_node(x, y))
+
+    def _start_node(self, x: float, y: float):
+        lattice = self.lattice
         node = lattice.point_to_node(x, y)
         if not lattice.is_valid(node):  # beside a wall, or localisation far off: the nearest
             node = lattice.nearest_valid_node(x, y)
-        successor = None if action == WAIT else lattice.successor(node, action)
-        return lattice.node_to_point(node if successor is None else successor)
+        return node
 
     def state_bounds(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
         """(min, max) state over every point of the map and time: RLEnvDescription's state

@@ -18,6 +18,9 @@ from stealth_env.reward import EpisodeOutcome
 from stealth_env.scenario import load_scenario
 from stealth_env.task import WAIT, EpisodeSummaryFields, StealthTask
 from stealth_env.topic_moves import MoveGoal, go_to, hold_goal
+from stealth_sim.move_executor import MoveOutcome
+
+DONE, BUMPED, TIMED_OUT = MoveOutcome.DONE, MoveOutcome.BUMPED, MoveOutcome.TIMED_OUT
 
 
 @pytest.fixture(scope='module')
@@ -422,23 +425,23 @@ def test_a_move_that_ends_early_is_padded_and_judged_with_its_own_note(moving):
     slot = moving.step_seconds
     assert flow.accept_action(3) is None
     token = flow.token
-    pad, note = flow.move_ended(token, 51.0, False, 'bumped')
+    pad, note = flow.move_ended(token, 51.0, BUMPED, 'bumped')
     assert pad == hold_goal(slot - 1.0) and note is None
     # The hold ends on the slot's end: the step is judged with the move's note ...
-    assert flow.move_ended(token, 50.0 + slot, True, 'held') == (None, 'bumped')
+    assert flow.move_ended(token, 50.0 + slot, DONE, 'held') == (None, 'bumped')
     # ... unless the hold itself went wrong.
-    flow.move_ended(token, 51.0, False, 'bumped')
-    assert flow.move_ended(token, 50.0 + slot, False, 'hold timed out') == (
+    flow.move_ended(token, 51.0, BUMPED, 'bumped')
+    assert flow.move_ended(token, 50.0 + slot, TIMED_OUT, 'hold timed out') == (
         None,
         'hold timed out',
     )
     # A move that ends on its slot (or within the tolerance) is judged at once.
-    assert flow.move_ended(token, 50.0 + slot - SLOT_TOLERANCE / 2, True, 'done') == (
+    assert flow.move_ended(token, 50.0 + slot - SLOT_TOLERANCE / 2, DONE, 'done') == (
         None,
         'done',
     )
     # So is a stale one (another token): nothing pads it.
-    assert flow.move_ended(token - 1, 51.0, True, 'stale') == (None, 'stale')
+    assert flow.move_ended(token - 1, 51.0, DONE, 'stale') == (None, 'stale')
     report = flow.finish_move(token, PlanarPose(2.0, 1.5), PlanarPose(2.0, 1.5), 50.0 + slot)
     assert report.step == 1 and flow.counts.off_schedule == 0
 
@@ -446,7 +449,7 @@ def test_a_move_that_ends_early_is_padded_and_judged_with_its_own_note(moving):
 def test_without_moving_lights_a_move_is_judged_when_it_ends(map1):
     flow = started(StealthTask(map1))
     assert flow.accept_action(0) is None
-    assert flow.move_ended(flow.token, 0.1, True, 'done') == (None, 'done')
+    assert flow.move_ended(flow.token, 0.1, DONE, 'done') == (None, 'done')
 
 
 def test_the_progress_line_sums_up_its_episodes():

@@ -10,7 +10,8 @@ estimate is off the truth by 0.1-0.18 m at times at the simulator's default odom
 run of drives is therefore moved sideways, as a whole, by the least shift (at most
 ``max_shift``) that keeps the disc ``robot_radius + margin`` from every blocked cell beside it,
 or, where no shift within ``max_shift`` does, by the shift that keeps it furthest (in
-``LEVELS`` steps of the margin). A shift is at most ``max_shift``
+``LEVELS`` steps of the margin): ``stealth_env.clearance.Clearance.shift``, which the
+environment's retry of a bumped lattice move uses too. A shift is at most ``max_shift``
 across the drive, so with ``max_shift`` under half the lattice step each corner stays in its
 lattice node's cell; the drives' ends move with them (two perpendicular drives meet where their
 shifted lines cross), but the path's last pose moves only towards the goal (the planner put it
@@ -24,68 +25,13 @@ walk the shifted legs of the shipped scenarios' covert paths in the light model.
 from __future__ import annotations
 
 from collections.abc import Sequence
-import dataclasses
 import math
 
-from stealth_sim.kinematics import DiscFootprint
-from stealth_sim.occupancy_map import OccupancyMap
+from stealth_env.clearance import Clearance
 
 from stealth_nav2.path_following import Leg, LegKind
 
-LEVELS = 4  # clearance levels between the bare radius and radius + margin
 PARALLEL = 0.1  # |sin| of the angle between drives below which their lines do not cross
-
-
-@dataclasses.dataclass(frozen=True)
-class ClearanceSettings:
-    robot_radius: float = 0.2  # m
-    margin: float = 0.15  # m wanted between the disc and a wall (0: no shifting)
-    max_shift: float = 0.15  # m a drive may move sideways (under half a lattice step)
-    shift_step: float = 0.025  # m between the shifts tried
-
-
-class Clearance:
-    """The map's footprints for discs from ``robot_radius`` to ``robot_radius + margin``."""
-
-    def __init__(self, occupancy_map: OccupancyMap, settings: ClearanceSettings):
-        self.settings = settings
-        radius, margin = settings.robot_radius, settings.margin
-        # Widest first: level LEVELS is the full margin, level 0 the bare disc.
-        self._footprints = [
-            DiscFootprint(occupancy_map, radius + margin * k / LEVELS)
-            for k in range(LEVELS, -1, -1)
-        ]
-
-    def level(self, x0: float, y0: float, x1: float, y1: float) -> int:
-        """How much clearance the disc swept along the segment keeps: LEVELS for the whole
-        margin, 0 for only the bare radius, -1 when it touches a wall."""
-        for index, footprint in enumerate(self._footprints):
-            if footprint.sweep_is_free(x0, y0, x1, y1):
-                return LEVELS - index
-        return -1
-
-    def shift(self, x0: float, y0: float, x1: float, y1: float) -> float:
-        """The least sideways shift (m, to the left of the drive from (x0, y0) to (x1, y1);
-        within ``max_shift``) that gives the drive the most clearance beside it (its ends
-        trimmed by the margin: what stands across a corner is the next drive's business)."""
-        settings = self.settings
-        length = math.dist((x0, y0), (x1, y1))
-        if settings.margin <= 0 or settings.max_shift <= 0 or length == 0:
-            return 0.0
-        ux, uy = (x1 - x0) / length, (y1 - y0) / length
-        trim = min(settings.margin, length / 2)
-        x0, y0, x1, y1 = x0 + trim * ux, y0 + trim * uy, x1 - trim * ux, y1 - trim * uy
-        nx, ny = -uy, ux
-        best, best_level = 0.0, self.level(x0, y0, x1, y1)
-        steps = int(math.floor(settings.max_shift / settings.shift_step + 1e-9))
-        for k in range(1, steps + 1):
-            if best_level == LEVELS:
-                break
-            for s in (k * settings.shift_step, -k * settings.shift_step):
-                level = self.level(x0 + s * nx, y0 + s * ny, x1 + s * nx, y1 + s * ny)
-                if level > best_level:
-                    best, best_level = s, level
-        return best
 
 
 def keep_clear(

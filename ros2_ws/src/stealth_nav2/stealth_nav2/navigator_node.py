@@ -71,6 +71,7 @@ from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalRespons
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.task import Future
+from stealth_env.clearance import Clearance, ClearanceSettings
 from stealth_env.env_messages import pose_of
 from stealth_env.env_parameters import topic_config
 from stealth_env.topic_moves import Odom, PoseTracker
@@ -82,7 +83,7 @@ from stealth_node_kit.running import StartupNode, run_node
 
 from stealth_nav2 import navigation_goals as codes
 from stealth_nav2.back_off import BackOffSettings
-from stealth_nav2.leg_clearance import Clearance, ClearanceSettings, keep_clear
+from stealth_nav2.leg_clearance import keep_clear
 from stealth_nav2.navigation_goals import Frames, WaypointRun, goal_in_map, planner_for
 from stealth_nav2.navigation_run import Navigation, Outcome
 from stealth_nav2.navigator_parameters import PARAMETERS

@@ -6,12 +6,13 @@ import math
 
 import numpy as np
 import pytest
+from stealth_env.clearance import LEVELS, Clearance, ClearanceSettings
 from stealth_env.move_lattice import MoveLattice
 from stealth_env.planners import optimal_path
 from stealth_env.scenario import find_scenario, load_scenario
 from stealth_env.task import StealthTask
 from stealth_env.topic_moves import Pose
-from stealth_nav2.leg_clearance import LEVELS, Clearance, ClearanceSettings, keep_clear
+from stealth_nav2.leg_clearance import keep_clear
 from stealth_nav2.path_following import (
     FollowSettings,
     LegKind,
