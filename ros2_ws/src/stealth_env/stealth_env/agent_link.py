@@ -8,9 +8,11 @@ With a ``grid_observation.FullTrackGrid`` (parameter observation_layout grid) th
 on ``rl_env/observation``, latched as the description is. Track 'full': with the description,
 once: with static lights every channel but the robot's is fixed, so once is enough and a
 recording stays small (the robot's cell is each state's x, y); sent per step it would be ~100 KB
-a step. Track 'sensed': the belief grid, whenever what was sensed changes (each episode's first
-state, then a step that sensed something new), just before that state, numbered with its
-episode and step; the state carries the same sensed light, which is how the agent matches them.
+a step. Track 'sensed': the belief grid, with the description (nothing sensed yet: the agent
+plans on it, compiling, before it takes states) and whenever what was sensed changes (each
+episode's first state, then a step that sensed something new), just before that state, numbered
+with its episode and step; the state carries the same sensed light, which is how the agent
+matches them.
 """
 
 from __future__ import annotations
@@ -143,8 +145,10 @@ class AgentLink:
         if self.sensed is not None:
             fields = self.sensed.description(fields)
         self._description_pub.publish(description_msg(fields))
-        if self.grid is not None and self.grid.track == 'full':
-            self._publish_grid(self.grid.static())
+        if self.grid is not None:  # sensed: nothing sensed yet (the agent plans on it, ready)
+            sensed, full = self.sensed, self.grid.track == 'full'
+            belief = None if full else self.grid.belief(sensed.light, sensed.moves)
+            self._publish_grid(self.grid.static() if full else belief)
 
     def _publish_grid(self, grid, episode: int = 0, step: int = 0) -> None:
         t = self.node.get_clock().now().nanoseconds * 1e-9

@@ -49,7 +49,12 @@ class SensedTrack:
         self.most = n_lights + bounce_bound(scenario.bounce, scenario.map.resolution, n_lights)
         self.shape = self.sensor.sensing.shape  # (rows, cols)
         self.step = -1  # the step of the latest sensing (-1: none this episode)
-        self.light = self.moves = None  # the latest state's sensed part, (R, C) and (2, R, C)
+        memory, sensing = self.sensor.memory, self.sensor.sensing
+        # The latest state's sensed part, (R, C) and (2, R, C): before any, nothing sensed.
+        self.light, self.moves = (
+            sensing.grid(memory.node_light),
+            sensing.move_grid(memory.move_light),
+        )
         self.changed = False  # whether the latest state's sensed part differs from the one before
 
     @property

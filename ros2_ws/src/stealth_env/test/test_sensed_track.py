@@ -54,6 +54,8 @@ def test_the_belief_grid_is_the_states_sensed_part_sent_when_it_changed():
     env, track, _, _ = poses_and_states('map1')
     grid = observed_grid(env.task, 'sensed', 'grid', env.model)
     k = len(env.task.state_features)
+    fresh = SensedTrack(env.task, env.model)  # what goes out with the description
+    assert not (fresh.light >= 0).any() and not (fresh.moves >= 0).any() and not fresh.changed
     state = track.first_state(env.model.states[env.model.start], env.scenario.start)
     assert track.changed and track.step == 0  # an episode's first state: always sent
     belief = grid.belief(track.light, track.moves)
