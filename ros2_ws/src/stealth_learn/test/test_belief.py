@@ -18,13 +18,13 @@ def test_unknown_nodes_enter_dark_and_unknown_moves_as_their_larger_end():
     up = np.array([[-1.0, 0.7], [-2.0, -2.0]], np.float32)
     right = np.array([[-1.0, -2.0], [-2.0, -2.0]], np.float32)
     node, moves = believed(light, np.stack([up, right]))
-    np.testing.assert_array_equal(node, [[0.1, 0.0], [0.0, -2.0]])
+    np.testing.assert_array_equal(node, np.array([[0.1, 0.0], [0.0, -2.0]], np.float32))
     assert moves[0, 0, 0] == np.float32(0.1)  # up from (0, 0) to (1, 0), never sensed
     assert moves[1, 0, 0] == np.float32(0.1)  # right from (0, 0) to (0, 1), never sensed
     assert moves[0, 0, 1] == np.float32(0.7)  # sensed: as sensed
     assert (moves[:, 1] == -2).all()  # no move: as it was
     lit, _ = believed(light, np.stack([up, right]), assumed=np.full((2, 2), 0.3, np.float32))
-    np.testing.assert_array_equal(lit, [[0.1, 0.3], [0.3, -2.0]])
+    np.testing.assert_array_equal(lit, np.array([[0.1, 0.3], [0.3, -2.0]], np.float32))
     grid = np.zeros((2, 2, 7), np.float32)
     grid[..., LIGHT], grid[..., MOVE_UP], grid[..., MOVE_RIGHT] = light, up, right
     read = believed_grid(grid)
