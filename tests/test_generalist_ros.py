@@ -2,11 +2,13 @@
 generalist` on a shipped scenario it was never trained on (it was trained on generated
 buildings only) starts simulator, environment (observation_layout grid), agent (agent:
 generalist, the stealth_learn plugin) and recorder, and every episode reaches the goal
-undetected; the grid observation is recorded once, with the run. Needs the learning extra
-(make learn; make test-system installs it)."""
+undetected; the grid observation is recorded once, with the run. On the sensed track the
+belief grid goes out whenever what was sensed changes, and the robot crosses undetected too.
+Needs the learning extra (make learn; make test-system installs it)."""
 
 import json
 
+import numpy as np
 import pytest
 import yaml
 
@@ -49,3 +51,32 @@ def test_the_generalist_crosses_a_shipped_scenario_undetected(system, tmp_path):
     assert ends == {0: 0, 1: 0}  # EpisodeSummary.SUCCESS
     agent_log = (run / 'logs' / 'agent.log').read_text()
     assert 'decision time per action' in agent_log
+
+
+def test_the_generalist_crosses_on_the_sensed_track_undetected(system):  # noqa: F811
+    """Track sensed: the environment sends the belief (what was sensed, -1 never) whenever it
+    changes, the same full-track weights read it, and the robot reaches the goal undetected."""
+    result = system.run(
+        'rollout', '--learner', 'generalist', '--scenario', 'simple-maze', '--goal', 'easy',
+        '--episodes', '1', '--set', 'environment.track=sensed', '--runs-dir', str(system.runs),
+        '--name', 'sensed', timeout=120,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr + result.stdout
+    run = system.runs / 'sensed'
+    summary = json.loads((run / 'summary.json').read_text())
+    assert summary['episodes'] == 1 and summary['outcomes']['SUCCESS'] == 1, summary['outcomes']
+
+    _, messages, _ = read_bag(run / 'recording.mcap')
+    grids = [g for g in messages['/rl_env/observation'] if g.episode == 0]
+    assert all(g.layout.startswith('stealth-grid-v1/sensed/') for g in grids)
+    light = [np.asarray(g.data, np.float32).reshape(g.rows, g.cols, 7)[..., 3] for g in grids]
+    assert all((each == -1).any() for each in light)  # never sensed goes out as such
+    # With the description, nothing sensed (if the recorder caught it); then at the start and
+    # whenever what was sensed changed, in step order.
+    numbers = [g.step for g, each in zip(grids, light, strict=True) if (each >= 0).any()]
+    steps = [step for step in messages['/rl_env/step_info'] if step.episode == 0]
+    assert steps[-1].terminal and not any(step.detected for step in steps)
+    assert numbers[0] == 0 and numbers == sorted(set(numbers))
+    assert 1 < len(numbers) <= len(steps) + 1
+    agent_log = (run / 'logs' / 'agent.log').read_text()
+    assert 'grid observations planned on' in agent_log

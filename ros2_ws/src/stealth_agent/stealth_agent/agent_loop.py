@@ -9,7 +9,8 @@ the environment's leaving ends it, so the load of the machine never changes what
 A restarted environment (its description again, or its states' DDS sequence numbers starting
 again) drops the episode in progress. Each finished episode is reported, logged (progress) and,
 every save_every, saved. A policy plugin's core (``grid_agent``) also needs the environment's
-GridObservation: a state that comes before it is held, and answered when it arrives.
+GridObservation: a state that comes before it (on the sensed track: before the grid it matches)
+is held, and answered when it arrives.
 
 The node passes itself in as the Ports (its parameters, logger, publishers, the summary timer
 that calls check_summary_wait, and whether an environment publishes summaries), so all of
@@ -92,6 +93,7 @@ class AgentLoop:
         self.actions_sent = 0
         self._early_state = None  # the latest state before any description (or grid)
         self._early_grid = None  # a GridObservation before the core
+        self.plan_seconds: list[float] = []  # a policy plugin's time to plan on each grid (s)
         self._state_writers = StateWriters()
         self._endings = EpisodeEndMatcher()
         self._summary_wait = SummaryWait(ports.param('summary_wait'))
@@ -195,14 +197,16 @@ class AgentLoop:
             log.error(f'{error}; grid observation ignored, the agent cannot act on it')
             return
         seconds = time.perf_counter() - started
-        log.info(
-            f'grid observation {msg.layout} ({msg.rows} x {msg.cols}) planned on in '
-            f'{seconds:.2f} s'
+        self.plan_seconds.append(seconds)
+        (log.info if len(self.plan_seconds) == 1 else log.debug)(
+            f'grid observation {msg.layout} ({msg.rows} x {msg.cols}; episode {msg.episode}, '
+            f'step {msg.step}) planned on in {seconds:.3f} s'
         )
         self._ports.accept_states()
-        early, self._early_state = self._early_state, None
-        if early is not None:
-            log.info('answering the state that came before the grid observation')
+        early = self._early_state
+        if early is not None and self.core.serves(early.state):
+            self._early_state = None
+            log.debug('answering the state that came before its grid observation')
             self.on_state(early, None, count=False)
 
     def on_state(self, msg, sequence: int | None, count: bool = True) -> None:
@@ -210,9 +214,11 @@ class AgentLoop:
         none)."""
         log = self._ports.get_logger()
         self.states_received += count
-        if isinstance(self.core, GridPolicyAgent) and not self.core.ready and not msg.terminal:
-            self._early_state = msg  # answered when the grid arrives (on_observation)
-            log.warning('rl_state_reward before any rl_env/observation; held until it arrives')
+        plugin = isinstance(self.core, GridPolicyAgent)
+        if plugin and not msg.terminal and not self.core.serves(msg.state):
+            self._early_state = msg  # answered when its grid arrives (on_observation)
+            if not self.core.ready:
+                log.warning('rl_state_reward before any rl_env/observation; held until it arrives')
             return
         msg.state = keyed_state(msg.state, self._ports.param('state_features'))
         if self._state_writers.new_writer(sequence):

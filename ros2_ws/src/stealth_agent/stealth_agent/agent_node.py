@@ -294,8 +294,9 @@ class AgentNode(StartupNode):
         """At exit: the totals (what a lost or doubled message would show in), then save."""
         loop = self._loop
         line = totals_line(
-            loop.states_received, loop.actions_sent, self._decisions, self._decisions_cpu
-        )
+            loop.states_received, loop.actions_sent, self._decisions, self._decisions_cpu,
+            loop.plan_seconds,
+        )  # fmt: skip
         self.exit_logger().info(line)
         loop.save('shutdown')
 

@@ -2,12 +2,15 @@
 greedy decisions from the policy on the environment's grid observation, no table and no
 learning. Plain Python + numpy (no rclpy).
 
-The environment sends the grid once (GridObservation on ``rl_env/observation``, latched): with
-static lights every channel but the robot's is fixed. Each state's first two features are the
+The environment sends the grid (GridObservation on ``rl_env/observation``, latched). Track
+full: once, with static lights every channel but the robot's is fixed. Track sensed (layout
+``stealth-grid-v1/sensed/RxC``): the belief, whenever what was sensed changes, and each state
+carries the same light and moves (its tail: ``stealth_env.sensed_track``), so a state is decided
+on only with the grid it matches (``serves``): a state that comes before its grid waits for it
+(``AgentLoop``), as a state before any grid does. Each state's first two features are the
 robot's (x, y) in the map frame (the lattice node it stands on, the full track's state); the
 core sets that cell of the robot channel and asks the policy, which caches its plan per distinct
-grid, so a decision is a lookup. A state that comes before any grid waits for it
-(``AgentLoop``).
+grid (planned on as the grid arrives), so a decision is a lookup.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from .protocol import BadInputError, ProtocolAgent
 from .state_index import StateIndex
 
 ROBOT = 1  # GridObservation.channel_names[1]
+SENSED = (3, 4, 5)  # light, move_up, move_right: a sensed state's tail, in this order
 
 
 @dataclasses.dataclass(frozen=True)
@@ -31,6 +35,15 @@ class ObservedGrid:
     layout: str
     grid: np.ndarray
     geometry: tuple[float, float, float]
+
+    @property
+    def sensed(self) -> bool:
+        """Whether it is the sensed track's belief (layout ``stealth-grid-v1/sensed/RxC``)."""
+        return self.layout.split('/')[1:2] == ['sensed']
+
+    def sensed_part(self) -> np.ndarray:
+        """The light and moves as a sensed state carries them: (3 x rows x cols,) float32."""
+        return np.concatenate([self.grid[..., channel].ravel() for channel in SENSED])
 
     def cell_of(self, x: float, y: float) -> tuple[int, int]:
         """(row, col) of map point (x, y); BadInputError outside the grid."""
@@ -64,6 +77,7 @@ class GridPolicyAgent(ProtocolAgent):
         self.policy = policy
         self.observed: ObservedGrid | None = None
         self._work: np.ndarray | None = None  # the grid, the robot's cell set per decision
+        self._sensed: np.ndarray | None = None  # a sensed grid's light and moves (serves)
 
     @property
     def ready(self) -> bool:
@@ -78,6 +92,19 @@ class GridPolicyAgent(ProtocolAgent):
         work[..., ROBOT] = 0.0
         self.policy(work)  # the plan of this grid, cached by the policy
         self.observed, self._work = observed, work
+        self._sensed = observed.sensed_part() if observed.sensed else None
+
+    def serves(self, state) -> bool:
+        """Whether the grid is the one to decide on ``state`` (the full, unkeyed state): any
+        state with a full-track grid; on the sensed track the state whose light and moves (its
+        tail) are the grid's."""
+        if self.observed is None:
+            return False
+        expected = self._sensed
+        if expected is None:
+            return True
+        tail = np.asarray(state[len(state) - expected.size :], dtype=np.float32)
+        return len(state) > expected.size and np.array_equal(tail, expected)
 
     def set_learning(self, learning: bool) -> None:
         if learning:

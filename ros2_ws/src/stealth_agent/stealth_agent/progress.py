@@ -102,13 +102,19 @@ def evaluation_line(result: EpisodeResult, reward: float, learner_episodes: int)
 
 
 def totals_line(
-    states_received: int, actions_sent: int, decision_seconds=(), decision_cpu_seconds=()
+    states_received: int,
+    actions_sent: int,
+    decision_seconds=(),
+    decision_cpu_seconds=(),
+    plan_seconds=(),
 ) -> str:
     """At exit, as the environment logs its own: a lost or doubled message shows here; and the
     decision time per action (from a state's arrival in the node's callback to its action
     published: ``decision_seconds``, one per action, wall time; ``decision_cpu_seconds``, the
     thread's CPU time of the same: wall minus CPU is waiting for a core on a loaded machine;
-    bench/bench_generalist_ros.py reads it)."""
+    bench/bench_generalist_ros.py reads it); and a policy plugin's time to plan on each grid
+    observation as it arrives (``plan_seconds``: once on the full track, per new belief on the
+    sensed track; not in the decision time, unless a state waited for its grid)."""
     line = f'totals: {states_received} states received, {actions_sent} actions sent'
     if len(decision_seconds):
         ms = np.asarray(decision_seconds, dtype=float) * 1e3
@@ -119,4 +125,10 @@ def totals_line(
         if len(decision_cpu_seconds):
             cpu = np.asarray(decision_cpu_seconds, dtype=float) * 1e3
             line += f' (CPU mean {cpu.mean():.3f} ms, p95 {np.percentile(cpu, 95):.3f} ms)'
+    if len(plan_seconds):
+        ms = np.asarray(plan_seconds, dtype=float) * 1e3
+        line += (
+            f'; {ms.size} grid observations planned on (the first includes compiling): mean '
+            f'{ms.mean():.1f} ms, median {np.median(ms):.1f} ms, max {ms.max():.1f} ms'
+        )
     return line

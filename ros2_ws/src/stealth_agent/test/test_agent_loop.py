@@ -53,6 +53,9 @@ class FakeNode:
     def error(self, text):
         self.logs.append(('error', text))
 
+    def debug(self, text):
+        self.logs.append(('debug', text))
+
     def send_action(self, action):
         self.actions.append(action)
 

@@ -28,8 +28,8 @@ class RecordingPolicy:
         self.path = path
         self.grids = []
 
-    def check(self, layout):
-        if not layout.startswith(self.layout + '/'):
+    def check(self, layout):  # the full and the sensed layout
+        if layout.split('/')[0] != self.layout.split('/')[0]:
             raise ValueError(f'{self.path}: trained for {self.layout!r}, got {layout!r}')
 
     def __call__(self, grid):
@@ -126,6 +126,47 @@ def test_the_loop_decides_on_the_grid_and_holds_a_state_until_it_comes(plugins):
     loop.on_state(state(-0.75, 3.25, reward=5.0, terminal=True), 3)
     assert len(node.reports) == 1 and loop.states_received == 3
     assert loop.core.episode == 1 and not loop.core.learning
+
+
+def sensed_grid_msg(light):
+    """The sensed track's belief grid: ``light`` (ROWS, COLS) as last sensed, moves never."""
+    grid = np.zeros((ROWS, COLS, 7), np.float32)
+    grid[..., 0], grid[..., 3], grid[..., 4:6] = 1.0, light, -1.0
+    return grid_msg(layout=f'test-grid/sensed/{ROWS}x{COLS}', data=grid.ravel().tolist())
+
+
+def sensed_state(x, y, light, terminal=False):
+    """A sensed-track state: x, y, lit, the light as sensed, the moves (never sensed)."""
+    sensed = [*np.asarray(light, np.float32).ravel().tolist(), *[-1.0] * (2 * ROWS * COLS)]
+    return RLStateReward(state=[x, y, 0.0, *sensed], terminal=terminal)
+
+
+def test_on_the_sensed_track_a_state_waits_for_the_grid_it_carries(plugins):
+    node = FakeNode(agent='recording', state_features=2)
+    loop = AgentLoop(node)
+    length = 3 + 3 * ROWS * COLS
+    loop.on_description(RLEnvDescription(
+        num_actions=4, min_state_range=[-1.0, 2.0] + [-2.0] * (length - 2),
+        max_state_range=[1.0, 3.5] + [9.0] * (length - 2), title='t',
+    ))  # fmt: skip
+    first = np.full((ROWS, COLS), -1.0, np.float32)
+    first[0, :2] = 0.25
+    loop.on_observation(sensed_grid_msg(first))
+    loop.on_state(sensed_state(0.25, 2.25, first), 1)  # its grid came first
+    assert node.actions == [2]
+    more = first.copy()
+    more[1, :3] = 0.5
+    loop.on_state(sensed_state(-0.75, 3.25, more), 2)  # its grid not yet: held, quietly
+    assert node.actions == [2] and not node.told('warning', 'held')
+    loop.on_observation(sensed_grid_msg(more))
+    assert node.actions == [2, 0]
+    policy = loop.core.policy
+    np.testing.assert_array_equal(policy.grids[-1][..., 3], more)
+    assert policy.grids[-1][2, 0, 1] == 1.0
+    loop.on_state(sensed_state(0.25, 2.25, more), 3)  # nothing new sensed: the same grid
+    assert node.actions == [2, 0, 2] and len(loop.plan_seconds) == 2
+    loop.on_state(sensed_state(0.25, 2.25, first, terminal=True), 4)  # no decision: not held
+    assert len(node.reports) == 1
 
 
 def test_a_grid_of_another_layout_is_refused_naming_both(plugins):

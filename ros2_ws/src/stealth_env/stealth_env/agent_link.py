@@ -5,9 +5,14 @@ first state (:func:`stealth_env.episode_flow.agent_connected` over the ROS graph
 track (a ``sensed_track.SensedTrack``) the description and every RLStateReward carry what the
 robot sensed (its layout: ``stealth_env.sensed_track``); StepInfo keeps the full track's state.
 With a ``grid_observation.FullTrackGrid`` (parameter observation_layout grid) the grid goes out
-with the description on ``rl_env/observation``, latched as the description is: with static
-lights every channel but the robot's is fixed, so once is enough and a recording stays small
-(the robot's cell is each state's x, y); sent per step it would be ~100 KB a step.
+on ``rl_env/observation``, latched as the description is. Track 'full': with the description,
+once: with static lights every channel but the robot's is fixed, so once is enough and a
+recording stays small (the robot's cell is each state's x, y); sent per step it would be ~100 KB
+a step. Track 'sensed': the belief grid, with the description (nothing sensed yet: the agent
+plans on it, compiling, before it takes states) and whenever what was sensed changes (each
+episode's first state, then a step that sensed something new), just before that state, numbered
+with its episode and step; the state carries the same sensed light, which is how the agent
+matches them.
 """
 
 from __future__ import annotations
@@ -140,18 +145,33 @@ class AgentLink:
         if self.sensed is not None:
             fields = self.sensed.description(fields)
         self._description_pub.publish(description_msg(fields))
-        if self.grid is not None:
-            t = self.node.get_clock().now().nanoseconds * 1e-9
-            grid = self.grid
-            message = grid_observation_msg(grid.static(), grid.layout(), grid.geometry, t)
-            self._observation_pub.publish(message)
+        if self.grid is not None:  # sensed: nothing sensed yet (the agent plans on it, ready)
+            sensed, full = self.sensed, self.grid.track == 'full'
+            belief = None if full else self.grid.belief(sensed.light, sensed.moves)
+            self._publish_grid(self.grid.static() if full else belief)
 
-    def publish_state(self, state, reward: float = 0.0, terminal: bool = False, start=None):
-        """A first state (reward 0; `start`: the start pose (x, y, yaw)), or an abort's terminal
-        state (reward 0: the last state again)."""
+    def _publish_grid(self, grid, episode: int = 0, step: int = 0) -> None:
+        t = self.node.get_clock().now().nanoseconds * 1e-9
+        layout, geometry = self.grid.layout(), self.grid.geometry
+        self._observation_pub.publish(
+            grid_observation_msg(grid, layout, geometry, t, episode, step)
+        )
+
+    def _publish_belief(self, episode: int) -> None:
+        """The sensed track's belief grid, before the state it goes with, when it changed."""
+        sensed = self.sensed
+        if self.grid is not None and self.grid.track == 'sensed' and sensed.changed:
+            self._publish_grid(self.grid.belief(sensed.light, sensed.moves), episode, sensed.step)
+
+    def publish_state(
+        self, state, reward: float = 0.0, terminal: bool = False, start=None, episode: int = 0
+    ):
+        """A first state (reward 0; `start`: the start pose (x, y, yaw); `episode`: its
+        number), or an abort's terminal state (reward 0: the last state again)."""
         if self.sensed is not None:
             if start is not None:
                 self._last_state = self.sensed.first_state(state, start)
+                self._publish_belief(episode)
             state = self._last_state
         self._state_pub.publish(state_reward_msg(state, reward, terminal))
 
@@ -167,6 +187,7 @@ class AgentLink:
             sent = self._last_state = self.sensed.step_state(
                 state, report.judged, t, report.step, visibility
             )
+            self._publish_belief(report.episode)
         self._state_pub.publish(state_reward_msg(sent, reward, report.terminal))
         if self._step_pub.get_subscription_count():
             self._step_pub.publish(step_info_msg(report, state, reward, stamp, truth_known))

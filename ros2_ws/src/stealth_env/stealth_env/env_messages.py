@@ -102,12 +102,16 @@ def state_reward_msg(state, reward: float = 0.0, terminal: bool = False) -> RLSt
     return RLStateReward(state=list(state), reward=reward, terminal=terminal)
 
 
-def grid_observation_msg(grid: np.ndarray, layout: str, geometry, t: float) -> GridObservation:
+def grid_observation_msg(
+    grid: np.ndarray, layout: str, geometry, t: float, episode: int = 0, step: int = 0
+) -> GridObservation:
     """GridObservation of a (rows, cols, channels) float32 grid (``grid_observation``), its
-    layout id and (resolution, origin x, origin y) (``grid_observation.lattice_geometry``)."""
+    layout id and (resolution, origin x, origin y) (``grid_observation.lattice_geometry``), for
+    the state of ``episode`` and ``step`` (the sensed track's; 0 on the full track's)."""
     grid = np.ascontiguousarray(grid, dtype=np.float32)
     rows, cols, channels = grid.shape
     message = GridObservation(layout=layout, rows=rows, cols=cols, channels=channels)
+    message.episode, message.step = int(episode), int(step)
     message.header.stamp, message.header.frame_id = time_msg(t), MAP_FRAME
     message.channel_names = list(CHANNELS)
     resolution, x, y = geometry

@@ -25,8 +25,8 @@ dropped silently).
   lights move or when a new viewer subscribes; with ``publish_plan`` (on under ``stealth train
   --watch``), ``planned_path`` (nav_msgs/Path): value iteration's optimum on the move lattice,
   once; with ``track: sensed`` (the robot that does not know the lights: the states carry what
-  it sensed, layout in ``stealth_env.sensed_track``), ``sensed_light`` (nav_msgs/OccupancyGrid);
-  with ``observation_layout: grid``, ``rl_env/observation`` (GridObservation, latched, once).
+  it sensed, ``stealth_env.sensed_track``), ``sensed_light`` (nav_msgs/OccupancyGrid); with
+  ``observation_layout: grid``, ``rl_env/observation`` (GridObservation, ``agent_link``).
 * subscribes ``rl_agent/rl_action`` (RLAction) and ``rl_agent/rl_experiment_info``
   (RLExperimentInfo); reads the simulator's latched ``map`` once to check it is the scenario's
   (an error line if not).
@@ -176,10 +176,10 @@ class EnvironmentNode(StartupNode):
         self._move_note_log = Throttle(MOVE_NOTE_LOG_PERIOD)
         self._reset_failed_log = Throttle(RESET_FAILED_LOG_PERIOD)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
-
         sensed = SensedTrack(self.task) if values['track'] == 'sensed' else None
         try:
-            grid = observed_grid(self.task, values['track'], values['observation_layout'])
+            grid = observed_grid(self.task, values['track'], values['observation_layout'],
+                                 None if sensed is None else sensed.model)  # fmt: skip
         except ValueError as error:
             raise StartupError(f'parameter observation_layout: {error}') from None
         self.agent = AgentLink(self, self._on_action, self._on_experiment_info, sensed, grid)
@@ -361,7 +361,7 @@ class EnvironmentNode(StartupNode):
         state = self.flow.reset_done(token, self._sim_time)
         if state is None:
             return  # stale: the agent went away meanwhile
-        self.agent.publish_state(state, start=self.scenario.start)
+        self.agent.publish_state(state, start=self.scenario.start, episode=self.flow.episode)
         self.scene.publish_sensed(self._sim_time)
         self._first_state_at = time.monotonic()
         self.get_logger().debug(f'episode {self.flow.episode} started at state {list(state)}')

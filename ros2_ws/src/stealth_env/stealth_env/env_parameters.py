@@ -35,9 +35,10 @@ PARAMETERS = {
         'the sensed field also on sensed_light).', read_only=True,
     ),
     'observation_layout': Param(
-        'off', "Also send the agent an observation on rl_env/observation: 'grid' (track full, "
-        'static lights: stealth_env.grid_observation as GridObservation, once, latched; what the '
-        "generalist reads) or 'off' (nothing: recordings stay small).", read_only=True,
+        'off', "Also send the agent an observation on rl_env/observation: 'grid' (static lights: "
+        'stealth_env.grid_observation as GridObservation, latched; track full: once; track '
+        'sensed: the belief whenever what was sensed changes; what the generalist reads) or '
+        "'off' (nothing: recordings stay small).", read_only=True,
     ),
     'judge_on': Param(
         'true',

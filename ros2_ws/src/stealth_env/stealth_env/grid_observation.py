@@ -16,6 +16,11 @@ i_min]`` (row 0 the southernmost, ``sensing.Sensing``'s layout), channels ``CHAN
 
 Every channel but the robot's depends only on the scenario, the goal and the layer (bin and
 heading): with static lights and no exposure, one grid serves a whole run.
+
+On the lights-sensed track (``track: sensed``) the environment sends the belief grid instead
+(``FullTrackGrid.belief``, layout ``stealth-grid-v1/sensed/RxC``): the same free and goal, light
+and moves as last sensed (the Gym env's sensed observation: -1 never sensed, -2 no node or
+move), age 0; whenever what was sensed changes.
 """
 
 from __future__ import annotations
@@ -70,10 +75,12 @@ def lattice_geometry(task) -> tuple[float, float, float]:
 
 
 class FullTrackGrid:
-    """The lights-known grid of one lattice model (``planners.LatticeModel``)."""
+    """The grids of one lattice model (``planners.LatticeModel``): the lights-known grid
+    (``static``) and, for ``track`` 'sensed', the belief (``belief``)."""
 
-    def __init__(self, model, sensing: Sensing | None = None):
+    def __init__(self, model, sensing: Sensing | None = None, track: str = 'full'):
         self.model = model
+        self.track = track
         self.sensing = Sensing(model) if sensing is None else sensing
         rows, cols = self.sensing.grid_row, self.sensing.grid_col
         n = self.sensing.n
@@ -84,12 +91,17 @@ class FullTrackGrid:
         self.goal[rows, cols] = model.goal[:n]
         self.geometry = lattice_geometry(model.task)
 
-    def layout(self, track: str = 'full') -> str:
-        return layout_id(track, *self.shape)
+    def layout(self) -> str:
+        return layout_id(self.track, *self.shape)
 
     def static(self, layer: int = 0) -> np.ndarray:
         """(R, C, 7) the grid at ``layer`` (bin and heading) with the robot channel 0."""
         light, moves = light_grids(self.sensing, layer * self.sensing.n)
+        return stack(self.free, self.goal, light, moves)
+
+    def belief(self, light, moves) -> np.ndarray:
+        """(R, C, 7) the sensed track's grid of (R, C) node light and (2, R, C) move light as
+        last sensed (-1 never, -2 none: ``sensing.Sensing.grid``, ``move_grid``), robot 0."""
         return stack(self.free, self.goal, light, moves)
 
     def cell_of(self, x: float, y: float) -> tuple[int, int]:
@@ -104,22 +116,22 @@ def cell_of(geometry, x: float, y: float) -> tuple[int, int]:
 
 
 def observed_grid(task, track: str, layout: str, model=None) -> FullTrackGrid | None:
-    """The grid the environment node sends for parameters ``track`` and ``observation_layout``
-    (None: 'off'); ValueError, one line, where it has none to send: the lights-known grid of
-    static lights without exposure (one layer) on track 'full'."""
+    """The grids the environment node sends for parameters ``track`` and ``observation_layout``
+    (None: 'off'); ValueError, one line, where it has none to send: static lights without
+    exposure (one layer) only, the lights-known grid on track 'full', the belief on 'sensed'."""
     if layout == 'off':
         return None
     if layout != 'grid':
         raise ValueError(f"expected 'off' or 'grid', got {layout!r}")
-    if track != 'full':
-        raise ValueError(f"'grid' is the lights-known grid of track 'full', not {track!r}")
+    if track not in ('full', 'sensed'):
+        raise ValueError(f"'grid' is sent on track 'full' or 'sensed', not {track!r}")
     if model is None:
         from stealth_env.planners import LatticeModel
 
         model = LatticeModel.build(task)
     if model.layers != 1:
         raise ValueError(
-            f"'grid' is sent once, for static lights without exposure (1 layer); scenario "
+            f"'grid' is for static lights without exposure (1 layer); scenario "
             f'{task.scenario.name!r} has {model.layers} layers (moving lights or exposure)'
         )
-    return FullTrackGrid(model)
+    return FullTrackGrid(model, track=track)

@@ -49,6 +49,13 @@ class SensedTrack:
         self.most = n_lights + bounce_bound(scenario.bounce, scenario.map.resolution, n_lights)
         self.shape = self.sensor.sensing.shape  # (rows, cols)
         self.step = -1  # the step of the latest sensing (-1: none this episode)
+        memory, sensing = self.sensor.memory, self.sensor.sensing
+        # The latest state's sensed part, (R, C) and (2, R, C): before any, nothing sensed.
+        self.light, self.moves = (
+            sensing.grid(memory.node_light),
+            sensing.move_grid(memory.move_light),
+        )
+        self.changed = False  # whether the latest state's sensed part differs from the one before
 
     @property
     def length(self) -> int:
@@ -80,13 +87,17 @@ class SensedTrack:
 
     def _observe(self, state, place: int, step: int, visibility: float) -> list[float]:
         self.sensor.sense(place, step)
-        self.step = step
         memory, sensing = self.sensor.memory, self.sensor.sensing
+        light, moves = sensing.grid(memory.node_light), sensing.move_grid(memory.move_light)
+        self.changed = step == 0 or not (
+            np.array_equal(light, self.light) and np.array_equal(moves, self.moves)
+        )  # an episode's first state: a new memory
+        self.step, self.light, self.moves = step, light, moves
         parts = [
             np.asarray(state, dtype=np.float32),
             np.array([visibility >= self.threshold], dtype=np.float32),
-            sensing.grid(memory.node_light).ravel(),
-            sensing.move_grid(memory.move_light).ravel(),
+            light.ravel(),
+            moves.ravel(),
         ]
         return np.concatenate(parts).tolist()
 

@@ -65,13 +65,17 @@ def test_observed_grid_only_where_one_grid_serves_a_run(maze):
     task, model, _ = maze
     assert observed_grid(task, 'full', 'off') is None
     assert isinstance(observed_grid(task, 'full', 'grid', model), FullTrackGrid)
-    with pytest.raises(ValueError, match="not 'sensed'"):
-        observed_grid(task, 'sensed', 'grid', model)
+    assert (
+        observed_grid(task, 'sensed', 'grid', model).layout().startswith('stealth-grid-v1/sensed/')
+    )
+    with pytest.raises(ValueError, match="on track 'full' or 'sensed', not 'seen'"):
+        observed_grid(task, 'seen', 'grid', model)
     with pytest.raises(ValueError, match="expected 'off' or 'grid', got 'pixels'"):
         observed_grid(task, 'full', 'pixels', model)
     moving = StealthTask(load_scenario('simple-maze-moving'))
-    with pytest.raises(ValueError, match=r"'simple-maze-moving' has \d+ layers"):
-        observed_grid(moving, 'full', 'grid')
+    for track in ('full', 'sensed'):  # static lights only
+        with pytest.raises(ValueError, match=r"'simple-maze-moving' has \d+ layers"):
+            observed_grid(moving, track, 'grid')
 
 
 def test_the_message_carries_the_grid_row_major(maze):

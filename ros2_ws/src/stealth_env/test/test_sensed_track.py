@@ -3,6 +3,7 @@ observation, flattened, for the same moves; its description and its sensed_light
 
 import numpy as np
 import pytest
+from stealth_env.grid_observation import AGE, FREE, LIGHT, MOVE_RIGHT, MOVE_UP, observed_grid
 from stealth_env.gym_env import StealthNavEnv
 from stealth_env.sensed_track import SensedTrack
 from stealth_env.sensing import NO_PLACE, flat_observation
@@ -47,6 +48,32 @@ def test_each_episode_starts_knowing_no_light():
     assert (np.asarray(sent[-1][k + 1 :]) >= 0).any()
     again = track.first_state(env.model.states[env.model.start], env.scenario.start)
     assert again == sent[0]
+
+
+def test_the_belief_grid_is_the_states_sensed_part_sent_when_it_changed():
+    env, track, _, _ = poses_and_states('map1')
+    grid = observed_grid(env.task, 'sensed', 'grid', env.model)
+    k = len(env.task.state_features)
+    fresh = SensedTrack(env.task, env.model)  # what goes out with the description
+    assert not (fresh.light >= 0).any() and not (fresh.moves >= 0).any() and not fresh.changed
+    state = track.first_state(env.model.states[env.model.start], env.scenario.start)
+    assert track.changed and track.step == 0  # an episode's first state: always sent
+    belief = grid.belief(track.light, track.moves)
+    tail = [belief[..., c].ravel() for c in (LIGHT, MOVE_UP, MOVE_RIGHT)]
+    np.testing.assert_array_equal(np.asarray(state[k + 1 :], np.float32), np.concatenate(tail))
+    np.testing.assert_array_equal(belief[..., FREE], grid.static()[..., FREE])
+    assert (belief[..., LIGHT] == -1).any() and not belief[..., AGE].any()
+    start = env.model.states[env.model.start]
+    again = track.step_state(start, env.scenario.start, 0.0, 1, 0.0)  # sensed from where it was
+    assert not track.changed and again[k + 1 :] == state[k + 1 :]
+    points = track.sensor.sensing.points
+    before, changes = again, []
+    for step, (x, y) in enumerate(points[:: max(len(points) // 6, 1)], start=2):
+        now = track.step_state(start, (float(x), float(y), 0.0), 0.0, step, 0.0)
+        assert track.changed == (now[k + 1 :] != before[k + 1 :]), step
+        changes.append(track.changed)
+        before = now
+    assert any(changes)
 
 
 def test_the_description_gives_every_feature_a_range():

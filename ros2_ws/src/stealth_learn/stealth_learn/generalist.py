@@ -75,11 +75,14 @@ class PlanCache:
     run) reads one plan, and a decision costs a lookup. The robot channel is ignored (the
     decision is read at the robot's cell); the last grid is compared in place (a decision's
     common case, about 10x cheaper than hashing a copy), another looked up by the hash of its
-    static channels; the ``keep`` latest distinct plans are kept."""
+    static channels; the ``keep`` latest distinct plans are kept. ``prepare``: the grid the
+    network reads for a grid (e.g. ``belief.believed_grid``; default the grid itself), applied
+    once per plan computed."""
 
-    def __init__(self, policy: GeneralistPolicy, keep: int = 64):
+    def __init__(self, policy: GeneralistPolicy, keep: int = 64, prepare=None):
         self.policy = policy
         self.keep = keep
+        self.prepare = prepare
         self.computed = 0  # plans computed (each a full pass of the network)
         self._plans: dict[bytes, np.ndarray] = {}
         self._last: tuple[np.ndarray, np.ndarray] | None = None  # (static grid, its moves)
@@ -105,7 +108,8 @@ class PlanCache:
         )
         moves = self._plans.get(key)
         if moves is None:
-            moves = self.policy.cell_logits(static).argmax(axis=-1).astype(np.int8)
+            read = static if self.prepare is None else self.prepare(static)
+            moves = self.policy.cell_logits(read).argmax(axis=-1).astype(np.int8)
             self.computed += 1
             if len(self._plans) >= self.keep:
                 self._plans.pop(next(iter(self._plans)))

@@ -17,10 +17,11 @@ cell), with the light of what the agent knows:
   layer of the robot's place: bin and heading), one map per layer: each decision on the lights
   of that moment, a reactive use of a network trained on still lights.
 - Track 'sensed': the Gym env's sensed observation, what was sensed so far (its last value),
-  with a node or move never sensed (-1) entering as ``unknown``: 'dark' (0: the optimistic rule
-  of ``replan (unknown dark)``) or 'lit' (the detection threshold where a lamp could reach it,
-  ``replanning.lamp_reach``, as ``replan (unknown lit)``). The value map is recomputed whenever
-  the sensed light changes: the network replanning on its belief.
+  believed as ``belief.believed`` (the agent node's plugin does the same): a node never sensed
+  (-1) enters as ``unknown``: 'dark' (0: the optimistic rule of ``replan (unknown dark)``) or
+  'lit' (the detection threshold where a lamp could reach it, ``replanning.lamp_reach``, as
+  ``replan (unknown lit)``), a move never sensed as the larger of its two ends. The value map
+  is recomputed whenever the sensed light changes: the network replanning on its belief.
 
 The policy file is the full track's (layout ``stealth-grid-v1/full``): on the sensed track the
 same network reads the belief grid, so no other file is needed (nor accepted).
@@ -32,6 +33,7 @@ import numpy as np
 from stealth_env.replanning import lamp_reach
 
 from stealth_learn import policy_file
+from stealth_learn.belief import believed
 from stealth_learn.env_tables import TaskArrays
 from stealth_learn.generalist import DEFAULT_POLICY, GeneralistPolicy, PlanCache
 from stealth_learn.generalist_data import grid_of
@@ -89,11 +91,7 @@ class GeneralistAgent:
             cycle = slice(first, first + self.bins)
             light = self.tables.node_light[cycle].max(axis=0)
             return grid_of(self.tables, 0, light, self.tables.move_light[cycle].max(axis=0))
-        light = np.asarray(observation['light'], np.float32)
-        moves = np.asarray(observation['moves'], np.float32)
-        light = np.where(light == -1.0, self.assumed, light)
-        ends = np.maximum(light, _shifted(light))  # a move's estimate: the larger end's
-        moves = np.where(moves == -1.0, ends, moves)
+        light, moves = believed(observation['light'], observation['moves'], self.assumed)
         return grid_of(self.tables, 0, light, moves)
 
     def act(self, observation) -> int:
@@ -106,12 +104,3 @@ class GeneralistAgent:
     def value_maps(self) -> int:
         """Value maps computed (each a full pass of the network)."""
         return self.plans.computed
-
-
-def _shifted(light: np.ndarray) -> np.ndarray:
-    """(2, R, C): the node a move up ([0]) and right ([1]) leads to, its light (-2 beyond)."""
-    up = np.full_like(light, -2.0)
-    right = np.full_like(light, -2.0)
-    up[:-1] = light[1:]
-    right[:, :-1] = light[:, 1:]
-    return np.stack([up, right])

@@ -1,4 +1,4 @@
-"""The lights-known generalist as the agent node's policy plugin: ``setup.py`` registers
+"""The generalist as the agent node's policy plugin: ``setup.py`` registers
 ``generalist = stealth_learn.ros_policy:load`` in the entry-point group
 ``stealth_agent.policies`` (the protocol: ``stealth_agent.policy_plugins``), so the agent node
 runs it with ``agent: generalist`` without importing this package.
@@ -7,6 +7,11 @@ With static lights the value map depends only on the grid's static channels (eve
 the robot's), so the policy plans once per distinct grid (``generalist.PlanCache``: every
 cell's move from ``GeneralistPolicy.cell_logits``, the same as ``act`` at each cell: tested)
 and each decision is a lookup at the robot's cell.
+
+On the lights-sensed track (layout ``stealth-grid-v1/sensed/RxC``: the light last sensed, -1
+never) the same full-track weights read the belief grid (``belief.believed_grid``: the
+benchmark's ``GeneralistAgent`` rule, one function for both), planned once per belief the
+environment sends (it sends one whenever what was sensed changes).
 """
 
 from __future__ import annotations
@@ -17,29 +22,35 @@ import numpy as np
 from stealth_env.grid_observation import ROBOT
 
 from stealth_learn import policy_file
+from stealth_learn.belief import believed_grid
 from stealth_learn.generalist import DEFAULT_POLICY, GeneralistPolicy, PlanCache
 from stealth_learn.obs_layout import check_layout
 
-KEEP_PLANS = 8  # distinct grids kept (one per building a run sees: usually one)
+KEEP_PLANS = 8  # distinct grids kept (one per building, or the latest beliefs: sensed)
 
 
 class CachedGeneralist:
     """``policy(grid) -> action`` over GridObservation grids, the plan cached per grid."""
 
     layout = policy_file.policy_layout('full')
+    reads = (layout, policy_file.policy_layout('sensed'))  # the sensed: the belief grid
 
     def __init__(self, policy: GeneralistPolicy, path: Path):
         self.policy = policy
         self.path = path
-        self.plans = PlanCache(policy, keep=KEEP_PLANS)
+        self.plans = PlanCache(policy, keep=KEEP_PLANS, prepare=believed_grid)
 
     def check(self, layout: str) -> None:
         """ValueError (obs_layout.LayoutError), one line naming both, unless this policy reads
-        the environment's layout (any grid size)."""
-        check_layout(self.layout, policy_file.without_size(layout), str(self.path))
+        the environment's layout (any grid size): the full track's, or the sensed track's
+        belief."""
+        env_layout = policy_file.without_size(layout)
+        if env_layout not in self.reads:
+            check_layout(self.layout, env_layout, str(self.path))
 
     def plan(self, grid: np.ndarray) -> np.ndarray:
-        """(R, C) int8: the move at every cell of ``grid`` (its robot channel ignored)."""
+        """(R, C) int8: the move at every cell of ``grid`` (its robot channel ignored; light
+        never sensed, -1, believed: ``belief.believed_grid``, the identity on a full grid)."""
         return self.plans.moves(grid)
 
     def __call__(self, grid: np.ndarray) -> int:

@@ -58,10 +58,11 @@ def test_the_cached_plan_is_act_at_every_cell(generated):
 def test_refusals_name_the_path_or_both_layouts(tmp_path):
     policy = ros_policy.load('')
     policy.check('stealth-grid-v1/full/12x30')
+    policy.check('stealth-grid-v1/sensed/40x40')  # the same weights on the belief grid
     with pytest.raises(LayoutError) as refused:
-        policy.check('stealth-grid-v1/sensed/40x40')
+        policy.check('stealth-vector-v1/full')
     assert "'stealth-grid-v1/full'" in str(refused.value)
-    assert "'stealth-grid-v1/sensed'" in str(refused.value)
+    assert "'stealth-vector-v1/full'" in str(refused.value)
     missing = tmp_path / 'none.npz'
     with pytest.raises(ValueError, match=f'{missing}: no such policy file'):
         ros_policy.load(str(missing))

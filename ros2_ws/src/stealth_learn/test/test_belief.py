@@ -1,0 +1,58 @@
+"""The generalist's belief on the lights-sensed track, one function for the benchmark's agent
+(GeneralistAgent, from the Gym env's observation) and the agent node's plugin (ros_policy, from
+the environment node's sensed GridObservation): unknown nodes dark, an unknown move its ends'
+larger light, and both give the same grid and the same move along an episode."""
+
+import numpy as np
+from stealth_env.grid_observation import LIGHT, MOVE_RIGHT, MOVE_UP, ROBOT, FullTrackGrid
+from stealth_env.gym_env import StealthNavEnv
+from stealth_learn import ros_policy
+from stealth_learn.belief import believed, believed_grid
+from stealth_learn.generalist_agent import GeneralistAgent
+
+LIGHTS = slice(LIGHT, MOVE_RIGHT + 1)
+
+
+def test_unknown_nodes_enter_dark_and_unknown_moves_as_their_larger_end():
+    light = np.array([[0.1, -1.0], [-1.0, -2.0]], np.float32)  # row 0 the southernmost
+    up = np.array([[-1.0, 0.7], [-2.0, -2.0]], np.float32)
+    right = np.array([[-1.0, -2.0], [-2.0, -2.0]], np.float32)
+    node, moves = believed(light, np.stack([up, right]))
+    np.testing.assert_array_equal(node, np.array([[0.1, 0.0], [0.0, -2.0]], np.float32))
+    assert moves[0, 0, 0] == np.float32(0.1)  # up from (0, 0) to (1, 0), never sensed
+    assert moves[1, 0, 0] == np.float32(0.1)  # right from (0, 0) to (0, 1), never sensed
+    assert moves[0, 0, 1] == np.float32(0.7)  # sensed: as sensed
+    assert (moves[:, 1] == -2).all()  # no move: as it was
+    lit, _ = believed(light, np.stack([up, right]), assumed=np.full((2, 2), 0.3, np.float32))
+    np.testing.assert_array_equal(lit, np.array([[0.1, 0.3], [0.3, -2.0]], np.float32))
+    grid = np.zeros((2, 2, 7), np.float32)
+    grid[..., LIGHT], grid[..., MOVE_UP], grid[..., MOVE_RIGHT] = light, up, right
+    read = believed_grid(grid)
+    np.testing.assert_array_equal(read[..., LIGHT], node)
+    np.testing.assert_array_equal(np.moveaxis(read[..., MOVE_UP : MOVE_RIGHT + 1], -1, 0), moves)
+    assert (grid[..., LIGHT] == light).all()  # a new array: the one sent stays as it was
+
+
+def test_the_plugin_on_the_sent_belief_is_the_benchmarks_agent(generated):
+    gym = StealthNavEnv(generated['still'], track='sensed')
+    plugin = ros_policy.load('')
+    agent = GeneralistAgent(plugin.policy, gym)
+    sent = FullTrackGrid(gym.model, track='sensed')
+    plugin.check(sent.layout())
+    assert sent.layout().startswith('stealth-grid-v1/sensed/')
+    observation, _ = gym.reset(seed=0)
+    beliefs = set()
+    for _ in range(40):
+        grid = sent.belief(observation['light'], observation['moves'])
+        assert (grid[..., LIGHT] == -1).any()  # what it never sensed goes out as such
+        ours = agent.grid(observation)
+        np.testing.assert_array_equal(believed_grid(grid)[..., LIGHTS], ours[..., LIGHTS])
+        node = int(gym.node) % agent.nodes
+        grid[agent.row[node], agent.col[node], ROBOT] = 1.0
+        action = agent.act(observation)
+        assert plugin(grid) == action
+        beliefs.add(grid[..., LIGHTS].tobytes())
+        observation, _, terminated, truncated, _ = gym.step(action)
+        if terminated or truncated:
+            break
+    assert plugin.plans.computed == len(beliefs) > 1  # one plan per belief sent
