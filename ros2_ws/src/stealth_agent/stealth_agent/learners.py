@@ -194,6 +194,19 @@ class TabularLearner:
             self._q = grown
         self._rows = max(self._rows, rows)
 
+    def set_initial_row(self, s: int, values) -> None:
+        """Start row s (a state just seen, nothing learned of it yet) at ``values``, one per
+        action, instead of initial_value: a prior, such as the value of the floor plan with the
+        lights dark. ValueError for the wrong number of values or one that is not finite."""
+        row = np.asarray(values, dtype=np.float64)
+        if row.shape != (self.num_actions,) or not np.all(np.isfinite(row)):
+            raise ValueError(
+                f'initial row: expected {self.num_actions} finite action values, got {values!r}'
+            )
+        s = self._check_row(s)
+        self.ensure_rows(s + 1)
+        self._q[s] = row
+
     def values(self, s: int) -> np.ndarray:
         """A copy of the action values of row s."""
         s = self._check_row(s)

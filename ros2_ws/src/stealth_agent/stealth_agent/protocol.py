@@ -21,6 +21,7 @@ node only converts messages; an in-process trainer can drive the same object.
 """
 
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 import enum
 import math
@@ -150,11 +151,15 @@ class ProtocolAgent:
         rng: np.random.Generator,
         *,
         learning: bool = True,
+        prior: Callable[[np.ndarray], np.ndarray | None] | None = None,
     ):
         self.learner = learner
         self.index = index
         self.rng = rng
         self.learning = learning
+        # The initial action values of a state seen for the first time (None: the learner's
+        # initial_value), e.g. stealth_experiments.floor_plan_prior's; never of a known row.
+        self.prior = prior
         self.episode = 0  # episodes finished in this run
         self.in_episode = False
         self.episode_reward = 0.0
@@ -195,7 +200,7 @@ class ProtocolAgent:
     def first_action(self, state) -> int:
         """The first state of an episode: choose an action, its reward is ignored."""
         vector = self._check_state(state)
-        row = self.index.row(vector)
+        row = self._row(vector)
         action = self.learner.act(row, self.rng) if self.learning else self._greedy(row, vector)
         self._s, self._a = row, action
         self.in_episode = True
@@ -208,7 +213,7 @@ class ProtocolAgent:
         self._check_in_episode()
         r = self._check_reward(reward)
         vector = self._check_state(state)
-        row = self.index.row(vector)
+        row = self._row(vector)
         if self.learning:
             action = self.learner.next_action(self._s, self._a, r, row, self.rng)
         else:
@@ -217,6 +222,16 @@ class ProtocolAgent:
         self.episode_reward += r
         self.number_actions += 1
         return action
+
+    def _row(self, vector: np.ndarray) -> int:
+        """The table row of a state; a new one starts at the prior's values, if any."""
+        known = len(self.index)
+        row = self.index.row(vector)
+        if self.prior is not None and len(self.index) > known:
+            values = self.prior(vector)
+            if values is not None:
+                self.learner.set_initial_row(row, values)
+        return row
 
     def _greedy(self, row: int, vector: np.ndarray) -> int:
         """The greedy action in a state (its table row and its vector): the table's, ties
@@ -240,7 +255,7 @@ class ProtocolAgent:
         self._check_in_episode()
         r = self._check_reward(reward)
         vector = self._check_state(state)
-        row = self.index.row(vector)
+        row = self._row(vector)
         if self.learning:
             a_next = self.learner.act(row, self.rng) if self.learner.on_policy else None
             self.learner.update(self._s, self._a, r, row, False, a_next=a_next, rng=self.rng)

@@ -266,3 +266,34 @@ def test_descriptions_with_an_unusable_action_count_are_rejected(count):
 def test_a_description_parses():
     description = parse_description(4.0, 0, [0.0, 0.0], [10.0, 5.0], 1, 2, True, True, 'lg')
     assert description.num_actions == 4 and description.identity()['title'] == 'lg'
+
+
+def test_a_prior_starts_each_new_state_and_never_touches_a_known_one():
+    """A state seen for the first time starts at the prior's values (None: initial_value);
+    a known state's row is never reset by it."""
+    seen = []
+
+    def prior(vector):
+        seen.append(vector.tolist())
+        return None if vector[0] < 0 else np.array([vector[0], 10.0 * vector[0]])
+
+    learner = make_learner('qlearning', 2, LearnerConfig.constant(alpha=1.0, initial_value=-7.0))
+    agent = ProtocolAgent(learner, StateIndex(), np.random.default_rng(0), prior=prior)
+    agent.first_action([1.0])
+    np.testing.assert_array_equal(learner.values(0), [1.0, 10.0])
+    agent.next_action(-1.0, [-2.0])  # no prior for this state: the initial value
+    np.testing.assert_array_equal(learner.values(1), [-7.0, -7.0])
+    learned = learner.values(0)
+    agent.next_action(-1.0, [1.0])  # known: learned values stay
+    np.testing.assert_array_equal(learner.values(0), learned)
+    assert seen == [[1.0], [-2.0]]
+
+
+def test_an_initial_row_of_the_wrong_shape_or_not_finite_is_refused():
+    learner = make_learner('qlearning', 3)
+    for values in ([1.0, 2.0], [1.0, 2.0, math.nan], [[1.0, 2.0, 3.0]]):
+        with pytest.raises(ValueError, match='initial row: expected 3 finite action values'):
+            learner.set_initial_row(0, values)
+    learner.set_initial_row(4, [1.0, 2.0, 3.0])
+    assert learner.num_rows == 5
+    np.testing.assert_array_equal(learner.values(4), [1.0, 2.0, 3.0])

@@ -155,7 +155,8 @@ def _describe(config: LearnerConfig) -> str:
         f'alpha {schedule(config.alpha)}, epsilon {schedule(config.epsilon)}, gamma '
         f'{config.gamma:g}, initial Q {config.initial_value:g}; planning updates per step: '
         f'dyna {PLANNING_UPDATES["dyna"]}, prioritized up to {PLANNING_UPDATES["prioritized"]} '
-        f'(while a queued change exceeds theta {config.theta:g})'
+        f'(while a queued change exceeds theta {config.theta:g}), its untried pairs worth the '
+        'floor plan with the lights dark'
     )
 
 

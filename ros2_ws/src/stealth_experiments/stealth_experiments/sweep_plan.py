@@ -52,7 +52,9 @@ from stealth_agent.learners import canonical_learner_name
 from stealth_experiments.harness import (
     DEFAULT_EVAL_EVERY,
     PARAMETERS,
+    PRIOR_PARAMETER,
     configured,
+    prior_of,
     scenario_argument,
     scenario_label,
 )
@@ -260,7 +262,7 @@ def parse_plan(data: Any, path: Path, base: str | Path | None = None) -> SweepPl
     slip = data.get('slip', 0.0)
     if not isinstance(slip, int | float) or not 0 <= slip <= 1:
         fail('slip', f'expected a probability in [0, 1], got {slip!r}')
-    params = _params(data.get('params') or {}, search, fail)
+    params = _params(data.get('params') or {}, search, mode, fail)
     episodes = data.get('episodes', 300)
     scenarios = [
         _scenario(entry, data.get('goal'), f'scenarios[{i}]', fail, base)
@@ -358,7 +360,7 @@ def _scenario(entry, default_goal, field, fail, base: Path) -> tuple[str, str | 
     return entry, goal
 
 
-def _params(data, search: str, fail) -> dict[str, list | Range]:
+def _params(data, search: str, mode: str, fail) -> dict[str, list | Range]:
     if not isinstance(data, dict):
         fail('params', f'expected a mapping of {", ".join(PARAMETERS)} to values')
     params = {}
@@ -366,7 +368,9 @@ def _params(data, search: str, fail) -> dict[str, list | Range]:
         field = f'params.{name}'
         if name not in PARAMETERS:
             fail(field, f'unknown parameter (expected one of {", ".join(PARAMETERS)})')
-        if isinstance(spec, int | float) and not isinstance(spec, bool):
+        if name == PRIOR_PARAMETER and mode == 'ros':
+            fail(field, 'in-process trials only (mode gym): the agent node has no floor plan')
+        if isinstance(spec, int | float | str) and not isinstance(spec, bool):
             spec = [spec]
         if isinstance(spec, list):
             if not spec:
@@ -390,6 +394,7 @@ def _params(data, search: str, fail) -> dict[str, list | Range]:
         for value in values:  # every value (a range's ends) must make a learner
             try:
                 configured('qlearning', False, [(name, value)])
+                prior_of('qlearning', [(name, value)])
             except (TypeError, ValueError) as error:
                 fail(field, str(error))
         params[name] = spec
@@ -416,7 +421,7 @@ def _extra(entry, plan: SweepPlan, field, fail, base: Path) -> dict:
         fail,
         base,
     )
-    params = _params(entry.get('params') or {}, 'grid', lambda f, p: fail(f'{field}.{f}', p))
+    params = _params(entry.get('params') or {}, 'grid', mode, lambda f, p: fail(f'{field}.{f}', p))
     seed = _whole(entry.get('seed', 0), f'{field}.seed', fail, 0)
     episodes = _whole(entry.get('episodes', 300), f'{field}.episodes', fail, 1)
     several = [name for name, values in params.items() if len(values) != 1]

@@ -37,6 +37,15 @@ def test_a_grid_crosses_values_with_seeds_and_ids_depend_only_on_settings():
     assert sorted(t['id'] for t in again) == sorted(t['id'] for t in trials)
 
 
+def test_a_sweep_may_start_any_learner_from_the_floor_plan_or_from_nothing():
+    trials = plan(params={'prior': ['floor_plan', 'none']}).fixed_trials()
+    assert len(trials) == 2 * 2 * 2
+    assert {(t['learner'], t['params']['prior']) for t in trials} == {
+        (learner, prior) for learner in ('qlearning', 'dyna') for prior in ('floor_plan', 'none')
+    }
+    assert plan(params={'prior': 'none'}).fixed_trials()[0]['params'] == {'prior': 'none'}
+
+
 def test_random_samples_are_reproducible_and_inside_their_ranges():
     fields = {'search': 'random', 'trials': 3, 'params': {'epsilon': {'low': 0.05, 'high': 0.3}}}
     first, second = plan(**fields).fixed_trials(), plan(**fields).fixed_trials()
@@ -79,6 +88,10 @@ def test_optuna_lays_out_only_the_extra_trials():
         ({'scenarios': ['simple-maze', 'map1', 'simple-maze']},
          'scenarios: simple-maze is listed twice'),
         ({'params': {'alpha': [0.5, 1.0, 0.5]}}, 'params.alpha: 0.5 is listed twice'),
+        ({'params': {'prior': ['dark']}},
+         "params.prior: prior: expected one of floor_plan, none, got 'dark'"),
+        ({'mode': 'ros', 'params': {'prior': 'none'}},
+         'params.prior: in-process trials only (mode gym): the agent node has no floor plan'),
     ],
 )  # fmt: skip
 def test_bad_input_is_one_line_naming_the_field(fields, expected):
