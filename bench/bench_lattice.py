@@ -78,9 +78,13 @@ def run(report=print) -> dict:
             f'{reference / seconds:.0f}x'
         )
         key = f'lattice_step_{str(step).replace(".", "_")}'
-        figures[f'{key}_build_seconds'] = round(seconds, 4)
-        figures[f'{key}_reference_seconds_extrapolated'] = round(reference, 2)
-        figures[f'{key}_speedup'] = round(reference / seconds, 1)
+        figures.update(
+            {
+                f'{key}_build_seconds': round(seconds, 4),
+                f'{key}_reference_seconds_extrapolated': round(reference, 2),
+                f'{key}_speedup': round(reference / seconds, 1),
+            }
+        )
     return figures
 
 
