@@ -31,11 +31,13 @@ from ros_support import (  # noqa: E402
     remove_orphaned_shm,
     reserved_domain_id,
     shm_segments,
+    wait_for_output,
 )
 
 COUNT = 20000
 KILL_TRIALS = 3
 TRICKLE = 5000  # messages, one every millisecond
+WAIT = 120.0  # s: how long a process may take to say it is ready (on a loaded machine)
 BIN = REPO_ROOT / 'ros2_ws' / 'install' / 'stealth_tools' / 'lib' / 'stealth_tools'
 
 # argv: count (0: endless at 100 Hz), optionally seconds between messages (default: none)
@@ -76,18 +78,6 @@ finally:
 """
 
 
-def wait_for(process, text: str, timeout: float = 120.0) -> str:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        output = process.log_path.read_text()
-        if text in output:
-            return output
-        if process.poll() is not None:
-            raise RuntimeError(f'{process.args} exited:\n{output}')
-        time.sleep(0.05)
-    raise TimeoutError(f'no {text!r} within {timeout} s')
-
-
 def bench_log_times(path: Path) -> list[int]:
     with open(path, 'rb') as stream:
         return [m.log_time for _, _, m in make_reader(stream).iter_messages(topics=['/bench'])]
@@ -101,7 +91,7 @@ def throughput(processes: NodeProcesses, work: Path, compression: str, report) -
         f'recorder_{compression}',
     )  # fmt: skip
     publisher = processes.start_python(PUBLISHER, f'publisher_{compression}', str(COUNT))
-    published = wait_for(publisher, 'published').strip().splitlines()[-1]
+    published = wait_for_output(publisher, 'published', WAIT).strip().splitlines()[-1]
     publish_seconds = float(published.split(' in ')[1].split()[0])
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline:  # until the recorder has caught up (chunks flushed)
@@ -147,9 +137,9 @@ def trickle_cpu(processes: NodeProcesses, work: Path, batch_period: float) -> fl
     publisher = processes.start_python(
         PUBLISHER, f'trickle_{batch_period:g}', str(TRICKLE), '0.001'
     )
-    wait_for(recorder, "Subscribed to topic '/bench'")
+    wait_for_output(recorder, "Subscribed to topic '/bench'", WAIT)
     before = cpu_seconds(recorder.pid)
-    wait_for(publisher, 'published')
+    wait_for_output(publisher, 'published', WAIT)
     time.sleep(1.0)  # the last batch is taken
     used = cpu_seconds(recorder.pid) - before
     os.killpg(recorder.pid, signal.SIGINT)
@@ -169,7 +159,7 @@ def kill_trial(processes: NodeProcesses, work: Path, trial: int) -> float:
         f'killed_{trial}',
     )
     publisher = processes.start_python(PUBLISHER, f'steady_{trial}', '0')
-    wait_for(recorder, "Subscribed to topic '/bench'")
+    wait_for_output(recorder, "Subscribed to topic '/bench'", WAIT)
     time.sleep(2.0 + 0.37 * trial)  # different phases of the 0.5 s chunk cycle
     killed_ns = time.time_ns()
     os.killpg(recorder.pid, signal.SIGKILL)

@@ -125,6 +125,20 @@ class NodeProcesses:
             process.log_file.close()
 
 
+def wait_for_output(process, text: str, timeout: float = 30.0) -> str:
+    """What a process NodeProcesses started has printed, once that holds `text`;
+    AssertionError, with its output, if it exits first or takes longer than `timeout` s."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        output = process.log_path.read_text()
+        if text in output:
+            return output
+        if process.poll() is not None:
+            raise AssertionError(f'{process.args} exited early:\n{output}')
+        time.sleep(0.05)
+    raise AssertionError(f'no {text!r} within {timeout} s:\n{process.log_path.read_text()}')
+
+
 def leaked_shm_segments(before: set[str]) -> set[str]:
     """Segments created since `before` that no live process maps, after a `fastdds shm clean`."""
     if not shm_segments() - before:

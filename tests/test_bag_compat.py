@@ -29,13 +29,13 @@ from mcap.reader import make_reader
 import pytest
 import rclpy
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from ros_support import REPO_ROOT, node_tool
+from ros_support import REPO_ROOT, node_tool, wait_for_output
 from rosbags.interfaces import MessageDefinitionFormat, QosDurability, QosReliability
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from stealth_tools.bag_recover import recover
 from stealth_tools.interfaces import definition_text
-from test_recorder import COUNT, RATE, RECORDER, TRAFFIC, wait_for_output
+from test_recorder import COUNT, RATE, RECORDER, TRAFFIC
 import yaml
 
 JS_CHECK = REPO_ROOT / 'tools' / 'mcap-js-check'

@@ -9,7 +9,7 @@ import time
 
 from mcap.reader import make_reader
 import pytest
-from ros_support import REPO_ROOT
+from ros_support import REPO_ROOT, wait_for_output
 
 BIN = REPO_ROOT / 'ros2_ws' / 'install' / 'stealth_tools' / 'lib' / 'stealth_tools'
 STEALTH = str(BIN / 'stealth')
@@ -61,18 +61,6 @@ def one_error_line(result, starts_with: str) -> str:
     assert lines[-1].startswith(starts_with), result.stderr
     assert 'Traceback' not in result.stderr
     return lines[-1]
-
-
-def wait_for_output(process, text: str, timeout: float = 30.0) -> str:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        output = process.log_path.read_text()
-        if text in output:
-            return output
-        if process.poll() is not None:
-            pytest.fail(f'{process.args} exited early:\n{output}')
-        time.sleep(0.05)
-    pytest.fail(f'no {text!r} within {timeout} s:\n{process.log_path.read_text()}')
 
 
 def test_topic_verbs_on_a_running_talker(node_processes):

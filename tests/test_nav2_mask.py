@@ -11,7 +11,7 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
-from ros_support import REPO_ROOT, SpinningNode
+from ros_support import REPO_ROOT, SpinningNode, wait_for_output
 from rosgraph_msgs.msg import Clock
 from stealth_env.env_messages import searchlight_array_msg
 from stealth_env.scenario import load_scenario
@@ -20,7 +20,6 @@ from stealth_nav2.exposure_mask import LETHAL, ExposureMask
 from stealth_nav2.scene_source import scene_from_messages
 from stealth_node_kit.conversions import seconds, time_msg
 from stealth_sim.sim_messages import occupancy_grid
-from test_cli import wait_for_output
 
 STEALTH = str(REPO_ROOT / 'ros2_ws/install/stealth_tools/lib/stealth_tools/stealth')
 LATCHED = QoSProfile(

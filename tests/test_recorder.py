@@ -19,7 +19,7 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
-from ros_support import REPO_ROOT, remove_orphaned_shm, shm_segments
+from ros_support import REPO_ROOT, remove_orphaned_shm, shm_segments, wait_for_output
 from stealth_tools.bag_format import BagError, BagWriter
 from stealth_tools.bag_reading import open_indexed_reader
 from stealth_tools.interfaces import definition_text
@@ -91,16 +91,17 @@ finally:
 """
 
 
-def wait_for_output(process, text: str, timeout: float = 30.0) -> None:
-    """Wait until a started process has printed `text`; fail if it dies or takes too long."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if text in process.log_path.read_text():
-            return
-        if process.poll() is not None:
-            pytest.fail(f'{process.args[-1]} exited early:\n{process.log_path.read_text()}')
-        time.sleep(0.05)
-    pytest.fail(f'no {text!r} within {timeout} s:\n{process.log_path.read_text()}')
+def recover(node_processes, damaged, into) -> subprocess.CompletedProcess:
+    """`stealth bag recover DAMAGED -o INTO` in the nodes' environment, which must succeed."""
+    result = subprocess.run(
+        [STEALTH, 'bag', 'recover', str(damaged), '-o', str(into)],
+        env=node_processes.env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 0, result.stderr
+    return result
 
 
 def read_back(path):
@@ -201,15 +202,7 @@ def test_sigkill_loses_at_most_a_second_and_recover_restores_an_indexed_file(
     with open(output, 'rb') as stream, pytest.raises(BagError, match='not a complete MCAP'):
         open_indexed_reader(stream)
     recovered = tmp_path / 'recovered.mcap'
-    result = subprocess.run(
-        [STEALTH, 'bag', 'recover', str(output), '-o', str(recovered)],
-        env=node_processes.env,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
-    assert result.returncode == 0, result.stderr
-    assert 'cut off' in result.stdout
+    assert 'cut off' in recover(node_processes, output, recovered).stdout
 
     summary, by_topic, _, _ = read_back(recovered)
     assert summary.chunk_indexes and all(c.message_index_offsets for c in summary.chunk_indexes)
@@ -237,14 +230,7 @@ def test_a_burst_beyond_one_batch_is_all_written_without_more_traffic(node_proce
     os.killpg(recorder.pid, signal.SIGKILL)
     recorder.wait(10)
     recovered = tmp_path / 'recovered.mcap'
-    result = subprocess.run(
-        [STEALTH, 'bag', 'recover', str(output), '-o', str(recovered)],
-        env=node_processes.env,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
-    assert result.returncode == 0, result.stderr
+    recover(node_processes, output, recovered)
     node_processes.stop_all()
     remove_orphaned_shm(segments_before)
     _, by_topic, _, _ = read_back(recovered)

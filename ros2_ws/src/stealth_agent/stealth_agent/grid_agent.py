@@ -16,9 +16,9 @@ grid (planned on as the grid arrives), so a decision is a lookup.
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import numpy as np
+from stealth_node_kit.grid_cells import cell_of
 
 from .protocol import BadInputError, ProtocolAgent
 from .state_index import StateIndex
@@ -47,10 +47,10 @@ class ObservedGrid:
 
     def cell_of(self, x: float, y: float) -> tuple[int, int]:
         """(row, col) of map point (x, y); BadInputError outside the grid."""
-        resolution, x0, y0 = self.geometry
-        row, col = math.floor((y - y0) / resolution), math.floor((x - x0) / resolution)
+        row, col = cell_of(self.geometry, x, y)
         rows, cols = self.grid.shape[:2]
         if not (0 <= row < rows and 0 <= col < cols):
+            resolution, x0, y0 = self.geometry
             raise BadInputError(
                 f'state ({x:g}, {y:g}) lies outside the observation grid ({rows} x {cols} '
                 f'cells of {resolution:g} m from ({x0:g}, {y0:g}))'

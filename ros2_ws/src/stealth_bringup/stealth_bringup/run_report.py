@@ -20,6 +20,8 @@ from stealth_bringup.episode_tracker import EpisodeRecord, Tracker
 from stealth_bringup.run_config import RunConfigError, relative_to_cwd
 from stealth_bringup.run_plan import RunPlan
 
+FRAMES_SAID_EVERY = 5.0  # s: how often drawing path.gif says how far it is
+
 
 @dataclasses.dataclass
 class RunFacts:
@@ -298,6 +300,7 @@ class RunReport:
                     [name for _, name in paths],
                     goal=plan.goal,
                     frames=frames,
+                    progress=self._frames_said(),
                 )
             return plan.file('path.gif')
         except DiskFullError as error:
@@ -306,6 +309,20 @@ class RunReport:
         except Exception as error:  # noqa: BLE001
             self.say(f'{self.prog}: could not draw path.gif: {error}')
             return None
+
+    def _frames_said(self, every: float = FRAMES_SAID_EVERY):
+        """animate_scenario's progress: a line every `every` s of drawing (none for a short
+        one), and the frames and time at the end of one that had any."""
+        started = last = time.monotonic()
+
+        def said(done: int, total: int) -> None:
+            nonlocal last
+            now = time.monotonic()
+            if now - last >= every or (done == total and last > started):
+                last = now
+                self.say(f'{self.prog}: path.gif: {done}/{total} frames in {now - started:.0f} s')
+
+        return said
 
     def _summary(self, records, optimum, files, status: str | None = None) -> dict:
         plan, tracker, facts = self.plan, self.tracker, self.facts

@@ -1,8 +1,11 @@
 """A run's figures from what orchestrating it found out (RunFacts; no ROS), and what it says of
 its greedy episodes against the optimum."""
 
+from types import SimpleNamespace
+
+from stealth_bringup import run_report
 from stealth_bringup.episode_tracker import EpisodeRecord
-from stealth_bringup.run_report import RunFacts, criterion_line, path_label
+from stealth_bringup.run_report import RunFacts, RunReport, criterion_line, path_label
 from stealth_env.path_scores import Criterion
 
 
@@ -57,3 +60,30 @@ def test_the_learned_path_is_labelled_with_its_scores_against_the_optimum():
         "on the lattice: path 1.03x the optimum's, exposure +0.020 against it (true pose's path "
         '1.04x): meets the criterion (path <= 1.2x, exposure <= opt + 0.5)'
     )
+
+
+def test_a_long_path_gif_says_how_far_it_is(monkeypatch):
+    # animate_scenario's progress: frames drawn at 0, 2, ..., 18 s of a fake clock.
+    clock = iter([100.0, *(100.0 + 2 * k for k in range(10))])
+    monkeypatch.setattr(run_report.time, 'monotonic', lambda: next(clock))
+    said = []
+    report = RunReport(SimpleNamespace(mode='train'), None, RunFacts(0.0), said.append)
+    progress = report._frames_said(every=5.0)
+    for done in range(1, 11):
+        progress(done, 10)
+    assert said == [
+        'stealth train: path.gif: 4/10 frames in 6 s',
+        'stealth train: path.gif: 7/10 frames in 12 s',
+        'stealth train: path.gif: 10/10 frames in 18 s',
+    ]
+
+
+def test_a_short_path_gif_says_nothing(monkeypatch):
+    clock = iter([100.0, 100.5, 101.0])
+    monkeypatch.setattr(run_report.time, 'monotonic', lambda: next(clock))
+    said = []
+    report = RunReport(SimpleNamespace(mode='train'), None, RunFacts(0.0), said.append)
+    progress = report._frames_said(every=5.0)
+    progress(1, 2)
+    progress(2, 2)
+    assert said == []

@@ -26,6 +26,7 @@ move), age 0; whenever what was sensed changes.
 from __future__ import annotations
 
 import numpy as np
+from stealth_node_kit.grid_cells import cell_of
 
 from stealth_env.sensing import Sensing
 
@@ -107,12 +108,6 @@ class FullTrackGrid:
     def cell_of(self, x: float, y: float) -> tuple[int, int]:
         """(row, col) of the cell a map point (m) falls in (may lie outside the grid)."""
         return cell_of(self.geometry, x, y)
-
-
-def cell_of(geometry, x: float, y: float) -> tuple[int, int]:
-    """(row, col) of point (x, y) (m, map) on a grid of (resolution, origin x, origin y)."""
-    resolution, x0, y0 = geometry
-    return int(np.floor((y - y0) / resolution)), int(np.floor((x - x0) / resolution))
 
 
 def observed_grid(task, track: str, layout: str, model=None) -> FullTrackGrid | None:

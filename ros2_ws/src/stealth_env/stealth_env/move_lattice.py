@@ -10,7 +10,8 @@ the disc swept along the straight segment between two valid neighbours touches n
 ``robot_radius`` to the point or segment (a cell merely grazing the disc at exactly the radius
 does not), and the cell holding the point always counts, so a zero radius means "the cells under
 the path are free". Validity is computed once for all nodes and moves with numpy (a 600 x 600
-cell map with 0.25 m steps takes a few tens of milliseconds); searches are then cheap.
+cell map with 0.25 m steps takes a few tens of milliseconds: bench/bench_lattice.py); searches are
+then cheap.
 
 Scenario validation uses ``bfs`` to prove each goal reachable; the lighting checks, the planners
 and the environment build on the same lattice so that all of them agree on what a move is.

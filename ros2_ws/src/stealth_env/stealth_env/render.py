@@ -29,7 +29,13 @@ import sys
 
 import numpy as np
 
-from stealth_env.scenario_drawing import figure_pixels, goal_marks, scenario_figure
+from stealth_env.scenario_drawing import (
+    Overlay,
+    figure_pixels,
+    goal_marks,
+    path_artists,
+    scenario_figure,
+)
 from stealth_env.visibility import scenario_visibility
 
 DEFAULT_OUT_DIR = Path('docs/images/scenarios')
@@ -111,26 +117,33 @@ def animate_scenario(
     if frames < 1:
         raise ValueError(f'frames: expected a number >= 1, got {frames}')
     labels = list(path_labels) if path_labels else [f'path {k + 1}' for k in range(len(paths))]
-    images = []
     name = getattr(scenario, 'name', 'scenario')
+    moving = any(light.is_moving for light in scenario.lights)
+    phases: dict[float, list[int]] = {}  # the frames of each instant of the lights' cycle
     for k in range(frames):
-        t = k * step
-        if timing is not None:  # the same instants every cycle: the field cache serves them
+        t = k * step if moving else 0.0  # static lights: every frame shows the same light
+        if timing is not None:  # the same instants every cycle: one figure serves them all
             t = ((k * timing.bins_per_step) % timing.cycle_bins) * timing.bin_seconds
-        walked = [p[: min(k, len(p) - 1) + 1] for p in paths]
+        phases.setdefault(t, []).append(k)
+    images = [None] * frames
+    done = 0
+    for t, numbers in phases.items():  # a figure per phase, drawn once; its frames overlaid
         fig = scenario_figure(
-            scenario,
-            walked,
-            t=t,
-            goal=goal,
-            path_labels=labels,
-            title=f'{name}: step {k}, t = {k * step:g} s',
-            cache_dir=cache_dir,
-            dpi=60,
+            scenario, paths, t=t, goal=goal, path_labels=labels, cache_dir=cache_dir, dpi=60
         )
-        images.append(Image.fromarray(figure_pixels(fig)).convert('P', palette=Image.ADAPTIVE))
-        if progress is not None:
-            progress(k + 1, frames)
+        drawn = path_artists(fig)
+        title = fig.axes[0].title
+        overlay = Overlay(fig, [title, *(artist for pair in drawn for artist in pair)])
+        for k in numbers:
+            for points, (line, end) in zip(paths, drawn, strict=True):
+                walked = points[: min(k, len(points) - 1) + 1]
+                line.set_data(walked[:, 0], walked[:, 1])
+                end.set_data(walked[-1:, 0], walked[-1:, 1])
+            title.set_text(f'{name}: step {k}, t = {k * step:g} s')
+            images[k] = Image.fromarray(overlay.pixels()).convert('P', palette=Image.ADAPTIVE)
+            done += 1
+            if progress is not None:
+                progress(done, frames)
     out.parent.mkdir(parents=True, exist_ok=True)
     images[0].save(
         out,

@@ -5,6 +5,7 @@ from PIL import Image
 import pytest
 from stealth_env.render import animate_scenario, main
 from stealth_env.scenario import load_scenario
+from stealth_env.scenario_drawing import figure_pixels, scenario_figure
 
 
 @pytest.fixture(scope='module')
@@ -31,6 +32,41 @@ def test_the_animation_shows_the_lights_moving_and_the_path_walked(scenario, tmp
     assert all(frame.shape == frames[0].shape for frame in frames)
     assert not np.array_equal(frames[0], frames[1])  # the sweep moved, the robot too
     assert not np.array_equal(frames[2], frames[3])  # the path is over: the light still moves
+
+
+def drawn_whole(scenario, paths, labels, k, cache_dir) -> np.ndarray:
+    """Frame k as the GIF holds it, from the figure drawn whole: no background kept, no phase
+    shared (a frame at t = k steps, each path walked to its point k)."""
+    timing = scenario.timing
+    t = ((k * timing.bins_per_step) % timing.cycle_bins) * timing.bin_seconds
+    walked = [p[: min(k, len(p) - 1) + 1] for p in paths]
+    title = f'{scenario.name}: step {k}, t = {k * timing.step_seconds:g} s'
+    fig = scenario_figure(
+        scenario, walked, t=t, goal='hard', path_labels=labels, title=title,
+        cache_dir=cache_dir, dpi=60,
+    )  # fmt: skip
+    image = Image.fromarray(figure_pixels(fig)).convert('P', palette=Image.ADAPTIVE)
+    return np.asarray(image.convert('RGB'))
+
+
+def test_each_frame_is_the_figure_drawn_whole(scenario, tmp_path):
+    # Past one cycle of the lights (each phase's figure serves two frames), the learned path
+    # under the goal-guard's name (drawn over it) and on to the goal beside the colour bar.
+    learned = np.array([scenario.start[:2], (1.5, 2.0), (12.5, 13.5), (13.5, 13.5), (14.0, 13.0)])
+    optimum = np.array([scenario.start[:2], (2.0, 1.5), (2.5, 1.5), (3.0, 1.5)])
+    paths, labels = [learned, optimum], ['learned', 'optimum']
+    cycle = scenario.timing.cycle_bins // scenario.timing.bins_per_step
+    frames = cycle + 3
+    done = []
+    out = animate_scenario(
+        scenario, tmp_path / 'a.gif', paths, labels, goal='hard', frames=frames,
+        cache_dir=tmp_path, progress=lambda *a: done.append(a),
+    )  # fmt: skip
+    shown = frames_of(out)
+    assert len(shown) == frames
+    for k in range(frames):
+        assert np.array_equal(shown[k], drawn_whole(scenario, paths, labels, k, tmp_path)), k
+    assert done == [(n, frames) for n in range(1, frames + 1)]  # in order, whatever the phase
 
 
 def test_the_default_is_one_cycle_or_the_longest_path(scenario, tmp_path):

@@ -63,10 +63,14 @@ class GeneralistPolicy:
 
     def act(self, grid) -> int:
         """The move (0 up, 1 down, 2 left, 3 right) at the robot's cell of one grid."""
-        row, col = np.unravel_index(
-            int(np.argmax(np.asarray(grid)[..., ROBOT])), np.asarray(grid).shape[:2]
-        )
-        return int(np.argmax(self.cell_logits(grid)[row, col]))
+        return int(np.argmax(self.cell_logits(grid)[robot_cell(grid)]))
+
+
+def robot_cell(grid) -> tuple[int, int]:
+    """(row, col) of the robot in one grid (R, C, 7): its robot channel's maximum."""
+    robot = np.asarray(grid)[..., ROBOT]
+    row, col = np.unravel_index(int(np.argmax(robot)), robot.shape)
+    return int(row), int(col)
 
 
 class PlanCache:

@@ -19,11 +19,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from stealth_env.grid_observation import ROBOT
 
 from stealth_learn import policy_file
 from stealth_learn.belief import believed_grid
-from stealth_learn.generalist import DEFAULT_POLICY, GeneralistPolicy, PlanCache
+from stealth_learn.generalist import DEFAULT_POLICY, GeneralistPolicy, PlanCache, robot_cell
 from stealth_learn.obs_layout import check_layout
 
 KEEP_PLANS = 8  # distinct grids kept (one per building, or the latest beliefs: sensed)
@@ -55,9 +54,7 @@ class CachedGeneralist:
 
     def __call__(self, grid: np.ndarray) -> int:
         """The move at the robot's cell (the robot channel's maximum)."""
-        robot = grid[..., ROBOT]
-        row, col = np.unravel_index(int(np.argmax(robot)), robot.shape)
-        return int(self.plan(grid)[row, col])
+        return int(self.plan(grid)[robot_cell(grid)])
 
 
 def load(path: str = '') -> CachedGeneralist:
