@@ -47,17 +47,17 @@ from stealth_experiments.floor_plan_prior import PRIORS, floor_plan_prior
 
 # Training episodes per run, per learner: each well past where every seed settled (README);
 # Dyna-Q's 20 planning updates make its episodes ~5x dearer and it needs ~1/6 as many;
-# prioritized sweeping, exploring by optimism, settled on every seed of every static scenario by
-# episode 160 (map1-exposure; bench_learners, 2026-11-28).
+# prioritized sweeping, exploring from the floor plan, settled on every seed of every static
+# scenario by episode 70 (map1-exposure; bench_learners, 2026-11-28).
 DEFAULT_EPISODES = {'qlearning': 1500, 'sarsa': 1500, 'dyna': 500, 'prioritized': 300}
 # Scenarios with the phase in the state (moving lights) have phase_bins times the states: each
 # learner gets a larger budget there (README: Q-learning settled at 2580 on simple-maze-moving,
 # 5730 on lgfloor-moving and 11,610-11,740 on floorplan-moving, where 6000 never reached the
 # goal; Dyna-Q at 1110 on lgfloor-moving and 1810 on floorplan-moving, where 1000 was too few;
-# prioritized sweeping, at gamma 1 and exploring by optimism, met the success criterion from
-# 250 on simple-maze-moving, 320 on map1-moving, 610 on lgfloor-moving and 790 on
-# floorplan-moving, seed 0; before optimism 270, 280, 600 (seed 1; seed 0 settled on a 1.12x
-# path) and 690).
+# prioritized sweeping, at gamma 1 and exploring from the floor plan, met the success criterion
+# from 300 on simple-maze-moving, 240 on map1-moving, 190 on lgfloor-moving and 1010 on
+# floorplan-moving, seed 0; with the goal reward as its optimism 250, 320, 610 and 790; before
+# optimism 270, 280, 600 (seed 1; seed 0 settled on a 1.12x path) and 690).
 MOVING_EPISODES = {'qlearning': 15000, 'sarsa': 15000, 'dyna': 3000, 'prioritized': 1500}
 DEFAULT_EVAL_EVERY = 10
 WITHIN = 0.05  # of the optimal return: the old criterion, kept for settled_within only
