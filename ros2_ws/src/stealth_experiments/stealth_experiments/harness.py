@@ -28,6 +28,7 @@ from stealth_agent.policy_store import save_policy
 from stealth_agent.protocol import ProtocolAgent, parse_description
 from stealth_agent.schedules import Schedule
 from stealth_agent.state_index import StateIndex
+from stealth_env.floor_plan_prior import PRIORS, floor_plan_prior
 from stealth_env.gym_env import StealthNavEnv, lattice_model
 from stealth_env.path_scores import (
     DEFAULT_CRITERION,
@@ -42,8 +43,6 @@ from stealth_env.planners import LatticeModel, astar, dark_path, follow, value_i
 from stealth_env.replanning import SensedReplanner, play
 from stealth_env.reward import EpisodeOutcome
 from stealth_env.scenario import content_identity
-
-from stealth_experiments.floor_plan_prior import PRIORS, floor_plan_prior
 
 # Training episodes per run, per learner: each well past where every seed settled (README);
 # Dyna-Q's 20 planning updates make its episodes ~5x dearer and it needs ~1/6 as many;

@@ -24,6 +24,7 @@ from collections.abc import Callable
 import dataclasses
 
 import numpy as np
+
 from stealth_env.path_scores import OPTIMUM_GAMMA
 from stealth_env.planners import LatticeModel, value_iteration
 
