@@ -261,6 +261,14 @@ def train_parser() -> argparse.ArgumentParser:
         'where they were; appends to episodes.csv and summary.json, redraws the plots and '
         'records into the next RUN/recording_<n>.mcap',
     )
+    parser.add_argument(
+        '--prior',
+        choices=('floor_plan', 'none'),
+        default='none',
+        help="where the agent's table starts: floor_plan, every state-action at what the floor "
+        'plan says it is worth with the lights dark (an upper bound: optimism that spares the '
+        "moves leading away from the goal); none (default), the agent's initialvalue",
+    )
     _common_options(parser)
     return parser
 

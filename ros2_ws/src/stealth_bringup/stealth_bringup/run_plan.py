@@ -15,10 +15,12 @@ import os
 from pathlib import Path
 import shlex
 
+from stealth_agent.policy_plugins import is_plugin
 from stealth_env.path_scores import DEFAULT_CRITERION, OPTIMUM_GAMMA, Criterion
 from stealth_tools.bag_files import next_recording_file
 
 from stealth_bringup.episode_budget import STATE_ACTIONS_PER_EPISODE, default_episode_budget
+from stealth_bringup.prior_policy import write_prior_policy
 from stealth_bringup.rollout_source import rollout_source
 from stealth_bringup.run_arguments import (
     COMMAND_OF_MODE,
@@ -249,6 +251,19 @@ class RunPlan:
             write_params_file(parameters, self.params_file(node), header)
 
 
+def _check_prior(continued, parameters: dict) -> None:
+    """RunConfigError where --prior cannot apply: a resumed table, a plugin, the sensed track."""
+    agent, environment = parameters['agent'].values, parameters['environment'].values
+    if continued is not None:
+        raise RunConfigError("--prior: not with --resume (the run's table goes on)")
+    if is_plugin(agent['agent']):
+        raise RunConfigError(f'--prior: agent {agent["agent"]!r} keeps no table')
+    if environment.get('track', 'full') != 'full':
+        raise RunConfigError(
+            '--prior: the full track only (on the sensed track the state holds what was sensed)'
+        )
+
+
 def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
     """Check every input and lay out the run; RunConfigError before anything exists."""
     continued = None
@@ -367,10 +382,17 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
     if continued is not None and not policy_path.is_file():
         notes.append(f'{relative_to_cwd(policy_path)} is not there: the agent starts from a '
                      'fresh table (the run was killed before it saved one)')  # fmt: skip
+    prior = getattr(args, 'prior', 'none') if mode == 'train' else 'none'
+    if prior != 'none':
+        _check_prior(continued, parameters)
     if mode == 'train' and continued is None:  # created last: a refused run leaves nothing
         directory = run_directory(Path(args.runs_dir), args.name, directory.name)
         policy_path = directory / 'policy.npz'
         parameters['agent'].values['policy_file'] = str(policy_path.resolve())
+        if prior == 'floor_plan':
+            states = write_prior_policy(policy_path, scenario, goal, parameters['agent'].values)
+            parameters['agent'].values['load_policy'] = True
+            notes.append(f"the agent's table starts from the floor plan ({states:,} states)")
         if 'recorder' in parameters:
             recording = (directory / 'recording.mcap').resolve()
             parameters['recorder'].values['output'] = str(recording)

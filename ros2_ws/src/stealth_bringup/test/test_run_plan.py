@@ -178,3 +178,42 @@ def test_the_sensed_track_keys_the_agents_table_on_the_full_tracks_state(
         'agent.state_features=1', runs_dir=tmp_path,
     )  # fmt: skip
     assert plan.parameters['agent'].values['state_features'] == 1
+
+
+def test_a_floor_plan_prior_is_the_runs_policy_file_with_a_row_per_place(tmp_path):
+    """--prior floor_plan: the agent loads a table whose every lattice state holds value
+    iteration's action values with the lights dark, at the agent's gamma, for its learner."""
+    import numpy as np
+    from stealth_agent.policy_store import check_compatible, load_policy
+    from stealth_env.floor_plan_prior import floor_plan_values
+    from stealth_env.gym_env import lattice_model
+
+    plan = plan_of('--prior', 'floor_plan', '--set', 'agent.gamma=0.95', runs_dir=tmp_path)
+    agent = plan.parameters['agent'].values
+    assert agent['load_policy'] is True and Path(agent['policy_file']) == plan.policy_path
+    policy = load_policy(plan.policy_path)
+    check_compatible(policy, num_actions=4, learner='prioritized', scenario_title=None)
+    model = lattice_model('simple-maze', plan.goal)
+    values = floor_plan_values(model, gamma=0.95)
+    assert len(policy.index) == len(model.states) and policy.learner.episodes == 0
+    for place in (model.start, len(model.states) // 2):
+        row = policy.index.lookup(model.states[place])
+        np.testing.assert_allclose(policy.learner.values(row), values[place])
+    assert any('starts from the floor plan (603 states)' in note for note in plan.notes)
+    # Without it the agent starts from a fresh table.
+    fresh = plan_of('--name', 'fresh', runs_dir=tmp_path)
+    assert fresh.parameters['agent'].values['load_policy'] is False
+    assert not fresh.policy_path.exists()
+
+
+@pytest.mark.parametrize(
+    ('argv', 'message'),
+    [
+        (['--set', 'agent.agent=generalist'], "--prior: agent 'generalist' keeps no table"),
+        (['--set', 'environment.track=sensed'], '--prior: the full track only'),
+    ],
+)
+def test_a_prior_where_no_table_can_take_it_is_one_line(argv, message, tmp_path):
+    with pytest.raises(RunConfigError, match=message):
+        plan_of('--prior', 'floor_plan', *argv, runs_dir=tmp_path)
+    assert not any(tmp_path.iterdir())  # refused before the run's directory exists
