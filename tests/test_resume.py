@@ -124,3 +124,22 @@ def test_bad_resume_and_unknown_parameters_are_one_line_before_anything_starts(s
                    "did you mean 'epsilon'")  # fmt: skip
     assert time.monotonic() - started < 30  # no node was started (it took 8.8 s after them)
     assert not system.runs.exists()
+
+
+def test_a_run_from_the_floor_plan_starts_its_agent_at_each_lattice_state(system, tmp_path):
+    """`stealth train --prior floor_plan`: the agent node loads the table the run wrote (no
+    episodes yet, a row per lattice state) and learns on from it; its saved policy keeps them."""
+    from stealth_agent.policy_store import load_policy
+
+    scenario = short_scenario(tmp_path)
+    result = system.run(
+        'train', '--scenario', str(scenario), '--goal', 'easy', '--episodes', '4',
+        '--eval-every', '2', '--seed', '5', '--name', 'p', '--prior', 'floor_plan',
+        '--runs-dir', str(system.runs),
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert "the agent's table starts from the floor plan (603 states)" in result.stderr
+    agent_log = (system.runs / 'p' / 'logs' / 'agent.log').read_text()
+    assert 'policy.npz (0 episodes, 603 states); learning' in agent_log
+    policy = load_policy(system.runs / 'p' / 'policy.npz')
+    assert policy.learner.episodes > 0 and len(policy.index) == 603  # learned on from it
