@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 
+from stealth_env.floor_plan_prior import PRIORS
 from stealth_env.path_scores import (
     DEFAULT_CRITERION,
     OPTION_FLAGS,
@@ -263,7 +264,7 @@ def train_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         '--prior',
-        choices=('floor_plan', 'none'),
+        choices=PRIORS,
         default='none',
         help="where the agent's table starts: floor_plan, every state-action at what the floor "
         'plan says it is worth with the lights dark (an upper bound: optimism that spares the '

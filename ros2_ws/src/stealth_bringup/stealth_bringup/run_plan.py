@@ -382,7 +382,7 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
     if continued is not None and not policy_path.is_file():
         notes.append(f'{relative_to_cwd(policy_path)} is not there: the agent starts from a '
                      'fresh table (the run was killed before it saved one)')  # fmt: skip
-    prior = getattr(args, 'prior', 'none') if mode == 'train' else 'none'
+    prior = args.prior if mode == 'train' else 'none'
     if prior != 'none':
         _check_prior(continued, parameters)
     if mode == 'train' and continued is None:  # created last: a refused run leaves nothing
