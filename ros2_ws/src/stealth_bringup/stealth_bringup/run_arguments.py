@@ -265,10 +265,11 @@ def train_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         '--prior',
         choices=PRIORS,
-        default='none',
         help="where the agent's table starts: floor_plan, every state-action at what the floor "
         'plan says it is worth with the lights dark (an upper bound: optimism that spares the '
-        "moves leading away from the goal); none (default), the agent's initialvalue",
+        "moves leading away from the goal); none, the agent's initialvalue. Default: "
+        'floor_plan where a new table of prioritized sweeping (the default learner) can take '
+        'it, none otherwise (--resume, another learner, a plugin, the sensed track)',
     )
     _common_options(parser)
     return parser

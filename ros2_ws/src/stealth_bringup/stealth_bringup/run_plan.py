@@ -15,6 +15,8 @@ import os
 from pathlib import Path
 import shlex
 
+from stealth_agent.agent_parameters import PARAMETERS as AGENT_PARAMETERS
+from stealth_agent.learners import OPTIMISTIC, canonical_learner_name
 from stealth_agent.policy_plugins import is_plugin
 from stealth_env.path_scores import DEFAULT_CRITERION, OPTIMUM_GAMMA, Criterion
 from stealth_tools.bag_files import next_recording_file
@@ -230,8 +232,7 @@ class RunPlan:
                 f', stopping after {self.streak} greedy evaluations in a row meet the success '
                 f'criterion ({self.criterion.short()})'
             )
-        learner = self.parameters['agent'].values.get('agent', 'qlearning')
-        return f'{self.title}, learner {learner}; {ending}'
+        return f'{self.title}, learner {_agent_value(self.parameters, "agent")}; {ending}'
 
     def file(self, name: str) -> Path:
         return self.directory / name
@@ -251,14 +252,51 @@ class RunPlan:
             write_params_file(parameters, self.params_file(node), header)
 
 
+def run_prior(requested: str | None, continued, parameters: dict) -> str:
+    """The prior a training run's table starts from: the one asked for (RunConfigError where it
+    cannot apply), else floor_plan where a new table of a learner that explores by optimism
+    takes it, as in the harness, and none otherwise."""
+    if requested is not None:
+        if requested != 'none':
+            _check_prior(continued, parameters)
+        return requested
+    try:
+        _check_prior(continued, parameters)
+        optimistic = canonical_learner_name(_agent_value(parameters, 'agent')) in OPTIMISTIC
+    except (RunConfigError, ValueError):  # ValueError: a name the agent node will refuse
+        return 'none'
+    return 'floor_plan' if optimistic else 'none'
+
+
+def _agent_value(parameters: dict, name: str):
+    """An agent node parameter as the node will run with it: its file's, else its default."""
+    return parameters['agent'].values.get(name, AGENT_PARAMETERS[name].default)
+
+
+def _exploration_notes(parameters: dict) -> list[str]:
+    """A note where a learner that does not explore by optimism runs with agent.yaml's
+    epsilon 0 (set for prioritized sweeping)."""
+    try:
+        name = canonical_learner_name(_agent_value(parameters, 'agent'))
+    except ValueError:  # a plugin, or a name the agent node refuses itself
+        return []
+    if name in OPTIMISTIC or _agent_value(parameters, 'epsilon') != 0.0:
+        return []
+    return [
+        f'agent {name} with epsilon 0 tries only what its initial values make look better than '
+        'what it found (prioritized sweeping alone explores by optimism); --set '
+        'agent.epsilon=0.2 to explore at random'
+    ]
+
+
 def _check_prior(continued, parameters: dict) -> None:
     """RunConfigError where --prior cannot apply: a resumed table, a plugin, the sensed track."""
-    agent, environment = parameters['agent'].values, parameters['environment'].values
+    learner = _agent_value(parameters, 'agent')
     if continued is not None:
         raise RunConfigError("--prior: not with --resume (the run's table goes on)")
-    if is_plugin(agent['agent']):
-        raise RunConfigError(f'--prior: agent {agent["agent"]!r} keeps no table')
-    if environment.get('track', 'full') != 'full':
+    if is_plugin(learner):
+        raise RunConfigError(f'--prior: agent {learner!r} keeps no table')
+    if parameters['environment'].values.get('track', 'full') != 'full':
         raise RunConfigError(
             '--prior: the full track only (on the sensed track the state holds what was sensed)'
         )
@@ -377,14 +415,14 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
             f'agent gamma {gamma:g}: the success criterion judges against the undiscounted '
             'optimum, which a discounting learner may not converge to where lights move'
         )
+    if mode == 'train':
+        notes += _exploration_notes(parameters)
     if mode != 'train':
         notes += source_notes
     if continued is not None and not policy_path.is_file():
         notes.append(f'{relative_to_cwd(policy_path)} is not there: the agent starts from a '
                      'fresh table (the run was killed before it saved one)')  # fmt: skip
-    prior = args.prior if mode == 'train' else 'none'
-    if prior != 'none':
-        _check_prior(continued, parameters)
+    prior = run_prior(args.prior, continued, parameters) if mode == 'train' else 'none'
     if mode == 'train' and continued is None:  # created last: a refused run leaves nothing
         directory = run_directory(Path(args.runs_dir), args.name, directory.name)
         policy_path = directory / 'policy.npz'

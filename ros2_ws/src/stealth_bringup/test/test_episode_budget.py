@@ -36,7 +36,8 @@ def test_a_run_without_episodes_gets_its_scenarios_budget_and_says_so(tmp_path):
     assert default_episode_budget(plan.scenario, plan.goal) == (4000, 24_120)
     assert any(note.startswith('episode budget 4000: one per 6 of') for note in plan.notes)
     default = plan_of(runs_dir=tmp_path / 'b')  # simple-maze, easy: as before, unsaid
-    assert default.episodes == DEFAULT_EPISODES and default.notes == []
+    assert default.episodes == DEFAULT_EPISODES
+    assert not any('budget' in note for note in default.notes)
     given = plan_of(
         '--scenario', 'simple-maze-moving', '--episodes', '50', runs_dir=tmp_path / 'c'
     )
@@ -44,7 +45,7 @@ def test_a_run_without_episodes_gets_its_scenarios_budget_and_says_so(tmp_path):
 
 
 def test_a_discounting_agent_is_told_the_criterion_is_undiscounted_where_lights_move(tmp_path):
-    moving = ('--scenario', 'simple-maze-moving', '--episodes', '50')
+    moving = ('--scenario', 'simple-maze-moving', '--episodes', '50', '--prior', 'none')
     plan = plan_of(*moving, '--set', 'agent.gamma=0.99', runs_dir=tmp_path / 'a')
     assert plan.notes == [
         'agent gamma 0.99: the success criterion judges against the undiscounted optimum, '
@@ -52,4 +53,5 @@ def test_a_discounting_agent_is_told_the_criterion_is_undiscounted_where_lights_
     ]
     assert plan_of(*moving, '--set', 'agent.gamma=1.0', runs_dir=tmp_path / 'b').notes == []
     # Still lights: the discounted and undiscounted optima are the same route (path_scores).
-    assert plan_of('--set', 'agent.gamma=0.99', runs_dir=tmp_path / 'c').notes == []
+    still = plan_of('--set', 'agent.gamma=0.99', '--prior', 'none', runs_dir=tmp_path / 'c')
+    assert still.notes == []

@@ -35,12 +35,13 @@ def test_the_shipped_parameter_files_are_valid_and_leave_the_managed_ones_to_the
     assert not managed & values.keys(), f'{node}.yaml sets what the run decides'
 
 
-def test_the_agent_discounts_through_ros_unlike_the_in_process_learners():
-    """Through ROS the goal's reward varies with the continuous pose by far more than a step
-    costs, so an undiscounted greedy policy circled near the goal: stealth train's agent
-    discounts (agent.yaml says why), the in-process learners do not (OPTIMUM_GAMMA)."""
-    gamma = read_params_file(CONFIG / 'agent.yaml', 'agent')['gamma']
-    assert 0.9 <= gamma < OPTIMUM_GAMMA
+def test_the_agent_learns_as_the_harness_does_undiscounted_and_by_optimism():
+    """Through ROS the goal is judged on the lattice node as in-process, so stealth train's
+    agent takes the harness's settings: gamma OPTIMUM_GAMMA (the criterion's optimum is
+    undiscounted) and epsilon 0 (prioritized sweeping explores by optimism)."""
+    values = read_params_file(CONFIG / 'agent.yaml', 'agent')
+    assert values['gamma'] == OPTIMUM_GAMMA
+    assert values['agent'] == 'prioritized' and values['epsilon'] == 0.0
 
 
 def test_a_params_file_is_read_for_its_node(tmp_path):

@@ -73,7 +73,7 @@ def test_a_params_dir_value_the_run_sets_is_refused_or_said(tmp_path):
     (params / 'agent.yaml').write_text(
         'agent:\n  ros__parameters:\n    policy_file: /elsewhere/policy.npz\n    epsilon: 0.3\n'
     )
-    plan = plan_of('--params-dir', str(params), runs_dir=tmp_path / 'runs')
+    plan = plan_of('--params-dir', str(params), '--prior', 'none', runs_dir=tmp_path / 'runs')
     assert plan.parameters['agent'].values['epsilon'] == 0.3
     assert plan.parameters['agent'].values['policy_file'] == str(plan.policy_path.resolve())
     (note,) = plan.notes
@@ -200,10 +200,41 @@ def test_a_floor_plan_prior_is_the_runs_policy_file_with_a_row_per_place(tmp_pat
         row = policy.index.lookup(model.states[place])
         np.testing.assert_allclose(policy.learner.values(row), values[place])
     assert any('starts from the floor plan (603 states)' in note for note in plan.notes)
-    # Without it the agent starts from a fresh table.
-    fresh = plan_of('--name', 'fresh', runs_dir=tmp_path)
+    # With --prior none the agent starts from a fresh table.
+    fresh = plan_of('--prior', 'none', '--name', 'fresh', runs_dir=tmp_path)
     assert fresh.parameters['agent'].values['load_policy'] is False
     assert not fresh.policy_path.exists()
+
+
+def test_prioritized_sweeping_starts_from_the_floor_plan_by_default(tmp_path):
+    plan = plan_of(runs_dir=tmp_path)
+    assert plan.parameters['agent'].values['load_policy'] is True and plan.policy_path.is_file()
+    assert any('starts from the floor plan' in note for note in plan.notes)
+    assert not any('epsilon 0' in note for note in plan.notes)
+
+
+@pytest.mark.parametrize(
+    'argv',
+    [
+        ['--set', 'agent.agent=dyna'],
+        ['--set', 'agent.agent=generalist'],
+        ['--set', 'environment.track=sensed'],
+    ],
+)
+def test_where_no_table_takes_it_the_default_prior_is_none_without_a_word(argv, tmp_path):
+    plan = plan_of(*argv, runs_dir=tmp_path)
+    assert plan.parameters['agent'].values['load_policy'] is False
+    assert not plan.policy_path.exists()
+    assert not any('floor plan' in note for note in plan.notes)
+
+
+def test_a_learner_that_explores_at_random_is_told_epsilon_is_0(tmp_path):
+    plan = plan_of('--set', 'agent.agent=dyna', runs_dir=tmp_path)
+    assert any(
+        'agent dyna with epsilon 0' in note and 'agent.epsilon=0.2' in note for note in plan.notes
+    )
+    plan = plan_of('--set', 'agent.agent=dyna', '--set', 'agent.epsilon=0.2', runs_dir=tmp_path)
+    assert not any('epsilon 0' in note for note in plan.notes)
 
 
 @pytest.mark.parametrize(

@@ -24,7 +24,8 @@ def finished_run(tmp_path, episodes=6, eval_every=3):
     """A training run as stealth train leaves it: params/, summary.json, episodes.csv, the
     recording's first file (its contents do not matter here)."""
     plan = plan_of('--episodes', str(episodes), '--eval-every', str(eval_every), '--seed', '4',
-                   '--name', 'first', runs_dir=tmp_path)  # fmt: skip
+                   '--name', 'first', '--prior', 'none', runs_dir=tmp_path)  # fmt: skip
+    # --prior none: no policy.npz until the agent saves one (killed before it did, here).
     plan.write_params_files()
     report = RunReport(plan, Tracker(), RunFacts(0.0), print)
     report.write_progress()

@@ -41,11 +41,17 @@ Decisions:
   or one sweeping over a waiting robot is seen. Where lights are weighed by exposure, the
   robot's heading is the judged pose's yaw: it turns from the previous judged yaw to the new one
   at the departure, then drives facing the new one (``StealthTask.step_visibility``).
-- **Judging**: ``judge_on='true'`` judges visibility, detection and the goal on the true pose
-  (the lights see the real robot); ``'estimate'`` on the estimate, as the original did. An
+- **Judging**: ``judge_on='true'`` judges visibility and detection on the true pose (the
+  lights see the real robot); ``'estimate'`` on the estimate, as the original did. An
   estimate off the map (possible only with very poor localisation) is judged at the nearest
-  point of the map. Episode statistics follow EpisodeSummary: path length and final distance
-  to the goal are always the true pose's.
+  point of the map. The goal and the reward's distances are judged at the lattice node the
+  judged pose stands at (``StealthTask.move_start``), as the lattice model judges them. On
+  the continuous pose the few centimetres a drive stops short of its node decided whether a
+  node on the goal's radius arrived, and the goal's reward grows by 100 per metre towards the
+  goal point: that paid tens where the light of a route costs tenths, and the learners chased
+  the controller's error instead of the dark. The judgement's ``distance_to_goal`` stays the
+  judged pose's; EpisodeSummary's path length and final distance to the goal are always the
+  true pose's.
 - **Moves** (``move_for_action``): every action is a drive to a lattice node
   (``StealthTask.move_target``, ``topic_moves.go_to``), so the robot stays on the lattice the
   agent's states and the planners assume. A wait (where lights move) stands still for the rest
@@ -355,7 +361,9 @@ class EpisodeFlow:
         x0, y0, t0, yaw0 = self._judged_at
         te = self.episode_time(t)
         visibility = task.step_visibility(x0, y0, min(t0, te), x, y, te, yaw0, judged.yaw)
-        judgement = task.judge(x, y, te, self.steps + 1, visibility=visibility)
+        node_x, node_y = task.move_start(x, y)  # the lattice node the robot stands at
+        judgement = task.judge(node_x, node_y, te, self.steps + 1, visibility=visibility)
+        judgement = judgement._replace(distance_to_goal=task.distance_to_goal(x, y))
         self._judged_at = (x, y, te, judged.yaw)
         timing = task.timing
         if timing is not None and timing.bin_of(te) != timing.bin_of(self._slot_end()):
@@ -364,8 +372,7 @@ class EpisodeFlow:
         self.steps += 1
         counted = judgement
         if judged is not truth:  # EpisodeSummary's distances are the true pose's
-            distance = task.distance_to_goal(truth.x, truth.y)
-            counted = judgement._replace(distance_to_goal=distance)
+            counted = judgement._replace(distance_to_goal=task.distance_to_goal(truth.x, truth.y))
         self.stats.add(truth.x, truth.y, counted)
         self.state = task.state_of(estimate.x, estimate.y, te, estimate.yaw)
         self.counts.states_sent += 1

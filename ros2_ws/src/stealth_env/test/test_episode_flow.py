@@ -107,8 +107,36 @@ def test_an_estimate_off_the_map_is_judged_at_the_nearest_point_of_it(map1):
     flow = started(task, judge_on='estimate')
     x_min, y_min, _, _ = map1.map.bounds
     report = step(flow, 2, PlanarPose(x_min - 0.3, 2.5), PlanarPose(0.6, 2.5))
-    assert report.judgement == task.judge(x_min, 2.5, 0.0, 1)
+    on_node = task.judge(*task.move_start(x_min, 2.5), 0.0, 1, task.visibility(x_min, 2.5))
+    assert report.judgement == on_node._replace(distance_to_goal=task.distance_to_goal(x_min, 2.5))
     assert report.state == task.state_of(x_min - 0.3, 2.5)
+
+
+def test_the_goal_is_judged_at_the_lattice_node_not_the_drive_s_error(map1):
+    """A drive that stops a few centimetres short of a node on the goal's radius arrives,
+    and the goal pays the node's reward, as on the lattice: the continuous pose's few
+    centimetres paid up to tens of reward where a route's light costs tenths."""
+    task = StealthTask(map1, goal='easy')
+    goal = map1.goals['easy']
+    node = max(
+        (
+            task.lattice.node_to_point(n)
+            for n in task.lattice.nodes_within(goal.x, goal.y, goal.radius)
+        ),
+        key=lambda point: task.distance_to_goal(*point),
+    )  # the node within the radius farthest from the goal point
+    outward = (node[0] - goal.x, node[1] - goal.y)
+    scale = 0.04 / math.hypot(*outward)
+    short = PlanarPose(node[0] + outward[0] * scale, node[1] + outward[1] * scale)
+    assert task.distance_to_goal(short.x, short.y) > task.distance_to_goal(*node)
+    report = step(started(task), 0, short)
+    assert report.judgement.outcome is EpisodeOutcome.SUCCESS and report.terminal
+    lattice = task.judge(*node, 0.0, 1, visibility=report.judgement.visibility)
+    assert report.reward == pytest.approx(lattice.reward)
+    assert report.judgement.distance_to_goal == pytest.approx(task.distance_to_goal(*short[:2]))
+    assert report.summary.final_distance_to_goal == pytest.approx(
+        report.judgement.distance_to_goal
+    )
 
 
 @pytest.mark.parametrize('action', [4, -1, True, 1.0, None])

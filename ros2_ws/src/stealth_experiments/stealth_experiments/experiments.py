@@ -36,7 +36,12 @@ from collections.abc import Sequence
 from pathlib import Path
 import sys
 
-from stealth_agent.learners import LEARNER_NAMES, LearnerConfig, canonical_learner_name
+from stealth_agent.learners import (
+    LEARNER_NAMES,
+    OPTIMISTIC,
+    LearnerConfig,
+    canonical_learner_name,
+)
 from stealth_agent.schedules import Schedule
 from stealth_bringup.run_arguments import add_criterion_options, criterion_of
 from stealth_env.gym_env import lattice_model
@@ -45,7 +50,6 @@ from tqdm import tqdm
 
 from stealth_experiments.harness import (
     DEFAULT_EVAL_EVERY,
-    OPTIMISTIC,
     PLANNING_UPDATES,
     baselines,
     default_budget,

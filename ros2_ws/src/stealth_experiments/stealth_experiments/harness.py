@@ -23,7 +23,12 @@ from pathlib import Path
 import time
 
 import numpy as np
-from stealth_agent.learners import LearnerConfig, canonical_learner_name, make_learner
+from stealth_agent.learners import (
+    OPTIMISTIC,
+    LearnerConfig,
+    canonical_learner_name,
+    make_learner,
+)
 from stealth_agent.policy_store import save_policy
 from stealth_agent.protocol import ProtocolAgent, parse_description
 from stealth_agent.schedules import Schedule
@@ -73,10 +78,6 @@ PARAMETERS = (
 # Planning updates per real step: Dyna-Q's, and prioritized sweeping's at most (it stops when
 # its queue runs dry, so a larger cap costs only where values still change).
 PLANNING_UPDATES = {'dyna': 20, 'prioritized': 200}
-# Learners that explore by optimism (tuned_config): a pair the model has not seen is worth what
-# the floor plan says (floor_plan_prior; the goal reward where a state has no prior), and
-# epsilon is 0.
-OPTIMISTIC = ('prioritized',)
 # Where a run's table starts (RunSpec.params 'prior', a sweep setting too): 'floor_plan', each
 # state's action values with the lights dark (floor_plan_prior), or 'none', initial_value
 # everywhere. Absent: floor_plan for the OPTIMISTIC learners, none for the others.
