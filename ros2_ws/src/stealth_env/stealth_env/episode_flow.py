@@ -32,9 +32,10 @@ Decisions:
   than ``SLOT_TOLERANCE`` early is padded with a hold to the slot's end (``move_ended``; the
   step is judged when the hold ends, with the move's own outcome unless the hold failed), so a
   step ends on its slot's end and the phase advances one step's worth per step, as the
-  time-expanded model assumes; a move slower than its slot (a quarter turn and a drive take a
-  little over 3 s on the default robot) ends late, the next step's slot stays where it was, and
-  a step whose phase is not its slot's is counted (``off_schedule``).
+  time-expanded model assumes; a move slower than its slot (any lattice move fits 3 s at
+  simulator.yaml's limits; at the node's defaults a half turn and a drive take 4.3 s, and a
+  bumped drive's recovery longer) ends late, the next step's slot stays where it was, and a
+  step whose phase is not its slot's is counted (``off_schedule``).
 - **Steps** are judged on ``task.step_visibility``: the straight way from the pose the previous
   step was judged at (the start, after a reset) to the judged pose, sampled in space and in
   the simulator's time from the previous step's end to this one's, so a beam crossed on the way

@@ -22,9 +22,11 @@ Decisions:
   a multiple of the bin up to rounding (t = 7 * 3.0 s) in its own bin.
 - **Move duration**: ``lattice_move_seconds`` is how long the simulator's robot takes to drive
   (or turn) a given amount from rest to rest at its speed and acceleration limits (a
-  trapezoid); ``lattice_step_seconds``, a quarter turn and then a lattice step, is the figure
-  the shipped moving scenarios' ``step_seconds`` (3 s) is rounded from (3.05 s for 0.5 m). In
-  ROS the environment uses the simulator's reported time instead.
+  trapezoid); ``lattice_step_seconds``, the longest lattice move (a half turn, then a lattice
+  step), is what the shipped moving scenarios' ``step_seconds`` (3 s) must hold: 2.76 s for
+  0.5 m, and 2.8-3.0 s measured with the controller's settling (stealth_bringup's
+  simulator.yaml says more). A move longer than its step ends in a later phase than the model
+  assumes. In ROS the environment uses the simulator's reported time.
 """
 
 from __future__ import annotations
@@ -39,9 +41,9 @@ from stealth_env.searchlight import PatrolMotion, Searchlight, SweepMotion
 _DENOMINATOR = 1000
 _TOLERANCE = 1e-9
 DEFAULT_MAX_SPEED = 0.5  # m/s: stealth_bringup/config/simulator.yaml's max_linear_speed
-DEFAULT_MAX_ACCEL = 1.0  # m/s^2: its max_linear_accel
-DEFAULT_MAX_TURN_RATE = 1.5  # rad/s: its max_angular_speed
-DEFAULT_MAX_TURN_ACCEL = 3.0  # rad/s^2: its max_angular_accel
+DEFAULT_MAX_ACCEL = 1.5  # m/s^2: its max_linear_accel
+DEFAULT_MAX_TURN_RATE = 3.0  # rad/s: its max_angular_speed
+DEFAULT_MAX_TURN_ACCEL = 8.0  # rad/s^2: its max_angular_accel
 
 
 class TimingError(ValueError):
@@ -179,7 +181,7 @@ def lattice_move_seconds(
 
 
 def lattice_step_seconds(step_distance: float) -> float:
-    """Seconds of a lattice move as the simulator's robot makes it at its default limits: a
-    quarter turn in place, then the drive of one step."""
-    turn = lattice_move_seconds(math.pi / 2, DEFAULT_MAX_TURN_RATE, DEFAULT_MAX_TURN_ACCEL)
+    """Seconds of the longest lattice move as the training robot makes it at simulator.yaml's
+    limits: a half turn in place, then the drive of one step."""
+    turn = lattice_move_seconds(math.pi, DEFAULT_MAX_TURN_RATE, DEFAULT_MAX_TURN_ACCEL)
     return turn + lattice_move_seconds(step_distance)

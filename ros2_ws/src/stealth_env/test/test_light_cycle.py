@@ -79,12 +79,14 @@ def test_what_does_not_fit_names_the_light_or_field(lights, bins, step, parts):
 
 def test_a_lattice_move_takes_the_trapezoid_time():
     # 0.5 m at 0.5 m/s and 1 m/s^2: 0.5 s up and 0.5 s down (0.125 m each), 0.25 m at 0.5 m/s.
-    assert lattice_move_seconds(0.5) == pytest.approx(1.5)
+    assert lattice_move_seconds(0.5, 0.5, 1.0) == pytest.approx(1.5)
     assert lattice_move_seconds(0.09, 0.5, 1.0) == pytest.approx(0.6)  # a triangle
     with pytest.raises(ValueError):
         lattice_move_seconds(0.5, 0.0)
 
 
-def test_a_lattice_step_is_a_quarter_turn_and_a_drive():
-    # pi/2 at 1.5 rad/s and 3 rad/s^2: 0.5 s up, 0.5 s down (0.75 rad), 0.82 rad at 1.5 rad/s.
-    assert lattice_step_seconds(0.5) == pytest.approx(1.5 + 1.0 + (math.pi / 2 - 0.75) / 1.5)
+def test_the_longest_lattice_step_is_a_half_turn_and_a_drive():
+    # pi at 3 rad/s and 8 rad/s^2: 3/8 s up and down (9/8 rad in all), the rest at 3 rad/s;
+    # 0.5 m at 0.5 m/s and 1.5 m/s^2: 1/3 s up and down (1/6 m in all), 1/3 m at 0.5 m/s.
+    turn = 2.0 * 3.0 / 8.0 + (math.pi - 9.0 / 8.0) / 3.0
+    assert lattice_step_seconds(0.5) == pytest.approx(turn + 2.0 / 3.0 + (0.5 - 1.0 / 6.0) / 0.5)
