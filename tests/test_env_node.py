@@ -224,7 +224,8 @@ _JUDGED: dict[int, tuple[float, ...]] = {}  # per task: the last judged x, y, t,
 def check_step(task, state: RLStateReward, info: StepInfo, judged: str = 'true'):
     """The state is the estimate's cell (and phase, and heading); reward and visibility the
     core's for the step from the pose judged before (the start at the first step) to the judged
-    pose (turning from its yaw to the judged one where lights are weighed by exposure)."""
+    pose (turning from its yaw to the judged one where lights are weighed by exposure), the goal
+    and the reward's distances at the lattice node the judged pose stands at."""
     assert list(info.state) == list(state.state)
     estimate = info.estimated_pose
     t = info.header.stamp.sec + info.header.stamp.nanosec * 1e-9
@@ -236,7 +237,8 @@ def check_step(task, state: RLStateReward, info: StepInfo, judged: str = 'true')
         x0, y0, yaw0 = task.scenario.start
     _JUDGED[id(task)] = (pose.x, pose.y, t, pose.theta)
     visibility = task.step_visibility(x0, y0, min(t0, t), pose.x, pose.y, t, yaw0, pose.theta)
-    judgement = task.judge(pose.x, pose.y, t, info.step, visibility=visibility)
+    judgement = task.judge(*task.move_start(pose.x, pose.y), t, info.step, visibility=visibility)
+    assert info.distance_to_goal == pytest.approx(task.distance_to_goal(pose.x, pose.y), rel=1e-5)
     assert info.visibility == pytest.approx(judgement.visibility, rel=1e-6, abs=1e-7)
     assert state.reward == pytest.approx(judgement.reward, rel=1e-6)
     assert state.terminal == info.terminal == judgement.terminal

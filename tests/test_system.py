@@ -180,10 +180,11 @@ def one_line_error(result, *needles: str) -> str:
 
 def test_train_runs_episodes_over_dds_and_leaves_a_complete_run(system, tmp_path):
     scenario = short_scenario(tmp_path)
+    # epsilon 0.2 (the default is 0): a greedy episode must say 0 where training ones do not.
     result = system.run(
         'train', '--scenario', str(scenario), '--goal', 'easy', '--episodes', '8',
         '--eval-every', '4', '--success-streak', '0', '--seed', '3', '--name', 'sys',
-        '--runs-dir', str(system.runs),
+        '--set', 'agent.epsilon=0.2', '--runs-dir', str(system.runs),
     )  # fmt: skip
     assert result.returncode == 0, result.stderr + result.stdout
     assert 'Traceback' not in result.stderr
