@@ -41,9 +41,9 @@ rest may change while running, checked by the same ``sim_config`` that builds th
 
 Time is simulated, published on ``clock`` with the periodic topics (to nodes under
 ``use_sim_time``; a new subscriber gets the current time at once, even while it stands still).
-Under ``use_sim_time`` the node's own ROS clock takes its ``/clock`` when it publishes the next
-one (``stealth_node_kit.on_demand``): nothing here reads it, and a wake-up for it each control
-period was a cost of its own; so were the QoS warnings' event handlers, polled by the idle tick.
+Under ``use_sim_time`` the node's own ROS clock takes its ``/clock`` at the idle tick
+(``stealth_node_kit.on_demand``): nothing here reads it, and a wake-up (or a take) for it each
+control period was a cost of its own; so were the QoS warnings' event handlers, also polled then.
 A move over the service runs as fast as the CPU allows when ``real_time_factor`` is 0, or held
 to that multiple of wall time. Between moves, with a factor > 0, simulated time flows at that
 multiple of wall time. With the factor 0 it stands still until a ``cmd_vel`` comes, so training
@@ -146,8 +146,8 @@ class SimulatorNode(StartupNode):
         self._pacer = RealTimePacer(self.sim.time)
         self._lockstep = Lockstep(self.publish_period)  # factor 0 under cmd_vel
         self._clock_readers = 0  # /clock subscribers when it was last published
-        # Under use_sim_time the node hears its own /clock: taken when it publishes the next,
-        # not on a wake-up of its own every control period.
+        # Under use_sim_time the node hears its own /clock: taken at the idle tick, not on a
+        # wake-up of its own every control period.
         self._on_demand = OnDemand()
         clock_on_demand(self, self._on_demand)
 
@@ -299,6 +299,7 @@ class SimulatorNode(StartupNode):
         """Between moves: simulated time runs at the real-time factor, or in lockstep with
         /cmd_vel at factor 0, and stands still in training (see stealth_sim.idle_time: never on
         wall time alone)."""
+        self._on_demand.drain()  # its own /clock, for its ROS clock
         self._on_demand.poll_events()
         if self._estimate_due and self.pose_pub.get_subscription_count():
             self._publish_estimate()
@@ -457,7 +458,6 @@ class SimulatorNode(StartupNode):
             self._publish_estimate(only_if_subscribed=True)
 
     def _publish_clock(self) -> None:
-        self._on_demand.drain()
         self._clock_readers = self.clock_pub.get_subscription_count()
         if self._clock_readers:
             self.clock_pub.publish(self._messages.clock_at(self.sim.time))

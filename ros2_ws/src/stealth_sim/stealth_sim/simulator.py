@@ -102,6 +102,7 @@ class Simulator:
         beams, max_beams = config.laser.beams, config.filter.likelihood.max_beams
         step = max(1, (beams - 1) // max(1, max_beams - 1))
         self.filter_beam_bearings = config.laser.bearings(np.arange(0, beams, step))
+        self._scan_bearings = (None, None)  # the laser config and its bearings, for scan()
         self.time = 0.0
         self.steps = 0
         self.bumps = 0
@@ -276,7 +277,10 @@ class Simulator:
         missing: the same ranges (``test_fast_paths``), and 180 beams cost ~1.5 ms in numpy,
         a third of a training move's simulator time when the scan is recorded.
         """
-        bearings = self.config.laser.bearings()
+        laser = self.config.laser
+        if self._scan_bearings[0] is not laser:  # reconfigure() replaces it
+            self._scan_bearings = (laser, laser.bearings())
+        bearings = self._scan_bearings[1]
         x, y, yaw = self.state.pose
         if not self.reference and jit.import_problem() is None:
             ranges = laser_kernel.cast(self.caster, x, y, yaw, bearings)
