@@ -342,10 +342,10 @@ class SimulatorNode(StartupNode):
         dt, steps = self.sim.config.physics_dt, self.sim.steps
         count = 1
         while True:
-            time = (steps + count) * dt  # as Simulator.time after ``count`` steps
-            if time + dt > until + 1e-9 or time >= self._next_publish - 1e-9:
+            after = (steps + count) * dt  # as Simulator.time after ``count`` steps
+            if after + dt > until + 1e-9 or after >= self._next_publish - 1e-9:
                 return count
-            if command is not None and time - self._command_time > self.cmd_vel_timeout:
+            if command is not None and after - self._command_time > self.cmd_vel_timeout:
                 return count
             count += 1
 
