@@ -7,8 +7,7 @@ decisions are ``stealth_env.episode_flow``'s, the messages ``env_messages``', th
 ## Topics
 
 Frame ``map``; names and QoS of the RL loop from ``stealth_node_kit.rl_contract``: the RL
-topics are reliable and volatile, with a lockstep history that never fills (no step may be
-dropped silently).
+topics are reliable and volatile, with a lockstep history that never fills (no step is lost).
 
 * publishes ``rl_env/rl_env_description`` (RLEnvDescription; reliable + transient local,
   depth 1) once; ``rl_env/rl_state_reward`` (RLStateReward) at every episode start and after
@@ -95,6 +94,7 @@ from stealth_interfaces.srv import ExecuteMove, RestartEpisode
 from stealth_node_kit import rl_contract
 from stealth_node_kit.conversions import seconds, time_msg
 from stealth_node_kit.in_process import InProcessServices
+from stealth_node_kit.on_demand import OnDemand, events_on_demand
 from stealth_node_kit.parameters import StartupError, declare_parameters, non_finite
 from stealth_node_kit.running import StartupNode, run_node
 
@@ -189,6 +189,7 @@ class EnvironmentNode(StartupNode):
         self.robot = self._make_robot(values)
         self.create_service(RestartEpisode, rl_contract.RESTART_EPISODE, self._on_restart_episode)
         self.create_timer(TICK_PERIOD, self._on_tick, clock=self._steady)
+        self._qos_events = events_on_demand(self, OnDemand())  # polled each tick, not waited on
         self.scene.schedule(values['marker_period'])
 
         description = self.task.description(stochastic=True)
@@ -222,10 +223,8 @@ class EnvironmentNode(StartupNode):
 
     def _load_scenario(self, name: str):
         if not name:
-            raise StartupError(
-                'parameter scenario: required, a scenario name (e.g. lgfloor) or the path of a '
-                'scenario YAML'
-            )
+            raise StartupError('parameter scenario: required, a scenario name (e.g. lgfloor) '
+                               'or the path of a scenario YAML')  # fmt: skip
         try:
             return load_scenario(name)
         except (ScenarioError, OSError, ValueError) as error:
@@ -254,6 +253,7 @@ class EnvironmentNode(StartupNode):
 
     def _on_tick(self) -> None:
         now = time.monotonic()
+        self._qos_events.poll_events()
         self.robot.tick()  # deadlines and watchdogs: a failure ends a move or a reset
         phase = self.flow.phase
         if phase is EpisodePhase.WAITING:

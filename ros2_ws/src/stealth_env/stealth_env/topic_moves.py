@@ -31,6 +31,7 @@ from collections import deque
 from collections.abc import Sequence
 import dataclasses
 import enum
+import functools
 import math
 from typing import NamedTuple
 
@@ -495,6 +496,14 @@ def coast(velocity: float, command: float, accel: float, dt: float) -> float:
 # --- the laser --------------------------------------------------------------------------------
 
 
+@functools.lru_cache(maxsize=8)
+def _beam_directions(angle_min: float, angle_increment: float, beams: int):
+    """Cosine and sine of each beam's bearing: the same for every scan of one laser (a scan
+    per control period)."""
+    bearings = angle_min + angle_increment * np.arange(beams)
+    return np.cos(bearings), np.sin(bearings)
+
+
 def forward_clearance(
     ranges: Sequence[float] | np.ndarray,
     angle_min: float,
@@ -508,11 +517,11 @@ def forward_clearance(
 
     Readings outside [range_min, range_max] or not finite are no returns."""
     ranges = np.asarray(ranges, dtype=float)
-    bearings = angle_min + angle_increment * np.arange(ranges.size)
+    cos_bearing, sin_bearing = _beam_directions(angle_min, angle_increment, ranges.size)
     with np.errstate(invalid='ignore'):
         valid = np.isfinite(ranges) & (ranges >= range_min) & (ranges <= range_max)
-    forward = ranges[valid] * np.cos(bearings[valid])
-    side = ranges[valid] * np.sin(bearings[valid])
+    forward = ranges[valid] * cos_bearing[valid]
+    side = ranges[valid] * sin_bearing[valid]
     in_way = (forward > 0) & (np.abs(side) < radius)
     if not in_way.any():
         return math.inf

@@ -315,3 +315,31 @@ def test_the_clock_on_demand_moves_the_node_clock_only_when_drained(ros_context)
     assert len(waits) < 200
     assert group.drain() == 1
     assert node.get_clock().now().nanoseconds == 42_500_000_000
+
+
+def test_qos_events_on_demand_are_not_waited_on_and_poll_runs_each_change_once(ros_context):
+    """A publisher whose reader asks for more than it offers: its incompatible-QoS warning runs
+    when polled, once per change, never from the executor."""
+    import os
+
+    from rclpy.event_handler import PublisherEventCallbacks
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from std_msgs.msg import Int64
+    from stealth_node_kit.on_demand import OnDemand, events_on_demand
+
+    topic = f'qos_events_{os.getpid()}'
+    node = ros_context('kit_qos_events')
+    warned = []
+    callbacks = PublisherEventCallbacks(incompatible_qos=warned.append)
+    best_effort = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+    node.create_publisher(Int64, topic, best_effort, event_callbacks=callbacks)
+    group = events_on_demand(node, OnDemand())
+    handlers = [h for p in node.publishers for h in p.event_handlers]
+    assert handlers and all(h.callback_group is group for h in handlers)
+    reliable = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
+    node.create_subscription(Int64, topic, lambda m: None, reliable)
+    ran = []
+    _spin_until(node.context, node, lambda: ran.append(group.poll_events()) or warned)
+    assert len(warned) == 1 and sum(ran) == 1  # the executor spun too, and never ran it
+    assert warned[0].total_count_change == 1
+    assert group.poll_events() == 0  # the same status is not reported twice

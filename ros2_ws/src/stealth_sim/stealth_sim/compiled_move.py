@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from stealth_sim.jit import import_problem
-from stealth_sim.kernels import move_loop
+from stealth_sim.kernels import move_loop, particle_filter
 from stealth_sim.kernels.layout import (
     ANGULAR,
     BUMPS,
@@ -105,6 +105,70 @@ def problem(sim) -> str | None:
     return found
 
 
+def _load(sim) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The kernels' state, covariance, particles and weights of ``sim`` (copies)."""
+    state = np.empty(STATE_SIZE)
+    odometry, localiser = sim.odometry, sim.localiser
+    pose, linear, angular = sim.state
+    state[X : SIM_STEPS + 2] = (*pose, linear, angular, sim.steps, sim.bumps)
+    for at, value in (
+        (ODOM, odometry.pose),
+        (SEGMENT_TRUE, odometry._segment_true_start),
+        (SEGMENT_ODOM, odometry._segment_odom_start),
+        (NORMALS, odometry._normals),
+        (ODOM_AT_UPDATE, localiser._odom_at_update),
+        (ESTIMATE_AT_UPDATE, localiser._estimate_at_update),
+    ):
+        state[at : at + 3] = value
+    state[UPDATES], state[RUN_STEPS] = localiser.updates, 0.0
+    state[STOP_TIME], state[STOP_UPDATES] = math.inf, -1.0
+    return (
+        state,
+        np.array(localiser.covariance, dtype=np.float64),
+        np.array(localiser.filter.particles, dtype=np.float64, order='C'),
+        np.array(localiser.filter.weights, dtype=np.float64),
+    )
+
+
+def _store(sim, state, covariance, particles, weights) -> None:
+    """Write the kernels' arrays back into ``sim``'s objects (which keep the arrays given)."""
+    from stealth_sim.kinematics import Pose, RobotState
+
+    s = state.tolist()
+    sim.state = RobotState(Pose(s[X], s[Y], s[YAW]), s[LINEAR], s[ANGULAR])
+    sim.steps, sim.bumps = int(s[SIM_STEPS]), int(s[BUMPS])
+    sim.time = sim.steps * sim.config.physics_dt
+    odometry, localiser = sim.odometry, sim.localiser
+    odometry.pose = Pose(*s[ODOM : ODOM + 3])
+    odometry._segment_true_start = Pose(*s[SEGMENT_TRUE : SEGMENT_TRUE + 3])
+    odometry._segment_odom_start = Pose(*s[SEGMENT_ODOM : SEGMENT_ODOM + 3])
+    odometry._normals = s[NORMALS : NORMALS + 3]
+    localiser._odom_at_update = Pose(*s[ODOM_AT_UPDATE : ODOM_AT_UPDATE + 3])
+    localiser._estimate_at_update = Pose(*s[ESTIMATE_AT_UPDATE : ESTIMATE_AT_UPDATE + 3])
+    localiser.updates = int(s[UPDATES])
+    localiser.covariance = covariance
+    localiser.filter.particles = particles
+    localiser.filter.weights = weights
+
+
+def update_localisation(sim) -> None:
+    """``Simulator._update_localisation`` on the kernel (``problem(sim)`` must be None), at
+    the odometry the simulator holds: the same update within 1e-9 (``test_fast_paths``), ~1 ms
+    less per update than numpy's calls on 60 beams and 200 particles."""
+    config = sim.config
+    cached = getattr(sim, '_compiled_update_parameters', None)
+    if cached is None or cached[0] is not config:  # reconfigure() replaces the config
+        cached = (config, parameters(sim, None, 0.0, math.inf))
+        sim._compiled_update_parameters = cached
+    state, covariance, particles, weights = _load(sim)
+    rngs = (sim.odometry.rng, sim.localiser.filter.rng, sim._filter_scan_rng)
+    arrays = _static_arrays(sim)[1]
+    particle_filter.update_localisation(
+        state, cached[1], arrays, covariance, particles, weights, rngs
+    )
+    _store(sim, state, covariance, particles, weights)
+
+
 class CompiledMoveRun:
     """One move in progress on the kernels; the interface of ``move_executor._MoveRun``.
 
@@ -131,44 +195,11 @@ class CompiledMoveRun:
         return int(self.state[RUN_STEPS])
 
     def _load(self) -> None:
-        sim, state = self.sim, np.empty(STATE_SIZE)
-        odometry, localiser = sim.odometry, sim.localiser
-        pose, linear, angular = sim.state
-        state[X : SIM_STEPS + 2] = (*pose, linear, angular, sim.steps, sim.bumps)
-        for at, value in (
-            (ODOM, odometry.pose),
-            (SEGMENT_TRUE, odometry._segment_true_start),
-            (SEGMENT_ODOM, odometry._segment_odom_start),
-            (NORMALS, odometry._normals),
-            (ODOM_AT_UPDATE, localiser._odom_at_update),
-            (ESTIMATE_AT_UPDATE, localiser._estimate_at_update),
-        ):
-            state[at : at + 3] = value
-        state[UPDATES], state[RUN_STEPS] = localiser.updates, 0.0
-        state[STOP_TIME], state[STOP_UPDATES] = math.inf, -1.0
-        self.state = state
-        self.covariance = np.array(localiser.covariance, dtype=np.float64)
-        self.particles = np.array(localiser.filter.particles, dtype=np.float64, order='C')
-        self.weights = np.array(localiser.filter.weights, dtype=np.float64)
+        self.state, self.covariance, self.particles, self.weights = _load(self.sim)
 
     def _store(self) -> None:
-        from stealth_sim.kinematics import Pose, RobotState
-
-        sim, s = self.sim, self.state.tolist()
-        sim.state = RobotState(Pose(s[X], s[Y], s[YAW]), s[LINEAR], s[ANGULAR])
-        sim.steps, sim.bumps = int(s[SIM_STEPS]), int(s[BUMPS])
-        sim.time = sim.steps * sim.config.physics_dt
-        odometry, localiser = sim.odometry, sim.localiser
-        odometry.pose = Pose(*s[ODOM : ODOM + 3])
-        odometry._segment_true_start = Pose(*s[SEGMENT_TRUE : SEGMENT_TRUE + 3])
-        odometry._segment_odom_start = Pose(*s[SEGMENT_ODOM : SEGMENT_ODOM + 3])
-        odometry._normals = s[NORMALS : NORMALS + 3]
-        localiser._odom_at_update = Pose(*s[ODOM_AT_UPDATE : ODOM_AT_UPDATE + 3])
-        localiser._estimate_at_update = Pose(*s[ESTIMATE_AT_UPDATE : ESTIMATE_AT_UPDATE + 3])
-        localiser.updates = int(s[UPDATES])
-        localiser.covariance = self.covariance.copy()
-        localiser.filter.particles = self.particles.copy()
-        localiser.filter.weights = self.weights.copy()
+        _store(self.sim, self.state, self.covariance.copy(), self.particles.copy(),
+               self.weights.copy())  # fmt: skip
 
     def move(self, heading: float, distance: float, target):
         """``_MoveRun.move``: the whole move in one kernel call, plus one per step hook call."""

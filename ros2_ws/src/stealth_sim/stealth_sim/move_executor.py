@@ -388,8 +388,9 @@ class _MoveRun:
 
 
 def warm_up() -> float | None:
-    """Compile the kernels (or load them from the cache) with one move of a throwaway
-    simulator, so that no real move pays for it: the seconds it took, None without numba."""
+    """Compile the kernels (or load them from the cache) with one move and one filter update
+    (``Simulator.step_run``'s) of a throwaway simulator, so that no real move or control
+    period pays for it: the seconds it took, None without numba."""
     if jit.import_problem() is not None:
         return None
     cells = np.full((40, 40), OCCUPIED, np.int8)
@@ -397,4 +398,5 @@ def warm_up() -> float | None:
     sim = Simulator(OccupancyMap(cells, 0.05, (0.0, 0.0, 0.0)), SimConfig(), Pose(1.0, 1.0, 0.0))
     started = time.perf_counter()
     execute_move(sim, MoveRequest(MoveKind.UP, 0.3))
+    compiled_move.update_localisation(sim)
     return time.perf_counter() - started

@@ -1,15 +1,21 @@
 """The simulator's messages, built from its core values (and the initial pose's covariance
-read back): plain functions, so the node only decides when to send them."""
+read back): plain functions, and the messages of every control period kept for reuse
+(:class:`StateMessages`), so the node only decides when to send them."""
+
+import array
+import math
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Pose as PoseMsg
 from geometry_msgs.msg import PoseWithCovariance, PoseWithCovarianceStamped, TransformStamped
 from nav_msgs.msg import OccupancyGrid, Odometry
 import numpy as np
+from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import LaserScan
 from stealth_node_kit.conversions import time_msg, yaw_quaternion
+from tf2_msgs.msg import TFMessage
 
-from stealth_sim.frames import BASE_FRAME, MAP_FRAME, FrameTransform
+from stealth_sim.frames import BASE_FRAME, MAP_FRAME, ODOM_FRAME, FrameTransform
 from stealth_sim.kinematics import Pose
 from stealth_sim.occupancy_map import OccupancyMap, to_occupancy_grid_data
 from stealth_sim.simulator import Simulator
@@ -37,15 +43,6 @@ def planar_covariance(covariance_6x6) -> np.ndarray:
     ]
 
 
-def transform_msg(transform: FrameTransform, stamp: Time) -> TransformStamped:
-    result = TransformStamped(child_frame_id=transform.child)
-    result.header.stamp, result.header.frame_id = stamp, transform.parent
-    pose = transform.pose
-    result.transform.translation.x, result.transform.translation.y = pose.x, pose.y
-    result.transform.rotation = yaw_quaternion(pose.yaw)
-    return result
-
-
 def occupancy_grid(occupancy_map: OccupancyMap) -> OccupancyGrid:
     grid = OccupancyGrid()
     grid.header.frame_id = MAP_FRAME
@@ -57,36 +54,128 @@ def occupancy_grid(occupancy_map: OccupancyMap) -> OccupancyGrid:
     return grid
 
 
-def odometry_message(sim: Simulator, frame: str, pose: Pose, stamp: Time) -> Odometry:
-    """``pose`` of base_link in ``frame`` (odom: the noisy odometry; map: the ground truth),
-    with the true body velocities."""
+class StateMessages:
+    """The messages the simulator publishes every control period (odom, ground_truth, scan,
+    /tf, clock) and its amcl_pose, each built once and refilled in place: rclpy converts a
+    message when it is published, so one object serves them all, and building them afresh
+    (nested message objects, the scan's ranges checked value by value) was a tenth of the
+    simulator's time per period when driven over cmd_vel (measured)."""
+
+    def __init__(self, laser):
+        self.odometry = {frame: _odometry(frame) for frame in (ODOM_FRAME, MAP_FRAME)}
+        self.scan = _scan(laser)
+        self.transforms = TFMessage(transforms=[TransformStamped(), TransformStamped()])
+        self.clock = ClockMsg()
+        self.estimate = PoseWithCovarianceStamped()
+        self.estimate.header.frame_id = MAP_FRAME
+
+    def odometry_of(self, sim: Simulator, frame: str, pose: Pose, stamp: Time) -> Odometry:
+        """:func:`odometry_message`, in the one message kept for ``frame``."""
+        return _fill_odometry(self.odometry[frame], sim, pose, stamp)
+
+    def scan_of(self, sim: Simulator, stamp: Time, scan_time: float) -> LaserScan:
+        """:func:`scan_message`, in the one scan kept."""
+        return _fill_scan(self.scan, sim, stamp, scan_time)
+
+    def transforms_of(self, tree, stamp: Time) -> TFMessage:
+        """The /tf message of ``tree`` (``frames.robot_transforms``: its two transforms)."""
+        for message, transform in zip(self.transforms.transforms, tree, strict=True):
+            _fill_transform(message, transform, stamp)
+        return self.transforms
+
+    def clock_at(self, seconds: float) -> ClockMsg:
+        self.clock.clock = time_msg(seconds)
+        return self.clock
+
+    def estimate_of(self, sim: Simulator) -> PoseWithCovarianceStamped:
+        """:func:`estimate_message`, in the one message kept."""
+        return _fill_estimate(self.estimate, sim)
+
+
+def _set_pose(message: PoseMsg, pose: Pose) -> None:
+    message.position.x, message.position.y = pose.x, pose.y
+    orientation, half = message.orientation, pose.yaw / 2  # as yaw_quaternion
+    orientation.z, orientation.w = math.sin(half), math.cos(half)
+
+
+def _odometry(frame: str) -> Odometry:
     message = Odometry(child_frame_id=BASE_FRAME)
-    message.header.stamp, message.header.frame_id = stamp, frame
-    message.pose.pose = pose_msg(pose)
-    message.twist.twist.linear.x = sim.state.linear
-    message.twist.twist.angular.z = sim.state.angular
+    message.header.frame_id = frame
     return message
 
 
-def scan_message(sim: Simulator, stamp: Time, scan_time: float) -> LaserScan:
-    """A scan of the laser at the robot's centre (base_link), drawn now."""
-    laser = sim.config.laser
+def _fill_odometry(message: Odometry, sim: Simulator, pose: Pose, stamp: Time) -> Odometry:
+    message.header.stamp = stamp
+    _set_pose(message.pose.pose, pose)
+    twist = message.twist.twist
+    twist.linear.x, twist.angular.z = sim.state.linear, sim.state.angular
+    return message
+
+
+def odometry_message(sim: Simulator, frame: str, pose: Pose, stamp: Time) -> Odometry:
+    """``pose`` of base_link in ``frame`` (odom: the noisy odometry; map: the ground truth),
+    with the true body velocities."""
+    return _fill_odometry(_odometry(frame), sim, pose, stamp)
+
+
+def _scan(laser) -> LaserScan:
     scan = LaserScan(
         angle_min=laser.angle_min,
         angle_max=laser.angle_max,
         angle_increment=laser.angle_increment,
-        scan_time=scan_time,
         range_min=laser.range_min,
         range_max=laser.range_max,
     )
-    scan.header.stamp, scan.header.frame_id = stamp, BASE_FRAME
-    scan.ranges = sim.scan().astype(np.float32).tolist()
+    scan.header.frame_id = BASE_FRAME
     return scan
+
+
+def _fill_scan(scan: LaserScan, sim: Simulator, stamp: Time, scan_time: float) -> LaserScan:
+    scan.header.stamp, scan.scan_time = stamp, scan_time
+    # An array('f') is taken as is; a list is checked value by value.
+    scan.ranges = array.array('f', sim.scan().astype(np.float32).tobytes())
+    return scan
+
+
+def scan_message(sim: Simulator, stamp: Time, scan_time: float) -> LaserScan:
+    """A scan of the laser at the robot's centre (base_link), drawn now."""
+    return _fill_scan(_scan(sim.config.laser), sim, stamp, scan_time)
+
+
+def _fill_transform(
+    message: TransformStamped, transform: FrameTransform, stamp: Time
+) -> TransformStamped:
+    message.header.stamp, message.header.frame_id = stamp, transform.parent
+    message.child_frame_id = transform.child
+    translation, rotation, half = (
+        message.transform.translation,
+        message.transform.rotation,
+        transform.pose.yaw / 2,
+    )
+    translation.x, translation.y = transform.pose.x, transform.pose.y
+    rotation.z, rotation.w = math.sin(half), math.cos(half)  # as yaw_quaternion
+    return message
+
+
+def transform_msg(transform: FrameTransform, stamp: Time) -> TransformStamped:
+    return _fill_transform(TransformStamped(), transform, stamp)
+
+
+# Where a planar (x, y, yaw) covariance sits in the flat row-major 6x6 one.
+_PLANAR_IN_FULL = np.array([6 * r + c for r in POSE_COVARIANCE_AXES for c in POSE_COVARIANCE_AXES])
+
+
+def _fill_estimate(
+    message: PoseWithCovarianceStamped, sim: Simulator
+) -> PoseWithCovarianceStamped:
+    message.header.stamp = time_msg(sim.time)
+    _set_pose(message.pose.pose, sim.estimate)
+    message.pose.covariance[_PLANAR_IN_FULL] = np.asarray(sim.estimate_covariance).ravel()
+    return message
 
 
 def estimate_message(sim: Simulator) -> PoseWithCovarianceStamped:
     """amcl_pose: the localisation's estimate in the map frame, at the simulated time."""
     message = PoseWithCovarianceStamped()
-    message.header.stamp, message.header.frame_id = time_msg(sim.time), MAP_FRAME
-    message.pose = pose_with_covariance(sim.estimate, sim.estimate_covariance)
-    return message
+    message.header.frame_id = MAP_FRAME
+    return _fill_estimate(message, sim)

@@ -41,24 +41,23 @@ rest may change while running, checked by the same ``sim_config`` that builds th
 
 Time is simulated, published on ``clock`` with the periodic topics (to nodes under
 ``use_sim_time``; a new subscriber gets the current time at once, even while it stands still).
-Under ``use_sim_time`` the node's own ROS clock takes its ``/clock`` when it publishes the next
-one (``stealth_node_kit.on_demand``): nothing here reads it, and a wake-up for it each control
-period was a cost of its own.
-A move over the service runs as fast as the CPU allows when
-``real_time_factor`` is 0, or held to that multiple of wall time. Between moves, with a factor
-> 0, simulated time flows at that multiple of wall time. With the factor 0 it stands still
-until a ``cmd_vel`` comes, so training over the service wastes no CPU and a seeded run of moves
-is the same whatever the load: no physics step, random draw or clock tick ever happens because
-wall time passed (:mod:`stealth_sim.idle_time`). Under ``cmd_vel`` it then runs as fast as
-its subscribers keep up, in lockstep with the controller (:mod:`stealth_sim.lockstep`): the
-simulator steps one control period (``1 / publish_rate`` of simulated time), publishes
-odometry, scan and clock, and steps the next period as soon as the command answering that
-odometry arrives, or after one period of wall time without an answer (a teleop tool or a
-silent subscriber: never slower than real time, never stalled); once the command is older
-than ``cmd_vel_timeout`` and the robot is at rest, time stands still again. The periodic
-topics go out at ``publish_rate`` Hz of simulated time, and only when someone subscribes:
-publishing every physics step would slow training down; they draw their scan noise from a
-stream of their own.
+Under ``use_sim_time`` the node's own ROS clock takes its ``/clock`` at the idle tick
+(``stealth_node_kit.on_demand``): nothing here reads it, and a wake-up (or a take) for it each
+control period was a cost of its own; so were the QoS warnings' event handlers, also polled then.
+A move over the service runs as fast as the CPU allows when ``real_time_factor`` is 0, or held
+to that multiple of wall time. Between moves, with a factor > 0, simulated time flows at that
+multiple of wall time. With the factor 0 it stands still until a ``cmd_vel`` comes, so training
+over the service wastes no CPU and a seeded run of moves is the same whatever the load: no
+physics step, random draw or clock tick ever happens because wall time passed
+(:mod:`stealth_sim.idle_time`). Under ``cmd_vel`` it then runs as fast as its subscribers keep
+up, in lockstep with the controller (:mod:`stealth_sim.lockstep`): the simulator steps one
+control period (``1 / publish_rate`` of simulated time), publishes odometry, scan and clock, and
+steps the next period as soon as the command answering that odometry arrives, or after one
+period of wall time without an answer (a teleop tool or a silent subscriber: never slower than
+real time, never stalled); once the command is older than ``cmd_vel_timeout`` and the robot is
+at rest, time stands still again. The periodic topics go out at ``publish_rate`` Hz of simulated
+time, and only when someone subscribes: publishing every physics step would slow training down;
+they draw their scan noise from a stream of their own.
 """
 
 import ctypes
@@ -66,10 +65,7 @@ import ctypes.util
 import math
 import time
 
-from geometry_msgs.msg import (
-    PoseWithCovarianceStamped,
-    Twist,
-)
+from geometry_msgs.msg import PoseWithCovarianceStamped, Twist
 from nav_msgs.msg import OccupancyGrid, Odometry
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
@@ -83,7 +79,7 @@ from stealth_node_kit import rl_contract
 from stealth_node_kit.conversions import quaternion_yaw, time_msg
 from stealth_node_kit.endpoints import QUIET_PUBLISHER, warn_publisher, warn_subscription
 from stealth_node_kit.in_process import InProcessServices
-from stealth_node_kit.on_demand import OnDemand, clock_on_demand
+from stealth_node_kit.on_demand import OnDemand, clock_on_demand, events_on_demand
 from stealth_node_kit.parameters import StartupError, declare_parameters
 from stealth_node_kit.qos import kept_qos
 from stealth_node_kit.running import StartupNode, run_node
@@ -100,14 +96,11 @@ from stealth_sim.lockstep import Lockstep
 from stealth_sim.move_executor import MoveOutcome, MoveRequest, StepStops, execute_move, warm_up
 from stealth_sim.occupancy_map import MapError, OccupancyMap, load_map
 from stealth_sim.sim_messages import (
-    estimate_message,
+    StateMessages,
     occupancy_grid,
-    odometry_message,
     planar_covariance,
     pose_msg,
     pose_with_covariance,
-    scan_message,
-    transform_msg,
 )
 from stealth_sim.sim_parameters import PARAMETERS, START_UP, sim_config
 from stealth_sim.simulator import Simulator, most_open_pose
@@ -139,6 +132,7 @@ class SimulatorNode(StartupNode):
             self.sim = Simulator(self.map, config, start)
         except ValueError as exc:
             raise StartupError(f'parameter initial_pose: {exc}') from None
+        self._messages = StateMessages(config.laser)  # the laser's layout cannot change
         self.real_time_factor = values['real_time_factor']
         self.cmd_vel_timeout = values['cmd_vel_timeout']
         self.publish_period = 1.0 / values['publish_rate']
@@ -152,10 +146,10 @@ class SimulatorNode(StartupNode):
         self._pacer = RealTimePacer(self.sim.time)
         self._lockstep = Lockstep(self.publish_period)  # factor 0 under cmd_vel
         self._clock_readers = 0  # /clock subscribers when it was last published
-        # Under use_sim_time the node hears its own /clock: taken when it publishes the next,
-        # not on a wake-up of its own every control period.
-        self._own_clock = OnDemand()
-        clock_on_demand(self, self._own_clock)
+        # Under use_sim_time the node hears its own /clock: taken at the idle tick, not on a
+        # wake-up of its own every control period.
+        self._on_demand = OnDemand()
+        clock_on_demand(self, self._on_demand)
 
         latched = kept_qos(1)
         # rclpy gives every endpoint default QoS event handlers, each an entity the executor
@@ -214,6 +208,7 @@ class SimulatorNode(StartupNode):
         self.create_timer(self.idle_period, self._on_idle_tick, clock=steady)
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
+        events_on_demand(self, self._on_demand)  # QoS warnings: polled by the idle tick
 
         grid = occupancy_grid(self.map)
         grid.header.stamp = grid.info.map_load_time = time_msg(self.sim.time)
@@ -304,6 +299,8 @@ class SimulatorNode(StartupNode):
         """Between moves: simulated time runs at the real-time factor, or in lockstep with
         /cmd_vel at factor 0, and stands still in training (see stealth_sim.idle_time: never on
         wall time alone)."""
+        self._on_demand.drain()  # its own /clock, for its ROS clock
+        self._on_demand.poll_events()
         if self._estimate_due and self.pose_pub.get_subscription_count():
             self._publish_estimate()
         if self.clock_pub.get_subscription_count() != self._clock_readers:
@@ -328,12 +325,29 @@ class SimulatorNode(StartupNode):
         self._step_until(tick.until)
 
     def _step_until(self, until: float) -> None:
-        """Physics steps under the latest fresh command up to simulated time ``until``."""
-        while self.sim.time + self.sim.config.physics_dt <= until + 1e-9:
-            linear, angular = self._fresh_command() or (0.0, 0.0)
-            if self.sim.step(linear, angular):
+        """Physics steps under the latest fresh command up to simulated time ``until``, in
+        runs (``Simulator.step_run``) that end where something is due to publish."""
+        sim = self.sim
+        while sim.time + sim.config.physics_dt <= until + 1e-9:
+            command = self._fresh_command()
+            bumps = sim.bumps
+            sim.step_run(*(command or (0.0, 0.0)), self._steps_alike(command, until))
+            if sim.bumps != bumps:
                 self.get_logger().info('bumped into a wall', throttle_duration_sec=1.0)
             self._publish_due()
+
+    def _steps_alike(self, command: tuple[float, float] | None, until: float) -> int:
+        """How many physics steps from now (at least one) take ``command`` (None: stale) as
+        :meth:`_fresh_command` would, end by ``until`` and pass no periodic publication."""
+        dt, steps = self.sim.config.physics_dt, self.sim.steps
+        count = 1
+        while True:
+            after = (steps + count) * dt  # as Simulator.time after ``count`` steps
+            if after + dt > until + 1e-9 or after >= self._next_publish - 1e-9:
+                return count
+            if command is not None and after - self._command_time > self.cmd_vel_timeout:
+                return count
+            count += 1
 
     def _next_period(self) -> None:
         """Lockstep: one control period, up to and including its publication, whose answer
@@ -423,7 +437,7 @@ class SimulatorNode(StartupNode):
     def _publish_state(self, everything: bool = False) -> None:
         """Odometry, ground truth, scan, clock and /tf to whoever subscribes; with ``everything``
         also the estimate, which is latched for late subscribers."""
-        sim = self.sim
+        sim, messages = self.sim, self._messages
         self._next_publish = sim.time + self.publish_period
         if not everything and not any(p.get_subscription_count() for p in self._periodic):
             return  # the usual case in training: nobody listens, so build nothing
@@ -434,20 +448,19 @@ class SimulatorNode(StartupNode):
             (self.truth_pub, MAP_FRAME, sim.ground_truth),
         ):
             if publisher.get_subscription_count():
-                publisher.publish(odometry_message(sim, frame, pose, stamp))
+                publisher.publish(messages.odometry_of(sim, frame, pose, stamp))
         if self.scan_pub.get_subscription_count():
-            self.scan_pub.publish(scan_message(self.sim, stamp, self.publish_period))
+            self.scan_pub.publish(messages.scan_of(sim, stamp, self.publish_period))
         if self.tf_pub.get_subscription_count():
             tree = robot_transforms(sim.estimate, sim.odometry_pose)
-            self.tf_pub.publish(TFMessage(transforms=[transform_msg(t, stamp) for t in tree]))
+            self.tf_pub.publish(messages.transforms_of(tree, stamp))
         if everything:
             self._publish_estimate(only_if_subscribed=True)
 
     def _publish_clock(self) -> None:
-        self._own_clock.drain()
         self._clock_readers = self.clock_pub.get_subscription_count()
         if self._clock_readers:
-            self.clock_pub.publish(ClockMsg(clock=time_msg(self.sim.time)))
+            self.clock_pub.publish(self._messages.clock_at(self.sim.time))
 
     def _publish_estimate(self, only_if_subscribed: bool = False) -> None:
         """amcl_pose; `only_if_subscribed`: with no subscriber it stays due, and the idle tick
@@ -458,7 +471,7 @@ class SimulatorNode(StartupNode):
             return
         self._estimate_due = False
         self._published_updates = self.sim.localisation_updates
-        self.pose_pub.publish(estimate_message(self.sim))
+        self.pose_pub.publish(self._messages.estimate_of(self.sim))
 
 
 def keep_freed_memory_for_reuse() -> None:

@@ -235,6 +235,27 @@ def test_holds_pass_their_steps_at_rest_at_once_but_stop_where_the_hook_is_due(p
     assert [entry[0][3] for entry in held] == [75, 1, 0, 42]  # 3, 0.01 and 1.7 s in 0.04 s steps
 
 
+def test_runs_of_steps_under_a_command_equal_the_reference_step_by_step():
+    """``Simulator.step_run`` (a control period under cmd_vel, its filter updates on the
+    kernel) against the reference's ``step``: the same state after every run, and a run ends
+    right after the step that updated the filter."""
+    commands = [(0.3, 0.0)] * 40 + [(0.0, 1.0)] * 10 + [(0.5, -0.3)] * 30 + [(0.0, 0.0)] * 5
+    fast = Simulator(maze_map(), TRAINING, START)
+    reference = Simulator(maze_map(), TRAINING, START, reference=True)
+    runs = 0
+    for linear, angular in commands + [(-0.4, 0.2)] * 20:
+        left = 5
+        while left:
+            updates = fast.localisation_updates
+            taken = fast.step_run(linear, angular, left)
+            for _ in range(taken):
+                reference.step(linear, angular)
+            assert taken == left or fast.localisation_updates == updates + 1
+            assert_equal_within_tolerance(observed(fast), observed(reference))
+            left, runs = left - taken, runs + 1
+    assert fast.bumps > 0 and fast.localisation_updates > 20 and runs > len(commands) + 20
+
+
 def test_a_hook_with_stops_due_every_step_sees_every_step():
     def run(reference):
         sim = Simulator(maze_map(), TRAINING, START, reference=reference)

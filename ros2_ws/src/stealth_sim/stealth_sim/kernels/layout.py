@@ -2,6 +2,8 @@
 in place) and its parameters (read only, filled by :func:`parameters`). One place for the
 indices, so that every kernel module reads the same layout."""
 
+import math
+
 import numpy as np
 
 # The move state, one float64 array the kernels update in place (indices).
@@ -41,10 +43,20 @@ TURN, TURN_BRAKE, DRIVE, END_BRAKE, LOCALISE, ENDED = range(6)
 FINISHED, BUMPED, TIMED_OUT, PAUSED = 0, 1, 3, -1
 
 
+class _NoController:
+    braking_share = heading_tolerance = position_tolerance = math.nan
+    aim_distance = stopped_speed = math.nan
+
+
+_NO_CONTROLLER = _NoController()
+
+
 def parameters(sim, controller, start_time: float, time_limit: float) -> np.ndarray:
     """The parameter array of a move of ``sim`` (a ``Simulator``) under ``controller`` (a
-    ``move_executor.ControllerConfig``)."""
+    ``move_executor.ControllerConfig``; None for a filter update alone: its fields NaN)."""
     config, limits, localiser = sim.config, sim.config.limits, sim.localiser
+    if controller is None:
+        controller = _NO_CONTROLLER
     odometry, noise = sim.odometry, sim.odometry.noise
     motion, footprint, caster = localiser.filter.motion_noise, sim.footprint, sim.caster
     field = localiser.filter.field
