@@ -22,7 +22,14 @@ def seconds(stamp: Time) -> float:
 
 def yaw_quaternion(yaw: float) -> Quaternion:
     """The rotation by `yaw` (rad) about +z."""
-    return Quaternion(z=math.sin(yaw / 2), w=math.cos(yaw / 2))
+    return set_yaw(Quaternion(), yaw)
+
+
+def set_yaw(quaternion: Quaternion, yaw: float) -> Quaternion:
+    """``quaternion`` (x and y left 0) made the rotation by `yaw` (rad) about +z, in place: for
+    a message kept and refilled every control period."""
+    quaternion.z, quaternion.w = math.sin(yaw / 2), math.cos(yaw / 2)
+    return quaternion
 
 
 def quaternion_yaw(q: Quaternion) -> float:

@@ -3,7 +3,6 @@ read back): plain functions, and the messages of every control period kept for r
 (:class:`StateMessages`), so the node only decides when to send them."""
 
 import array
-import math
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Pose as PoseMsg
@@ -12,7 +11,7 @@ from nav_msgs.msg import OccupancyGrid, Odometry
 import numpy as np
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import LaserScan
-from stealth_node_kit.conversions import time_msg, yaw_quaternion
+from stealth_node_kit.conversions import set_yaw, time_msg, yaw_quaternion
 from tf2_msgs.msg import TFMessage
 
 from stealth_sim.frames import BASE_FRAME, MAP_FRAME, ODOM_FRAME, FrameTransform
@@ -94,8 +93,7 @@ class StateMessages:
 
 def _set_pose(message: PoseMsg, pose: Pose) -> None:
     message.position.x, message.position.y = pose.x, pose.y
-    orientation, half = message.orientation, pose.yaw / 2  # as yaw_quaternion
-    orientation.z, orientation.w = math.sin(half), math.cos(half)
+    set_yaw(message.orientation, pose.yaw)
 
 
 def _odometry(frame: str) -> Odometry:
@@ -147,13 +145,9 @@ def _fill_transform(
 ) -> TransformStamped:
     message.header.stamp, message.header.frame_id = stamp, transform.parent
     message.child_frame_id = transform.child
-    translation, rotation, half = (
-        message.transform.translation,
-        message.transform.rotation,
-        transform.pose.yaw / 2,
-    )
+    translation = message.transform.translation
     translation.x, translation.y = transform.pose.x, transform.pose.y
-    rotation.z, rotation.w = math.sin(half), math.cos(half)  # as yaw_quaternion
+    set_yaw(message.transform.rotation, transform.pose.yaw)
     return message
 
 
