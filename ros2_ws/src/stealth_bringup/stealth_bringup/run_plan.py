@@ -260,12 +260,13 @@ def run_prior(requested: str | None, continued, parameters: dict) -> str:
         if requested != 'none':
             _check_prior(continued, parameters)
         return requested
+    if _table_learner(parameters) not in OPTIMISTIC:
+        return 'none'
     try:
         _check_prior(continued, parameters)
-        optimistic = canonical_learner_name(_agent_value(parameters, 'agent')) in OPTIMISTIC
-    except (RunConfigError, ValueError):  # ValueError: a name the agent node will refuse
+    except RunConfigError:
         return 'none'
-    return 'floor_plan' if optimistic else 'none'
+    return 'floor_plan'
 
 
 def _agent_value(parameters: dict, name: str):
@@ -273,14 +274,20 @@ def _agent_value(parameters: dict, name: str):
     return parameters['agent'].values.get(name, AGENT_PARAMETERS[name].default)
 
 
+def _table_learner(parameters: dict) -> str | None:
+    """The agent's learner (a LEARNER_NAMES name); None for a policy plugin or a name the agent
+    node will refuse itself."""
+    try:
+        return canonical_learner_name(_agent_value(parameters, 'agent'))
+    except ValueError:
+        return None
+
+
 def _exploration_notes(parameters: dict) -> list[str]:
     """A note where a learner that does not explore by optimism runs with agent.yaml's
     epsilon 0 (set for prioritized sweeping)."""
-    try:
-        name = canonical_learner_name(_agent_value(parameters, 'agent'))
-    except ValueError:  # a plugin, or a name the agent node refuses itself
-        return []
-    if name in OPTIMISTIC or _agent_value(parameters, 'epsilon') != 0.0:
+    name = _table_learner(parameters)
+    if name is None or name in OPTIMISTIC or _agent_value(parameters, 'epsilon') != 0.0:
         return []
     return [
         f'agent {name} with epsilon 0 tries only what its initial values make look better than '
