@@ -1,5 +1,6 @@
 """System test: a scenario made by `stealth scenarios generate` trains through ROS."""
 
+import csv
 import json
 
 from test_system import system  # noqa: F401 - the fixture: stealth commands, nothing left over
@@ -21,6 +22,10 @@ def test_a_generated_scenario_trains_through_ros(system, tmp_path):  # noqa: F81
     summary = json.loads((run / 'summary.json').read_text())
     assert summary['episodes'] >= 2, summary  # the budget's episodes ran, greedy ones too
     assert 'gen-0000011' in json.dumps(summary)
+    # Every episode scored on the lattice: no step was built before the monitor could read it.
+    with (run / 'episodes.csv').open() as rows:
+        scored = [int(row['lattice_steps']) >= 0 for row in csv.DictReader(rows)]
+    assert len(scored) == summary['episodes'] and all(scored), scored
 
 
 def test_the_harness_trains_on_a_generated_scenario(tmp_path):

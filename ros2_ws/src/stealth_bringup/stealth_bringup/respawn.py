@@ -23,6 +23,7 @@ from stealth_tools.bag_files import next_recording_file
 
 from stealth_bringup.episode_tracker import unfinished_fields
 from stealth_bringup.run_config import RunError, relative_to_cwd
+from stealth_bringup.run_plan import step_readers
 
 EXIT_CANNOT_START = 2  # stealth_node_kit.running.EXIT_CANNOT_START (bad parameters or input)
 RESPAWN_DELAYS = (0.5, 1.0, 2.0, 4.0, 8.0)  # s before the 1st, 2nd, ... restart of a node
@@ -159,8 +160,8 @@ class Respawner:
                 for record in run.tracker.add_summary(fields, wall_time):
                     run.on_record(record)
                 restart.aborted_episode = episode
-            # Its first steps must reach the monitor and the recorder (see step_readers).
-            readers = 1 + bool(run.plan.record)
+            # Its first steps must reach the monitor and the recorder, as at the start.
+            readers = step_readers(run.plan.record)
             return {'first_episode': monitor.next_episode(), 'step_readers': readers}
         if name == 'agent' and run.plan.mode == 'train':
             # Its checkpoint (saved every episode) holds the table, the model, the schedules'

@@ -252,6 +252,15 @@ class RunPlan:
             write_params_file(parameters, self.params_file(node), header)
 
 
+def step_readers(record: bool) -> int:
+    """The readers of rl_env/step_info a run brings (its monitor, and its recorder when
+    recording): the environment starts episodes only once that many are matched. Its StepInfo
+    is built only while someone reads it, and a monitor matched late (the orchestrator busy
+    checking parameters while the first episodes ran) left those steps unscored: a run without
+    a recording then missed the criterion for its first 16 episodes."""
+    return 1 + bool(record)
+
+
 def run_prior(requested: str | None, continued, parameters: dict) -> str:
     """The prior a training run's table starts from: the one asked for (RunConfigError where it
     cannot apply), else floor_plan where a new table of a learner that explores by optimism
@@ -380,7 +389,9 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
     # Episode numbers start at 0, or go on after a continued run's last one (agent and
     # environment alike), whatever a parameter file from another run says.
     first = {'first_episode': continued.first_episode if continued is not None else 0}
-    parameters['environment'].values.update(first)
+    parameters['environment'].values.update(
+        first, step_readers=step_readers(record='recorder' in parameters)
+    )
     if mode == 'train' and continued is not None:
         directory = Path(args.resume)
         policy_path = directory / 'policy.npz'

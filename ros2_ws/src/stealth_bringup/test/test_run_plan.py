@@ -248,3 +248,11 @@ def test_a_prior_where_no_table_can_take_it_is_one_line(argv, message, tmp_path)
     with pytest.raises(RunConfigError, match=message):
         plan_of('--prior', 'floor_plan', *argv, runs_dir=tmp_path)
     assert not any(tmp_path.iterdir())  # refused before the run's directory exists
+
+
+@pytest.mark.parametrize(('argv', 'readers'), [([], 2), (['--no-record'], 1)])
+def test_episodes_start_once_the_run_s_step_readers_are_matched(argv, readers, tmp_path):
+    """The monitor (and the recorder) must have every step: an episode whose steps were built
+    before its reader was matched cannot be scored."""
+    plan = plan_of(*argv, runs_dir=tmp_path)
+    assert plan.parameters['environment'].values['step_readers'] == readers

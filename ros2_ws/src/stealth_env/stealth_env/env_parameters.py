@@ -77,9 +77,10 @@ PARAMETERS = {
     ),
     'step_readers': Param(
         0, 'Episodes start only once rl_env/step_info is matched with at least this many '
-        'readers. StepInfo is built only while someone reads it, so a respawned environment '
-        "whose writer DDS matched late would leave its first steps out of the run's recording: "
-        'stealth train sets its own readers (its monitor, its recorder) for a respawn.',
+        'readers. StepInfo is built only while someone reads it, so an environment whose '
+        "writer DDS matched late would leave its first steps out of the run's scores and "
+        'recording: stealth train sets its own readers (its monitor, its recorder) at every '
+        'start.',
         (0, 1000)
     ),
     'publish_plan': Param(
