@@ -12,7 +12,7 @@ topics are reliable and volatile, with a lockstep history that never fills (no s
 * publishes ``rl_env/rl_env_description`` (RLEnvDescription; reliable + transient local,
   depth 1) once; ``rl_env/rl_state_reward`` (RLStateReward) at every episode start and after
   every action; ``rl_env/step_info`` (StepInfo) after every action, built only while someone
-  subscribes (a recorder, a viewer) as the simulator does with its periodic topics;
+  subscribes (episodes wait for ``step_readers`` of it: stealth train's monitor and recorder);
   ``rl_env/episode_summary`` (EpisodeSummary) at every episode end. ``step_info`` and
   ``episode_summary`` are transient local with the last STEP_HISTORY and SUMMARY_HISTORY
   messages, for a reader that (re)joins late (a recorder, the orchestrator, an agent: DDS may
@@ -59,25 +59,15 @@ to come gets a fresh one. Totals of actions and states are logged at shutdown.
 
 ``stealth_env.env_parameters.PARAMETERS``. Bad startup input (no or an unusable scenario, an
 unknown goal, a bad parameter value) stops the node with one line saying which and why, and exit
-code 2. The robot interface (``robot_interface``, ``reset_mode``): ``service`` (the default) is
-the above. ``topics`` plugs into any ROS robot (Stage, Gazebo, a TurtleBot with nav2's AMCL; or
-``stealth_sim`` over the same topics): a move is the same turn-then-drive with the same
-tolerances and outcomes, executed closed-loop by ``stealth_env.topic_moves`` on every ``odom``
-message: ``geometry_msgs/Twist`` on ``cmd_vel``, the pose from ``amcl_pose``
-(PoseWithCovarianceStamped, frame ``map``) carried forward by ``odom``, BUMPED from ``scan`` (a
-wall within ``bump_distance`` ahead) or no progress for ``stall_time``, TIMED_OUT at the service
-path's time limit, in the robot's clock (message stamps). Judging uses ``ground_truth``
-(nav_msgs/Odometry, frame ``map``) when it is published, otherwise the estimate (a warning once;
-StepInfo.true_pose is then NaN). ``reset_mode`` ``teleport`` calls ``reset_service``
-(stealth_interfaces/ResetRobot, ``sim/reset``); ``drive`` drives back to the start along a
-collision-free path on the move lattice (lights ignored), then publishes ``initialpose``. All
-topic names are relative and remappable. A robot that does not move on ``cmd_vel`` makes moves
-TIME OUT; after ``unresponsive_moves`` of them in a row the episode is ABORTED and the node exits
-with code 3 and a line saying the robot is not responding. A robot that stops publishing
-``odom`` for ``move_timeout`` (simulated s under ``use_sim_time``: the robot is timed on
-``/clock``), or whose ``/clock`` stops for ``clock_timeout`` wall s, aborts the episode naming
-it (``stealth_env.robot_watch``). An ``amcl_pose`` in another frame or a non-finite pose is
-dropped with a one-line error naming the topic (throttled); the move goes on with the next.
+code 2. The robot interface (``robot_interface``): ``service`` (the default) is the above;
+``topics`` plugs into any ROS robot over ``cmd_vel``/``odom``/``amcl_pose``/``scan`` (Stage,
+Gazebo, a TurtleBot with nav2's AMCL, or ``stealth_sim`` over the same topics), the same moves
+with the same tolerances and outcomes executed closed-loop (``stealth_env.topic_robot``, which
+says how, with its resets, ``reset_mode``, and its watchdogs). There the judge uses
+``ground_truth`` (nav_msgs/Odometry, frame ``map``) when it is published, otherwise the estimate
+(a warning once; StepInfo.true_pose is then NaN); a robot that is not responding (after
+``unresponsive_moves`` timed-out moves in a row) ends the episode ABORTED and the node exits with
+code 3 and a line saying so.
 """
 
 from __future__ import annotations
@@ -117,6 +107,7 @@ from stealth_env.scenario import ScenarioError, load_scenario
 from stealth_env.scene_publisher import ScenePublisher
 from stealth_env.sensed_track import SensedTrack
 from stealth_env.service_robot import ServiceRobot, Teleport
+from stealth_env.start_gate import StartGate
 from stealth_env.task import StealthTask
 from stealth_env.topic_moves import Pose
 from stealth_env.topic_robot import TopicRobot
@@ -124,7 +115,6 @@ from stealth_env.topic_robot import TopicRobot
 NODE_NAME = 'environment'
 TICK_PERIOD = 0.1  # s of wall time between housekeeping ticks (start, timeouts, agent presence)
 RESET_RETRY = 1.0  # s of wall time before a failed reset is tried again
-WAITING_LOG_PERIOD = 10.0  # s of wall time between 'still waiting' lines
 MOVE_NOTE_LOG_PERIOD = 5.0  # s of wall time between lines about bumped moves
 RESET_FAILED_LOG_PERIOD = 10.0  # s of wall time between lines about failed resets
 STOP_DELAY = 1.0  # s of wall time between giving up on the robot and exiting (messages go out)
@@ -169,17 +159,19 @@ class EnvironmentNode(StartupNode):
         self.exit_code = 0
         self._first_state_at = 0.0  # time.monotonic() of the latest first state
         self._sim_time = 0.0  # the latest simulated time the simulator reported (s)
-        self._ready_since: float | None = None
-        self._retry_at = 0.0
-        self._waiting_logged = time.monotonic()
+        self._gate = StartGate(time.monotonic())
         self._window: list = []  # EpisodeSummaryFields since the last progress line
         self._move_note_log = Throttle(MOVE_NOTE_LOG_PERIOD)
         self._reset_failed_log = Throttle(RESET_FAILED_LOG_PERIOD)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         sensed = SensedTrack(self.task) if values['track'] == 'sensed' else None
         try:
-            grid = observed_grid(self.task, values['track'], values['observation_layout'],
-                                 None if sensed is None else sensed.model)  # fmt: skip
+            grid = observed_grid(
+                self.task,
+                values['track'],
+                values['observation_layout'],
+                None if sensed is None else sensed.model,
+            )
         except ValueError as error:
             raise StartupError(f'parameter observation_layout: {error}') from None
         self.agent = AgentLink(self, self._on_action, self._on_experiment_info, sensed, grid)
@@ -215,16 +207,25 @@ class EnvironmentNode(StartupNode):
         if values['robot_interface'] == 'service':
             return ServiceRobot(self, self._in_process, teleport, self._move_timeout)
         config = topic_config(values, self.scenario.robot_radius)
-        return TopicRobot(self, config, MAP_FRAME, self.task.lattice, teleport,
-                          values['unresponsive_moves'], self._move_timeout,
-                          lambda: self.clock_timeout)  # fmt: skip
+        return TopicRobot(
+            self,
+            config,
+            MAP_FRAME,
+            self.task.lattice,
+            teleport,
+            values['unresponsive_moves'],
+            self._move_timeout,
+            lambda: self.clock_timeout,
+        )
 
     # --- parameters -----------------------------------------------------------------------------
 
     def _load_scenario(self, name: str):
         if not name:
-            raise StartupError('parameter scenario: required, a scenario name (e.g. lgfloor) '
-                               'or the path of a scenario YAML')  # fmt: skip
+            raise StartupError(
+                'parameter scenario: required, a scenario name (e.g. lgfloor) '
+                'or the path of a scenario YAML'
+            )
         try:
             return load_scenario(name)
         except (ScenarioError, OSError, ValueError) as error:
@@ -243,8 +244,14 @@ class EnvironmentNode(StartupNode):
                 self.flow.judge_on = change.value
             elif change.name == 'marker_period':
                 self.scene.schedule(change.value)
-            elif change.name in ('move_timeout', 'clock_timeout', 'start_delay',
-                                 'first_action_timeout', 'step_readers', 'log_every'):  # fmt: skip
+            elif change.name in (
+                'move_timeout',
+                'clock_timeout',
+                'start_delay',
+                'first_action_timeout',
+                'step_readers',
+                'log_every',
+            ):
                 setattr(self, change.name, change.value)
         names = ', '.join(f'{c.name}={c.value}' for c in changes)
         self.get_logger().info(f'parameters changed: {names}')
@@ -317,24 +324,17 @@ class EnvironmentNode(StartupNode):
         return summary
 
     def _maybe_start(self, now: float) -> None:
-        robot, agent = self.robot.ready(), self.agent.agent_connected()
+        an_agent = f'publishing {TOPICS["action"]}, subscribed to {TOPICS["state"]}'
         readers = self.agent.step_readers() >= self.step_readers
-        if not (robot and agent and readers):
-            self._ready_since = None
-            if now - self._waiting_logged >= WAITING_LOG_PERIOD:
-                self._waiting_logged = now
-                wanted = {
-                    f'the robot: {self.robot.describe()}': robot,
-                    f'an agent (publishing {TOPICS["action"]}, subscribed to {TOPICS["state"]})':
-                        agent,
-                    f'{self.step_readers} readers of {TOPICS["step_info"]}': readers,
-                }  # fmt: skip
-                missing = ' and '.join(what for what, there in wanted.items() if not there)
-                self.get_logger().info(f'still waiting for {missing}')
-            return
-        if self._ready_since is None:
-            self._ready_since = now
-        if now - self._ready_since >= self.start_delay and now >= self._retry_at:
+        needs = {
+            f'the robot: {self.robot.describe()}': self.robot.ready(),
+            f'an agent ({an_agent})': self.agent.agent_connected(),
+            f'{self.step_readers} readers of {TOPICS["step_info"]}': readers,
+        }
+        start, waiting = self._gate.check(now, needs, self.start_delay)
+        if waiting is not None:
+            self.get_logger().info(waiting)
+        if start:
             self._start_episode()
 
     # --- episodes -------------------------------------------------------------------------------
@@ -349,7 +349,7 @@ class EnvironmentNode(StartupNode):
         out."""
         if problem:
             if self.flow.reset_failed(token):
-                self._retry_at = time.monotonic() + RESET_RETRY
+                self._gate.retry_at(time.monotonic() + RESET_RETRY)
                 if self._reset_failed_log():
                     what = 'the drive to the start'
                     what = self.reset_service if self.reset_by_teleport else what
