@@ -155,6 +155,11 @@ def argmax_random(values: np.ndarray, rng: np.random.Generator) -> int:
     return int(best[rng.integers(best.size)])
 
 
+def first_or_random(values: np.ndarray, rng: np.random.Generator | None) -> int:
+    """argmax_random, or without ``rng`` the first maximal entry."""
+    return int(np.argmax(values)) if rng is None else argmax_random(values, rng)
+
+
 class TabularLearner:
     """Common table handling, action choice and serialisation; subclasses define the target."""
 
@@ -248,11 +253,12 @@ class TabularLearner:
 
     # --- acting ------------------------------------------------------------------------------
 
-    def greedy_action(self, s: int, rng: np.random.Generator) -> int:
-        """A maximal action of row s, ties broken at random."""
+    def greedy_action(self, s: int, rng: np.random.Generator | None = None) -> int:
+        """A maximal action of row s, ties broken at random (without ``rng``: the first, for a
+        planner that must answer alike every time)."""
         s = self._check_row(s)
         self.ensure_rows(s + 1)
-        return argmax_random(self._q[s], rng)
+        return first_or_random(self._q[s], rng)
 
     def act(self, s: int, rng: np.random.Generator, *, greedy: bool = False) -> int:
         """Epsilon-greedy action in row s (rl_agent: uniform draw < epsilon -> random action)."""
@@ -478,23 +484,31 @@ class DynaQ(QLearning):
             total += count
         return weighted / total
 
-    def to_arrays(self) -> dict[str, np.ndarray]:
-        """The table and the model, one row per (s, a, outcome)."""
-        arrays = super().to_arrays()
+    def model_outcomes(self) -> dict[str, np.ndarray]:
+        """The model, one entry per (s, a, outcome) in the order pairs were first tried:
+        ``pair`` (its model index), ``s``, ``a``, ``next`` (-1 when terminal), ``terminal``,
+        ``count`` and (mean) ``reward``."""
         rows = [
-            (s, a, reward, next_row, terminal, count)
-            for s, a, outcomes in zip(
-                self._model_s, self._model_a, self._model_outcomes, strict=True
+            (i, s, a, next_row, terminal, count, reward)
+            for i, (s, a, outcomes) in enumerate(
+                zip(self._model_s, self._model_a, self._model_outcomes, strict=True)
             )
             for (next_row, terminal), (count, reward) in outcomes.items()
         ]
-        columns = list(zip(*rows, strict=True)) if rows else [()] * 6
-        arrays['model_s'] = np.asarray(columns[0], dtype=np.int64)
-        arrays['model_a'] = np.asarray(columns[1], dtype=np.int64)
-        arrays['model_reward'] = np.asarray(columns[2], dtype=np.float64)
-        arrays['model_next'] = np.asarray(columns[3], dtype=np.int64)
-        arrays['model_terminal'] = np.asarray(columns[4], dtype=bool)
-        arrays['model_count'] = np.asarray(columns[5], dtype=np.int64)
+        columns = list(zip(*rows, strict=True)) if rows else [()] * 7
+        types = (np.int64, np.int64, np.int64, np.int64, bool, np.int64, np.float64)
+        names = ('pair', 's', 'a', 'next', 'terminal', 'count', 'reward')
+        return {
+            name: np.asarray(column, dtype=kind)
+            for name, column, kind in zip(names, columns, types, strict=True)
+        }
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """The table and the model, one row per (s, a, outcome)."""
+        arrays = super().to_arrays()
+        model = self.model_outcomes()
+        for name in ('s', 'a', 'reward', 'next', 'terminal', 'count'):
+            arrays[f'model_{name}'] = model[name]
         return arrays
 
     def _load_extra(self, arrays, rows: int) -> None:

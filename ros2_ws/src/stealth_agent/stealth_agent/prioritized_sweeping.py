@@ -28,8 +28,12 @@ not seen keeps its row's initial values (``initial_value``, or a prior given to
 upper bound on the true values with epsilon 0 (the harness's settings: the floor plan's values
 with the lights dark, ``stealth_env.floor_plan_prior``, else the goal reward) every
 untried pair that could still lie on a cheaper route than the best known is tried once, and the
-greedy route is the optimum once none is left. With Q 0 and step costs below 0 untried pairs
+table's route is the optimum once none is left. With Q 0 and step costs below 0 untried pairs
 look better only until the goal is found, and the first route found stands.
+
+The greedy policy (greedy evaluations, rollouts of a saved policy) is not the table's, which
+is the next way to try, but the best way the model knows (``known_model``: E3's exploitation
+policy), recomputed when the model has changed.
 """
 
 import bisect
@@ -37,6 +41,7 @@ import heapq
 
 import numpy as np
 
+from .known_model import greedy_known, known_values
 from .learners import DynaQ, LearnerConfig, register_learner
 
 
@@ -50,7 +55,33 @@ class PrioritizedSweeping(DynaQ):
         super().__init__(num_actions, config)
         self._forget_queue()
 
+    def greedy_action(self, s: int, rng: np.random.Generator | None = None) -> int:
+        """The action of the best way the model knows from row s (``known_model``); where
+        none is known, an untried one, the table choosing; ties at random (without ``rng``:
+        the first)."""
+        s = self._check_row(s)
+        self.ensure_rows(s + 1)
+        values = self._known()
+        if s >= values.shape[0]:  # a state first seen now: nothing known of it
+            return super().greedy_action(s, rng)
+        return greedy_known(values[s], self._q[s], rng)
+
+    def _known(self) -> np.ndarray:
+        """known_model.known_values of the model as it is (cached until a real update)."""
+        if self._known_at != self.updates or self._known_values is None:
+            model = self.model_outcomes()
+            self._known_values = known_values(
+                (self._rows, self.num_actions),
+                (np.asarray(self._model_s), np.asarray(self._model_a)),
+                tuple(model[name] for name in ('pair', 'next', 'terminal', 'count', 'reward')),
+                self.config.gamma,
+            )
+            self._known_at = self.updates
+        return self._known_values
+
     def _forget_queue(self) -> None:
+        self._known_values: np.ndarray | None = None  # known_model's values, at _known_at
+        self._known_at = -1
         # Next row -> model indices of the pairs seen to lead there, ascending: the same order
         # whether learned or loaded from a file, so that a resumed run plans alike.
         self._predecessors: dict[int, list[int]] = {}

@@ -73,10 +73,10 @@ def greedy_actions(policy: SavedPolicy | None, scenario, model) -> np.ndarray:
     """(places,) the policy's greedy action at each place of the model, -1 where it never saw
     the state (the path stops there, short of the goal)."""
     check_policy_fits(policy, scenario, model)
-    q = policy.learner.q
+    learner = policy.learner
     actions = np.full(model.size, -1, dtype=np.int64)
     for place, state in enumerate(model.states):
         row = policy.index.lookup(state)
-        if row is not None and row < len(q):
-            actions[place] = int(np.argmax(q[row]))
+        if row is not None and row < learner.num_rows:
+            actions[place] = learner.greedy_action(row)  # ties: the first, every time
     return actions
