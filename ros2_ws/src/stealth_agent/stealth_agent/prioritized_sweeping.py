@@ -32,8 +32,8 @@ table's route is the optimum once none is left. With Q 0 and step costs below 0 
 look better only until the goal is found, and the first route found stands.
 
 The greedy policy (greedy evaluations, rollouts of a saved policy) is not the table's, which
-is the next way to try, but the best way the model knows (``known_model``: E3's exploitation
-policy), recomputed when the model has changed.
+is the next way to try, but the best way the model knows to the goal where it knows one
+(``known_model``, as E3 keeps its exploitation policy apart), recomputed when the model changed.
 """
 
 import bisect
@@ -56,9 +56,9 @@ class PrioritizedSweeping(DynaQ):
         self._forget_queue()
 
     def greedy_action(self, s: int, rng: np.random.Generator | None = None) -> int:
-        """The action of the best way the model knows from row s (``known_model``); where
-        none is known, an untried one, the table choosing; ties at random (without ``rng``:
-        the first)."""
+        """The action of the best way the model knows from row s to the goal; where it knows
+        none, the table's (``known_model.greedy_known``). Ties at random (without ``rng``: the
+        first)."""
         s = self._check_row(s)
         self.ensure_rows(s + 1)
         values = self._known()

@@ -2,7 +2,7 @@
 built on it: plain pytest on hand-built models."""
 
 import numpy as np
-from stealth_agent.known_model import UNKNOWN_VALUE, greedy_known, known_values
+from stealth_agent.known_model import greedy_known, known_values
 from stealth_agent.learners import LearnerConfig
 from stealth_agent.prioritized_sweeping import PrioritizedSweeping
 
@@ -22,10 +22,10 @@ def values_of(shape, outcomes, gamma=1.0):
     return known_values(shape, (np.array(s), np.array(a)), tuple(map(np.array, columns)), gamma)
 
 
-def test_a_known_way_to_the_goal_is_worth_its_return_and_an_untried_pair_nothing():
+def test_a_known_way_to_the_goal_is_worth_its_return_and_an_untried_pair_nothing_known():
     # 0 -a0-> 1 -a0-> goal (10), each move -1; 0's a1 and 1's a1 never tried.
     q = values_of((2, 2), [(0, 0, 1, 1, -1.0), (1, 0, None, 1, 10.0)])
-    np.testing.assert_array_equal(q, [[9.0, UNKNOWN_VALUE], [10.0, UNKNOWN_VALUE]])
+    np.testing.assert_array_equal(q, [[9.0, -np.inf], [10.0, -np.inf]])
 
 
 def test_outcomes_count_by_how_often_they_were_seen():
@@ -34,9 +34,12 @@ def test_outcomes_count_by_how_often_they_were_seen():
     assert q[0, 0] == (3 * 10.0 - 10.0) / 4
 
 
-def test_a_known_detection_is_worth_less_than_trying_something_new():
-    q = values_of((1, 2), [(0, 0, None, 1, -2000.0)])
-    assert greedy_known(q[0], table=np.array([5.0, 1.0])) == 1
+def test_where_no_known_way_beats_stopping_the_table_chooses():
+    # A known detection (-2000) and a known way to the goal that costs more than it pays (-3):
+    # neither is followed; the table's next try is.
+    q = values_of((2, 3), [(0, 0, None, 1, -2000.0), (1, 0, None, 1, -3.0)])
+    assert greedy_known(q[0], table=np.array([5.0, 1.0, 8.0])) == 2
+    assert greedy_known(q[1], table=np.array([0.0, 4.0, 1.0])) == 1
 
 
 def test_a_cycle_of_rewards_0_earns_nothing_it_never_earned():
@@ -53,7 +56,7 @@ def test_discounting_applies_along_the_way():
 
 
 def test_ties_go_to_the_table_then_the_first_without_a_generator():
-    values = np.array([0.0, 0.0, -5.0, 0.0])
+    values = np.array([7.0, 7.0, -5.0, 7.0])
     assert greedy_known(values, table=np.array([1.0, 3.0, 9.0, 3.0])) == 1
     picks = {
         greedy_known(values, np.array([1.0, 3.0, 9.0, 3.0]), np.random.default_rng(seed))
