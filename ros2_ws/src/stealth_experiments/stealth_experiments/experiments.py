@@ -130,8 +130,9 @@ def evaluate(
     )
     if any(canonical_learner_name(name) in OPTIMISTIC for name in learners):
         settings += (
-            ' Prioritized sweeping explores by optimism instead: a state-action its model has '
-            "not seen is worth the scenario's goal reward, epsilon 0."
+            ' Prioritized sweeping explores by optimism instead, epsilon 0: a state-action its '
+            'model has not seen is worth what the floor plan says with the lights dark; its '
+            'greedy policy is the best way to the goal its model knows.'
         )
     settings += f' Success criterion: {criterion.describe()}.'
     return write_results(out, models, planned, results, settings, plots, criterion)
