@@ -1,7 +1,9 @@
 """Benchmark: a sweep's throughput on a local Ray over every core (sweep_engine, what `stealth
 sweep`, `make compare` and `stealth benchmark` run on) against the same trials one after
 another in this process (sweep_trials.run_trial), in one run, on trials of a realistic length
-(lgfloor's hard goal, Q-learning at the harness's 1500 episodes: several seconds each).
+(floorplan's hard goal, Q-learning at the harness's 1500 episodes: 9.5-10.7 s each alone on a
+quiet 2-core machine; lgfloor's, 5.0-5.5 s, came too close to the 5 s that a sweep's trial is
+worth timing at). The shortest and longest trial are printed beside the mean.
 
 Start-up is given apart, in its two parts: Ray's own (``ray.init``: a local Ray's GCS, raylet
 and their agents) and the workers' (sweep_pool: the actors started, their imports done and the
@@ -32,7 +34,7 @@ from stealth_experiments.sweep_engine import Engine
 from stealth_experiments.sweep_plan import make_trial
 from stealth_experiments.sweep_trials import run_trial
 
-SCENARIO, GOAL = 'lgfloor', 'hard'
+SCENARIO, GOAL = 'floorplan', 'hard'
 LEARNER, EPISODES = 'qlearning', 1500  # the harness's budget: several s per trial
 SEEDS = tuple(range(8))
 ROS_SCENARIO, ROS_GOAL, ROS_LEARNER, ROS_EPISODES = 'simple-maze', 'easy', 'dyna', 10
@@ -54,6 +56,11 @@ def ros_trials() -> list[dict]:
 
 def _inside(records: list[dict]) -> float:
     return sum(r['wall_seconds'] for r in records) / len(records)
+
+
+def _span(records: list[dict]) -> str:
+    seconds = [r['wall_seconds'] for r in records]
+    return f'{min(seconds):.1f}-{max(seconds):.1f} s'
 
 
 def _engine_run(engine: Engine, todo: list[dict], max_concurrent: int | None = None):
@@ -114,6 +121,7 @@ def run(report=print, ros: bool = True) -> dict:
         'sweep_ray_with_startup_trials_per_min': round(per_minute(total_s), 2),
         'sweep_sequential_mean_trial_s': round(_inside(sequential), 2),
         'sweep_ray_mean_trial_s': round(_inside(kept), 2),
+        'sweep_sequential_shortest_trial_s': round(min(r['wall_seconds'] for r in sequential), 2),
         # The share of the engine's wall time its workers spent inside trials: 1 means no cost
         # of its own (what is left of a speedup short of the CPUs is contention for the cores).
         'sweep_ray_busy_fraction': round(busy, 3),
@@ -140,7 +148,8 @@ def run(report=print, ros: bool = True) -> dict:
     )
     report(
         f'  mean time inside a trial: {figures["sweep_sequential_mean_trial_s"]:.1f} s alone, '
-        f'{figures["sweep_ray_mean_trial_s"]:.1f} s on Ray ({cpus} side by side)'
+        f'{figures["sweep_ray_mean_trial_s"]:.1f} s on Ray ({cpus} side by side); shortest and '
+        f'longest {_span(sequential)} alone, {_span(kept)} on Ray'
     )
     report(
         f"  workers busy inside trials {busy:.1%} of the engine's {engine_s:.1f} s x {slots} "
