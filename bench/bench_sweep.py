@@ -1,7 +1,7 @@
 """Benchmark: a sweep's throughput on a local Ray over every core (sweep_engine, what `stealth
 sweep`, `make compare` and `stealth benchmark` run on) against the same trials one after
 another in this process (sweep_trials.run_trial), in one run, on trials of a realistic length
-(floorplan's hard goal, Q-learning at the harness's 1500 episodes: 9.5-10.7 s each alone on a
+(floorplan's hard goal, Q-learning at the harness's 1500 episodes: 9.1-11.5 s each alone on a
 quiet 2-core machine; lgfloor's, 5.0-5.5 s, came too close to the 5 s that a sweep's trial is
 worth timing at). The shortest and longest trial are printed beside the mean.
 
@@ -58,9 +58,9 @@ def _inside(records: list[dict]) -> float:
     return sum(r['wall_seconds'] for r in records) / len(records)
 
 
-def _span(records: list[dict]) -> str:
+def _shortest_longest(records: list[dict]) -> tuple[float, float]:
     seconds = [r['wall_seconds'] for r in records]
-    return f'{min(seconds):.1f}-{max(seconds):.1f} s'
+    return round(min(seconds), 2), round(max(seconds), 2)
 
 
 def _engine_run(engine: Engine, todo: list[dict], max_concurrent: int | None = None):
@@ -121,7 +121,8 @@ def run(report=print, ros: bool = True) -> dict:
         'sweep_ray_with_startup_trials_per_min': round(per_minute(total_s), 2),
         'sweep_sequential_mean_trial_s': round(_inside(sequential), 2),
         'sweep_ray_mean_trial_s': round(_inside(kept), 2),
-        'sweep_sequential_shortest_trial_s': round(min(r['wall_seconds'] for r in sequential), 2),
+        'sweep_sequential_shortest_longest_trial_s': _shortest_longest(sequential),
+        'sweep_ray_shortest_longest_trial_s': _shortest_longest(kept),
         # The share of the engine's wall time its workers spent inside trials: 1 means no cost
         # of its own (what is left of a speedup short of the CPUs is contention for the cores).
         'sweep_ray_busy_fraction': round(busy, 3),
@@ -146,10 +147,12 @@ def run(report=print, ros: bool = True) -> dict:
         f'trials/min (with start-up: {figures["sweep_ray_with_startup_trials_per_min"]:.1f} '
         'trials/min)'
     )
+    alone = '{:.1f}-{:.1f} s'.format(*figures['sweep_sequential_shortest_longest_trial_s'])
+    on_ray = '{:.1f}-{:.1f} s'.format(*figures['sweep_ray_shortest_longest_trial_s'])
     report(
         f'  mean time inside a trial: {figures["sweep_sequential_mean_trial_s"]:.1f} s alone, '
         f'{figures["sweep_ray_mean_trial_s"]:.1f} s on Ray ({cpus} side by side); shortest and '
-        f'longest {_span(sequential)} alone, {_span(kept)} on Ray'
+        f'longest {alone} alone, {on_ray} on Ray'
     )
     report(
         f"  workers busy inside trials {busy:.1%} of the engine's {engine_s:.1f} s x {slots} "
