@@ -19,7 +19,9 @@ export PYTHONDONTWRITEBYTECODE := 1
 hash_files = $(shell cat $(1) 2>/dev/null | sha256sum | cut -c1-16)
 VENV_INPUTS := requirements.in requirements.lock scripts/fix_ros_wheels.py
 VENV_STAMP := $(STAMPS)/venv-$(call hash_files,$(VENV_INPUTS))
-WS_SOURCES := $(shell find ros2_ws/src -type f -not -path '*/__pycache__/*' -not -name '*.pyc' | LC_ALL=C sort)
+# (pip's in-tree build/ and *.egg-info/ of `pip install ros2_ws/src/<package>` left out)
+WS_SOURCES := $(shell find ros2_ws/src -type f -not -path '*/__pycache__/*' -not -name '*.pyc' \
+	-not -path 'ros2_ws/src/*/build/*' -not -path 'ros2_ws/src/*/*.egg-info/*' | LC_ALL=C sort)
 # tf2_msgs and nav2_msgs have no PyPI wheel: ros2_ws/src/vendor builds them, unless an underlay
 # on AMENT_PREFIX_PATH (a sourced /opt/ros/jazzy, say) already has one; then that one is used.
 VENDORED := tf2_msgs nav2_msgs
@@ -83,8 +85,8 @@ $(BUILD_STAMP): $(VENV_STAMP)
 	@# rather than in the first simulator a run or a test starts (tens of seconds).
 	@$(ROS_ENV) && python -c 'from stealth_sim.move_executor import warm_up; \
 		s = warm_up(); print("setup: simulator kernels " + ("ready in %.0f s" % s if s is not None else "not compiled (no numba): the Python path runs"))'
-	@# Likewise the one-bounce light's kernels (stealth_env.bounce_kernels, a few seconds).
-	@$(ROS_ENV) && python -c 'from stealth_env.visibility import warm_up_bounce; \
+	@# Likewise the one-bounce light's kernels (stealth_core.bounce_kernels, a few seconds).
+	@$(ROS_ENV) && python -c 'from stealth_core.visibility import warm_up_bounce; \
 		s = warm_up_bounce(); print("setup: one-bounce light kernels " + ("ready in %.0f s" % s if s is not None else "not compiled (no numba): the Python loops run"))'
 	@rm -f $(STAMPS)/build-* && echo "$@" > $@
 

@@ -78,7 +78,7 @@ def _wait_for(process, text: str, what: str, timeout: float = 120.0) -> None:
 def loop(bridge_mode: str) -> dict:
     """Steps/s of the loop and each process's CPU per step; bridge_mode 'none', 'idle' (no
     client) or 'watched' (a client on TOPICS: its message counts too)."""
-    from stealth_env.scenario import load_scenario
+    from stealth_core.scenario import load_scenario
 
     with_bridge, watched = bridge_mode != 'none', bridge_mode == 'watched'
     scenario = load_scenario(SCENARIO)

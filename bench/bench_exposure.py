@@ -12,9 +12,10 @@ from __future__ import annotations
 import dataclasses
 
 from bench_visibility import REPEATS, best_of
-from stealth_env.planners import LatticeModel, value_iteration
-from stealth_env.scenario import load_scenario
-from stealth_env.task import StealthTask
+from stealth_core.lattice_model import LatticeModel
+from stealth_core.planners import value_iteration
+from stealth_core.scenario import load_scenario
+from stealth_core.task import StealthTask
 
 SCENARIOS = ('map1-exposure', 'simple-maze-exposure')
 

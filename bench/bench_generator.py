@@ -13,8 +13,8 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from stealth_env import scenario_generator
-from stealth_env.scenario_generator import Options, generate, scenario_name
+from stealth_core import scenario_generator
+from stealth_core.scenario_generator import Options, generate, scenario_name
 
 SEEDS = range(20)
 OPTIONS = Options(width=30, height=30, lights=4, moving='none', difficulty='medium')

@@ -12,7 +12,7 @@ import time
 
 import gymnasium as gym
 import numpy as np
-import stealth_env.gym_env  # noqa: F401  (registers StealthNav-v0)
+import stealth_core.gym_env  # noqa: F401  (registers StealthNav-v0)
 
 SCENARIO = 'map1'
 STEPS = 100_000

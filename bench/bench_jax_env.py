@@ -22,7 +22,7 @@ import gymnasium as gym
 import jax
 import jax.numpy as jnp
 import numpy as np
-import stealth_env.gym_env  # noqa: F401  (registers StealthNav-v0)
+import stealth_core.gym_env  # noqa: F401  (registers StealthNav-v0)
 from stealth_learn.jax_env import build
 
 SCENARIO = 'map1'

@@ -1,4 +1,4 @@
-"""Benchmark: building the move lattice (``stealth_env.move_lattice.MoveLattice``: which nodes
+"""Benchmark: building the move lattice (``stealth_core.move_lattice.MoveLattice``: which nodes
 and moves the robot's disc fits) on a 600 x 600 cell map, against the brute-force reference the
 tests check it by (``lattice_reference.reference_clear``, cell by cell in Python).
 
@@ -19,8 +19,8 @@ import time
 
 from bench_visibility import REPEATS, RESOLUTION, bench_map, best_of
 import numpy as np
-from stealth_env.move_lattice import MoveLattice
-from stealth_sim.occupancy_map import OccupancyMap
+from stealth_core.move_lattice import MoveLattice
+from stealth_core.occupancy_map import OccupancyMap
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'ros2_ws/src/stealth_env/test'))
 from lattice_reference import reference_clear  # noqa: E402  (the tests' helper, beside them)

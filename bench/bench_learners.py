@@ -3,7 +3,7 @@ iteration's optimum, on every static scenario, with the experiment harness's set
 budgets.
 
 "Converged" is the harness's: the first greedy evaluation from which every later one meets the
-success criterion (stealth_env.path_scores: reached the goal undetected, path and exposure
+success criterion (stealth_core.path_scores: reached the goal undetected, path and exposure
 against value iteration's path). Printed per scenario and learner:
 the median over seeds of those episodes, its final greedy return over the optimum; then
 prioritized sweeping's episodes relative to Q-learning's (target <= 0.1x) and Dyna-Q's
@@ -21,7 +21,7 @@ import math
 import os
 
 import numpy as np
-from stealth_env.path_scores import DEFAULT_CRITERION
+from stealth_core.path_scores import DEFAULT_CRITERION
 from stealth_experiments.experiments import run_grid
 
 # Every shipped scenario whose lights stand still (the -moving ones have their own budgets).

@@ -19,8 +19,8 @@ import tempfile
 import time
 
 import numpy as np
-from stealth_env.scenario import load_scenario
-from stealth_env.visibility import visibility_field
+from stealth_core.scenario import load_scenario
+from stealth_core.visibility import visibility_field
 from stealth_nav2.exposure_mask import ExposureMask, mask_levels
 
 SCENARIOS = ('lgfloor-moving', 'map1-moving')

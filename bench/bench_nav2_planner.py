@@ -7,7 +7,7 @@ request for a goal is *cold* (value iteration for that goal, then following it),
 one *warm* (the goal's policy cached: following it only), at several times of the lights'
 cycle where they move. The goals: the scenario's three and up to five other lattice nodes
 (seeded), whatever the answer (a NO_VALID_PATH costs the same planning). The baseline, in the
-same process: ``stealth_env.planners.optimal_path`` (the lattice model and value iteration from
+same process: ``stealth_core.planners.optimal_path`` (the lattice model and value iteration from
 scratch for one goal, as the harness and the environment's planned path compute it).
 Targets (issue 28): <= 100 ms a request on static lgfloor, <= 1 s where lights move.
 
@@ -24,7 +24,7 @@ import statistics
 import time
 
 import numpy as np
-from stealth_env.planners import optimal_path
+from stealth_core.planners import optimal_path
 from stealth_nav2.covert_planning import CovertPlanner, Pose
 from stealth_nav2.plan_errors import PlanError
 from stealth_nav2.scene_source import scene_from_scenario

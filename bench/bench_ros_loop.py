@@ -188,8 +188,8 @@ STUB_SIM = """
 import math, sys
 import rclpy
 from rclpy.executors import ExternalShutdownException
-from stealth_env.move_lattice import ACTIONS, MoveLattice
-from stealth_env.scenario import load_scenario
+from stealth_core.move_lattice import ACTIONS, MoveLattice
+from stealth_core.scenario import load_scenario
 from stealth_interfaces.srv import ExecuteMove, ResetRobot
 
 scenario = load_scenario(sys.argv[1])
@@ -313,7 +313,7 @@ def _params_file(directory: Path, node: str, values: dict) -> Path:
 def rl_loop(simulator: str) -> tuple[float, float]:
     """(RL steps per second, episodes per second) with 'sim_node', 'composed' (sim_env at the
     FAST_SIM settings), 'composed_defaults' (sim_env, sim_node's defaults) or the 'stub'."""
-    from stealth_env.scenario import load_scenario
+    from stealth_core.scenario import load_scenario
 
     scenario = load_scenario(SCENARIO)
     x, y, yaw = scenario.start
@@ -351,11 +351,12 @@ def rl_loop(simulator: str) -> tuple[float, float]:
 
 def simulator_in_process(moves: int = 300) -> float:
     """Moves per second of the Simulator core at FAST_SIM settings, no ROS at all."""
-    from stealth_env.scenario import load_scenario
-    from stealth_sim.kinematics import Limits, Pose
+    from stealth_core.kinematics import Limits, Pose
+    from stealth_core.moves import MoveRequest
+    from stealth_core.scenario import load_scenario
     from stealth_sim.laser import LaserConfig
     from stealth_sim.localisation import FilterConfig
-    from stealth_sim.move_executor import MoveRequest, execute_move
+    from stealth_sim.move_executor import execute_move
     from stealth_sim.simulator import SimConfig, Simulator
 
     scenario = load_scenario(SCENARIO)

@@ -1,4 +1,4 @@
-"""Benchmark: what the robot that does not know the lights senses (``stealth_env.sensing``).
+"""Benchmark: what the robot that does not know the lights senses (``stealth_core.sensing``).
 
 On lgfloor (600 x 600 cells at 0.05 m, a 60 x 60 move lattice, 8 m sensing range), from a
 sample of lattice nodes: the vectorised sight of one node (every node and move sample cell in
@@ -15,9 +15,9 @@ import time
 
 from bench_gym import steps_per_second
 import numpy as np
-from stealth_env.gym_env import StealthNavEnv
-from stealth_env.lighting import line_of_sight
-from stealth_env.sensing import Sensing
+from stealth_core.gym_env import StealthNavEnv
+from stealth_core.lighting import line_of_sight
+from stealth_core.sensing import Sensing
 
 SCENARIO = 'lgfloor'
 NODES = 20

@@ -30,10 +30,11 @@ sys.path.insert(0, str(REPO_ROOT / 'tests'))
 sys.path.insert(0, str(REPO_ROOT / 'ros2_ws' / 'src' / 'stealth_sim'))
 
 from ros_support import NodeProcesses, reserved_domain_id  # noqa: E402
-from stealth_sim.kinematics import DiscFootprint, Pose  # noqa: E402
+from stealth_core.kinematics import DiscFootprint, Pose  # noqa: E402
+from stealth_core.moves import GRID_HEADINGS, MoveKind, MoveRequest  # noqa: E402
+from stealth_core.occupancy_map import load_map  # noqa: E402
 from stealth_sim.localisation import FilterConfig  # noqa: E402
-from stealth_sim.move_executor import GRID_HEADINGS, MoveKind, MoveRequest, execute_move  # noqa: E402
-from stealth_sim.occupancy_map import load_map  # noqa: E402
+from stealth_sim.move_executor import execute_move  # noqa: E402
 from stealth_sim.simulator import SimConfig, Simulator  # noqa: E402
 
 MAP = REPO_ROOT / 'maps' / 'simple-maze.yaml'

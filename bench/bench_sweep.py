@@ -29,7 +29,7 @@ import os
 import sys
 import time
 
-from stealth_env.gym_env import lattice_model
+from stealth_core.gym_env import lattice_model
 from stealth_experiments.sweep_engine import Engine
 from stealth_experiments.sweep_plan import make_trial
 from stealth_experiments.sweep_trials import run_trial

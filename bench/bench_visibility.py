@@ -4,7 +4,7 @@ A 600 x 600 cell map (0.05 m cells, 30 m x 30 m: rooms, doors, clutter, unknown 
 four lights of up to 9 m range. The reference over all 360,000 cells would take minutes, so it
 is timed on a random sample of cells and extrapolated per cell; the output says so.
 
-Then the one-bounce light (``stealth_env.bounce``) on lgfloor (600 x 600, its four lights,
+Then the one-bounce light (``stealth_core.bounce``) on lgfloor (600 x 600, its four lights,
 albedo 0.3, range 3 m): the compiled bounce field against ``bounce.point_bounce`` the same way,
 the reference's one-off work (finding the emitters and their received light, point by point)
 counted once in its extrapolated time.
@@ -18,11 +18,11 @@ import math
 import time
 
 import numpy as np
-from stealth_env.bounce import Bounce, point_bounce, received_light, wall_emitters
-from stealth_env.lighting import GridFrame, point_visibility
-from stealth_env.scenario import load_scenario
-from stealth_env.searchlight import Searchlight
-from stealth_env.visibility import bounce_field, visibility_field
+from stealth_core.bounce import Bounce, point_bounce, received_light, wall_emitters
+from stealth_core.lighting import GridFrame, point_visibility
+from stealth_core.scenario import load_scenario
+from stealth_core.searchlight import Searchlight
+from stealth_core.visibility import bounce_field, visibility_field
 
 SIZE = 600
 RESOLUTION = 0.05

@@ -30,10 +30,10 @@ import numpy as np  # noqa: E402
 import rclpy  # noqa: E402
 from rclpy.signals import SignalHandlerOptions  # noqa: E402
 from ros_support import NodeProcesses, reserved_domain_id, ros_environment  # noqa: E402
-from stealth_env.scenario import find_scenario, load_scenario  # noqa: E402
-from stealth_env.task import StealthTask  # noqa: E402
+from stealth_core.kinematics import DiscFootprint  # noqa: E402
+from stealth_core.scenario import find_scenario, load_scenario  # noqa: E402
+from stealth_core.task import StealthTask  # noqa: E402
 from stealth_node_kit.conversions import seconds  # noqa: E402
-from stealth_sim.kinematics import DiscFootprint  # noqa: E402
 from test_env_node import start_sim, wait_for_log  # noqa: E402
 from test_nav2_navigator import (  # noqa: E402
     Commander,

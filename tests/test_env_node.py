@@ -15,14 +15,14 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from ros_support import REPO_ROOT, SpinningNode
-from stealth_env import exposure
-from stealth_env.gym_env import lattice_model
+from stealth_core import exposure
+from stealth_core.gym_env import lattice_model
+from stealth_core.move_lattice import ACTIONS
+from stealth_core.planners import dark_path
+from stealth_core.scenario import find_scenario, load_scenario
+from stealth_core.task import StealthTask
+from stealth_core.visibility import visibility_field
 from stealth_env.markers import visibility_levels
-from stealth_env.move_lattice import ACTIONS
-from stealth_env.planners import dark_path
-from stealth_env.scenario import find_scenario, load_scenario
-from stealth_env.task import StealthTask
-from stealth_env.visibility import visibility_field
 from stealth_interfaces.msg import (
     EpisodeSummary,
     RLAction,

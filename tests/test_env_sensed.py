@@ -5,9 +5,9 @@ Gym env's sensed track as the reference for the same actions."""
 from nav_msgs.msg import OccupancyGrid
 import numpy as np
 import pytest
-from stealth_env.gym_env import StealthNavEnv
-from stealth_env.scenario import find_scenario, load_scenario
-from stealth_env.sensing import flat_observation
+from stealth_core.gym_env import StealthNavEnv
+from stealth_core.scenario import find_scenario, load_scenario
+from stealth_core.sensing import flat_observation
 from test_env_node import (
     LATCHED,
     SCENARIO,

@@ -29,7 +29,7 @@ def test_a_generated_scenario_trains_through_ros(system, tmp_path):  # noqa: F81
 
 
 def test_the_harness_trains_on_a_generated_scenario(tmp_path):
-    from stealth_env.scenario_generator import Options, generate
+    from stealth_core.scenario_generator import Options, generate
     from stealth_experiments.harness import RunSpec, run
 
     path = generate(12, Options(width=20, height=20, lights=2)).write(tmp_path)

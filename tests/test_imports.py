@@ -13,11 +13,13 @@ import xml.etree.ElementTree as ElementTree
 SRC = Path(__file__).resolve().parents[1] / 'ros2_ws' / 'src'  # no ROS needed to read it
 # The layers, lowest first, and what each package may import of the others: anything below
 # it, except that the agent and the tools stand alone on the messages (the agent works with
-# any environment that speaks rl_msgs; the tools record and replay any graph), and that the
+# any environment that speaks rl_msgs; the tools record and replay any graph), that the world
+# model (stealth_core) stands at the bottom, plain Python that imports no ROS at all, and that the
 # experiments, on top, use no ROS of their own: they train the agent's learners on the
 # environment in-process, write with bringup's run outputs, and run ROS trials as bringup's
 # `stealth train`.
 LAYERS = (
+    'stealth_core',
     'stealth_interfaces',
     'stealth_node_kit',
     'stealth_sim',
@@ -30,27 +32,33 @@ LAYERS = (
     'stealth_experiments',
 )
 MAY_IMPORT = {
+    'stealth_core': set(),  # no workspace package, and no ROS (ROS_MODULES below)
     'stealth_interfaces': set(),
     'stealth_node_kit': set(),  # what every node shares: rclpy only
-    'stealth_sim': {'stealth_interfaces', 'stealth_node_kit'},
-    'stealth_env': {'stealth_interfaces', 'stealth_node_kit', 'stealth_sim'},
-    'stealth_agent': {'stealth_interfaces', 'stealth_node_kit'},
-    # Nav2's interfaces over the environment's core (planners, light model) and the agent's
-    # policies (the learned policy as a planner id).
+    'stealth_sim': {'stealth_core', 'stealth_interfaces', 'stealth_node_kit'},
+    # The environment node drives any robot through the messages; only its tests start the
+    # simulator's physics in-process (test_depend).
+    'stealth_env': {'stealth_core', 'stealth_interfaces', 'stealth_node_kit', 'stealth_sim'},
+    # The agent reads the grid observation's cells (stealth_core.grid_cells), nothing else of
+    # the world model.
+    'stealth_agent': {'stealth_core', 'stealth_interfaces', 'stealth_node_kit'},
+    # Nav2's interfaces over the world model (planners, light model), the environment node's
+    # robot over topics (the navigator drives it) and the agent's policies (the learned policy
+    # as a planner id).
     'stealth_nav2': {
+        'stealth_core',
         'stealth_interfaces',
         'stealth_node_kit',
-        'stealth_sim',
         'stealth_env',
         'stealth_agent',
     },
-    # Learning across buildings: the environment's core (tables from its lattice model), no ROS.
-    'stealth_learn': {'stealth_env'},
+    # Learning across buildings: the world model (tables from its lattice model), no ROS.
+    'stealth_learn': {'stealth_core'},
     'stealth_tools': {'stealth_interfaces', 'stealth_node_kit'},
     'stealth_bringup': set(LAYERS) - {'stealth_bringup', 'stealth_experiments'},
     # The benchmark's generalist method plays stealth_learn's agent (imported in that method only).
     'stealth_experiments': {
-        'stealth_env',
+        'stealth_core',
         'stealth_agent',
         'stealth_learn',
         'stealth_tools',
@@ -58,13 +66,11 @@ MAY_IMPORT = {
     },
 }
 # Tests that reach up on purpose, each with why; any other test import is held to the rules.
-TEST_EXCEPTIONS = {
-    'stealth_sim/test/sim_test_maps.py': (
-        'stealth_env',
-        'the project maps are tested from the start poses of the scenarios, whose format is '
-        "stealth_env's (read from the source tree when stealth_env is not installed)",
-    ),
-}
+TEST_EXCEPTIONS: dict[str, tuple[str, str]] = {}  # {test file: (package, why)}
+# What the world model must never import, even lazily: ROS's client library and any message or
+# interface package (their names end so), so that it installs and runs without ROS.
+ROS_MODULES = ('rclpy', 'rosidl_runtime_py', 'rosidl_parser', 'ament_index_python', 'launch')
+ROS_SUFFIXES = ('_msgs', '_srvs', '_interfaces')
 RUN_DEPENDS = ('depend', 'exec_depend')
 TEST_DEPENDS = (*RUN_DEPENDS, 'test_depend')
 
@@ -201,6 +207,30 @@ def undeclared_imports(src: Path) -> list[str]:
                     where = f'{path.relative_to(src)}:{line}'
                     problems.append(f'{where}: imports {top}, not an {kind} of {package}')
     return sorted(set(problems))
+
+
+def ros_imports(src: Path, package: str) -> list[str]:
+    """'file:line: imports X' for each ROS import of the package's modules and tests."""
+    problems = []
+    directory = workspace_packages(src)[package]
+    for module, path in python_files(directory, package).items():
+        for name, line in imported_names(module, path):
+            top = name.split('.')[0]
+            if top in ROS_MODULES or top.endswith(ROS_SUFFIXES):
+                problems.append(f'{path.relative_to(src)}:{line}: imports {top}')
+    return sorted(set(problems))
+
+
+def test_the_world_model_imports_no_ros():
+    assert len(python_files(workspace_packages(SRC)['stealth_core'], 'stealth_core')) > 30
+    assert ros_imports(SRC, 'stealth_core') == []
+
+
+def test_the_ros_check_finds_ros_imports():
+    # the rule above can fail: the environment node's package is full of them
+    found = ros_imports(SRC, 'stealth_env')
+    assert any(line.endswith('imports rclpy') for line in found)
+    assert any(line.endswith('imports stealth_interfaces') for line in found)
 
 
 def test_every_stealth_package_has_a_layer():

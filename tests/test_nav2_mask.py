@@ -13,8 +13,8 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
 from ros_support import REPO_ROOT, SpinningNode, wait_for_output
 from rosgraph_msgs.msg import Clock
+from stealth_core.scenario import load_scenario
 from stealth_env.env_messages import searchlight_array_msg
-from stealth_env.scenario import load_scenario
 from stealth_interfaces.msg import SearchlightArray
 from stealth_nav2.exposure_mask import LETHAL, ExposureMask
 from stealth_nav2.scene_source import scene_from_messages

@@ -17,9 +17,9 @@ import pytest
 from rclpy.action import ActionClient
 from rclpy.qos import qos_profile_sensor_data
 from ros_support import REPO_ROOT, SpinningNode
-from stealth_env.planners import optimal_path
-from stealth_env.scenario import find_scenario, load_scenario
-from stealth_env.task import StealthTask
+from stealth_core.planners import optimal_path
+from stealth_core.scenario import find_scenario, load_scenario
+from stealth_core.task import StealthTask
 from stealth_node_kit.conversions import quaternion_yaw, seconds, yaw_quaternion
 from test_env_node import ros_args, start_sim, wait_for_log
 from test_nav2_planner import stamped

@@ -15,15 +15,16 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from ros_support import REPO_ROOT, SpinningNode
+from stealth_core.lattice_model import LatticeModel
+from stealth_core.occupancy_map import to_occupancy_grid_data
+from stealth_core.planners import optimal_path
+from stealth_core.scenario import load_scenario
+from stealth_core.task import StealthTask
 from stealth_env.env_messages import searchlight_array_msg
-from stealth_env.planners import LatticeModel, optimal_path
-from stealth_env.scenario import load_scenario
-from stealth_env.task import StealthTask
 from stealth_interfaces.msg import SearchlightArray
 from stealth_nav2.covert_planning import CovertPlanner, Pose
 from stealth_nav2.scene_source import scene_from_scenario
 from stealth_node_kit.conversions import quaternion_yaw, seconds, yaw_quaternion
-from stealth_sim.occupancy_map import to_occupancy_grid_data
 from tf2_msgs.msg import TFMessage
 
 STEALTH = str(

@@ -14,8 +14,8 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from ros_support import REPO_ROOT, SpinningNode
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import LaserScan
+from stealth_core.occupancy_map import OCCUPIED, OccupancyMap, save_map
 from stealth_interfaces.srv import ExecuteMove, ResetRobot
-from stealth_sim.occupancy_map import OCCUPIED, OccupancyMap, save_map
 
 SIM_NODE = REPO_ROOT / 'ros2_ws/install/stealth_sim/lib/stealth_sim/sim_node'
 LATCHED = QoSProfile(

@@ -13,7 +13,7 @@ from rcl_interfaces.srv import GetParameters
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from ros_support import SpinningNode, ros_environment
 from rosgraph_msgs.msg import Clock
-from stealth_env.scenario import load_scenario
+from stealth_core.scenario import load_scenario
 from stealth_interfaces.msg import EpisodeSummary, RLAction, RLExperimentInfo
 from test_env_node import RIGHT, SCENARIO, ScriptedAgent, start_env, start_sim, wait_for_log
 import test_system

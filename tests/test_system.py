@@ -245,8 +245,8 @@ def test_train_runs_episodes_over_dds_and_leaves_a_complete_run(system, tmp_path
         assert float(row['total_reward']) == pytest.approx(message.total_reward, rel=1e-5)
     # Each episode scored on the lattice nodes its actions sent the robot to (episode_scores),
     # against the optimum on the lattice; the true and estimated path lengths beside them.
-    from stealth_env.gym_env import lattice_model
-    from stealth_env.path_scores import replay_actions
+    from stealth_core.gym_env import lattice_model
+    from stealth_core.path_scores import replay_actions
 
     model = lattice_model(str(scenario), 'easy')
     optimum = summary['optimum_on_lattice']

@@ -7,9 +7,9 @@ import math
 from nav_msgs.msg import Odometry
 import pytest
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from stealth_core.frames import multiply
+from stealth_core.kinematics import Pose, wrap_angle
 from stealth_interfaces.srv import ExecuteMove
-from stealth_sim.frames import multiply
-from stealth_sim.kinematics import Pose, wrap_angle
 from stealth_sim.simulator import SimConfig
 import test_sim_node
 from test_sim_node import START, SimClient, start_sim

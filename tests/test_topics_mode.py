@@ -9,8 +9,8 @@ from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 import pytest
 from rclpy.qos import qos_profile_sensor_data
-from stealth_env.scenario import find_scenario, load_scenario
-from stealth_env.task import StealthTask
+from stealth_core.scenario import find_scenario, load_scenario
+from stealth_core.task import StealthTask
 from stealth_interfaces.msg import EpisodeSummary, RLAction, RLExperimentInfo
 from test_env_node import (
     LATCHED,

@@ -15,13 +15,13 @@ setup(
     zip_safe=True,
     maintainer='stealth-nav developers',
     maintainer_email='dev@stealth-nav.org',
-    description='Searchlights, occlusion, rewards and scenarios of stealth-nav.',
+    description='The RL environment node of stealth-nav (rl_msgs), over stealth_core.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'render = stealth_env.render:main',
+            'render = stealth_core.render:main',
             'env_node = stealth_env.env_node:main',
         ],
-        'stealth.commands': ['stealth_env = stealth_env.commands:COMMANDS'],
+        'stealth.commands': ['stealth_env = stealth_core.commands:COMMANDS'],
     },
 )

@@ -11,9 +11,20 @@ setup(
         ('share/' + package_name, ['package.xml']),
     ],
     package_data={package_name: ['policies/*.npz', 'policies/*.png']},
-    install_requires=['setuptools'],
+    # The learning extra's exact versions live in the repository's requirements.lock; the world
+    # model (stealth_core) is not on PyPI: install it from ros2_ws/src/stealth_core first.
+    install_requires=[
+        'setuptools',
+        'stealth_core',
+        'numpy',
+        'matplotlib',
+        'tqdm',
+        'jax',
+        'flax',
+        'optax',
+    ],
     extras_require={'test': ['pytest']},
-    zip_safe=True,
+    zip_safe=False,
     maintainer='stealth-nav developers',
     maintainer_email='dev@stealth-nav.org',
     description='The JAX training environment (equal to StealthTask) and the generalist.',

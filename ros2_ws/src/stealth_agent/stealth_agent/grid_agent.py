@@ -18,7 +18,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from stealth_node_kit.grid_cells import cell_of
+from stealth_core.grid_cells import cell_of
 
 from .protocol import BadInputError, ProtocolAgent
 from .state_index import StateIndex

@@ -31,7 +31,7 @@ from .schedules import Schedule
 
 LEARNER_NAMES = ('qlearning', 'sarsa', 'dyna', 'prioritized')
 # Learners that explore by optimism (prioritized sweeping's docstring): started at an upper bound
-# on the true values (the floor plan's, stealth_env.floor_plan_prior) they need no random moves,
+# on the true values (the floor plan's, stealth_core.floor_plan_prior) they need no random moves,
 # so the harness and `stealth train` run them with epsilon 0 and the floor plan's prior.
 OPTIMISTIC = ('prioritized',)
 # rl_agent's spellings and a few obvious ones.

@@ -34,7 +34,7 @@ from .state_index import StateIndex, StateMapping
 FORMAT = 'stealth-nav tabular policy'
 FORMAT_VERSION = 1
 ZIP_MAGIC = b'PK\x03\x04'  # every .npz is a zip archive
-# The scenario identity by content (stealth_env.scenario.content_identity), in the scenario
+# The scenario identity by content (stealth_core.scenario.content_identity), in the scenario
 # meta beside the title when the run knew it: files saved before have none.
 CONTENT_KEYS = ('grid_sha256', 'lights_sha256')
 

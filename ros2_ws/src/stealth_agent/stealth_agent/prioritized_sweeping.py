@@ -26,7 +26,7 @@ Exploration, as Moore and Atkeson's: optimism in the face of uncertainty. A pair
 not seen keeps its row's initial values (``initial_value``, or a prior given to
 ``ProtocolAgent``), which the planning updates carry back to every known way to it; set to an
 upper bound on the true values with epsilon 0 (the harness's settings: the floor plan's values
-with the lights dark, ``stealth_env.floor_plan_prior``, else the goal reward) every
+with the lights dark, ``stealth_core.floor_plan_prior``, else the goal reward) every
 untried pair that could still lie on a cheaper route than the best known is tried once, and the
 table's route is the optimum once none is left. With Q 0 and step costs below 0 untried pairs
 look better only until the goal is found, and the first route found stands.

@@ -158,7 +158,7 @@ class ProtocolAgent:
         self.rng = rng
         self.learning = learning
         # The initial action values of a state seen for the first time (None: the learner's
-        # initial_value), e.g. stealth_env.floor_plan_prior's; never of a known row.
+        # initial_value), e.g. stealth_core.floor_plan_prior's; never of a known row.
         self.prior = prior
         self.episode = 0  # episodes finished in this run
         self.in_episode = False

@@ -19,8 +19,8 @@ STATE_ACTIONS_PER_EPISODE = 6
 def state_actions(scenario, goal: str) -> int:
     """(state, action) pairs of a scenario's table: reachable-or-not lattice nodes x phase bins
     x headings x actions, as the environment's state grid keys them."""
-    from stealth_env.move_lattice import MoveLattice
-    from stealth_env.task import StealthTask
+    from stealth_core.move_lattice import MoveLattice
+    from stealth_core.task import StealthTask
 
     task = StealthTask(scenario, goal)
     nodes = sum(1 for _ in MoveLattice.from_scenario(scenario).valid_nodes())

@@ -1,5 +1,6 @@
-"""Each episode of a ROS run scored against value iteration's optimum (``stealth_env.path_scores``)
-and judged by the success criterion, from what the orchestrator already receives. No rclpy.
+"""Each episode of a ROS run scored against value iteration's optimum
+(``stealth_core.path_scores``) and judged by the success criterion, from what the orchestrator
+already receives. No rclpy.
 
 Through ROS the return is not comparable to the optimum's (the goal reward depends on the
 continuous pose's distance to the goal point), so the scores are taken where they are: on the
@@ -23,7 +24,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from stealth_env.path_scores import (
+from stealth_core.lattice_model import LatticeModel
+from stealth_core.path_scores import (
     DEFAULT_CRITERION,
     Criterion,
     PathScores,
@@ -32,9 +34,9 @@ from stealth_env.path_scores import (
     replay_actions,
     score_columns,
 )
-from stealth_env.planners import LatticeModel, PathResult
-from stealth_env.reward import EpisodeOutcome
-from stealth_env.task import StealthTask
+from stealth_core.planners import PathResult
+from stealth_core.reward import EpisodeOutcome
+from stealth_core.task import StealthTask
 
 # EpisodeRecord's score fields and their values when unknown (no scorer, steps missing, a run
 # written before they existed).

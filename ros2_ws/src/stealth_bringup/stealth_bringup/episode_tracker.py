@@ -23,7 +23,7 @@ import dataclasses
 import itertools
 import math
 
-from stealth_env.reward import EpisodeOutcome
+from stealth_core.reward import EpisodeOutcome
 
 from stealth_bringup.episode_scores import UNSCORED, EpisodeScorer
 

@@ -4,7 +4,7 @@ rclpy.
 The agent node knows states only as the vectors the environment sends; it has no floor plan.
 The run has one: before the nodes start, this writes the run's policy file with a row for every
 place of the scenario's lattice (its state vector, as the environment sends it) holding
-stealth_env.floor_plan_prior's action values (value iteration with every light dark, at the
+stealth_core.floor_plan_prior's action values (value iteration with every light dark, at the
 agent's gamma), and the agent loads it as a resumed run loads its table (load_policy). Its model
 is empty, so prioritized sweeping takes every pair as untried and worth that much: the
 optimism of the in-process harness (docs/evaluation-and-sweeps.md, the learners), through ROS.
@@ -18,10 +18,10 @@ from stealth_agent.learners import LearnerConfig, canonical_learner_name, make_l
 from stealth_agent.policy_store import save_policy
 from stealth_agent.protocol import parse_description
 from stealth_agent.state_index import StateIndex
-from stealth_env.floor_plan_prior import floor_plan_values
-from stealth_env.planners import LatticeModel
-from stealth_env.scenario import content_identity
-from stealth_env.task import StealthTask
+from stealth_core.floor_plan_prior import floor_plan_values
+from stealth_core.lattice_model import LatticeModel
+from stealth_core.scenario import content_identity
+from stealth_core.task import StealthTask
 
 
 def write_prior_policy(path: Path, scenario, goal: str, agent: dict) -> int:

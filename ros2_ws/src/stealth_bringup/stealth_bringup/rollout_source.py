@@ -61,7 +61,7 @@ def rollout_source(args):
     scenario = load_run_scenario(scenario_name)
     default_goal = run_summary.get('goal') or (named.group('goal') if named else None)
     goal = check_goal(scenario, args.goal, default_goal)
-    from stealth_env.task import StealthTask
+    from stealth_core.task import StealthTask
 
     expected = StealthTask(scenario, goal).title
     if title and title != expected:
@@ -76,7 +76,7 @@ def same_content(policy: Path, saved: dict, scenario) -> list[str]:
     """RunConfigError when the policy was learned on another map or under other lights than
     the scenario's (a file that kept its name); a note to say when the policy file records
     neither (saved before they were), and only the name could be compared."""
-    from stealth_env.scenario import content_identity
+    from stealth_core.scenario import content_identity
 
     now = content_identity(scenario)
     if not any(saved.get(key) for key in now):

@@ -7,8 +7,8 @@ from __future__ import annotations
 import argparse
 import dataclasses
 
-from stealth_env.floor_plan_prior import PRIORS
-from stealth_env.path_scores import (
+from stealth_core.floor_plan_prior import PRIORS
+from stealth_core.path_scores import (
     DEFAULT_CRITERION,
     OPTION_FLAGS,
     OPTION_RANGES,
@@ -71,7 +71,7 @@ CRITERION_OPTIONS = (
 
 
 def add_criterion_options(parser: argparse.ArgumentParser, resumable: bool = False) -> None:
-    """--max-path-ratio, --exposure-tolerance: the success criterion (stealth_env.path_scores)
+    """--max-path-ratio, --exposure-tolerance: the success criterion (stealth_core.path_scores)
     greedy episodes are judged by (stealth train's streak counts them, the harness settles on
     them); None when not given (``criterion_of``: the defaults; --resume: the run's)."""
     resumed = ", with --resume the run's" if resumable else ''

@@ -290,7 +290,7 @@ def scenario_hashes(scenario) -> dict[str, str]:
 
 def load_run_scenario(name: str):
     """The scenario a run is asked for (name or path); RunConfigError where it cannot be read."""
-    from stealth_env.scenario import ScenarioError, load_scenario
+    from stealth_core.scenario import ScenarioError, load_scenario
 
     try:
         return load_scenario(name)
@@ -394,7 +394,7 @@ def write_params_file(parameters: NodeParameters, path: Path, header: str) -> Pa
 
 def scenario_parameters(scenario, goal: str) -> dict[str, dict[str, Any]]:
     """What the nodes must agree on, filled in from the scenario so users only name it."""
-    from stealth_env.scenario import content_identity
+    from stealth_core.scenario import content_identity
 
     x, y, yaw = scenario.start
     return {

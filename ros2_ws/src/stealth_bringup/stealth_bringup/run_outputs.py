@@ -31,7 +31,7 @@ from pathlib import Path
 from matplotlib.figure import Figure  # no pyplot: no global state, no display (Agg)
 from matplotlib.lines import Line2D
 import numpy as np
-from stealth_env import palette
+from stealth_core import palette
 from stealth_node_kit.full_disk import checked_write, remove_quietly
 
 from stealth_bringup.episode_tracker import CSV_FIELDS, OUTCOMES, SCORE_FIELDS, EpisodeRecord
@@ -342,7 +342,7 @@ def plot_paths(
     """The scenario with (points, label) paths, later ones drawn over earlier ones, written
     whole or not at all (replacing). Paths often share stretches: `spread` (m) shifts
     neighbouring ones apart so that all of them show."""
-    from stealth_env.render import render_scenario
+    from stealth_core.render import render_scenario
 
     middle = (len(labelled) - 1) / 2
     paths = [

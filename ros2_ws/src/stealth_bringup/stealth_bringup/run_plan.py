@@ -18,7 +18,7 @@ import shlex
 from stealth_agent.agent_parameters import PARAMETERS as AGENT_PARAMETERS
 from stealth_agent.learners import OPTIMISTIC, canonical_learner_name
 from stealth_agent.policy_plugins import is_plugin
-from stealth_env.path_scores import DEFAULT_CRITERION, OPTIMUM_GAMMA, Criterion
+from stealth_core.path_scores import DEFAULT_CRITERION, OPTIMUM_GAMMA, Criterion
 from stealth_tools.bag_files import next_recording_file
 
 from stealth_bringup.episode_budget import STATE_ACTIONS_PER_EPISODE, default_episode_budget
@@ -561,6 +561,6 @@ def _environment_value(sources, run_values, overrides, name: str):
 def sensed_state_features(scenario, goal: str) -> int:
     """The full track's state length (x, y, any phase and heading): what the tabular agent keys
     on when the environment sends the sensed track's states (agent parameter state_features)."""
-    from stealth_env.task import StealthTask
+    from stealth_core.task import StealthTask
 
     return len(StealthTask(scenario, goal).state_features)

@@ -11,7 +11,7 @@ import math
 from pathlib import Path
 import time
 
-from stealth_env.path_scores import Criterion, PathScores, describe
+from stealth_core.path_scores import Criterion, PathScores, describe
 from stealth_node_kit.full_disk import EXIT_DISK_FULL, DiskFullError
 from stealth_tools.bag_files import recording_files
 
@@ -282,7 +282,7 @@ class RunReport:
 
     def _animate(self, plan, learned, label, optimum_points, optimum_label) -> Path | None:
         """path.gif: the lights moving with the learned path and the optimum, step by step."""
-        from stealth_env.render import animate_scenario
+        from stealth_core.render import animate_scenario
 
         from stealth_bringup.run_outputs import replacing
 

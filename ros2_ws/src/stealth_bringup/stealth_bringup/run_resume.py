@@ -8,7 +8,7 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from stealth_env.path_scores import DEFAULT_CRITERION, Criterion, CriterionError
+from stealth_core.path_scores import DEFAULT_CRITERION, Criterion, CriterionError
 
 from stealth_bringup.run_arguments import (
     COMMAND_OF_MODE,

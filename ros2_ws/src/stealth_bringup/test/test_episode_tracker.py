@@ -5,8 +5,8 @@ import math
 import pytest
 from stealth_bringup.episode_scores import EpisodeScorer
 from stealth_bringup.episode_tracker import OUTCOMES, Tracker, unfinished_fields
-from stealth_env.path_scores import Criterion
-from stealth_env.scenario import load_scenario
+from stealth_core.path_scores import Criterion
+from stealth_core.scenario import load_scenario
 
 
 def summary(episode, outcome='SUCCESS', steps=10, reward=1.0):

@@ -11,8 +11,8 @@ from stealth_agent.state_index import StateIndex
 from stealth_bringup.run_arguments import rollout_parser
 from stealth_bringup.run_config import RunConfigError
 from stealth_bringup.run_plan import make_plan
-from stealth_env.scenario import content_identity, load_scenario
-from stealth_env.task import StealthTask
+from stealth_core.scenario import content_identity, load_scenario
+from stealth_core.task import StealthTask
 
 REPO = Path(__file__).resolve().parents[4]
 MAZE = (REPO / 'scenarios' / 'simple-maze.yaml').read_text()

@@ -16,7 +16,7 @@ from stealth_bringup.run_config import (
     run_directory,
     write_params_file,
 )
-from stealth_env.path_scores import OPTIMUM_GAMMA
+from stealth_core.path_scores import OPTIMUM_GAMMA
 import yaml
 
 CONFIG = Path(__file__).resolve().parent.parent / 'config'

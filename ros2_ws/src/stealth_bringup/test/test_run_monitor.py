@@ -61,7 +61,7 @@ def test_step_reports_give_each_episode_its_lattice_scores_and_the_progress_line
     from stealth_bringup.episode_scores import EpisodeScorer
     from stealth_bringup.episode_tracker import Tracker
     from stealth_bringup.run_monitor import Monitor, Progress
-    from stealth_env.scenario import load_scenario
+    from stealth_core.scenario import load_scenario
     from stealth_interfaces.msg import AgentEpisodeInfo, EpisodeSummary, StepInfo
 
     scorer = EpisodeScorer(load_scenario('map1'), None)

@@ -23,7 +23,7 @@ from stealth_bringup.run_outputs import (
     write_episodes_csv,
     write_json,
 )
-from stealth_env.planners import optimal_path
+from stealth_core.planners import optimal_path
 from stealth_node_kit.full_disk import DiskFullError
 
 
@@ -85,7 +85,7 @@ def test_the_learning_curve_is_drawn(tmp_path):
 
 @pytest.mark.parametrize('scenario_name', ['simple-maze'])
 def test_the_path_picture_shows_the_learned_path_and_the_optimum(tmp_path, scenario_name):
-    from stealth_env.scenario import load_scenario
+    from stealth_core.scenario import load_scenario
 
     scenario = load_scenario(scenario_name)
     points, result = optimal_path(scenario, 'easy')

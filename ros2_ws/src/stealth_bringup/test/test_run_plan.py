@@ -27,7 +27,7 @@ def test_the_default_scenario_defaults_to_its_quick_goal_however_it_is_named(
 
 
 def test_other_scenarios_default_to_their_own_goal(tmp_path):
-    from stealth_env.scenario import load_scenario
+    from stealth_core.scenario import load_scenario
 
     plan = plan_of('--scenario', 'lgfloor', runs_dir=tmp_path)
     assert plan.goal == load_scenario('lgfloor').default_goal
@@ -185,8 +185,8 @@ def test_a_floor_plan_prior_is_the_runs_policy_file_with_a_row_per_place(tmp_pat
     iteration's action values with the lights dark, at the agent's gamma, for its learner."""
     import numpy as np
     from stealth_agent.policy_store import check_compatible, load_policy
-    from stealth_env.floor_plan_prior import floor_plan_values
-    from stealth_env.gym_env import lattice_model
+    from stealth_core.floor_plan_prior import floor_plan_values
+    from stealth_core.gym_env import lattice_model
 
     plan = plan_of('--prior', 'floor_plan', '--set', 'agent.gamma=0.95', runs_dir=tmp_path)
     agent = plan.parameters['agent'].values

@@ -6,7 +6,7 @@ from types import SimpleNamespace
 from stealth_bringup import run_report
 from stealth_bringup.episode_tracker import EpisodeRecord
 from stealth_bringup.run_report import RunFacts, RunReport, criterion_line, path_label
-from stealth_env.path_scores import Criterion
+from stealth_core.path_scores import Criterion
 
 
 class Episode:

@@ -19,6 +19,8 @@ from geometry_msgs.msg import Point, Pose2D, PoseStamped
 from nav_msgs.msg import OccupancyGrid, Path
 import numpy as np
 from std_msgs.msg import ColorRGBA
+from stealth_core.grid_observation import CHANNELS
+from stealth_core.kinematics import Pose
 from stealth_interfaces.msg import (
     EpisodeSummary,
     GridObservation,
@@ -30,11 +32,9 @@ from stealth_interfaces.msg import (
 )
 from stealth_interfaces.srv import ExecuteMove
 from stealth_node_kit.conversions import quaternion_yaw, time_msg, yaw_quaternion
-from stealth_sim.kinematics import Pose
 from visualization_msgs.msg import Marker, MarkerArray
 
 from stealth_env.episode_flow import PlanarPose
-from stealth_env.grid_observation import CHANNELS
 from stealth_env.markers import searchlight_fields
 from stealth_env.topic_moves import MoveGoal
 

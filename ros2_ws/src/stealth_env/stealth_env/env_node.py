@@ -79,11 +79,16 @@ import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
+from stealth_core.grid_observation import observed_grid
+from stealth_core.reward import EpisodeOutcome
+from stealth_core.scenario import ScenarioError, load_scenario
+from stealth_core.task import StealthTask
 from stealth_interfaces.msg import RLAction, RLExperimentInfo
 from stealth_interfaces.srv import ExecuteMove, RestartEpisode
 from stealth_node_kit import rl_contract
 from stealth_node_kit.conversions import seconds, time_msg
 from stealth_node_kit.in_process import InProcessServices
+from stealth_node_kit.log_throttle import Throttle
 from stealth_node_kit.on_demand import OnDemand, events_on_demand
 from stealth_node_kit.parameters import StartupError, declare_parameters, non_finite
 from stealth_node_kit.running import StartupNode, run_node
@@ -99,16 +104,11 @@ from stealth_env.episode_flow import (
     is_finite_pose,
     progress_line,
 )
-from stealth_env.grid_observation import observed_grid
-from stealth_env.log_throttle import Throttle
-from stealth_env.reward import EpisodeOutcome
 from stealth_env.robot import MoveEnd, Robot
-from stealth_env.scenario import ScenarioError, load_scenario
 from stealth_env.scene_publisher import ScenePublisher
 from stealth_env.sensed_track import SensedTrack
 from stealth_env.service_robot import ServiceRobot, Teleport
 from stealth_env.start_gate import StartGate
-from stealth_env.task import StealthTask
 from stealth_env.topic_moves import Pose
 from stealth_env.topic_robot import TopicRobot
 

@@ -36,7 +36,7 @@ PARAMETERS = {
     ),
     'observation_layout': Param(
         'off', "Also send the agent an observation on rl_env/observation: 'grid' (static lights: "
-        'stealth_env.grid_observation as GridObservation, latched; track full: once; track '
+        'stealth_core.grid_observation as GridObservation, latched; track full: once; track '
         'sensed: the belief whenever what was sensed changes; what the generalist reads) or '
         "'off' (nothing: recordings stay small).", read_only=True,
     ),

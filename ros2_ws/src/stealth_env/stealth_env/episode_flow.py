@@ -2,7 +2,7 @@
 
 The node only turns messages and service answers into calls of :class:`EpisodeFlow` and what
 the calls return into messages; every decision of the rl_msgs protocol (rl-texplore-ros-pkg's
-rl_env) is made here, on top of the shared judging core ``stealth_env.task.StealthTask``::
+rl_env) is made here, on top of the shared judging core ``stealth_core.task.StealthTask``::
 
     flow = EpisodeFlow(task, judge_on='true')
     token, pose = flow.begin_reset()             # WAITING/ENDED -> RESETTING: call sim/reset
@@ -61,7 +61,7 @@ Decisions:
   blocks, which turns nothing on the lattice) turns in place to its lattice heading.
 - **Bumps** (``move_ended``): a drive between two lattice nodes that ended BUMPED backs off to
   its start node and is retried once on its lattice line moved off the walls
-  (:mod:`stealth_env.bump_recovery`); the step is judged where the retry ends, with its outcome.
+  (:mod:`stealth_core.bump_recovery`); the step is judged where the retry ends, with its outcome.
 - **Actions** are accepted only while the flow waits for one (RUNNING) and only when they are
   those of ``task.action_names`` (0-3 the moves, then 4 wait where lights move, then turn left
   and turn right where the scenario has turn actions); anything else is dropped with a
@@ -87,18 +87,18 @@ import enum
 import math
 from typing import NamedTuple
 
-from stealth_sim.move_executor import MoveOutcome
-
-from stealth_env.bump_recovery import BumpRecovery
-from stealth_env.exposure import heading_angle
-from stealth_env.reward import EpisodeOutcome
-from stealth_env.task import (
+from stealth_core.bump_recovery import BumpRecovery
+from stealth_core.exposure import heading_angle
+from stealth_core.moves import MoveOutcome
+from stealth_core.reward import EpisodeOutcome
+from stealth_core.task import (
     WAIT,
     EpisodeStats,
     EpisodeSummaryFields,
     StealthTask,
     StepJudgement,
 )
+
 from stealth_env.topic_moves import MoveGoal, go_to, hold_goal
 
 JUDGE_ON = ('true', 'estimate')

@@ -29,7 +29,7 @@ threshold (100 at or above it: a cell where the robot would be seen).
 
 The cone's cut at walls is for display: rays marched from the lamp in half-cell steps stop in
 the first blocked cell other than the lamp's own (a lamp may sit in a wall). Judging uses the
-exact model (``stealth_env.lighting``), never this picture.
+exact model (``stealth_core.lighting``), never this picture.
 """
 
 from __future__ import annotations
@@ -38,9 +38,8 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-
-from stealth_env.lighting import cone_factor, intensity
-from stealth_env.palette import (
+from stealth_core.lighting import cone_factor, intensity
+from stealth_core.palette import (
     MARKER_DETECTION,
     MARKER_GOAL,
     MARKER_HEATMAP_STOPS,
@@ -51,7 +50,7 @@ from stealth_env.palette import (
     MARKER_START,
     MARKER_TEXT,
 )
-from stealth_env.searchlight import PatrolMotion, Searchlight, SweepMotion
+from stealth_core.searchlight import PatrolMotion, Searchlight, SweepMotion
 
 RGBA = tuple[float, float, float, float]
 Point = tuple[float, float, float]

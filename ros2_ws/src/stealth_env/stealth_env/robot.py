@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import NamedTuple, Protocol
 
-from stealth_sim.move_executor import MoveOutcome
+from stealth_core.moves import MoveOutcome
 
 from stealth_env.topic_moves import MoveGoal, Pose
 

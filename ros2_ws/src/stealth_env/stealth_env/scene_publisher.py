@@ -96,7 +96,7 @@ class ScenePublisher:
 
     def publish_plan(self) -> None:
         """planned_path: value iteration's optimum from the start to the goal (frame map)."""
-        from stealth_env.planners import optimal_path
+        from stealth_core.planners import optimal_path
 
         publisher = self._publisher(Path, 'planned_path')
         points, _ = optimal_path(self.scenario, self.goal)
@@ -125,7 +125,8 @@ class ScenePublisher:
     def _grid(self, t: float) -> OccupancyGrid:
         """The lit area at time t on the scenario's map grid: static lights' field from the disk
         cache, moving lights' computed afresh (a cache file per time would only pile up)."""
-        from stealth_env.visibility import scenario_visibility, visibility_field
+        from stealth_core.visibility import visibility_field
+        from stealth_core.visibility_cache import scenario_visibility
 
         occupancy = self.scenario.map
         if self.moving_lights:

@@ -25,10 +25,10 @@ keeps the full track's state (a recording stays small; the sensed part follows f
 from __future__ import annotations
 
 import numpy as np
+from stealth_core.grid_observation import lattice_geometry
+from stealth_core.sensing import NO_PLACE, Sensor
 
-from stealth_env.grid_observation import lattice_geometry
 from stealth_env.markers import visibility_levels
-from stealth_env.sensing import NO_PLACE, Sensor
 
 UNKNOWN_LEVEL = -1  # OccupancyGrid's unknown: never sensed, or no node there
 
@@ -37,8 +37,8 @@ class SensedTrack:
     """The sensor of one environment node and the state it adds (see the module docstring)."""
 
     def __init__(self, task, model=None):
-        from stealth_env.bounce import bounce_bound
-        from stealth_env.planners import LatticeModel
+        from stealth_core.bounce import bounce_bound
+        from stealth_core.lattice_model import LatticeModel
 
         self.task = task
         self.model = model if model is not None else LatticeModel.build(task)

@@ -36,11 +36,10 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from stealth_sim.controller import signed_approach_speed
-from stealth_sim.kinematics import Limits, Pose, compose, relative, wrap_angle
-from stealth_sim.move_executor import ControllerConfig, MoveOutcome
-
-from stealth_env.move_lattice import MoveLattice, Node
+from stealth_core.controller import signed_approach_speed
+from stealth_core.kinematics import Limits, Pose, compose, relative, wrap_angle
+from stealth_core.move_lattice import MoveLattice, Node
+from stealth_core.moves import ControllerConfig, MoveOutcome
 
 __all__ = ['ControllerConfig', 'Limits', 'MoveOutcome', 'Pose']
 

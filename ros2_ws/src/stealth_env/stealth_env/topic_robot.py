@@ -47,15 +47,15 @@ from rclpy.qos import (
     qos_profile_sensor_data,
 )
 from sensor_msgs.msg import LaserScan
+from stealth_core.move_lattice import MoveLattice
+from stealth_core.moves import MoveOutcome
 from stealth_node_kit.conversions import seconds, yaw_quaternion
 from stealth_node_kit.endpoints import QUIET_PUBLISHER, QUIET_SUBSCRIPTION
+from stealth_node_kit.log_throttle import Throttle
 from stealth_node_kit.on_demand import OnDemand, clock_on_demand
 from stealth_node_kit.qos import kept_qos
-from stealth_sim.move_executor import MoveOutcome
 
 from stealth_env.env_messages import pose_of
-from stealth_env.log_throttle import Throttle
-from stealth_env.move_lattice import MoveLattice
 from stealth_env.robot import MoveEnd, OnMoveEnd, OnReset, failed
 from stealth_env.robot_watch import ClockWatch, Silence, silence_reason
 from stealth_env.service_robot import Teleport

@@ -3,14 +3,14 @@ within the cells of its two nodes; and the episode flow's back-off, retry and ju
 
 import numpy as np
 import pytest
-from stealth_env.bump_recovery import BumpRecovery
-from stealth_env.clearance import LEVELS, Clearance, ClearanceSettings
+from stealth_core.bump_recovery import BumpRecovery
+from stealth_core.clearance import LEVELS, Clearance, ClearanceSettings
+from stealth_core.moves import MoveOutcome
+from stealth_core.occupancy_map import OccupancyMap
+from stealth_core.scenario import load_scenario
+from stealth_core.task import StealthTask
 from stealth_env.episode_flow import EpisodeFlow, PlanarPose
-from stealth_env.scenario import load_scenario
-from stealth_env.task import StealthTask
 from stealth_env.topic_moves import go_to
-from stealth_sim.move_executor import MoveOutcome
-from stealth_sim.occupancy_map import OccupancyMap
 
 RES = 0.1
 

@@ -6,6 +6,9 @@ from geometry_msgs.msg import Pose as PoseMsg
 from nav_msgs.msg import OccupancyGrid
 import numpy as np
 import pytest
+from stealth_core.reward import EpisodeOutcome
+from stealth_core.scenario import load_scenario
+from stealth_core.task import EpisodeSummaryFields, StealthTask
 from stealth_env.env_messages import (
     MAP_FRAME,
     MARKER_KINDS,
@@ -26,9 +29,6 @@ from stealth_env.env_messages import (
 )
 from stealth_env.episode_flow import EpisodeFlow, PlanarPose
 from stealth_env.markers import WallMap, scene_markers, searchlight_fields
-from stealth_env.reward import EpisodeOutcome
-from stealth_env.scenario import load_scenario
-from stealth_env.task import EpisodeSummaryFields, StealthTask
 from stealth_env.topic_moves import MoveGoal, go_to, hold_goal
 from stealth_interfaces.srv import ExecuteMove
 from stealth_node_kit.conversions import time_msg, yaw_quaternion

@@ -4,6 +4,10 @@ import dataclasses
 import math
 
 import pytest
+from stealth_core.moves import MoveOutcome
+from stealth_core.reward import EpisodeOutcome
+from stealth_core.scenario import load_scenario
+from stealth_core.task import WAIT, EpisodeSummaryFields, StealthTask
 from stealth_env.episode_flow import (
     SLOT_TOLERANCE,
     Endpoint,
@@ -14,11 +18,7 @@ from stealth_env.episode_flow import (
     agent_connected,
     progress_line,
 )
-from stealth_env.reward import EpisodeOutcome
-from stealth_env.scenario import load_scenario
-from stealth_env.task import WAIT, EpisodeSummaryFields, StealthTask
 from stealth_env.topic_moves import MoveGoal, go_to, hold_goal
-from stealth_sim.move_executor import MoveOutcome
 
 DONE, BUMPED, TIMED_OUT = MoveOutcome.DONE, MoveOutcome.BUMPED, MoveOutcome.TIMED_OUT
 

@@ -9,15 +9,16 @@ import gymnasium as gym
 from gymnasium.utils.env_checker import check_env
 import numpy as np
 import pytest
-from stealth_env import exposure
-from stealth_env.exposure import Footprint
-from stealth_env.gym_env import StealthNavEnv
-from stealth_env.lighting import point_light_visibilities
-from stealth_env.planners import LatticeModel, dark_path, follow, value_iteration, walk
-from stealth_env.reward import EpisodeOutcome
-from stealth_env.scenario import ScenarioError, load_scenario
-from stealth_env.task import StealthTask
-from stealth_env.visibility import PointVisibility
+from stealth_core import exposure
+from stealth_core.exposure import Footprint
+from stealth_core.gym_env import StealthNavEnv
+from stealth_core.lattice_model import LatticeModel
+from stealth_core.lighting import point_light_visibilities
+from stealth_core.planners import dark_path, follow, value_iteration, walk
+from stealth_core.reward import EpisodeOutcome
+from stealth_core.scenario import ScenarioError, load_scenario
+from stealth_core.task import StealthTask
+from stealth_core.visibility import PointVisibility
 
 VARIANTS = ('map1-exposure', 'simple-maze-exposure')
 FOOTPRINT = Footprint(0.6, 0.15)

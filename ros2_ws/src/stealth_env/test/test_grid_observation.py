@@ -4,19 +4,19 @@ refused for (one line each). stealth_learn's equality with it: stealth_learn/tes
 
 import numpy as np
 import pytest
-from stealth_env.env_messages import grid_observation_msg
-from stealth_env.grid_observation import (
+from stealth_core.grid_observation import (
     CHANNELS,
     FullTrackGrid,
     cell_of,
     layout_id,
     observed_grid,
 )
-from stealth_env.planners import LatticeModel
-from stealth_env.scenario import load_scenario
+from stealth_core.lattice_model import LatticeModel
+from stealth_core.scenario import load_scenario
+from stealth_core.sensing import NO_PLACE
+from stealth_core.task import StealthTask
+from stealth_env.env_messages import grid_observation_msg
 from stealth_env.sensed_track import SensedTrack
-from stealth_env.sensing import NO_PLACE
-from stealth_env.task import StealthTask
 
 
 @pytest.fixture(scope='module')

@@ -6,7 +6,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from stealth_env.lighting import intensity, point_visibility
+from stealth_core.lighting import intensity, point_visibility
+from stealth_core.scenario import load_scenario
+from stealth_core.searchlight import PatrolMotion, Searchlight, SweepMotion
 from stealth_env.markers import (
     KINDS,
     MOTION_PATROL,
@@ -23,8 +25,6 @@ from stealth_env.markers import (
     searchlight_fields,
     visibility_levels,
 )
-from stealth_env.scenario import load_scenario
-from stealth_env.searchlight import PatrolMotion, Searchlight, SweepMotion
 
 MSG_DIR = Path(__file__).resolve().parents[2] / 'stealth_interfaces' / 'msg'
 RESOLUTION = 0.05
@@ -217,7 +217,7 @@ def test_visibility_levels_scale_to_the_detection_threshold_and_cap_at_100():
 
 
 def test_visibility_levels_of_a_scenario_match_the_model_at_cell_centres():
-    from stealth_env.visibility import scenario_visibility
+    from stealth_core.visibility_cache import scenario_visibility
 
     scenario = load_scenario('simple-maze')
     total, _ = scenario_visibility(scenario)

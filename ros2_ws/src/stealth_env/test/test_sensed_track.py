@@ -3,10 +3,10 @@ observation, flattened, for the same moves; its description and its sensed_light
 
 import numpy as np
 import pytest
-from stealth_env.grid_observation import AGE, FREE, LIGHT, MOVE_RIGHT, MOVE_UP, observed_grid
-from stealth_env.gym_env import StealthNavEnv
+from stealth_core.grid_observation import AGE, FREE, LIGHT, MOVE_RIGHT, MOVE_UP, observed_grid
+from stealth_core.gym_env import StealthNavEnv
+from stealth_core.sensing import NO_PLACE, flat_observation
 from stealth_env.sensed_track import SensedTrack
-from stealth_env.sensing import NO_PLACE, flat_observation
 
 ACTIONS = [3, 3, 0, 0, 3, 1, 2, 0]
 

@@ -7,8 +7,10 @@ import math
 
 import numpy as np
 import pytest
-from stealth_env.move_lattice import ACTIONS, MoveLattice
-from stealth_env.scenario import load_scenario
+from stealth_core.kinematics import Limits, relative, wrap_angle
+from stealth_core.move_lattice import ACTIONS, MoveLattice
+from stealth_core.moves import GRID_HEADINGS, MoveKind
+from stealth_core.scenario import load_scenario
 from stealth_env.topic_moves import (
     Command,
     ControllerConfig,
@@ -26,8 +28,6 @@ from stealth_env.topic_moves import (
     pose_problem,
     route_home,
 )
-from stealth_sim.kinematics import Limits, relative, wrap_angle
-from stealth_sim.move_executor import GRID_HEADINGS, MoveKind
 from stealth_sim.simulator import SimConfig, Simulator
 
 TOLERANCE = ControllerConfig()
@@ -167,7 +167,7 @@ def test_in_lockstep_a_command_latency_of_0_ends_within_tolerance_in_fewer_perio
 def test_moves_to_lattice_nodes_take_an_offset_robot_back_onto_the_lattice(maze):
     """go_to, as the environment sends every action: from a start 0.2 m off the lattice
     (a grid move carries such an offset along), each move ends on its target node."""
-    from stealth_env.task import StealthTask
+    from stealth_core.task import StealthTask
 
     task = StealthTask(maze)
     robot = TopicRobot(maze, maze.start, 0.2)
@@ -344,7 +344,7 @@ def test_a_robot_drives_home_along_the_route(maze):
 def drive_kinematic(move: MoveGoal, start: Pose, period=0.1):
     """A perfect diff-drive robot (estimate = odometry = truth) under the controller: its
     Finished and the poses it passed."""
-    from stealth_sim.kinematics import integrate, limited_velocity
+    from stealth_core.kinematics import integrate, limited_velocity
 
     pose, linear, angular, t = start, 0.0, 0.0, 0.0
     controller = TopicMove(move, pose, t, TopicConfig(limits=LIMITS))

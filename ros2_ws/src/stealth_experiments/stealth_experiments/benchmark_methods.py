@@ -2,7 +2,7 @@
 of its tracks, as result rows. No Ray, no rclpy.
 
 The tracks (``TRACKS``): ``full``, the robot knows the lights (today's task), and ``sensed``,
-it knows the floor plan only and senses the light in its line of sight (``stealth_env.sensing``,
+it knows the floor plan only and senses the light in its line of sight (``stealth_core.sensing``,
 the Gym env's ``track='sensed'``). Which method runs on which track (``METHODS``), and why:
 
 - ``value iteration``: the oracle, full knowledge, on both tracks (on the sensed track it is
@@ -11,7 +11,7 @@ the Gym env's ``track='sensed'``). Which method runs on which track (``METHODS``
 - ``A*``: the shortest route, ignoring the lights; it needs only the floor plan, so it runs on
   both tracks, alike.
 - ``Dark Path``: needs the lights (it plans around them): full track only.
-- ``replan (unknown dark)``, ``replan (unknown lit)`` (``stealth_env.replanning``): sensed
+- ``replan (unknown dark)``, ``replan (unknown lit)`` (``stealth_core.replanning``): sensed
   track only. On the full track they would see every light from the start and plan Dark Path's
   way on it (with static lights their first plan is Dark Path's route), so they add nothing
   there.
@@ -45,10 +45,11 @@ import numpy as np
 from stealth_agent.learners import LEARNER_NAMES
 from stealth_agent.policy_store import check_compatible, load_policy
 from stealth_agent.protocol import ProtocolAgent
-from stealth_env.gym_env import StealthNavEnv, lattice_model
-from stealth_env.planners import LatticeModel, astar, dark_path, follow, value_iteration, walk
-from stealth_env.replanning import SensedReplanner, play
-from stealth_env.reward import EpisodeOutcome, detection_reward
+from stealth_core.gym_env import StealthNavEnv, lattice_model
+from stealth_core.lattice_model import LatticeModel
+from stealth_core.planners import astar, dark_path, follow, value_iteration, walk
+from stealth_core.replanning import SensedReplanner, play
+from stealth_core.reward import EpisodeOutcome, detection_reward
 
 from stealth_experiments.harness import RunSpec, default_budget, play_episode, run
 

@@ -21,8 +21,8 @@ import dataclasses
 from pathlib import Path
 import re
 
-from stealth_env.scenario import find_scenario, load_scenario
-from stealth_env.scenario_generator import (
+from stealth_core.scenario import find_scenario, load_scenario
+from stealth_core.scenario_generator import (
     SEED_RANGES,
     GenerationError,
     Options,

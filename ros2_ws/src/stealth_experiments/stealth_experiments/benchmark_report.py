@@ -6,7 +6,7 @@ counted apart):
 
 - **success**: the undetected success rate, the fraction of episodes that reached the goal
   without being detected (detection ends an episode);
-- **criterion**: the fraction that met the success criterion (``stealth_env.path_scores``:
+- **criterion**: the fraction that met the success criterion (``stealth_core.path_scores``:
   reached the goal undetected, path <= 1.1x the optimum's, accumulated exposure <= the
   optimum's + 0.1), the one the harness and `stealth train` judge greedy episodes by;
 - **regret**: the mean normalised regret ``(vi_return - return) / (vi_return - floor)``, the
@@ -29,9 +29,9 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 import numpy as np
-from stealth_env import palette
-from stealth_env.path_scores import DEFAULT_CRITERION, PathScores, meets_criterion
-from stealth_env.reward import EpisodeOutcome
+from stealth_core import palette
+from stealth_core.path_scores import DEFAULT_CRITERION, PathScores, meets_criterion
+from stealth_core.reward import EpisodeOutcome
 
 from stealth_experiments.benchmark_methods import COLUMNS, METHODS, TRACKS
 

@@ -14,7 +14,7 @@ through the report writer ``run_outputs`` that `stealth train` runs use too):
 - ``results.md``: per scenario, one row per method (A*, Dark Path, value iteration, each
   learner over its seeds): outcome rates, returns, path length and accumulated visibility with
   their ratio and excess over the optimum's, whether the final greedy episode meets the success
-  criterion (``--max-path-ratio``, ``--exposure-tolerance``: ``stealth_env.path_scores``),
+  criterion (``--max-path-ratio``, ``--exposure-tolerance``: ``stealth_core.path_scores``),
   episodes until every greedy evaluation meets it, wall time;
 - ``results.csv``: the same per run (one row per seed);
 - ``learning_curves.png`` and ``curves_<scenario>.png``: greedy return against episodes, the
@@ -44,8 +44,8 @@ from stealth_agent.learners import (
 )
 from stealth_agent.schedules import Schedule
 from stealth_bringup.run_arguments import add_criterion_options, criterion_of
-from stealth_env.gym_env import lattice_model
-from stealth_env.path_scores import DEFAULT_CRITERION, Criterion
+from stealth_core.gym_env import lattice_model
+from stealth_core.path_scores import DEFAULT_CRITERION, Criterion
 from tqdm import tqdm
 
 from stealth_experiments.harness import (

@@ -8,7 +8,7 @@ ROS agent node drives it) on the Gymnasium environment for a fixed budget of epi
 Definitions. A return sums the rewards after the first state, undiscounted; the optimum is
 ``planners.value_iteration``'s (undiscounted, exact, with the step limit). Rates count the
 training episodes' outcomes. A greedy evaluation *meets the criterion* when its episode does
-(``stealth_env.path_scores.meets_criterion`` against value iteration's path: reached the goal
+(``stealth_core.path_scores.meets_criterion`` against value iteration's path: reached the goal
 undetected, path <= ``max_path_ratio`` x the optimum's, accumulated exposure <= the optimum's +
 ``exposure_tolerance``; with slip, the mean of its rollouts). "Episodes to the criterion" is the
 first evaluation point from which every later greedy evaluation of the run meets it (it stays
@@ -33,9 +33,10 @@ from stealth_agent.policy_store import save_policy
 from stealth_agent.protocol import ProtocolAgent, parse_description
 from stealth_agent.schedules import Schedule
 from stealth_agent.state_index import StateIndex
-from stealth_env.floor_plan_prior import PRIORS, floor_plan_prior
-from stealth_env.gym_env import StealthNavEnv, lattice_model
-from stealth_env.path_scores import (
+from stealth_core.floor_plan_prior import PRIORS, floor_plan_prior
+from stealth_core.gym_env import StealthNavEnv, lattice_model
+from stealth_core.lattice_model import LatticeModel
+from stealth_core.path_scores import (
     DEFAULT_CRITERION,
     OPTIMUM_GAMMA,
     Criterion,
@@ -44,10 +45,10 @@ from stealth_env.path_scores import (
     meets_criterion,
     optimum_path,
 )
-from stealth_env.planners import LatticeModel, astar, dark_path, follow, value_iteration, walk
-from stealth_env.replanning import SensedReplanner, play
-from stealth_env.reward import EpisodeOutcome
-from stealth_env.scenario import content_identity
+from stealth_core.planners import astar, dark_path, follow, value_iteration, walk
+from stealth_core.replanning import SensedReplanner, play
+from stealth_core.reward import EpisodeOutcome
+from stealth_core.scenario import content_identity
 
 # Training episodes per run, per learner: each well past where every seed settled (README);
 # Dyna-Q's 20 planning updates make its episodes ~5x dearer and it needs ~1/6 as many;
@@ -66,7 +67,7 @@ MOVING_EPISODES = {'qlearning': 15000, 'sarsa': 15000, 'dyna': 3000, 'prioritize
 DEFAULT_EVAL_EVERY = 10
 WITHIN = 0.05  # of the optimal return: the old criterion, kept for settled_within only
 BASELINES = ('A*', 'Dark Path', 'value iteration')
-# The unknown-light track's baselines (stealth_env.replanning), by the rule for unsensed places.
+# The unknown-light track's baselines (stealth_core.replanning), by the rule for unsensed places.
 SENSED_BASELINES = {'replan (unknown dark)': 'dark', 'replan (unknown lit)': 'lit'}
 # Settings a sweep may vary (RunSpec.params), over tuned_config's: alpha (constant), epsilon (its
 # start; it decays exponentially to 0 with time constant epsilon_decay episodes), gamma,
@@ -82,7 +83,7 @@ PLANNING_UPDATES = {'dyna': 20, 'prioritized': 200}
 # state's action values with the lights dark (floor_plan_prior), or 'none', initial_value
 # everywhere. Absent: floor_plan for the OPTIMISTIC learners, none for the others.
 PRIOR_PARAMETER = 'prior'
-# The success criterion's options (stealth_env.path_scores.Criterion), carried in
+# The success criterion's options (stealth_core.path_scores.Criterion), carried in
 # RunSpec.params beside the learner's settings so that they travel with a run to any worker;
 # absent, the defaults.
 CRITERION_PARAMETERS = ('max_path_ratio', 'exposure_tolerance')

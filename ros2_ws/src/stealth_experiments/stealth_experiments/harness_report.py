@@ -13,16 +13,16 @@ from pathlib import Path
 from matplotlib.figure import Figure
 import numpy as np
 from stealth_bringup.run_outputs import plot_paths, write_csv
-from stealth_env import palette
-from stealth_env.path_scores import (
+from stealth_core import palette
+from stealth_core.lattice_model import LatticeModel
+from stealth_core.path_scores import (
     DEFAULT_CRITERION,
     Criterion,
     PathScores,
     describe,
     score_columns,
 )
-from stealth_env.planners import LatticeModel
-from stealth_env.reward import EpisodeOutcome
+from stealth_core.reward import EpisodeOutcome
 
 from stealth_experiments.harness import BASELINES, Baseline, RunResult, scenario_label
 
@@ -332,7 +332,7 @@ def _labelled_paths(found: list[Baseline], results, baselines=BASELINES):
 def write_animation(out: Path, model: LatticeModel, found: list[Baseline], results) -> Path:
     """paths_<scenario>.gif: the lights moving, the optimum and each learner's first seed's
     greedy path walked step by step (scenarios with moving lights)."""
-    from stealth_env.render import animate_scenario
+    from stealth_core.render import animate_scenario
 
     labelled = _labelled_paths(found, results, baselines=('value iteration',))
     task = model.task

@@ -339,7 +339,7 @@ def _budget(episodes, learner: str, fail) -> int:
 
 
 def _scenario(entry, default_goal, field, fail, base: Path) -> tuple[str, str | None]:
-    from stealth_env.scenario import load_scenario
+    from stealth_core.scenario import load_scenario
 
     goal = default_goal
     if isinstance(entry, dict):

@@ -51,7 +51,7 @@ class TrialWorker:
     def __init__(self, runner: Callable, warm: Sequence[tuple[str, str | None]]):
         self.runner = runner
         if warm:
-            from stealth_env.gym_env import lattice_model
+            from stealth_core.gym_env import lattice_model
 
             for scenario, goal in warm:
                 # A scenario that cannot be built fails in its own trials, with their error.

@@ -9,7 +9,7 @@ summarised at the end. No rclpy, no Ray.
     DIR/policies/<trial>-seed<k>.npz   each run's final policy (stealth_agent policy file)
     DIR/results.csv             one row per run: settings, parameters, episodes until every
                                 greedy evaluation meets the success criterion
-                                (stealth_env.path_scores), final greedy return / optimum,
+                                (stealth_core.path_scores), final greedy return / optimum,
                                 score, wall time, host
     DIR/results.md              headed by the status line (complete, failed, interrupted); the
                                 same as a table, the best configuration per scenario, curves
@@ -27,7 +27,7 @@ from pathlib import Path
 from matplotlib.figure import Figure
 import numpy as np
 from stealth_bringup.run_outputs import write_csv, write_json
-from stealth_env.path_scores import DEFAULT_CRITERION
+from stealth_core.path_scores import DEFAULT_CRITERION
 
 from stealth_experiments.harness import scenario_label
 from stealth_experiments.harness_report import plot_curves

@@ -32,7 +32,7 @@ import tempfile
 import time
 
 import numpy as np
-from stealth_env.reward import EpisodeOutcome
+from stealth_core.reward import EpisodeOutcome
 
 from stealth_experiments.harness import RunResult, RunSpec, run, settled, settled_within
 from stealth_experiments.sweep_stop import MARK, TRIAL_MARK, scratch_prefix
@@ -140,8 +140,8 @@ def _stop_with_parent() -> None:
 
 
 def _run_ros(trial: dict, seed: int, scratch: Path):
-    from stealth_env.gym_env import lattice_model
-    from stealth_env.planners import value_iteration
+    from stealth_core.gym_env import lattice_model
+    from stealth_core.planners import value_iteration
 
     if trial['slip']:
         raise ValueError('a ROS trial has no slip (the simulator moves as it moves)')

@@ -9,8 +9,8 @@ import subprocess
 import sys
 
 import pytest
-from stealth_env.gym_env import lattice_model
-from stealth_env.planners import step_terms, value_iteration
+from stealth_core.gym_env import lattice_model
+from stealth_core.planners import step_terms, value_iteration
 from stealth_experiments import benchmark
 from stealth_experiments.benchmark_methods import (
     COLUMNS,
@@ -258,7 +258,7 @@ def test_the_generalist_crosses_a_small_unseen_building_on_both_tracks(tmp_path)
     """A 20 x 20 m generated test-range building (static lights): the shipped weights reach
     the goal undetected on the full track; the sensed track runs its episode on the belief."""
     pytest.importorskip('jax')
-    from stealth_env.scenario_generator import Options, generate
+    from stealth_core.scenario_generator import Options, generate
 
     path = generate(TEST_SEED + 3, Options(width=20, height=20, lights=3)).write(tmp_path)
     rows = {r['track']: r for r in run_case(_trial('generalist', scenario=str(path), goal=None))}

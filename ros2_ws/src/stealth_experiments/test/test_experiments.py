@@ -8,12 +8,12 @@ import pytest
 from stealth_agent.learners import LEARNER_NAMES
 from stealth_agent.policy_store import check_compatible, load_policy
 from stealth_agent.protocol import ProtocolAgent
-from stealth_env.gym_env import lattice_model
-from stealth_env.path_scores import OPTIMUM_GAMMA, Criterion, CriterionError
-from stealth_env.planners import value_iteration
-from stealth_env.reward import EpisodeOutcome
-from stealth_env.scenario import content_identity
-from stealth_env.task import StealthTask
+from stealth_core.gym_env import lattice_model
+from stealth_core.path_scores import OPTIMUM_GAMMA, Criterion, CriterionError
+from stealth_core.planners import value_iteration
+from stealth_core.reward import EpisodeOutcome
+from stealth_core.scenario import content_identity
+from stealth_core.task import StealthTask
 from stealth_experiments import experiments
 from stealth_experiments.harness import (
     DEFAULT_EPISODES,

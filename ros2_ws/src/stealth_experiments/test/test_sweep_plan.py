@@ -5,7 +5,7 @@ import json
 from pathlib import Path
 
 import pytest
-from stealth_env.scenario import find_scenario
+from stealth_core.scenario import find_scenario
 from stealth_experiments import experiments
 from stealth_experiments.harness import configured, tuned_config
 from stealth_experiments.sweep_plan import (

@@ -14,7 +14,7 @@ itself.
 from __future__ import annotations
 
 import numpy as np
-from stealth_env.grid_observation import LIGHT, MOVE_RIGHT, MOVE_UP
+from stealth_core.grid_observation import LIGHT, MOVE_RIGHT, MOVE_UP
 
 UNKNOWN = -1.0  # never sensed (the Gym env's sensed observation, GridObservation's sensed layout)
 
@@ -30,7 +30,7 @@ def believed(light, moves, assumed=0.0) -> tuple[np.ndarray, np.ndarray]:
 
 
 def believed_grid(grid) -> np.ndarray:
-    """A (R, C, 7) grid (``stealth_env.grid_observation``) with its light channels believed
+    """A (R, C, 7) grid (``stealth_core.grid_observation``) with its light channels believed
     (``believed``, unknown nodes dark); a new array, the other channels as they are."""
     grid = np.array(grid, dtype=np.float32)
     light, moves = believed(grid[..., LIGHT], np.moveaxis(grid[..., [MOVE_UP, MOVE_RIGHT]], -1, 0))

@@ -1,9 +1,9 @@
 """A scenario's task as padded tables: everything the JAX environment's step reads, computed
 once with the numpy core (plain numpy, no jax), so the step itself is a few gathers.
 
-The tables come from ``stealth_env.gym_env.lattice_model`` (``planners.LatticeModel``: the exact
+The tables come from ``stealth_core.gym_env.lattice_model`` (``planners.LatticeModel``: the exact
 MDP the Gymnasium environment steps through, every step judged by ``StealthTask``'s light model,
-occlusion and step sampling) and ``stealth_env.sensing.Sensing`` (what is in sight from each
+occlusion and step sampling) and ``stealth_core.sensing.Sensing`` (what is in sight from each
 node), so the JAX environment inherits their rules rather than copying them:
 
 - **Places** are laid on a padded grid: place ``layer * rows * cols + row * cols + col`` is the
@@ -12,7 +12,7 @@ node), so the JAX environment inherits their rules rather than copying them:
   A smaller scenario is padded with walls (cells with no node) up and right to the batch's
   common ``Dims``, and with unused layers, so scenarios of different sizes stack and vmap.
 - **Rewards and outcomes** of every (place, action) are computed here in float64, by
-  ``stealth_env.reward``'s own functions on the distances ``StealthTask.judge`` computes
+  ``stealth_core.reward``'s own functions on the distances ``StealthTask.judge`` computes
   (``math.hypot``), then stored as float32: the JAX step returns exactly float32 of the Gym
   env's reward. Detection: the probability of each step (1 or 0 in 'threshold' mode, so a
   uniform draw in [0, 1) decides exactly; ``reward.detection_probability`` in 'probabilistic'
@@ -38,13 +38,13 @@ import dataclasses
 import math
 
 import numpy as np
-from stealth_env.grid_observation import light_grids
-from stealth_env.gym_env import TRACKS, lattice_model
-from stealth_env.planners import PERPENDICULAR
-from stealth_env.reward import detection_probability
-from stealth_env.scenario import Scenario
-from stealth_env.sensing import NO_PLACE, UNKNOWN, Sensing
-from stealth_env.task import WAIT
+from stealth_core.grid_observation import light_grids
+from stealth_core.gym_env import TRACKS, lattice_model
+from stealth_core.lattice_model import PERPENDICULAR
+from stealth_core.reward import detection_probability
+from stealth_core.scenario import Scenario
+from stealth_core.sensing import NO_PLACE, UNKNOWN, Sensing
+from stealth_core.task import WAIT
 
 NO_ACTION = -1  # PERPENDICULAR's padding: no sideways move
 

@@ -23,8 +23,8 @@ import tempfile
 import time
 
 import numpy as np
-from stealth_env.planners import follow, value_iteration
-from stealth_env.scenario_generator import GenerationError, Options
+from stealth_core.planners import follow, value_iteration
+from stealth_core.scenario_generator import GenerationError, Options
 
 from stealth_learn import generalist_data as data
 from stealth_learn import policy_file

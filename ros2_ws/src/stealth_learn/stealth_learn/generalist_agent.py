@@ -1,4 +1,4 @@
-"""The lights-known generalist as an agent of the Gym env (``stealth_env.gym_env.StealthNavEnv``)
+"""The lights-known generalist as an agent of the Gym env (``stealth_core.gym_env.StealthNavEnv``)
 on either track: every decision comes from the trained parameters (the value map of the grid,
 read at the robot's cell); no planner runs.
 
@@ -30,7 +30,7 @@ same network reads the belief grid, so no other file is needed (nor accepted).
 from __future__ import annotations
 
 import numpy as np
-from stealth_env.replanning import lamp_reach
+from stealth_core.replanning import lamp_reach
 
 from stealth_learn import policy_file
 from stealth_learn.belief import believed

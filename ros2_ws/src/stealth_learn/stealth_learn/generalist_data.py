@@ -13,10 +13,10 @@ import dataclasses
 from pathlib import Path
 
 import numpy as np
-from stealth_env.grid_observation import stack
-from stealth_env.planners import value_iteration
-from stealth_env.scenario import load_scenario
-from stealth_env.scenario_generator import SEED_RANGES, GenerationError, Options, generate
+from stealth_core.grid_observation import stack
+from stealth_core.planners import value_iteration
+from stealth_core.scenario import load_scenario
+from stealth_core.scenario_generator import SEED_RANGES, GenerationError, Options, generate
 
 from stealth_learn.env_tables import TaskArrays
 from stealth_learn.obs_layout import CHANNELS
@@ -88,7 +88,7 @@ def sample_of(seed: int, scenario) -> Sample:
 
 def grid_of(tables, layer: int = 0, light=None, moves=None) -> np.ndarray:
     """(R, C, 7) the grid observation without the robot (``jax_env.observe``;
-    ``stealth_env.grid_observation``'s, what the environment node sends): the light of
+    ``stealth_core.grid_observation``'s, what the environment node sends): the light of
     ``layer`` (bin and heading), or the given ``light`` (R, C) and ``moves`` (2, R, C), a
     sensed belief; age 0."""
     if light is None:

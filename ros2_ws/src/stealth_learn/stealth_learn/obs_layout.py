@@ -18,15 +18,15 @@ Two layouts (``jax_env.StealthJaxEnv(layout=...)``):
   the Gym sensed observation's ``light`` and ``moves``).
 
 The layout id names layout, track and size, e.g. ``stealth-grid-v1/sensed/80x120``. The grid's
-channels, ids and full-track construction are ``stealth_env.grid_observation``'s (what the
+channels, ids and full-track construction are ``stealth_core.grid_observation``'s (what the
 environment node sends through ROS).
 """
 
 from __future__ import annotations
 
-from stealth_env import grid_observation
-from stealth_env.grid_observation import CHANNELS as CHANNELS  # re-exported
-from stealth_env.grid_observation import VERSION
+from stealth_core import grid_observation
+from stealth_core.grid_observation import CHANNELS as CHANNELS  # re-exported
+from stealth_core.grid_observation import VERSION
 
 LAYOUTS = ('vector', 'grid')
 VECTOR = ('x', 'y', 'phase', 'heading', 'lit', 'time_used', 'goal_dx', 'goal_dy')

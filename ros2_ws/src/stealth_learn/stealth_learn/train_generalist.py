@@ -18,7 +18,7 @@ import tempfile
 import time
 
 import numpy as np
-from stealth_env.scenario_generator import THRESHOLD, GenerationError, Options
+from stealth_core.scenario_generator import THRESHOLD, GenerationError, Options
 
 from stealth_learn import generalist_data as data
 from stealth_learn import policy_file

@@ -2,8 +2,8 @@
 one with still lights and one with sweeping and patrolling lights."""
 
 import pytest
-from stealth_env.scenario import load_scenario
-from stealth_env.scenario_generator import Options, generate
+from stealth_core.scenario import load_scenario
+from stealth_core.scenario_generator import Options, generate
 
 STILL = (11, Options(width=20, height=20, lights=3, moving='none'))
 MOVING = (2, Options(width=20, height=20, lights=3, moving='mixed'))

@@ -4,8 +4,8 @@ the environment node's sensed GridObservation): unknown nodes dark, an unknown m
 larger light, and both give the same grid and the same move along an episode."""
 
 import numpy as np
-from stealth_env.grid_observation import LIGHT, MOVE_RIGHT, MOVE_UP, ROBOT, FullTrackGrid
-from stealth_env.gym_env import StealthNavEnv
+from stealth_core.grid_observation import LIGHT, MOVE_RIGHT, MOVE_UP, ROBOT, FullTrackGrid
+from stealth_core.gym_env import StealthNavEnv
 from stealth_learn import ros_policy
 from stealth_learn.belief import believed, believed_grid
 from stealth_learn.generalist_agent import GeneralistAgent

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from stealth_env.scenario_generator import Options
+from stealth_core.scenario_generator import Options
 from stealth_learn import generalist_data as data
 from stealth_learn import policy_file
 from stealth_learn.env_tables import TaskArrays

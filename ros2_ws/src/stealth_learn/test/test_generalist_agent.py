@@ -5,7 +5,7 @@ unknown dark, with a value map per sensed field."""
 
 import numpy as np
 import pytest
-from stealth_env.gym_env import StealthNavEnv
+from stealth_core.gym_env import StealthNavEnv
 from stealth_learn.generalist_agent import GeneralistAgent, load_policy
 from stealth_learn.jax_deps import jax
 from stealth_learn.jax_env import build

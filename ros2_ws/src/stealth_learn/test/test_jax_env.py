@@ -5,9 +5,9 @@ sensed light; then batches, padding and gymnax's auto-reset."""
 import jax
 import numpy as np
 import pytest
-from stealth_env.gym_env import StealthNavEnv
-from stealth_env.planners import astar, follow, value_iteration, walk
-from stealth_env.reward import EpisodeOutcome
+from stealth_core.gym_env import StealthNavEnv
+from stealth_core.planners import astar, follow, value_iteration, walk
+from stealth_core.reward import EpisodeOutcome
 from stealth_learn.env_tables import Dims
 from stealth_learn.jax_env import build
 

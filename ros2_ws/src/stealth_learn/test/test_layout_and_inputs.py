@@ -10,7 +10,7 @@ import sys
 import jax
 import numpy as np
 import pytest
-from stealth_env.scenario import load_scenario
+from stealth_core.scenario import load_scenario
 from stealth_learn.env_tables import Dims, TableError, TaskArrays
 from stealth_learn.jax_env import build
 from stealth_learn.obs_layout import CHANNELS, VECTOR, LayoutError, check_layout, layout_id
@@ -68,7 +68,7 @@ def test_full_track_grid_shows_the_lights_as_they_stand():
 def test_probabilistic_detection_draws_from_the_key():
     """A step's detection probability ``1 - 2**(-v / threshold)``: the share detected over many
     keys matches it (a seeded draw: the same keys, the same count every run)."""
-    from stealth_env.scenario import find_scenario
+    from stealth_core.scenario import find_scenario
 
     scenario = load_scenario(find_scenario('map1'))
     scenario = dataclasses.replace(scenario, detection_mode='probabilistic')

@@ -1,12 +1,12 @@
 """The generalist through ROS: the grid stealth_learn trains on is the one the environment node
-sends (stealth_env.grid_observation), the agent's policy plugin is registered and found, and
+sends (stealth_core.grid_observation), the agent's policy plugin is registered and found, and
 its cached plan gives GeneralistPolicy.act's move at every cell."""
 
 from importlib import metadata
 
 import numpy as np
 import pytest
-from stealth_env.grid_observation import ROBOT, FullTrackGrid
+from stealth_core.grid_observation import ROBOT, FullTrackGrid
 from stealth_learn import generalist_data as data
 from stealth_learn import ros_policy
 from stealth_learn.env_tables import TaskArrays

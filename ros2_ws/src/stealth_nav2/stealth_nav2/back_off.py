@@ -28,8 +28,8 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+from stealth_core.kinematics import wrap_angle
 from stealth_env.topic_moves import Command, Pose
-from stealth_sim.kinematics import wrap_angle
 
 from stealth_nav2.path_following import Replan
 

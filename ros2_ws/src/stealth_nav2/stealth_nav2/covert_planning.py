@@ -5,7 +5,7 @@ with the time to be there, or a ``PlanError`` carrying Nav2's error name
 (``nav2_msgs/action/ComputePathToPose`` result codes) and one line saying why. Planner ids:
 
 - ``covert`` (the default: '' and Nav2's default id ``GridBased`` too): value iteration's
-  optimum (``stealth_env.planners``) on the time-expanded lattice where lights move, followed
+  optimum (``stealth_core.planners``) on the time-expanded lattice where lights move, followed
   greedily from the start's place (node, bin of the lights' cycle, heading where lights weigh
   exposure): the path ``optimal_path`` gives.
 - ``dark_path``: Dark Path (A* with a light cost, never entering a seen step), time-aware.
@@ -40,20 +40,20 @@ import time
 from typing import NamedTuple
 
 import numpy as np
-from stealth_env import exposure
-from stealth_env.light_cycle import TimingError, check_timing
-from stealth_env.move_lattice import MoveLattice
-from stealth_env.planners import (
+from stealth_core import exposure
+from stealth_core.lattice_model import LatticeModel
+from stealth_core.light_cycle import TimingError, check_timing
+from stealth_core.move_lattice import MoveLattice
+from stealth_core.planners import (
     DEFAULT_DARK_PATH_WEIGHT,
-    LatticeModel,
     astar,
     dark_path,
     follow,
     value_iteration,
 )
-from stealth_env.reward import RewardWeights
-from stealth_env.scenario import Goal, Scenario
-from stealth_env.task import StealthTask
+from stealth_core.reward import RewardWeights
+from stealth_core.scenario import Goal, Scenario
+from stealth_core.task import StealthTask
 
 from stealth_nav2.plan_errors import PlanError
 from stealth_nav2.policy_behaviour import greedy_actions

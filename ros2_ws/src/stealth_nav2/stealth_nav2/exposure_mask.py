@@ -17,7 +17,7 @@ Values (``mask_levels``), read by ``nav2_costmap_2d::KeepoutFilter`` as cost ``r
 
 The light is the environment's model, not a second one: the value at a cell centre equals
 ``lighting.point_visibility`` there (what ``StealthTask`` judges a robot at that point by,
-without a heading: a heading can only lower a light, ``stealth_env.exposure``), to the last bit,
+without a heading: a heading can only lower a light, ``stealth_core.exposure``), to the last bit,
 lights added in their order. Static lights come from ``visibility.cached_visibility_field``
 (computed once, on disk, with the scenario's bounce if any). A moving light is asked of a
 ``visibility.PointVisibility`` of its own, at the cell centres within its range at time t: its
@@ -32,10 +32,11 @@ from collections.abc import Sequence
 import math
 
 import numpy as np
-from stealth_env.bounce import Bounce, check_static
-from stealth_env.lighting import GridFrame
-from stealth_env.searchlight import PatrolMotion, Searchlight
-from stealth_env.visibility import PointVisibility, cached_visibility_field
+from stealth_core.bounce import Bounce, check_static
+from stealth_core.lighting import GridFrame
+from stealth_core.searchlight import PatrolMotion, Searchlight
+from stealth_core.visibility import PointVisibility
+from stealth_core.visibility_cache import cached_visibility_field
 
 LETHAL = 100  # nav_msgs/OccupancyGrid's top value: KeepoutFilter's LETHAL_OBSTACLE (254)
 BAND_TOP = 99  # the graded band's highest value, just under the threshold
@@ -164,7 +165,7 @@ class LightField:
 
 class ExposureMask:
     """Mask values of one map, its lights and detection threshold at any time (see the module
-    docstring); ``of_scenario`` builds it from a ``stealth_env.scenario.Scenario``."""
+    docstring); ``of_scenario`` builds it from a ``stealth_core.scenario.Scenario``."""
 
     def __init__(
         self,

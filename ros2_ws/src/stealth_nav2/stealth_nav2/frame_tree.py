@@ -3,15 +3,15 @@ rclpy): what Nav2's planner server asks of tf2 for a start or goal not in its gl
 
 Only the latest transform of each parent -> child pair is kept (the simulator's ``map -> odom``
 and ``odom -> base_link``); a pose is carried along the chain of known transforms between its
-frame and the target, whichever way each one points (``stealth_sim.frames`` math).
+frame and the target, whichever way each one points (``stealth_core.frames`` math).
 """
 
 from __future__ import annotations
 
 from collections import deque
 
-from stealth_sim.frames import inverse, multiply
-from stealth_sim.kinematics import Pose
+from stealth_core.frames import inverse, multiply
+from stealth_core.kinematics import Pose
 
 
 class FrameError(LookupError):

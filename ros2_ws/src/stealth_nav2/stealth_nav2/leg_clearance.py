@@ -10,7 +10,7 @@ estimate is off the truth by 0.1-0.18 m at times at the simulator's default odom
 run of drives is therefore moved sideways, as a whole, by the least shift (at most
 ``max_shift``) that keeps the disc ``robot_radius + margin`` from every blocked cell beside it,
 or, where no shift within ``max_shift`` does, by the shift that keeps it furthest (in
-``LEVELS`` steps of the margin): ``stealth_env.clearance.Clearance.shift``, which the
+``LEVELS`` steps of the margin): ``stealth_core.clearance.Clearance.shift``, which the
 environment's retry of a bumped lattice move uses too. A shift is at most ``max_shift``
 across the drive, so with ``max_shift`` under half the lattice step each corner stays in its
 lattice node's cell; the drives' ends move with them (two perpendicular drives meet where their
@@ -27,7 +27,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 import math
 
-from stealth_env.clearance import Clearance
+from stealth_core.clearance import Clearance
 
 from stealth_nav2.path_following import Leg, LegKind
 

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 import math
 from typing import NamedTuple
 
-from stealth_sim.kinematics import Pose, compose, relative
+from stealth_core.kinematics import Pose, compose, relative
 
 from stealth_nav2.covert_planning import PLANNER_IDS
 

@@ -71,7 +71,7 @@ from rclpy.action import ActionClient, ActionServer, CancelResponse, GoalRespons
 from rclpy.clock import Clock, ClockType
 from rclpy.duration import Duration
 from rclpy.task import Future
-from stealth_env.clearance import Clearance, ClearanceSettings
+from stealth_core.clearance import Clearance, ClearanceSettings
 from stealth_env.env_messages import pose_of
 from stealth_env.env_parameters import topic_config
 from stealth_env.topic_moves import Odom, PoseTracker

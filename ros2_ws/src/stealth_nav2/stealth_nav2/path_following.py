@@ -37,8 +37,8 @@ import enum
 import math
 from typing import NamedTuple
 
+from stealth_core.kinematics import wrap_angle
 from stealth_env.topic_moves import Limits, MoveGoal, MoveOutcome, Pose, go_to, hold_goal
-from stealth_sim.kinematics import wrap_angle
 
 SAME_PLACE = 0.01  # m: poses closer than this are at one place (a turn or a wait there)
 STRAIGHT = 1e-3  # rad: drives whose directions differ by less than this are one straight run

@@ -3,7 +3,7 @@ orchestrator can check a parameter file against them before it starts the node."
 
 import dataclasses
 
-from stealth_env.planners import DEFAULT_DARK_PATH_WEIGHT
+from stealth_core.planners import DEFAULT_DARK_PATH_WEIGHT
 from stealth_node_kit.param_table import Param
 
 from stealth_nav2.covert_planning import TaskNumbers

@@ -2,7 +2,7 @@
 greedy actions on the move lattice (no rclpy).
 
 A policy is learned on one scenario's map and lights; it is used only on the same content (the
-grid and lights SHA-256s it carries, ``stealth_env.scenario.content_identity``), with the same
+grid and lights SHA-256s it carries, ``stealth_core.scenario.content_identity``), with the same
 actions and state features. Its states are the task's (``StealthTask.state_of`` at each place
 of the lattice model); ties between maximal actions go to the first, as value iteration's
 greedy policy (the harness's greedy rollouts break them at random with a seed).
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 from stealth_agent.policy_store import PolicyFileError, SavedPolicy, load_policy
-from stealth_env.scenario import content_identity
+from stealth_core.scenario import content_identity
 
 from stealth_nav2.plan_errors import PlanError
 

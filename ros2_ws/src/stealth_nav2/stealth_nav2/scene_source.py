@@ -9,7 +9,7 @@ Two sources, one ``Scene``:
   node's ``searchlights``), converted by ``map_from_message`` and ``lights_from_message``.
   Messages are read by attribute (no rclpy: plain pytest builds them).
 
-A light's motion counts from its own t = 0 (``stealth_env.searchlight``). A SearchlightArray
+A light's motion counts from its own t = 0 (``stealth_core.searchlight``). A SearchlightArray
 gives each light as it is at the message's stamp (the environment stamps it with the episode's
 time, the lights' clock); the light at t = 0 is rebuilt from it: a static light as it is, a
 patrol from its route (which starts where every lap starts), a sweep by turning it back by the
@@ -33,10 +33,10 @@ import math
 import os
 
 import numpy as np
-from stealth_env.scenario import Scenario, ScenarioError, content_identity, load_scenario
-from stealth_env.searchlight import LightError, PatrolMotion, Searchlight, SweepMotion
+from stealth_core.occupancy_map import MapError, OccupancyMap, from_occupancy_grid
+from stealth_core.scenario import Scenario, ScenarioError, content_identity, load_scenario
+from stealth_core.searchlight import LightError, PatrolMotion, Searchlight, SweepMotion
 from stealth_node_kit.conversions import quaternion_yaw, seconds
-from stealth_sim.occupancy_map import MapError, OccupancyMap, from_occupancy_grid
 
 MAP_FRAME = 'map'
 # stealth_interfaces/Searchlight.MOTION_*
@@ -94,7 +94,7 @@ class Scene:
         return any(light.is_moving for light in self.lights)
 
     def identity(self) -> dict[str, str]:
-        """SHA-256 of the grid and of the lights, as ``stealth_env.scenario.content_identity``
+        """SHA-256 of the grid and of the lights, as ``stealth_core.scenario.content_identity``
         (what saved policies carry): equal identities, equal scenes."""
         return content_identity(self)
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 
-from stealth_sim.kinematics import Pose
+from stealth_core.kinematics import Pose
 
 
 class SensorWatch:

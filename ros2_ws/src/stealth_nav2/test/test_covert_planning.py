@@ -6,10 +6,11 @@ import math
 
 import numpy as np
 import pytest
-from stealth_env.planners import LatticeModel, follow, optimal_path, value_iteration, walk
-from stealth_env.reward import EpisodeOutcome
-from stealth_env.scenario import load_scenario
-from stealth_env.task import StealthTask
+from stealth_core.lattice_model import LatticeModel
+from stealth_core.planners import follow, optimal_path, value_iteration, walk
+from stealth_core.reward import EpisodeOutcome
+from stealth_core.scenario import load_scenario
+from stealth_core.task import StealthTask
 from stealth_nav2.covert_planning import (
     CovertPlanner,
     Pose,

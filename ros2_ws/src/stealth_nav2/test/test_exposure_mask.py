@@ -6,11 +6,11 @@ import math
 
 import numpy as np
 import pytest
-from stealth_env.lighting import GridFrame, point_visibility
-from stealth_env.scenario import load_scenario
-from stealth_env.searchlight import PatrolMotion, Searchlight, SweepMotion
-from stealth_env.task import StealthTask
-from stealth_env.visibility import visibility_field
+from stealth_core.lighting import GridFrame, point_visibility
+from stealth_core.scenario import load_scenario
+from stealth_core.searchlight import PatrolMotion, Searchlight, SweepMotion
+from stealth_core.task import StealthTask
+from stealth_core.visibility import visibility_field
 from stealth_nav2.exposure_mask import (
     BAND_TOP,
     LETHAL,

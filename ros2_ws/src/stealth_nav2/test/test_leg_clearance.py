@@ -6,11 +6,12 @@ import math
 
 import numpy as np
 import pytest
-from stealth_env.clearance import LEVELS, Clearance, ClearanceSettings
-from stealth_env.move_lattice import MoveLattice
-from stealth_env.planners import optimal_path
-from stealth_env.scenario import find_scenario, load_scenario
-from stealth_env.task import StealthTask
+from stealth_core.clearance import LEVELS, Clearance, ClearanceSettings
+from stealth_core.move_lattice import MoveLattice
+from stealth_core.occupancy_map import OccupancyMap
+from stealth_core.planners import optimal_path
+from stealth_core.scenario import find_scenario, load_scenario
+from stealth_core.task import StealthTask
 from stealth_env.topic_moves import Pose
 from stealth_nav2.leg_clearance import keep_clear
 from stealth_nav2.path_following import (
@@ -21,7 +22,6 @@ from stealth_nav2.path_following import (
     TimedPose,
     legs_of,
 )
-from stealth_sim.occupancy_map import OccupancyMap
 
 RES = 0.05
 SETTINGS = ClearanceSettings(robot_radius=0.2, margin=0.25, max_shift=0.2)

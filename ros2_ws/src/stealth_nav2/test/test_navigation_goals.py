@@ -3,6 +3,7 @@
 import math
 
 import pytest
+from stealth_core.kinematics import Pose
 from stealth_nav2.navigation_goals import (
     PLANNER_IDS,
     Frames,
@@ -12,7 +13,6 @@ from stealth_nav2.navigation_goals import (
     navigator_code,
     planner_for,
 )
-from stealth_sim.kinematics import Pose
 
 
 def test_behavior_tree_selects_the_planner_or_is_refused_naming_the_choices():

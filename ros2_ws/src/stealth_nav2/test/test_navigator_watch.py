@@ -1,7 +1,7 @@
 """The navigator's watch on odom and amcl_pose going silent."""
 
+from stealth_core.kinematics import Pose
 from stealth_nav2.sensor_watch import SensorWatch
-from stealth_sim.kinematics import Pose
 
 
 def test_odom_silence_is_noticed_after_the_timeout():

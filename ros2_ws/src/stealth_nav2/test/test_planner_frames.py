@@ -3,8 +3,8 @@
 import math
 
 import pytest
+from stealth_core.kinematics import Pose
 from stealth_nav2.frame_tree import FrameError, FrameTree
-from stealth_sim.kinematics import Pose
 
 
 def close(a, b):

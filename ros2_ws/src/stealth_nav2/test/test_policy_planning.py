@@ -6,9 +6,10 @@ import pytest
 from stealth_agent.learners import make_learner
 from stealth_agent.policy_store import save_policy
 from stealth_agent.state_index import StateIndex
-from stealth_env.planners import LatticeModel, optimal_path, value_iteration
-from stealth_env.scenario import content_identity, load_scenario
-from stealth_env.task import StealthTask
+from stealth_core.lattice_model import LatticeModel
+from stealth_core.planners import optimal_path, value_iteration
+from stealth_core.scenario import content_identity, load_scenario
+from stealth_core.task import StealthTask
 from stealth_nav2.covert_planning import CovertPlanner, Pose
 from stealth_nav2.plan_errors import PlanError
 from stealth_nav2.policy_behaviour import read_policy

@@ -6,8 +6,9 @@ from nav_msgs.msg import OccupancyGrid
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
+from stealth_core.occupancy_map import to_occupancy_grid_data
+from stealth_core.scenario import content_identity, load_scenario
 from stealth_env.env_messages import searchlight_array_msg
-from stealth_env.scenario import content_identity, load_scenario
 from stealth_nav2.scene_source import (
     SceneError,
     SceneMissingError,
@@ -18,7 +19,6 @@ from stealth_nav2.scene_source import (
     scene_from_scenario,
 )
 from stealth_node_kit.conversions import yaw_quaternion
-from stealth_sim.occupancy_map import to_occupancy_grid_data
 
 
 def grid_message(occupancy, frame='map', yaw=0.0) -> OccupancyGrid:

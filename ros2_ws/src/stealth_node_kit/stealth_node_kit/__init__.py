@@ -9,6 +9,6 @@
 - :mod:`stealth_node_kit.endpoints`: QoS event callbacks kept to what can fire.
 - :mod:`stealth_node_kit.conversions`: seconds to and from ``builtin_interfaces/Time``, yaw to
   and from a quaternion.
-- :mod:`stealth_node_kit.grid_cells`: the cell of the grid observation a map point falls in
-  (the environment sends the grid, the agent reads it).
+- :mod:`stealth_node_kit.log_throttle`: a log line that may repeat at every message, at most once
+  per period.
 """

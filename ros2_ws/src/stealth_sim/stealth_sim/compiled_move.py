@@ -17,7 +17,7 @@ acceleration limit, bumps), and each filter update is a 60-beam cast and 200 x 6
 whose numpy calls cost more than their arithmetic.
 
 The kernels (:mod:`stealth_sim.kernels`: one module per concept, on the array layout of
-``kernels.layout``) compile on first use (:mod:`stealth_sim.jit`: once per machine, into
+``kernels.layout``) compile on first use (:mod:`stealth_core.jit`: once per machine, into
 numba's cache; an unwritable cache only costs the compile in every process). Here the
 simulator's objects become those arrays and back. Without numba the reference runs, and
 :func:`problem` says why.
@@ -26,8 +26,8 @@ simulator's objects become those arrays and back. Without numba the reference ru
 import math
 
 import numpy as np
+from stealth_core.jit import import_problem
 
-from stealth_sim.jit import import_problem
 from stealth_sim.kernels import move_loop, particle_filter
 from stealth_sim.kernels.layout import (
     ANGULAR,
@@ -132,7 +132,7 @@ def _load(sim) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
 
 def _store(sim, state, covariance, particles, weights) -> None:
     """Write the kernels' arrays back into ``sim``'s objects (which keep the arrays given)."""
-    from stealth_sim.kinematics import Pose, RobotState
+    from stealth_core.kinematics import Pose, RobotState
 
     s = state.tolist()
     sim.state = RobotState(Pose(s[X], s[Y], s[YAW]), s[LINEAR], s[ANGULAR])

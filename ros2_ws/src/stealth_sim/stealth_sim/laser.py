@@ -17,8 +17,7 @@ import math
 
 import cv2
 import numpy as np
-
-from stealth_sim.occupancy_map import OccupancyMap
+from stealth_core.occupancy_map import OccupancyMap
 
 SAMPLES_PER_CELL = 4
 CHUNK_SAMPLES = 128  # samples per beam marched at a time (1.6 m at 0.05 m cells)

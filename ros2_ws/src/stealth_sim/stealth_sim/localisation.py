@@ -23,9 +23,9 @@ import math
 
 import cv2
 import numpy as np
+from stealth_core.kinematics import Pose, compose, relative, wrap_angle
+from stealth_core.occupancy_map import OccupancyMap
 
-from stealth_sim.kinematics import Pose, compose, relative, wrap_angle
-from stealth_sim.occupancy_map import OccupancyMap
 from stealth_sim.odometry_noise import (
     MotionDelta,
     MotionNoise,

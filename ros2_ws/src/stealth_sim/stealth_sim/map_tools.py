@@ -19,8 +19,7 @@ import sys
 
 import cv2
 import numpy as np
-
-from stealth_sim.occupancy_map import (
+from stealth_core.occupancy_map import (
     PIXEL_UNKNOWN,
     TRINARY_FREE_THRESH,
     TRINARY_OCCUPIED_THRESH,

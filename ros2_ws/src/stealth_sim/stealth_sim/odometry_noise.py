@@ -22,8 +22,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-
-from stealth_sim.kinematics import TWO_PI, Pose, is_finite_number, wrap_angle
+from stealth_core.kinematics import TWO_PI, Pose, is_finite_number, wrap_angle
 
 # AMCL's threshold below which a motion has no meaningful bearing (m).
 MIN_BEARING_TRANSLATION = 0.01

@@ -11,12 +11,12 @@ from nav_msgs.msg import OccupancyGrid, Odometry
 import numpy as np
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import LaserScan
+from stealth_core.frames import BASE_FRAME, MAP_FRAME, ODOM_FRAME, FrameTransform
+from stealth_core.kinematics import Pose
+from stealth_core.occupancy_map import OccupancyMap, to_occupancy_grid_data
 from stealth_node_kit.conversions import set_yaw, time_msg, yaw_quaternion
 from tf2_msgs.msg import TFMessage
 
-from stealth_sim.frames import BASE_FRAME, MAP_FRAME, ODOM_FRAME, FrameTransform
-from stealth_sim.kinematics import Pose
-from stealth_sim.occupancy_map import OccupancyMap, to_occupancy_grid_data
 from stealth_sim.simulator import Simulator
 
 # Indices of x, y and yaw in a row-major 6x6 pose covariance (x, y, z, roll, pitch, yaw).

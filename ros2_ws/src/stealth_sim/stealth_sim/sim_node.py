@@ -18,7 +18,7 @@ Frames ``map``, ``odom``, ``base_link``.
   TransformBroadcaster): ``map -> odom`` (the localisation's correction, estimate *
   odometry^-1, as AMCL publishes it) and ``odom -> base_link`` (the odometry), stamped with the
   simulated time, with ``odom`` and only when someone subscribes (math in
-  :mod:`stealth_sim.frames`). No ``/tf_static``: there is no fixed frame, the laser sits at
+  :mod:`stealth_core.frames`). No ``/tf_static``: there is no fixed frame, the laser sits at
   base_link's origin and its scans are in base_link;
 * subscribes ``cmd_vel`` (geometry_msgs/Twist; a command older than ``cmd_vel_timeout`` of
   simulated time is dropped, so teleop tools that publish on key presses work) and
@@ -74,6 +74,14 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import LaserScan
+from stealth_core.frames import (
+    MAP_FRAME,
+    ODOM_FRAME,
+    robot_transforms,
+)
+from stealth_core.kinematics import Pose
+from stealth_core.moves import MoveOutcome, MoveRequest
+from stealth_core.occupancy_map import MapError, OccupancyMap, load_map
 from stealth_interfaces.srv import ExecuteMove, ResetRobot
 from stealth_node_kit import rl_contract
 from stealth_node_kit.conversions import quaternion_yaw, time_msg
@@ -85,16 +93,9 @@ from stealth_node_kit.qos import kept_qos
 from stealth_node_kit.running import StartupNode, run_node
 from tf2_msgs.msg import TFMessage
 
-from stealth_sim.frames import (
-    MAP_FRAME,
-    ODOM_FRAME,
-    robot_transforms,
-)
 from stealth_sim.idle_time import RealTimePacer, idle_tick
-from stealth_sim.kinematics import Pose
 from stealth_sim.lockstep import Lockstep
-from stealth_sim.move_executor import MoveOutcome, MoveRequest, StepStops, execute_move, warm_up
-from stealth_sim.occupancy_map import MapError, OccupancyMap, load_map
+from stealth_sim.move_executor import StepStops, execute_move, warm_up
 from stealth_sim.sim_messages import (
     StateMessages,
     occupancy_grid,

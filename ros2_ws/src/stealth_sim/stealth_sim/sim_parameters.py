@@ -3,9 +3,9 @@ orchestrator checks parameter names against them before it starts the node."""
 
 import math
 
+from stealth_core.kinematics import Limits
 from stealth_node_kit.param_table import Param, Unset
 
-from stealth_sim.kinematics import Limits
 from stealth_sim.laser import LaserConfig
 from stealth_sim.localisation import FilterConfig
 from stealth_sim.odometry_noise import MotionNoise

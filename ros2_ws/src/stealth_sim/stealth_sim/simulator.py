@@ -15,10 +15,8 @@ import math
 
 import cv2
 import numpy as np
-
-from stealth_sim import compiled_move, jit
-from stealth_sim.kernels import laser as laser_kernel
-from stealth_sim.kinematics import (
+from stealth_core import jit
+from stealth_core.kinematics import (
     DiscFootprint,
     Limits,
     Pose,
@@ -27,6 +25,10 @@ from stealth_sim.kinematics import (
     step_robot,
     wrap_angle,
 )
+from stealth_core.occupancy_map import OccupancyMap
+
+from stealth_sim import compiled_move
+from stealth_sim.kernels import laser as laser_kernel
 from stealth_sim.laser import LaserConfig, RayCaster, noisy_ranges
 from stealth_sim.localisation import (
     FilterConfig,
@@ -35,7 +37,6 @@ from stealth_sim.localisation import (
     ParticleFilter,
     validate_covariance,
 )
-from stealth_sim.occupancy_map import OccupancyMap
 from stealth_sim.odometry_noise import MotionNoise, NoisyOdometry
 
 

@@ -7,11 +7,11 @@ wall position is known exactly: the free interior spans
 
 import math
 from pathlib import Path
-import sys
 
 import numpy as np
-from stealth_sim.kinematics import Pose
-from stealth_sim.occupancy_map import FREE, OCCUPIED, UNKNOWN, OccupancyMap, load_map
+from stealth_core.kinematics import Pose
+from stealth_core.occupancy_map import FREE, OCCUPIED, UNKNOWN, OccupancyMap, load_map
+from stealth_core.scenario import load_scenario
 from stealth_sim.simulator import most_open_pose
 
 RESOLUTION = 0.05
@@ -59,16 +59,11 @@ def project_map_and_start(name: str) -> tuple[OccupancyMap, Pose] | None:
 
 
 def scenario_start(name: str) -> Pose | None:
-    """The start of ``scenarios/<name>.yaml``, read by stealth_env (from the source tree when
-    it is not installed: the scenario format is that package's business)."""
+    """The start of ``scenarios/<name>.yaml``, read by stealth_core (the scenario format is the
+    world model's business)."""
     path = REPO_ROOT / 'scenarios' / f'{name}.yaml'
     if not path.is_file():
         return None
-    try:
-        from stealth_env.scenario import load_scenario
-    except ImportError:
-        sys.path.append(str(REPO_ROOT / 'ros2_ws' / 'src' / 'stealth_env'))
-        from stealth_env.scenario import load_scenario
     x, y, yaw = load_scenario(path).start
     return Pose(float(x), float(y), float(yaw))
 

@@ -17,20 +17,14 @@ import math
 import numpy as np
 import pytest
 from sim_test_maps import maze_map
+from stealth_core.jit import jit
+from stealth_core.kinematics import Limits, Pose
+from stealth_core.moves import ControllerConfig, MoveKind, MoveOutcome, MoveRequest
 from stealth_sim import compiled_move, move_executor
-from stealth_sim.jit import jit
 from stealth_sim.kernels import move_loop, numeric
-from stealth_sim.kinematics import Limits, Pose
 from stealth_sim.laser import noisy_ranges
 from stealth_sim.localisation import FilterConfig
-from stealth_sim.move_executor import (
-    ControllerConfig,
-    MoveKind,
-    MoveOutcome,
-    MoveRequest,
-    StepStops,
-    execute_move,
-)
+from stealth_sim.move_executor import StepStops, execute_move
 from stealth_sim.odometry_noise import MotionNoise
 from stealth_sim.simulator import SimConfig, Simulator
 

@@ -3,9 +3,10 @@ training, so a seeded run of moves is the same whatever the load."""
 
 import pytest
 from sim_test_maps import maze_map
+from stealth_core.kinematics import Pose
+from stealth_core.moves import ControllerConfig, MoveKind, MoveRequest
 from stealth_sim.idle_time import MAX_CATCH_UP, IdleTick, idle_tick
-from stealth_sim.kinematics import Pose
-from stealth_sim.move_executor import ControllerConfig, MoveKind, MoveRequest, execute_move
+from stealth_sim.move_executor import execute_move
 from stealth_sim.simulator import SimConfig, Simulator
 
 PERIOD = 0.02  # s: the node's idle_period

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 from sim_test_maps import RESOLUTION, as_map, room
-from stealth_sim.kinematics import (
+from stealth_core.kinematics import (
     DiscFootprint,
     Limits,
     Pose,
@@ -16,7 +16,7 @@ from stealth_sim.kinematics import (
     step_robot,
     wrap_angle,
 )
-from stealth_sim.occupancy_map import OCCUPIED, UNKNOWN
+from stealth_core.occupancy_map import OCCUPIED, UNKNOWN
 
 DT = 0.02
 LIMITS = Limits(max_linear_speed=0.5, max_angular_speed=1.5, max_linear_accel=1.0)

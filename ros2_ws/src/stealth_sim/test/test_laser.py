@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 from sim_test_maps import PROJECT_MAPS, as_map, maze_map, project_map_and_start, room
+from stealth_core.occupancy_map import OCCUPIED, UNKNOWN
 from stealth_sim.kernels import laser as laser_kernel
 from stealth_sim.laser import LaserConfig, RayCaster, noisy_ranges, ray_entry
-from stealth_sim.occupancy_map import OCCUPIED, UNKNOWN
 
 # room(100, 60): walls are the outer ring of cells, so the free interior is
 # x in [0.05, 4.95], y in [0.05, 2.95].

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 from sim_test_maps import as_map, maze_map, room
-from stealth_sim.kinematics import Pose
+from stealth_core.kinematics import Pose
 from stealth_sim.laser import LaserConfig, RayCaster
 from stealth_sim.localisation import (
     FilterConfig,

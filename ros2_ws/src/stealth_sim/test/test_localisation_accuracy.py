@@ -11,8 +11,9 @@ import math
 import numpy as np
 import pytest
 from sim_test_maps import PROJECT_MAPS, maze_map, project_map_and_start
-from stealth_sim.kinematics import DiscFootprint, Pose
-from stealth_sim.move_executor import GRID_HEADINGS, MoveOutcome, MoveRequest, execute_move
+from stealth_core.kinematics import DiscFootprint, Pose
+from stealth_core.moves import GRID_HEADINGS, MoveOutcome, MoveRequest
+from stealth_sim.move_executor import execute_move
 from stealth_sim.simulator import SimConfig, Simulator
 
 MOVES = 200

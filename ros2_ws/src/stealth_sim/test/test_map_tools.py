@@ -9,6 +9,7 @@ import sys
 import cv2
 import numpy as np
 import pytest
+from stealth_core.occupancy_map import load_map
 from stealth_sim.map_tools import (
     image_to_bw_main,
     main,
@@ -16,7 +17,6 @@ from stealth_sim.map_tools import (
     render_map_main,
     to_black_and_white,
 )
-from stealth_sim.occupancy_map import load_map
 
 REPO = Path(__file__).resolve().parents[4]
 PACKAGE_ROOT = Path(__file__).resolve().parents[1]

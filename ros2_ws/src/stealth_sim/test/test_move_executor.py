@@ -6,14 +6,9 @@ import math
 import numpy as np
 import pytest
 from sim_test_maps import angle_error, maze_map
-from stealth_sim.kinematics import Limits, Pose
-from stealth_sim.move_executor import (
-    ControllerConfig,
-    MoveKind,
-    MoveOutcome,
-    MoveRequest,
-    execute_move,
-)
+from stealth_core.kinematics import Limits, Pose
+from stealth_core.moves import ControllerConfig, MoveKind, MoveOutcome, MoveRequest
+from stealth_sim.move_executor import execute_move
 from stealth_sim.odometry_noise import MotionNoise
 from stealth_sim.simulator import SimConfig, Simulator
 

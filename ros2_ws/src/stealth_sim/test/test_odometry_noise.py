@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 import pytest
-from stealth_sim.kinematics import Pose, compose, wrap_angle
+from stealth_core.kinematics import Pose, compose, wrap_angle
 from stealth_sim.odometry_noise import (
     MotionDelta,
     MotionNoise,

@@ -6,8 +6,8 @@ from builtin_interfaces.msg import Time
 import numpy as np
 import pytest
 from sim_test_maps import maze_map
+from stealth_core.kinematics import Pose
 from stealth_node_kit.conversions import quaternion_yaw
-from stealth_sim.kinematics import Pose
 from stealth_sim.sim_messages import (
     estimate_message,
     occupancy_grid,

@@ -4,8 +4,8 @@
 import math
 
 import numpy as np
+from stealth_core.jit import jit
 
-from stealth_sim.jit import jit
 from stealth_sim.kernels.layout import CASTER_RES, CASTER_X, CASTER_Y, PARAMS_SIZE, RANGE_MAX
 
 

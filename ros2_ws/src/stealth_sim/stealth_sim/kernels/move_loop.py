@@ -1,11 +1,12 @@
 """The closed loop of a move as a kernel: ``move_executor._MoveRun.move`` (turn, brake, drive,
-brake, localise) on the estimate, with the controller's speed law (:mod:`stealth_sim.controller`,
+brake, localise) on the estimate, with the controller's speed law (:mod:`stealth_core.controller`,
 compiled in) and ``Simulator.step`` per physics step, pausing where a step hook is due."""
 
 import math
 
-from stealth_sim.controller import approach_speed, signed_approach_speed
-from stealth_sim.jit import jit
+from stealth_core.controller import approach_speed, signed_approach_speed
+from stealth_core.jit import jit
+
 from stealth_sim.kernels.layout import (
     AIM_DISTANCE,
     ANGULAR,

@@ -5,8 +5,7 @@ nowhere and sums in plain order)."""
 import math
 
 import numpy as np
-
-from stealth_sim.jit import jit
+from stealth_core.jit import jit
 
 TWO_PI = 2.0 * math.pi
 

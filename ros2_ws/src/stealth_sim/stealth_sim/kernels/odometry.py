@@ -4,7 +4,8 @@ particle filter's predict shares."""
 
 import math
 
-from stealth_sim.jit import jit
+from stealth_core.jit import jit
+
 from stealth_sim.kernels.layout import (
     NORMALS,
     ODOM,

@@ -6,8 +6,8 @@ between updates."""
 import math
 
 import numpy as np
+from stealth_core.jit import jit
 
-from stealth_sim.jit import jit
 from stealth_sim.kernels.laser import cast_from_free
 from stealth_sim.kernels.layout import (
     ESTIMATE_AT_UPDATE,

@@ -3,7 +3,8 @@ integration) and ``DiscFootprint``'s swept-disc collision with its bisected cont
 
 import math
 
-from stealth_sim.jit import jit
+from stealth_core.jit import jit
+
 from stealth_sim.kernels.layout import (
     ANGULAR,
     ANGULAR_ACCEL,
