@@ -4,7 +4,7 @@ option off, and value iteration on each. Four headings make four times the place
 (the turns) half as many more steps, and a step that turns is judged on up to 36 more headings
 (the lights traced once per point, ``PointVisibility.turning``).
 
-Run: PYTHONPATH=ros2_ws/src/stealth_sim:ros2_ws/src/stealth_env python bench/bench_exposure.py
+Run: PYTHONPATH=ros2_ws/src/stealth_core python bench/bench_exposure.py
 """
 
 from __future__ import annotations

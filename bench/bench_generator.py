@@ -5,7 +5,7 @@ with its proof (``generate``: files loaded back, the lattice model built, A* and
 iteration, retries included), both in this process on one core. The goal is >= 20 proven
 scenarios/s; the CPU seconds of the proven run are reported too, steadier than the wall clock
 on a shared machine.
-Run: PYTHONPATH=ros2_ws/src/stealth_sim:ros2_ws/src/stealth_env python bench/bench_generator.py
+Run: PYTHONPATH=ros2_ws/src/stealth_core python bench/bench_generator.py
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@ CliffWalking-v1, both made by ``gymnasium.make`` (so both carry the same default
 PassiveEnvChecker and OrderEnforcing) and both stepped with the same uniformly random actions,
 resetting whenever an episode ends. Target: at least half CliffWalking's rate.
 
-Run: PYTHONPATH=ros2_ws/src/stealth_sim:ros2_ws/src/stealth_env python bench/bench_gym.py
+Run: PYTHONPATH=ros2_ws/src/stealth_core python bench/bench_gym.py
 """
 
 from __future__ import annotations

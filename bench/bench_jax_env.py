@@ -9,7 +9,7 @@ Every observation feeds a checksum the scan returns, so XLA cannot drop the obse
 observation (``obs_layout``: 7 channels over the lattice), against the Gym sensed track, and
 the full track with the grid observation (the map and the light field each step).
 
-Run: PYTHONPATH=ros2_ws/src/stealth_sim:ros2_ws/src/stealth_env:ros2_ws/src/stealth_learn \
+Run: PYTHONPATH=ros2_ws/src/stealth_core:ros2_ws/src/stealth_learn \
     python bench/bench_jax_env.py
 """
 

@@ -8,7 +8,7 @@ so it judges a random sample of nodes (each node and its moves right and up), is
 to the lattice there, and is extrapolated per node; the output says so. The module docstring of
 move_lattice promises "a few tens of milliseconds" for the 0.25 m lattice.
 
-Run: PYTHONPATH=ros2_ws/src/stealth_sim:ros2_ws/src/stealth_env python bench/bench_lattice.py
+Run: PYTHONPATH=ros2_ws/src/stealth_core python bench/bench_lattice.py
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import numpy as np
 from stealth_core.move_lattice import MoveLattice
 from stealth_core.occupancy_map import OccupancyMap
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'ros2_ws/src/stealth_env/test'))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'ros2_ws/src/stealth_core/test'))
 from lattice_reference import reference_clear  # noqa: E402  (the tests' helper, beside them)
 
 RADIUS = 0.2

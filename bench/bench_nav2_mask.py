@@ -8,7 +8,7 @@ On lgfloor-moving (a sweeping lamp, 600 x 600 cells) and map1-moving (a patrolli
 the per-lamp sight memos (a cold start), the second from them (the steady state the node runs
 in); the from-scratch way on a few of the same times. The node needs >= 5 updates/s.
 
-Run: PYTHONPATH=ros2_ws/src/stealth_sim:ros2_ws/src/stealth_env:ros2_ws/src/stealth_nav2 \
+Run: PYTHONPATH=ros2_ws/src/stealth_core:ros2_ws/src/stealth_nav2 \
     python bench/bench_nav2_mask.py
 """
 

@@ -6,7 +6,7 @@ range traced at once, no cache) against the per-line reference ``lighting.line_o
 the same cells, one Python line at a time; then the cached sight a robot revisiting a node
 gets; then a step of the Gym env on the sensed track (sense, remember, lay out the observation)
 against a step of the full track, both over the same random actions.
-Run: PYTHONPATH=ros2_ws/src/stealth_sim:ros2_ws/src/stealth_env python bench/bench_sensing.py
+Run: PYTHONPATH=ros2_ws/src/stealth_core python bench/bench_sensing.py
 """
 
 from __future__ import annotations

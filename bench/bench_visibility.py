@@ -8,7 +8,7 @@ Then the one-bounce light (``stealth_core.bounce``) on lgfloor (600 x 600, its f
 albedo 0.3, range 3 m): the compiled bounce field against ``bounce.point_bounce`` the same way,
 the reference's one-off work (finding the emitters and their received light, point by point)
 counted once in its extrapolated time.
-Run: PYTHONPATH=ros2_ws/src/stealth_sim:ros2_ws/src/stealth_env python bench/bench_visibility.py
+Run: PYTHONPATH=ros2_ws/src/stealth_core python bench/bench_visibility.py
 """
 
 from __future__ import annotations

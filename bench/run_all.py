@@ -31,6 +31,7 @@ REPOSITORY = BENCH_DIR.parent
 # writes its reports with stealth_bringup's run outputs; stealth_nav2: the covert planner's;
 # stealth_learn: the JAX environment).
 PACKAGES = (
+    'stealth_core',
     'stealth_sim',
     'stealth_env',
     'stealth_agent',

@@ -6,8 +6,9 @@ collect it). Each run has its own simulator seed, private DDS domain and process
     python tests/nav2_trials.py --runs 10 [--first-seed 1] [--set clearance_margin:=0.0 ...]
 
 The code before a change: extract it (``git archive <rev> ros2_ws/src/stealth_nav2/stealth_nav2
-ros2_ws/src/stealth_env/stealth_env | tar -x -C /tmp/old``) and pass
-``--pythonpath /tmp/old/ros2_ws/src/stealth_nav2:/tmp/old/ros2_ws/src/stealth_env``.
+ros2_ws/src/stealth_core/stealth_core ros2_ws/src/stealth_env/stealth_env | tar -x -C /tmp/old``)
+and pass ``--pythonpath /tmp/old/ros2_ws/src/stealth_nav2:/tmp/old/ros2_ws/src/stealth_core:``
+``/tmp/old/ros2_ws/src/stealth_env``.
 
 One line per run (outcome, recoveries, the robot's least clearance from a wall on the ground
 truth, the largest localisation error, the peak visibility on the way), then the tally.

@@ -18,10 +18,6 @@ setup(
     description='The RL environment node of stealth-nav (rl_msgs), over stealth_core.',
     license='Apache-2.0',
     entry_points={
-        'console_scripts': [
-            'render = stealth_core.render:main',
-            'env_node = stealth_env.env_node:main',
-        ],
-        'stealth.commands': ['stealth_env = stealth_core.commands:COMMANDS'],
+        'console_scripts': ['env_node = stealth_env.env_node:main'],
     },
 )

@@ -1,5 +1,5 @@
 """The learners' prior in the harness: what a run starts its table from, and its one setting
-(the prior itself: stealth_env/test/test_floor_plan_prior.py)."""
+(the prior itself: stealth_core/test/test_floor_plan_prior.py)."""
 
 import pytest
 from stealth_experiments.harness import RunSpec, configured, prior_of, run

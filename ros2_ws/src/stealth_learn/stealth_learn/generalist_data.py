@@ -2,7 +2,7 @@
 reads and value iteration's optimal moves on every cell (dense imitation targets: one scenario
 teaches every valid cell at once, not one trajectory).
 
-Plain numpy (no jax): ``stealth_env``'s generator, lattice model and ``value_iteration``;
+Plain numpy (no jax): ``stealth_core``'s generator, lattice model and ``value_iteration``;
 ``env_tables`` for the grid channels the JAX environment observes, so the network trains on
 exactly what it sees when it acts.
 """

@@ -10,7 +10,7 @@ environments and over many generated scenarios at once, explicit PRNG keys.
     obs, state, reward, done, info = jax.vmap(env.step)(keys, state, actions, params)
 
 The step is a handful of gathers in tables computed once by the numpy core
-(``stealth_learn.env_tables``, from ``stealth_env``'s lattice model: the light law, occlusion,
+(``stealth_learn.env_tables``, from ``stealth_core``'s lattice model: the light law, occlusion,
 moving lights' bins, exposure, step sampling and rewards of ``StealthTask``), so it judges every
 step as the Gym env does: the same arrivals, float32 of the same rewards, the same outcomes,
 the same states and, on track 'sensed', the same sensed light (``test_jax_env`` checks it on

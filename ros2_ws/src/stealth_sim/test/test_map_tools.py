@@ -162,7 +162,9 @@ def test_bad_input_is_one_line_and_exit_code_2(
 
 
 def test_python_m_runs_without_a_traceback(tmp_path):
-    environment = {**os.environ, 'PYTHONPATH': str(PACKAGE_ROOT)}
+    # the package from its source, with the world model it reads maps with
+    source = os.pathsep.join(str(p) for p in (PACKAGE_ROOT, PACKAGE_ROOT.parent / 'stealth_core'))
+    environment = {**os.environ, 'PYTHONPATH': source}
     result = subprocess.run(
         [sys.executable, '-m', 'stealth_sim.map_tools', 'image-to-bw', str(tmp_path / 'no.png')],
         capture_output=True,
