@@ -19,8 +19,9 @@ MAP_ORIGIN_map1 := 0 0 0
 MAP_ORIGIN_floorplan := 0 0 0
 MAP_ORIGIN_simple-maze := 0 0 0
 
-MAP_TOOL_SOURCES := $(addprefix ros2_ws/src/stealth_sim/stealth_sim/,map_tools.py occupancy_map.py)
-MAP_TOOLS = PYTHONPATH=$(ROOT)/ros2_ws/src/stealth_sim$${PYTHONPATH:+:$$PYTHONPATH} \
+MAP_TOOL_SOURCES := ros2_ws/src/stealth_sim/stealth_sim/map_tools.py \
+	$(addprefix ros2_ws/src/stealth_core/stealth_core/,occupancy_map.py yaml_fields.py)
+MAP_TOOLS = PYTHONPATH=$(ROOT)/ros2_ws/src/stealth_sim:$(ROOT)/ros2_ws/src/stealth_core$${PYTHONPATH:+:$$PYTHONPATH} \
 	$(PYTHON) -m stealth_sim.map_tools
 MAPS_WORK := $(ROOT)/cache/maps
 
