@@ -5,7 +5,7 @@ already receives. No rclpy.
 Through ROS the return is not comparable to the optimum's (the goal reward depends on the
 continuous pose's distance to the goal point), so the scores are taken where they are: on the
 **lattice** nodes the robot was sent to (the episode's actions, StepInfo.action, replayed from
-the start on ``planners.LatticeModel`` and judged as value iteration judges its own path:
+the start on ``lattice_model.LatticeModel`` and judged as value iteration judges its own path:
 ``path_scores.replay_actions``), the figures the criterion compares; beside them the
 continuous pose's, labelled: the **true** pose's path length (EpisodeSummary.path_length, its
 ratio to the optimum's) and the **estimate**'s (StepInfo.estimated_pose, from the start). The

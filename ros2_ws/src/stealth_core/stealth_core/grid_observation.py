@@ -76,7 +76,7 @@ def lattice_geometry(task) -> tuple[float, float, float]:
 
 
 class FullTrackGrid:
-    """The grids of one lattice model (``planners.LatticeModel``): the lights-known grid
+    """The grids of one lattice model (``lattice_model.LatticeModel``): the lights-known grid
     (``static``) and, for ``track`` 'sensed', the belief (``belief``)."""
 
     def __init__(self, model, sensing: Sensing | None = None, track: str = 'full'):

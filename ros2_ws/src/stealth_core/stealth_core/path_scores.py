@@ -19,7 +19,7 @@ the figures a reader judges a covert path by, each measured as the task judges a
 path is at most ``max_path_ratio`` times the optimum's, and its accumulated exposure at most
 the optimum's plus ``exposure_tolerance``. Through ROS the ratios are taken on the lattice
 nodes the robot was sent to (``replay_actions``: the episode's actions from the start on
-``planners.LatticeModel``, judged as value iteration judges its own path), the continuous
+``lattice_model.LatticeModel``, judged as value iteration judges its own path), the continuous
 pose's figures reported beside them; the outcome is the environment's (the true pose's).
 
 The optimum is undiscounted (``OPTIMUM_GAMMA``), as the task's return is, and the learners

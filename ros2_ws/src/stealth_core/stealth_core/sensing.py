@@ -4,7 +4,7 @@ The robot carries a camera: from its lattice node it sees the light falling on t
 its line of sight within ``sensing_range`` (m, the scenario's; default 8 m). Line of sight is
 the rule the lights obey (``stealth_core.visibility``'s Bresenham lines, corners included), from
 the robot's cell to the target's cell. What can be sensed is what the planners need, on the
-move lattice (``planners.LatticeModel``), so a sensed value is exactly a value the judge uses:
+move lattice (``lattice_model.LatticeModel``), so a sensed value is exactly a value the judge uses:
 
 - a **node**'s light: ``model.visibility`` of the node at the robot's layer (the lights as they
   stand at the current bin, weighed for the robot's heading where the scenario says so); sensed
@@ -24,7 +24,7 @@ the **last value sensed and the step it was sensed at** (-1 and -1 before it is 
 lights move, so an old value may be stale, and its age says how stale. ``Sensor`` holds both
 for one episode::
 
-    sensor = Sensor(model)                       # model: planners.LatticeModel of the task
+    sensor = Sensor(model)                       # model: lattice_model.LatticeModel of the task
     sensor.reset()                               # at each episode's start
     nodes, moves = sensor.sense(place, step)     # place: the Gym env's node, or
     place = sensor.place_of(x, y, t, yaw)        # from a pose (the ROS environment node)

@@ -422,10 +422,10 @@ class EpisodeFlow:
 
     def move_ended(self, token: int, t: float, outcome: int, note):
         """A move (or the hold padding it) ended at simulated time t (s) with ``outcome`` (an
-        ExecuteMove outcome, ``move_executor.MoveOutcome``): (move, None) when another is to run
-        first under the same token (then call again): the back-off and then the retry of a drive
-        that bumped, a hold while its step's slot has time left; else (None, note) to judge the
-        step now. `note` is what to report about the move (the node's outcome and message): a
+        ExecuteMove outcome, ``stealth_core.moves.MoveOutcome``): (move, None) when another is to
+        run first under the same token (then call again): the back-off and then the retry of a
+        drive that bumped, a hold while its step's slot has time left; else (None, note) to judge
+        the step now. `note` is what to report about the move (the node's outcome and message): a
         padded move's own note, unless the hold after it was not DONE."""
         padded, self._padded = self._padded, None
         if padded is not None and padded[0] == token:  # the hold after the move: judge it now

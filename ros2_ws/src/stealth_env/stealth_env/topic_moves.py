@@ -188,7 +188,7 @@ def interpolate(a: Odom, b: Odom, t: float) -> Pose:
 
 class MoveGoal(NamedTuple):
     """What a move over topics is to reach, in the controller's own terms rather than the kinds
-    of the simulator's request (``move_executor.MoveRequest``, whose grid moves and drives
+    of the simulator's request (``stealth_core.moves.MoveRequest``, whose grid moves and drives
     depend on where the robot is).
 
     Turn to ``heading`` (rad, map frame), then drive ``distance`` (m; 0: only the turn); or,

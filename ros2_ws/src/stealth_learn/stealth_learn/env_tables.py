@@ -1,7 +1,7 @@
 """A scenario's task as padded tables: everything the JAX environment's step reads, computed
 once with the numpy core (plain numpy, no jax), so the step itself is a few gathers.
 
-The tables come from ``stealth_core.gym_env.lattice_model`` (``planners.LatticeModel``: the exact
+The tables come from ``stealth_core.gym_env.lattice_model`` (``LatticeModel``: the exact
 MDP the Gymnasium environment steps through, every step judged by ``StealthTask``'s light model,
 occlusion and step sampling) and ``stealth_core.sensing.Sensing`` (what is in sight from each
 node), so the JAX environment inherits their rules rather than copying them:

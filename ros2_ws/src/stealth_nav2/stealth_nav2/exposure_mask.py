@@ -18,7 +18,7 @@ Values (``mask_levels``), read by ``nav2_costmap_2d::KeepoutFilter`` as cost ``r
 The light is the environment's model, not a second one: the value at a cell centre equals
 ``lighting.point_visibility`` there (what ``StealthTask`` judges a robot at that point by,
 without a heading: a heading can only lower a light, ``stealth_core.exposure``), to the last bit,
-lights added in their order. Static lights come from ``visibility.cached_visibility_field``
+lights added in their order. Static lights come from ``visibility_cache.cached_visibility_field``
 (computed once, on disk, with the scenario's bounce if any). A moving light is asked of a
 ``visibility.PointVisibility`` of its own, at the cell centres within its range at time t: its
 per-lamp-cell sight memo keeps every line of sight traced once (a sweeping lamp's cell never

@@ -233,4 +233,4 @@ class CompiledMoveRun:
                 self._store()
                 self.on_step(self.sim)
         self._store()
-        return int(outcome)  # an ExecuteMove outcome number (move_executor.MoveOutcome)
+        return int(outcome)  # an ExecuteMove outcome number (stealth_core.moves.MoveOutcome)
