@@ -181,12 +181,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     if 'generalist' in methods and not learning_extra():
         say(f'{PROG}: generalist needs the learning extra (jax, flax, optax): install it with '
             'make learn; its rows are marked failed')  # fmt: skip
-    try:
-        args.out.mkdir(parents=True, exist_ok=True)
-    except OSError as error:
-        print(f'{PROG}: --out {args.out}: cannot be made ({error.strerror or error})',
-              file=sys.stderr)  # fmt: skip
-        return 1
     notes = []
     try:
         if args.scenarios:
@@ -199,6 +193,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             notes += policy_notes
     except ValueError as error:  # CacheError, BenchmarkError: one line
         print(f'{PROG}: {error}', file=sys.stderr)
+        return 1
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        print(f'{PROG}: --out {args.out}: cannot be made ({error.strerror or error})',
+              file=sys.stderr)  # fmt: skip
         return 1
     for line in notes:
         say(f'{PROG}: {line}')
@@ -349,8 +349,9 @@ def collect(laid: list[dict], done: dict[str, list[dict]]) -> list[dict]:
     return rows
 
 
-def _settings(args, methods: list[str], laid: list[dict], elapsed: float, cases: int,
-              jobs: int) -> str:  # fmt: skip
+def _settings(
+    args, methods: list[str], laid: list[dict], elapsed: float, cases: int, jobs: int
+) -> str:
     learners = [m for m in methods if m in LEARNERS]
     budget = ''
     if learners:
