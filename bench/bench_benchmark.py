@@ -29,7 +29,7 @@ EPISODES = 200
 
 def run(report=print) -> dict:
     with tempfile.TemporaryDirectory(prefix='bench-benchmark-') as work:
-        cases = generated_cases(COUNT, Path(work) / 'scenarios')
+        cases = generated_cases(COUNT, Path(work) / 'scenarios', report)
         todo = trials(cases, list(DEFAULT_METHODS), list(TRACKS), episodes=EPISODES)
 
         started = time.perf_counter()

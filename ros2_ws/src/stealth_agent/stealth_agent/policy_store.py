@@ -194,6 +194,16 @@ def _policy_from_arrays(path: pathlib.Path, arrays: dict) -> SavedPolicy:
     return SavedPolicy(path, learner, index, meta)
 
 
+def content_differences(saved: dict, now: dict[str, str]) -> list[str] | None:
+    """The CONTENT_KEYS whose hash the policy file records (``saved``: its scenario meta) and
+    that differ from ``now`` (``content_identity`` of the scenario asked for): [] when it was
+    learned on this map and these lights; None when the file records neither (saved before
+    policies did: only its name can be compared)."""
+    if not any(saved.get(key) for key in CONTENT_KEYS):
+        return None
+    return [key for key in CONTENT_KEYS if saved.get(key) and saved[key] != now.get(key)]
+
+
 def check_compatible(
     policy: SavedPolicy,
     *,

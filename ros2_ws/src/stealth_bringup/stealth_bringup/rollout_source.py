@@ -17,6 +17,8 @@ from stealth_bringup.run_config import (
     relative_to_cwd,
 )
 
+# A differing content hash of the policy file (policy_store.CONTENT_KEYS), in words.
+CONTENT_WORDS = {'grid_sha256': 'a different map', 'lights_sha256': 'different lights'}
 _TITLE = re.compile(r'^stealth-nav: (?P<scenario>.+) \((?P<goal>[^()]+)\)$')
 
 
@@ -76,17 +78,17 @@ def same_content(policy: Path, saved: dict, scenario) -> list[str]:
     """RunConfigError when the policy was learned on another map or under other lights than
     the scenario's (a file that kept its name); a note to say when the policy file records
     neither (saved before they were), and only the name could be compared."""
+    from stealth_agent.policy_store import content_differences
     from stealth_core.scenario import content_identity
 
-    now = content_identity(scenario)
-    if not any(saved.get(key) for key in now):
+    keys = content_differences(saved, content_identity(scenario))
+    if keys is None:
         return [
             f'{policy} records no map or lights hash (saved before policies did): only its '
             f'scenario name is checked, not whether {relative_to_cwd(scenario.path)} still has '
             'the map and lights it was trained on'
         ]
-    kinds = {'grid_sha256': 'a different map', 'lights_sha256': 'different lights'}
-    differ = [what for key, what in kinds.items() if saved.get(key) and saved[key] != now[key]]
+    differ = [CONTENT_WORDS[key] for key in keys]
     if differ:
         raise RunConfigError(
             f'{policy} was trained on scenario {scenario.name!r} with {" and ".join(differ)} '

@@ -16,7 +16,9 @@ Decisions:
 
 - **Determinism**: all randomness comes from one ``np.random.default_rng(seed)``; the files of
   a seed and options are the same byte for byte on every run (the YAML is written by hand with
-  fixed number formats).
+  fixed number formats). ``GENERATOR_VERSION`` names that output: it is raised whenever a seed
+  and options give other files, so a cache of generated scenarios that records it (`stealth
+  benchmark`'s) knows its files are outdated (``test_fast_paths`` holds the files' digests).
 - **Seeds** (``SEED_RANGES``): a scenario is named by its seed; train, validation and test
   scenarios come from disjoint ranges, and the test range is never used for tuning anything.
 - **Difficulty**, measured on the proven scenario: ``lit``, the fraction of the valid lattice
@@ -56,6 +58,8 @@ from stealth_core.reward import (
 from stealth_core.scenario import DIFFICULTIES, Scenario, scenario_from_fields
 from stealth_core.task import StealthTask
 
+# The generator's output: raised whenever a seed and options give other files than before.
+GENERATOR_VERSION = 1
 SEED_RANGES = {  # inclusive; None: no upper end
     'train': (0, 99_999),
     'validation': (100_000, 109_999),
@@ -145,16 +149,21 @@ class Generated:
     map_files: dict[str, bytes]  # file name (in maps/) -> bytes
     proof: Proof
 
+    def files(self) -> dict[str, bytes]:
+        """Every file as ``write`` lays it out: its path in the directory -> its bytes."""
+        return {
+            **{f'maps/{file_name}': data for file_name, data in self.map_files.items()},
+            f'{self.name}.yaml': self.scenario_text.encode('utf-8'),
+        }
+
     def write(self, directory: str | Path) -> Path:
         """Write ``<name>.yaml`` and ``maps/<name>.pgm + .yaml`` into directory; the
         scenario's path."""
         directory = Path(directory)
         (directory / 'maps').mkdir(parents=True, exist_ok=True)
-        for file_name, data in self.map_files.items():
-            (directory / 'maps' / file_name).write_bytes(data)
-        path = directory / f'{self.name}.yaml'
-        path.write_text(self.scenario_text, encoding='utf-8')
-        return path
+        for relative, data in self.files().items():
+            (directory / relative).write_bytes(data)
+        return directory / f'{self.name}.yaml'
 
 
 def seed_range_of(seed: int) -> str | None:

@@ -8,9 +8,15 @@ goal and method on a local Ray over ``--jobs`` CPUs (``sweep_engine``, with a pr
 trial) or, with ``--jobs 1``, one after another in this process without Ray (a line per trial).
 Written to ``--out`` (``benchmark_report``): results.csv, summary.md, benchmark.png.
 
-A scenario that cannot be read is named (one line) and its rows are marked failed; a method
-that raises on a scenario fails its row only. SIGINT or SIGTERM (``sweep_stop``): the trials
-done are written, the rest marked interrupted, and the exit status is 130 (143).
+Before anything runs (``benchmark_checks``), one line and exit 1 for: a scenario name that is not
+on the search path, a method asked for on none of the tracks asked for, an unusable --policy or
+--policy-file (a policy file runs only on the scenario goals it was trained on, refused where it
+was trained on none of them), --out holding an earlier benchmark's results (unless --force), an
+unusable --cache (``benchmark_cache``); --jobs beyond the CPUs this process may use is capped
+(one line). A scenario file that cannot be read is named (one line) and its rows are marked
+failed; a method that raises on a scenario fails its row only. SIGINT or SIGTERM
+(``sweep_stop``): the trials done are written, the rest marked interrupted, and the exit status
+is 130 (143).
 """
 
 from __future__ import annotations
@@ -22,6 +28,13 @@ import sys
 import time
 
 from stealth_experiments import sweep_stop
+from stealth_experiments.benchmark_cache import check_cache
+from stealth_experiments.benchmark_checks import (
+    check_out,
+    check_scenarios,
+    check_tracks,
+    policy_cases,
+)
 from stealth_experiments.benchmark_methods import (
     LEARNERS,
     METHODS,
@@ -40,9 +53,14 @@ from stealth_experiments.benchmark_plan import (
     set_cases,
     trials,
 )
-from stealth_experiments.benchmark_report import write_csv, write_plot, write_summary
+from stealth_experiments.benchmark_report import (
+    RESULT_FILES,
+    write_csv,
+    write_plot,
+    write_summary,
+)
 from stealth_experiments.harness import DEFAULT_EPISODES, MOVING_EPISODES
-from stealth_experiments.options import add_episodes_option, add_output_options
+from stealth_experiments.options import add_episodes_option, add_output_options, capped_jobs
 from stealth_experiments.sweep_pool import duration as _duration
 
 PROG = 'stealth benchmark'
@@ -68,9 +86,13 @@ def parser() -> argparse.ArgumentParser:
         'track only. The generalist needs the learning extra (make learn): a default method only '
         'where it is installed; asked for without it, its rows fail saying so and the rest run. '
         f'Test scenarios are generated from seed {TEST_SEED:,} on (the test range) into the '
-        'cache once. A scenario that cannot be read is named and its rows marked failed; the '
-        'rest run. Ctrl-C or SIGTERM writes what is done, marks the rest interrupted and exits '
-        '130 (143). Exit 1 when no row ran.',
+        'cache, each with a provenance record, and generated again where a file no longer '
+        'matches it. Refused before anything runs (one line, exit 1): an unknown scenario, '
+        'method or track, a policy file trained on none of the scenario goals, an --out with '
+        'earlier results (without --force), a --cache that is not one; --jobs is capped at the '
+        'CPUs this process may use. A scenario file that cannot be read is named and its rows '
+        'marked failed; the rest run. Ctrl-C or SIGTERM writes what is done, marks the rest '
+        'interrupted and exits 130 (143). Exit 1 when no row ran.',
     )
     p.add_argument(
         'scenarios',
@@ -93,7 +115,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument(
         '--cache',
         type=Path,
-        help='where generated test scenarios are written and reused (default: OUT/scenarios)',
+        help='where generated test scenarios are written and reused, each with its provenance '
+        'record (default: OUT/scenarios)',
     )
     p.add_argument(
         '--tracks', nargs='+', choices=TRACKS, default=list(TRACKS), help='default: both'
@@ -111,7 +134,12 @@ def parser() -> argparse.ArgumentParser:
         p, "the learners' training budget per scenario, in episodes (default: the harness's, "
     )
     p.add_argument('--seed', type=int, default=0, help="learners' and episodes' seed (default 0)")
-    p.add_argument('--policy', type=Path, help='a learned policy file (method policy)')
+    p.add_argument(
+        '--policy',
+        type=Path,
+        help='a learned policy file (method policy): it runs on the scenario goals it was '
+        'trained on only (by name, goal, map and lights)',
+    )
     p.add_argument(
         '--policy-file',
         type=Path,
@@ -119,6 +147,11 @@ def parser() -> argparse.ArgumentParser:
         'stealth_learn/policies/generalist-full.npz)',
     )
     add_output_options(p, 'trials', DEFAULT_OUT, 'benchmark.png')
+    p.add_argument(
+        '--force',
+        action='store_true',
+        help=f"overwrite an earlier benchmark's results in --out ({', '.join(RESULT_FILES)})",
+    )
     return p
 
 
@@ -129,26 +162,46 @@ def main(argv: Sequence[str] | None = None) -> int:
         p.error('give scenarios or --set, not both')
     if args.count < 1 or args.jobs < 1 or (args.episodes is not None and args.episodes < 1):
         p.error('--count, --jobs and --episodes must be >= 1')
-    try:
+    say = _say
+    generated = not args.scenarios and (args.set or 'test') != 'shipped'
+    cache = args.cache or args.out / 'scenarios'
+    try:  # everything a user gave, before anything is made or run (benchmark_checks)
         methods = _methods(args)
-    except ValueError as error:
+        check_tracks(_asked(args, methods), args.tracks)
+        check_scenarios(args.scenarios, Path.cwd())
+        check_out(args.out, args.force)
+        if generated:
+            check_cache(cache)
+    except ValueError as error:  # BenchmarkError, CacheError, PolicyFileError: one line
         print(f'{PROG}: {error}', file=sys.stderr)
         return 1
-    say = _say
+    jobs, capped = capped_jobs(args.jobs)
+    if capped:
+        say(f'{PROG}: {capped}')
     if 'generalist' in methods and not learning_extra():
         say(f'{PROG}: generalist needs the learning extra (jax, flax, optax): install it with '
             'make learn; its rows are marked failed')  # fmt: skip
+    notes = []
+    try:
+        if args.scenarios:
+            cases = [file_case(entry, Path.cwd()) for entry in args.scenarios]
+        else:
+            cases = set_cases(args.set or 'test', args.count, cache, notes.append)
+        policy_on = None
+        if 'policy' in methods:
+            policy_on, policy_notes = policy_cases(args.policy, cases)
+            notes += policy_notes
+    except ValueError as error:  # CacheError, BenchmarkError: one line
+        print(f'{PROG}: {error}', file=sys.stderr)
+        return 1
     try:
         args.out.mkdir(parents=True, exist_ok=True)
     except OSError as error:
         print(f'{PROG}: --out {args.out}: cannot be made ({error.strerror or error})',
               file=sys.stderr)  # fmt: skip
         return 1
-    if args.scenarios:
-        cases = [file_case(entry, Path.cwd()) for entry in args.scenarios]
-    else:
-        cache = args.cache or args.out / 'scenarios'
-        cases = set_cases(args.set or 'test', args.count, cache)
+    for line in notes:
+        say(f'{PROG}: {line}')
     for case in cases:
         if case.error:
             where = '' if case.error.startswith(case.file) else f'{case.file}: '
@@ -157,13 +210,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         cases, methods, args.tracks, episodes=args.episodes, seed=args.seed,
         policy=str(args.policy.resolve()) if args.policy else None,
         policy_file=str(args.policy_file.resolve()) if args.policy_file else None,
+        policy_cases=policy_on,
     )  # fmt: skip
-    say(f'benchmark: {len(cases)} scenario goals x {len(methods)} methods: {len(laid)} trials')
+    say(f'benchmark: {_count(len(cases), "scenario goal")} x {_count(len(methods), "method")}: '
+        f'{_counted(laid)}')  # fmt: skip
     started = time.monotonic()
     done: dict[str, list[dict]] = {}
     note, code = '', 0
     try:
-        run_trials(laid, done, jobs=args.jobs, say=say)
+        run_trials(laid, done, jobs=jobs, say=say)
     except KeyboardInterrupt as stop:  # sweep_stop.Interrupted
         name = getattr(stop, 'name', 'SIGINT')
         code = getattr(stop, 'exit_code', 130)
@@ -171,12 +226,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         note += ' interrupted.'
     rows = collect(laid, done)
     elapsed = time.monotonic() - started
-    settings = _settings(args, methods, len(laid), elapsed, len(cases))
+    settings = _settings(args, methods, laid, elapsed, len(cases), jobs)
+    csv_file, summary_file, plot = (args.out / name for name in RESULT_FILES)
     try:
-        write_csv(args.out / 'results.csv', rows)
-        summary = write_summary(args.out / 'summary.md', rows, settings, note)
-        if not args.no_plots:
-            write_plot(args.out / 'benchmark.png', rows)
+        write_csv(csv_file, rows)
+        summary = write_summary(summary_file, rows, settings, note)
+        if args.no_plots or write_plot(plot, rows) is None:
+            plot.unlink(missing_ok=True)  # not an earlier benchmark's beside these (--force)
     except OSError as error:
         print(f'{PROG}: cannot write the results to {args.out} ({error.strerror or error})',
               file=sys.stderr)  # fmt: skip
@@ -188,11 +244,33 @@ def main(argv: Sequence[str] | None = None) -> int:
         return code
     if failed:
         print(f'{PROG}: {failed} of {len(rows)} rows failed (see {summary})', file=sys.stderr)
-    return 1 if rows and failed == len(rows) else 0
+    return 1 if failed == len(rows) else 0
+
+
+def _count(number: int, what: str) -> str:
+    return f'{number} {what}{"" if number == 1 else "s"}'
+
+
+def _counted(laid: list[dict]) -> str:
+    """What the benchmark runs, counted: trials (a method on a scenario goal, over its tracks)
+    and rows (a trial's tracks, one row each in results.csv)."""
+    rows = sum(len(trial['tracks']) for trial in laid)
+    return (
+        f'{_count(len(laid), "trial")} (a method on a scenario goal), '
+        f'{_count(rows, "row")} (a trial on each of its tracks)'
+    )
 
 
 def _say(line: str) -> None:
     print(line, flush=True)
+
+
+def _asked(args, methods: list[str]) -> list[str]:
+    """The methods asked for by name (--methods, or by --policy and --policy-file), not the
+    defaults: each must run on a track asked for."""
+    if args.methods:
+        return methods
+    return [m for m in methods if m == 'policy' or (m == 'generalist' and args.policy_file)]
 
 
 def _methods(args) -> list[str]:
@@ -271,7 +349,9 @@ def collect(laid: list[dict], done: dict[str, list[dict]]) -> list[dict]:
     return rows
 
 
-def _settings(args, methods: list[str], count: int, elapsed: float, cases: int) -> str:
+def _settings(
+    args, methods: list[str], laid: list[dict], elapsed: float, cases: int, jobs: int
+) -> str:
     learners = [m for m in methods if m in LEARNERS]
     budget = ''
     if learners:
@@ -289,10 +369,11 @@ def _settings(args, methods: list[str], count: int, elapsed: float, cases: int) 
         budget += ', then one greedy episode.'
     if 'generalist' in methods:
         budget += f' Generalist weights: {args.policy_file or "the shipped generalist-full.npz"}.'
-    where = 'one after another' if args.jobs <= 1 else f'local Ray, {args.jobs} CPUs'
+    alone = jobs <= 1 or sum(not trial['error'] for trial in laid) <= 1  # as run_trials runs
+    where = 'one after another' if alone else f'local Ray, {jobs} CPUs'
     return (
         f'Tracks: {", ".join(args.tracks)}. Methods: {", ".join(methods)}.{budget} Seed '
-        f'{args.seed}. {count} trials in {elapsed:.0f} s ({where}): '
+        f'{args.seed}. {_counted(laid)} in {elapsed:.0f} s ({where}): '
         f'{cases * 60 / max(elapsed, 1e-9):.1f} scenario goals/min.'
     )
 

@@ -5,31 +5,28 @@ Sets (``SETS``):
 
 - ``test``: ``count`` generated test scenarios, seeds ``TEST_SEED``, ``TEST_SEED + 1``, ...
   (``scenario_generator.SEED_RANGES``' test range, never used for tuning), generated on the fly
-  with the generator's default options into a cache directory (a scenario already there is
-  reused: the generator is deterministic per seed), plus every goal of the shipped maps;
+  with the generator's default options into a cache directory (``benchmark_cache``: a scenario
+  there is reused while its provenance record holds), plus every goal of the shipped maps;
 - ``shipped``: every goal of the shipped maps (``SHIPPED``) only;
 - ``generated``: the generated test scenarios only.
 
 Scenarios given by name or file instead are run at their default goal. A scenario that cannot
 be read (or generated) is a case with its ``error``: the benchmark names the file, marks its
-rows failed and goes on with the rest.
+rows failed and goes on with the rest. The method ``policy`` runs only on the cases its file
+was trained on (``benchmark_checks.policy_cases``).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Collection
 import dataclasses
 from pathlib import Path
 import re
 
 from stealth_core.scenario import find_scenario, load_scenario
-from stealth_core.scenario_generator import (
-    SEED_RANGES,
-    GenerationError,
-    Options,
-    generate,
-    scenario_name,
-)
+from stealth_core.scenario_generator import SEED_RANGES, GenerationError, scenario_name
 
+from stealth_experiments.benchmark_cache import cached_scenario, check_cache
 from stealth_experiments.benchmark_methods import METHODS, TRACKS
 from stealth_experiments.harness import scenario_argument, scenario_label
 
@@ -64,19 +61,20 @@ def shipped_cases() -> list[Case]:
     return cases
 
 
-def generated_cases(count: int, cache: Path) -> list[Case]:
-    """The first ``count`` generated test scenarios, written to (or found in) ``cache``."""
+def generated_cases(count: int, cache: Path, say: Callable[[str], None]) -> list[Case]:
+    """The first ``count`` generated test scenarios, written to (or found in) ``cache``
+    (``benchmark_cache``: ``say`` gets a line for each entry generated again; CacheError for a
+    cache that cannot be used)."""
     cache = Path(cache)
+    check_cache(cache)
     cases = []
     for seed in range(TEST_SEED, TEST_SEED + count):
-        path = cache / f'{scenario_name(seed)}.yaml'
-        if not path.is_file():
-            try:
-                generated = generate(seed, Options())
-            except GenerationError as error:  # `stealth benchmark` names it, rows failed
-                cases.append(Case(str(path), path.stem, None, str(path), _one_line(error)))
-                continue
-            path = generated.write(cache)
+        try:
+            path = cached_scenario(cache, seed, say)
+        except GenerationError as error:  # `stealth benchmark` names it, rows failed
+            path = cache / f'{scenario_name(seed)}.yaml'
+            cases.append(Case(str(path), path.stem, None, str(path), _one_line(error)))
+            continue
         cases.append(file_case(str(path), Path.cwd()))
     return cases
 
@@ -94,13 +92,13 @@ def file_case(entry: str, base: Path) -> Case:
     return Case(scenario, label, goal, file)
 
 
-def set_cases(name: str, count: int, cache: Path) -> list[Case]:
-    """The cases of a named set (module docstring)."""
+def set_cases(name: str, count: int, cache: Path, say: Callable[[str], None]) -> list[Case]:
+    """The cases of a named set (module docstring); ``say`` as generated_cases'."""
     if name not in SETS:
         raise ValueError(f'--set: expected one of {", ".join(SETS)}, got {name!r}')
     cases = []
     if name in ('test', 'generated'):
-        cases += generated_cases(count, cache)
+        cases += generated_cases(count, cache, say)
     if name in ('test', 'shipped'):
         cases += shipped_cases()
     return cases
@@ -115,13 +113,17 @@ def trials(
     seed: int = 0,
     policy: str | None = None,
     policy_file: str | None = None,
+    policy_cases: Collection[Case] | None = None,
 ) -> list[dict]:
-    """One trial per case and method that runs on one of ``tracks`` at least, in that order."""
+    """One trial per case and method that runs on one of ``tracks`` at least, in that order;
+    the method policy on ``policy_cases`` only where given (the cases its file was trained on,
+    ``benchmark_checks.policy_cases``)."""
     laid = []
     for case in cases:
         for method in methods:
             mine = [track for track in TRACKS if track in tracks and track in METHODS[method]]
-            if not mine:
+            untrained = method == 'policy' and policy_cases is not None
+            if not mine or (untrained and case not in policy_cases):
                 continue
             laid.append({
                 'id': trial_id(case, method),

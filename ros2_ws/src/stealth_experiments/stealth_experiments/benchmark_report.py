@@ -35,6 +35,8 @@ from stealth_core.reward import EpisodeOutcome
 
 from stealth_experiments.benchmark_methods import COLUMNS, METHODS, TRACKS
 
+RESULT_FILES = ('results.csv', 'summary.md', 'benchmark.png')  # what a benchmark writes
+
 
 def write_csv(path: Path, rows: list[dict]) -> Path:
     """results.csv: COLUMNS, in this order; empty cells for what a failed row lacks."""
