@@ -445,7 +445,7 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
     prior = run_prior(args.prior, continued, parameters) if mode == 'train' else 'none'
     if continued is None:  # created last: a refused run leaves nothing
         create_run_directory(directory)
-    if prior == 'floor_plan':
+    if prior == 'floor_plan':  # a new run's (run_prior refuses it with --resume)
         with _removed_on_failure(directory):
             states = write_prior_policy(policy_path, scenario, goal, parameters['agent'].values)
         parameters['agent'].values['load_policy'] = True
