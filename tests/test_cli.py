@@ -92,6 +92,13 @@ def test_topic_verbs_on_a_running_talker(node_processes):
     rates = [float(r) for r in re.findall(r'average rate: ([\d.]+)', output)]
     assert rates[-1] == pytest.approx(20.0, rel=0.15)
 
+    # --timeout bounds the command while messages keep arriving (it was N s without one).
+    started = time.monotonic()
+    hz = stealth(node_processes, 'topic', 'hz', '/chatter', '--timeout', '3', timeout=30)
+    assert hz.returncode == 0 and time.monotonic() - started >= 3.0, hz.stderr
+    rates = [float(r) for r in re.findall(r'average rate: ([\d.]+)', hz.stdout)]
+    assert rates and rates[-1] == pytest.approx(20.0, rel=0.15)
+
 
 def test_bag_record_writes_a_rosbag2_directory_that_bag_info_reads(node_processes, tmp_path):
     node_processes.start_python(TALKER, 'talker')

@@ -249,7 +249,8 @@ def test_a_batch_period_out_of_range_is_one_line_naming_it(node_processes, tmp_p
     )
     assert result.returncode == 1
     (line,) = result.stderr.strip().splitlines()
-    assert line.startswith('recorder: ') and 'batch_period' in line and 'between 0 and 1' in line
+    assert line.startswith('recorder: parameter batch_period: ') and 'out of range' in line
+    assert 'Min: 0.0, Max: 1.0' in line
     assert not output.exists()
 
 

@@ -361,6 +361,11 @@ def test_bad_input_is_one_line_before_anything_starts(system, tmp_path):
         'train', '--executable', f'environment={tmp_path / "no_env_node"}', '--runs-dir', runs
     )
     one_line_error(result, f'environment: executable {tmp_path / "no_env_node"} does not exist')
+
+    # With the default floor-plan prior: was a ValueError traceback and an empty run directory.
+    result = system.run('train', '--set', 'agent.gamma=1.5', '--name', 'g', '--runs-dir', runs)
+    line = one_line_error(result, '--set agent.gamma: expected a number from 0 to 1, got 1.5')
+    assert result.stderr.strip() == line
     assert not system.runs.exists()  # nothing was created for any of them
 
 
@@ -372,9 +377,17 @@ def test_bad_input_is_one_line_before_anything_starts(system, tmp_path):
     ],
 )
 def test_a_node_that_crashes_on_start_stops_the_run(system, setting, node, reason):
+    """The node is the installed one given as --executable, whose parameters the run leaves to
+    it (stealth train refuses these values itself for the nodes it knows)."""
+    from stealth_bringup.run_config import NODES
+    from stealth_tools.executables import find_executable
+
+    spec = NODES[node]
+    executable = find_executable(spec.package, spec.executable)
     result = system.run(
-        'train', '--set', setting, '--name', 'crash', '--runs-dir', str(system.runs), timeout=90
-    )
+        'train', '--set', setting, '--executable', f'{node}={executable}', '--name', 'crash',
+        '--runs-dir', str(system.runs), timeout=90,
+    )  # fmt: skip
     line = one_line_error(
         result, f'stealth train: {node} exited with code 2 during startup after ', reason
     )

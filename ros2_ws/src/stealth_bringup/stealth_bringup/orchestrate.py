@@ -40,8 +40,8 @@ import sys
 import time
 
 from stealth_bringup.run_arguments import (
-    COMMAND_OF_MODE,
     check_rollout_source,
+    prog_of,
     rollout_parser,
     train_parser,
 )
@@ -57,7 +57,7 @@ def _main(mode: str, argv: Sequence[str] | None) -> int:
     args = parser.parse_args(argv)
     if mode != 'train':
         check_rollout_source(parser, args)
-    prog = f'stealth {COMMAND_OF_MODE[mode]}'
+    prog = prog_of(mode)
     try:
         plan = make_plan(args, mode, argv)
     except RunConfigError as error:

@@ -40,6 +40,11 @@ REMOTE_NODES = ('simulator', 'environment', 'agent')
 COMMAND_OF_MODE = {'train': 'train', 'eval': 'rollout'}
 
 
+def prog_of(mode: str) -> str:
+    """The name a mode's lines start with: `stealth train` or `stealth rollout`."""
+    return f'stealth {COMMAND_OF_MODE[mode]}'
+
+
 def criterion_option(name: str, low: float, high: float):
     """The argparse type of a criterion option: a number in [low, high], else the error line
     naming the range (argparse adds the option's name)."""

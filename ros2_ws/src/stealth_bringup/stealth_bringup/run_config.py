@@ -416,20 +416,26 @@ def utc_stamp(now: datetime.datetime | None = None) -> str:
     return now.strftime('%Y%m%dT%H%M%SZ')
 
 
-def run_directory(runs_dir: Path, name: str | None, default_name: str) -> Path:
-    """A new run directory: runs_dir/name (must not exist) or runs_dir/default_name[-2, -3...]."""
+def choose_run_directory(runs_dir: Path, name: str | None, default_name: str) -> Path:
+    """Where a new run goes, not created yet (so that a refused run leaves nothing behind):
+    runs_dir/name (must not exist) or runs_dir/default_name[-2, -3...]."""
     if name is not None:
         if not name or '/' in name or name in ('.', '..'):
             raise RunConfigError(f'--name {name!r}: expected a plain directory name')
         path = Path(runs_dir) / name
         if path.exists():
             raise RunConfigError(f'run directory {path} exists already; choose another --name')
-    else:
-        path = Path(runs_dir) / default_name
-        number = 2
-        while path.exists():
-            path = Path(runs_dir) / f'{default_name}-{number}'
-            number += 1
+        return path
+    path = Path(runs_dir) / default_name
+    number = 2
+    while path.exists():
+        path = Path(runs_dir) / f'{default_name}-{number}'
+        number += 1
+    return path
+
+
+def create_run_directory(path: Path) -> Path:
+    """Make the directory choose_run_directory chose (RunConfigError where it cannot)."""
     try:
         path.mkdir(parents=True)
     except OSError as error:

@@ -27,7 +27,7 @@ from stealth_bringup.episode_scores import EpisodeScorer
 from stealth_bringup.episode_tracker import Tracker
 from stealth_bringup.remote_nodes import RemoteNodes
 from stealth_bringup.respawn import Respawner, RespawnPolicy
-from stealth_bringup.run_arguments import COMMAND_OF_MODE
+from stealth_bringup.run_arguments import prog_of
 from stealth_bringup.run_config import (
     ROS_OWN_PARAMETERS,
     STOP_ORDER,
@@ -72,7 +72,7 @@ class Run:
     def __init__(self, plan: RunPlan, started: float | None = None, out=None, err=None):
         self.plan = plan
         self.out = out or sys.stdout
-        self.prog = f'stealth {COMMAND_OF_MODE[plan.mode]}'
+        self.prog = prog_of(plan.mode)
         scorer = EpisodeScorer(plan.scenario, plan.goal, plan.criterion)
         self.tracker = Tracker(plan.episodes, plan.streak or None, scorer)
         self.facts = RunFacts(time.monotonic() if started is None else started)  # command start

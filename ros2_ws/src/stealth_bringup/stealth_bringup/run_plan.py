@@ -14,6 +14,7 @@ import errno
 import os
 from pathlib import Path
 import shlex
+import shutil
 
 from stealth_agent.agent_parameters import PARAMETERS as AGENT_PARAMETERS
 from stealth_agent.learners import OPTIMISTIC, canonical_learner_name
@@ -22,6 +23,7 @@ from stealth_core.path_scores import DEFAULT_CRITERION, OPTIMUM_GAMMA, Criterion
 from stealth_tools.bag_files import next_recording_file
 
 from stealth_bringup.episode_budget import STATE_ACTIONS_PER_EPISODE, default_episode_budget
+from stealth_bringup.parameter_checks import check_parameters
 from stealth_bringup.prior_policy import write_prior_policy
 from stealth_bringup.rollout_source import rollout_source
 from stealth_bringup.run_arguments import (
@@ -35,19 +37,18 @@ from stealth_bringup.run_arguments import (
 from stealth_bringup.run_config import (
     NODE_ORDER,
     NODES,
-    ROS_OWN_PARAMETERS,
     NodeParameters,
     RunConfigError,
     check_goal,
     check_managed,
-    check_parameter_names,
+    choose_run_directory,
+    create_run_directory,
     effective_parameters,
     load_run_scenario,
     params_sources,
     parse_set,
     read_params_file,
     relative_to_cwd,
-    run_directory,
     scenario_hashes,
     scenario_parameters,
     utc_stamp,
@@ -398,7 +399,8 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
         agent = {'policy_file': str(policy_path.resolve()), 'eval_every': eval_every, **first}
         agent.update(evaluate=False, load_policy=True)
     elif mode == 'train':
-        directory = Path(args.runs_dir) / (args.name or f'{scenario.name}-{goal}-{stamp}')
+        default = f'{scenario.name}-{goal}-{stamp}'
+        directory = choose_run_directory(Path(args.runs_dir), args.name, default)
         policy_path = directory / 'policy.npz'
         agent = {'policy_file': str(policy_path.resolve()), 'eval_every': eval_every, **first}
         agent.update(evaluate=False, load_policy=False)
@@ -407,7 +409,7 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
             runs_dir, default = Path(args.run), f'eval-{stamp}'
         else:
             runs_dir, default = Path(args.runs_dir), f'eval-{scenario.name}-{goal}-{stamp}'
-        directory = run_directory(runs_dir, args.name, default)
+        directory = choose_run_directory(runs_dir, args.name, default)
         policy_path = source_policy
         learner = getattr(args, 'learner', None)
         if learner is not None:  # a policy plugin: the environment sends it the grid
@@ -441,17 +443,13 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
         notes.append(f'{relative_to_cwd(policy_path)} is not there: the agent starts from a '
                      'fresh table (the run was killed before it saved one)')  # fmt: skip
     prior = run_prior(args.prior, continued, parameters) if mode == 'train' else 'none'
-    if mode == 'train' and continued is None:  # created last: a refused run leaves nothing
-        directory = run_directory(Path(args.runs_dir), args.name, directory.name)
-        policy_path = directory / 'policy.npz'
-        parameters['agent'].values['policy_file'] = str(policy_path.resolve())
-        if prior == 'floor_plan':
+    if continued is None:  # created last: a refused run leaves nothing
+        create_run_directory(directory)
+    if prior == 'floor_plan':  # a new run's (run_prior refuses it with --resume)
+        with _removed_on_failure(directory):
             states = write_prior_policy(policy_path, scenario, goal, parameters['agent'].values)
-            parameters['agent'].values['load_policy'] = True
-            notes.append(f"the agent's table starts from the floor plan ({states:,} states)")
-        if 'recorder' in parameters:
-            recording = (directory / 'recording.mcap').resolve()
-            parameters['recorder'].values['output'] = str(recording)
+        parameters['agent'].values['load_policy'] = True
+        notes.append(f"the agent's table starts from the floor plan ({states:,} states)")
     return RunPlan(
         mode=mode,
         command_line=' '.join(['stealth', COMMAND_OF_MODE[mode], *map(shlex.quote, argv)]),
@@ -481,13 +479,10 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
 
 
 def _check_parameters(args, parameters, params_dir) -> list[str]:
-    """Before anything starts: every parameter name one the node declares (its installed
-    table; a node replaced with --executable is checked once it runs), and the values of a
-    --params-dir file that the run sets itself honoured or refused. The notes to say."""
-    replaced = {item.partition('=')[0] for item in args.executable}
-    for node, values in parameters.items():
-        if node not in replaced:
-            check_parameter_names(values, declared_parameters(node))
+    """Before anything exists: every node's parameters against its table (parameter_checks),
+    and the values of a --params-dir file that the run sets itself honoured or refused. The
+    notes to say."""
+    check_parameters(parameters, {item.partition('=')[0] for item in args.executable})
     notes = []
     if args.params_dir is None:
         return notes
@@ -498,21 +493,17 @@ def _check_parameters(args, parameters, params_dir) -> list[str]:
     return notes
 
 
-def declared_parameters(node: str) -> frozenset[str]:
-    """The parameters the installed node declares: its table, and those of every ROS node."""
-    from stealth_agent import agent_parameters
-    from stealth_env import env_parameters
-    from stealth_sim import sim_parameters
-    from stealth_tools import bridge_parameters, recorder_parameters
-
-    tables = {
-        'recorder': recorder_parameters,
-        'bridge': bridge_parameters,
-        'simulator': sim_parameters,
-        'environment': env_parameters,
-        'agent': agent_parameters,
-    }
-    return frozenset(tables[node].PARAMETERS) | ROS_OWN_PARAMETERS
+@contextlib.contextmanager
+def _removed_on_failure(directory: Path):
+    """A new run directory goes again when what fills it before the run fails (the prior's
+    table): the name stays free. RunConfigError for a file that cannot be written."""
+    try:
+        yield
+    except BaseException as error:
+        shutil.rmtree(directory, ignore_errors=True)
+        if isinstance(error, OSError):
+            raise RunConfigError(f'{directory}: cannot write the prior: {error}') from None
+        raise
 
 
 def _check_port_free(bridge: NodeParameters) -> None:

@@ -17,6 +17,7 @@ from stealth_tools.bag_files import recording_files
 
 from stealth_bringup.episode_scores import EpisodeScorer
 from stealth_bringup.episode_tracker import EpisodeRecord, Tracker
+from stealth_bringup.run_arguments import prog_of
 from stealth_bringup.run_config import RunConfigError, relative_to_cwd
 from stealth_bringup.run_plan import RunPlan
 
@@ -74,7 +75,7 @@ class RunReport:
 
     def __init__(self, plan: RunPlan, tracker: Tracker, facts: RunFacts, say):
         self.plan, self.tracker, self.facts, self.say = plan, tracker, facts, say
-        self.prog = f'stealth {plan.mode}'
+        self.prog = prog_of(plan.mode)
 
     def _policy_check(self) -> dict:
         """Where the policy is and, after training, whether it is the one last evaluated."""

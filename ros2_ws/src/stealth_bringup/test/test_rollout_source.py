@@ -124,3 +124,18 @@ def test_a_plugin_needs_a_scenario_and_must_exist(tmp_path):
         plugin_plan(tmp_path, '--learner', 'generalist')
     with pytest.raises(RunConfigError, match="no policy plugin 'ppo'"):
         plugin_plan(tmp_path, '--learner', 'ppo', '--scenario', 'simple-maze')
+
+
+def test_a_refused_rollout_leaves_no_directory_in_the_run(tmp_path):
+    """A rollout of a run's policy goes into the run's directory: refused, it adds nothing."""
+    scenario = scenario_copy(tmp_path / 'a')
+    run = tmp_path / 'runs' / 'trained'
+    run.mkdir(parents=True)
+    policy_for(run / 'policy.npz', scenario)
+    before = sorted(run.iterdir())
+    argv = ['--run', str(run), '--scenario', str(scenario), '--goal', 'easy']
+    argv += ['--set', 'agent.log_every=-1']
+    args = rollout_parser().parse_args(argv)
+    with pytest.raises(RunConfigError, match='--set agent.log_every: expected a whole number'):
+        make_plan(args, 'eval', ['stealth', 'rollout', *argv])
+    assert sorted(run.iterdir()) == before

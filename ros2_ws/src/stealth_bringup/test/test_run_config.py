@@ -7,13 +7,14 @@ from stealth_bringup.run_config import (
     MANAGED,
     NODES,
     RunConfigError,
+    choose_run_directory,
     coerce_like,
+    create_run_directory,
     effective_parameters,
     params_sources,
     parse_set,
     read_params_file,
     ros_arg_value,
-    run_directory,
     write_params_file,
 )
 from stealth_core.path_scores import OPTIMUM_GAMMA
@@ -157,13 +158,14 @@ def test_the_written_file_is_a_params_file_with_the_effective_values(tmp_path):
     assert read_params_file(written, 'agent') == parameters.values
 
 
-def test_run_directories_are_new(tmp_path):
-    first = run_directory(tmp_path, None, 'maze-easy-T')
-    second = run_directory(tmp_path, None, 'maze-easy-T')
+def test_run_directories_are_new_and_made_only_when_asked(tmp_path):
+    first = create_run_directory(choose_run_directory(tmp_path, None, 'maze-easy-T'))
+    second = choose_run_directory(tmp_path, None, 'maze-easy-T')
     assert (first.name, second.name) == ('maze-easy-T', 'maze-easy-T-2')
-    named = run_directory(tmp_path, 'mine', 'x')
+    assert not second.exists()  # chosen, not made: a refused run leaves nothing
+    named = create_run_directory(choose_run_directory(tmp_path, 'mine', 'x'))
     assert named.is_dir()
     with pytest.raises(RunConfigError, match='exists already'):
-        run_directory(tmp_path, 'mine', 'x')
+        choose_run_directory(tmp_path, 'mine', 'x')
     with pytest.raises(RunConfigError, match='plain directory name'):
-        run_directory(tmp_path, 'a/b', 'x')
+        choose_run_directory(tmp_path, 'a/b', 'x')

@@ -256,3 +256,80 @@ def test_episodes_start_once_the_run_s_step_readers_are_matched(argv, readers, t
     before its reader was matched cannot be scored."""
     plan = plan_of(*argv, runs_dir=tmp_path)
     assert plan.parameters['environment'].values['step_readers'] == readers
+
+
+@pytest.mark.parametrize(('value', 'shown'), [('1.5', '1.5'), ('-0.5', '-0.5'), ('abc', "'abc'")])
+def test_a_set_value_out_of_its_range_is_one_line_and_leaves_nothing(value, shown, tmp_path):
+    """With the default prior (floor_plan for prioritized sweeping), a gamma the floor plan's
+    value iteration cannot take was a traceback and an empty run directory that took the
+    name."""
+    runs = tmp_path / 'runs'
+    runs.mkdir()
+    with pytest.raises(RunConfigError) as error:
+        plan_of('--set', f'agent.gamma={value}', '--name', 'g', runs_dir=runs)
+    assert str(error.value) == f'--set agent.gamma: expected a number from 0 to 1, got {shown}'
+    assert not any(runs.iterdir())
+    plan = plan_of('--set', 'agent.gamma=0.9', '--name', 'g', runs_dir=runs)  # the name is free
+    assert plan.directory == runs / 'g' and plan.parameters['agent'].values['gamma'] == 0.9
+
+
+@pytest.mark.parametrize(
+    ('item', 'message'),
+    [
+        ('simulator.particles=5', 'expected a whole number from 10 to 100000, got 5'),
+        ('simulator.laser_noise=true', 'expected a number from 0 to 1, got True'),
+        ('environment.seed=1.5', 'expected a whole number from 0 to 2147483647, got 1.5'),
+        ('environment.track=partial', "track must be one of full, sensed, got 'partial'"),
+        ('agent.agent=sarsaa', "unknown learner 'sarsaa' (expected one of"),
+        ('agent.epsilon_schedule=cosine', 'epsilon_schedule must be one of constant, linear'),
+        ('agent.initialvalue=.inf', 'expected a finite number, got inf'),
+        ('recorder.batch_period=2', 'expected a number from 0 to 1, got 2'),
+        ('recorder.chunk_size=big', "expected a whole number from 1 to 2147483647, got 'big'"),
+        ('recorder.topics=/odom', "expected a list of strings, got '/odom'"),
+    ],
+)
+def test_every_node_s_set_values_are_checked_against_its_table(item, message, tmp_path):
+    runs = tmp_path / 'runs'
+    with pytest.raises(RunConfigError) as error:
+        plan_of('--set', item, runs_dir=runs)
+    assert str(error.value).startswith(f'--set {item.partition("=")[0]}: {message}')
+    assert not runs.exists()
+
+
+def test_a_value_out_of_range_in_a_parameter_file_names_the_file(tmp_path):
+    params = tmp_path / 'params'
+    params.mkdir()
+    (params / 'simulator.yaml').write_text('simulator:\n  ros__parameters:\n    laser_beams: 2\n')
+    with pytest.raises(RunConfigError) as error:
+        plan_of('--params-dir', str(params), runs_dir=tmp_path / 'runs')
+    assert str(error.value) == (
+        f'parameter file {params / "simulator.yaml"}: simulator.laser_beams: expected a whole '
+        'number from 3 to 3600, got 2'
+    )
+    assert not (tmp_path / 'runs').exists()
+
+
+def test_a_whole_number_for_a_double_is_passed_as_a_double(tmp_path):
+    """rclpy refuses an integer for a double parameter: `-p summary_wait:=5` stopped the agent
+    (a parameter its file has was made a double already; one it has not was not)."""
+    plan = plan_of('--set', 'agent.summary_wait=5', '--set', 'simulator.idle_period=1',
+                   runs_dir=tmp_path)  # fmt: skip
+    assert plan.parameters['agent'].overrides['summary_wait'] == 5.0
+    assert isinstance(plan.parameters['agent'].values['summary_wait'], float)
+    assert 'summary_wait:=5.0' in plan.ros_args('agent')
+    assert 'idle_period:=1.0' in plan.ros_args('simulator')
+
+
+def test_a_prior_that_cannot_be_written_leaves_no_run_directory(tmp_path, monkeypatch):
+    from stealth_bringup import run_plan
+
+    def full_disk(path, *args):
+        Path(path).write_bytes(b'part')
+        raise OSError(28, 'No space left on device')
+
+    monkeypatch.setattr(run_plan, 'write_prior_policy', full_disk)
+    runs = tmp_path / 'runs'
+    runs.mkdir()
+    with pytest.raises(RunConfigError, match=r'cannot write the prior: .*No space left'):
+        plan_of('--name', 'g', runs_dir=runs)
+    assert not any(runs.iterdir())

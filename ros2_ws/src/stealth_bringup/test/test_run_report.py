@@ -1,6 +1,7 @@
 """A run's figures from what orchestrating it found out (RunFacts; no ROS), and what it says of
 its greedy episodes against the optimum."""
 
+import io
 from types import SimpleNamespace
 
 from stealth_bringup import run_report
@@ -87,3 +88,16 @@ def test_a_short_path_gif_says_nothing(monkeypatch):
     progress(1, 2)
     progress(2, 2)
     assert said == []
+
+
+def test_a_rollout_s_closing_line_names_stealth_rollout(tmp_path, monkeypatch):
+    """It said `stealth eval: done ...`, the mode's name, not the command's."""
+    monkeypatch.setattr(run_report.time, 'monotonic', lambda: 12.5)
+    facts = RunFacts(started=0.0)
+    facts.status, facts.message = 'success', '3 greedy episodes: 3 reached the goal'
+    plan = SimpleNamespace(mode='eval', directory=tmp_path, continued=None)
+    out = io.StringIO()
+    RunReport(plan, SimpleNamespace(records=[]), facts, print).print_closing({}, out)
+    assert out.getvalue().splitlines()[0] == (
+        'stealth rollout: done after 12.5 s: 3 greedy episodes: 3 reached the goal'
+    )

@@ -6,8 +6,9 @@ contact sheet of a directory of them.
     stealth scenarios sheet gen/ --out gen.png
 
 Scenario k of a batch has the seed ``seed + k`` and is named by it (``gen-0000042.yaml``, its
-map in ``maps/``). Every failure is one line on stderr and exit status 1; a batch stops at the
-first seed that gives no proven scenario, keeping the ones written before it.
+map in ``maps/``). Every failure is one line on stderr and exit status 1; the outputs (--out,
+--contact-sheet) are checked before anything is generated or drawn; a batch stops at the first
+seed that gives no proven scenario, keeping the ones written before it.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from collections.abc import Sequence
 import math
 from pathlib import Path
 import sys
+import tempfile
 
 import numpy as np
 
@@ -102,8 +104,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         if args.verb == 'generate':
             return _generate(args)
-        written = contact_sheet(sorted(args.directory.glob('*.yaml')), args.out)
-        print(f'contact sheet: {written}')
+        paths = scenario_files(args.directory)
+        check_sheet_path(args.out, '--out')
+        print(f'contact sheet: {contact_sheet(paths, args.out)}')
         return 0
     except (GenerationError, ScenarioError, OSError) as error:
         print(f'stealth scenarios: {error}', file=sys.stderr)
@@ -131,6 +134,9 @@ def _generate(args) -> int:
             f'--out {out}: exists and is not an empty directory; give a new or empty directory '
             '(generated files never overwrite others)'
         )
+    check_writable(out, '--out')
+    if args.contact_sheet is not None:
+        check_sheet_path(args.contact_sheet, '--contact-sheet')
     paths = []
     for seed in range(args.seed, last + 1):
         generated = generate(seed, options)
@@ -144,6 +150,46 @@ def _generate(args) -> int:
     if args.contact_sheet is not None:
         print(f'contact sheet: {contact_sheet(paths, args.contact_sheet)}')
     return 0
+
+
+def scenario_files(directory: Path) -> list[Path]:
+    """The scenario YAMLs of a directory, in order; GenerationError saying why there are none."""
+    if not directory.exists():
+        raise GenerationError(f'{directory}: no such directory')
+    if not directory.is_dir():
+        raise GenerationError(f'{directory}: is not a directory (give a directory of scenarios)')
+    paths = sorted(directory.glob('*.yaml'))
+    if not paths:
+        raise GenerationError(f'{directory}: no scenario YAMLs (*.yaml) in it')
+    return paths
+
+
+def check_sheet_path(out: Path, option: str) -> None:
+    """A contact sheet can be written to `out` (a .png file name, in a directory this user can
+    write or create), or GenerationError naming why not, before anything is drawn."""
+    if out.suffix.lower() != '.png':
+        raise GenerationError(f'{option} {out}: expected a .png file name')
+    if out.is_dir():
+        raise GenerationError(f'{option} {out}: is a directory (give a .png file name)')
+    check_writable(out, option)
+
+
+def check_writable(path: Path, option: str) -> None:
+    """What this command writes at `path` (a file or directory it makes, with any missing
+    parent, or an empty directory it fills) can be written: the directory it goes in, or its
+    nearest existing parent, takes a file. GenerationError naming the directory and why not."""
+    parent = path.absolute() if path.is_dir() else path.absolute().parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise GenerationError(f'{option} {path}: {parent} is not a directory')
+    try:
+        with tempfile.TemporaryFile(dir=parent):
+            pass
+    except OSError as error:
+        raise GenerationError(
+            f'{option} {path}: directory {parent} is not writable ({error.strerror})'
+        ) from None
 
 
 def contact_sheet(paths: Sequence[Path], out: Path) -> Path:
@@ -179,7 +225,7 @@ def contact_sheet(paths: Sequence[Path], out: Path) -> Path:
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     if not cv2.imwrite(str(out), sheet[..., ::-1]):
-        raise GenerationError(f'{out}: cannot write the contact sheet (a .png path?)')
+        raise GenerationError(f'{out}: cannot write the contact sheet')
     return out
 
 

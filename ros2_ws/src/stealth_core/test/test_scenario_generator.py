@@ -1,6 +1,9 @@
 """The scenario generator: deterministic per seed, every scenario loads and is proven, the
 buildings have rooms and doors the robot passes, bad options are named with their range."""
 
+import os
+import subprocess
+
 import numpy as np
 import pytest
 from stealth_core.floor_plan import generate_floor_plan
@@ -164,13 +167,82 @@ def test_reachable_is_what_bfs_reaches(name):
     assert not lattice.reachable((10**6, 0)).any()
 
 
-def test_sheet_draws_a_directory_and_names_an_empty_one(tmp_path, capsys):
+def test_sheet_draws_a_directory_and_names_why_there_is_nothing_to_draw(tmp_path, capsys):
     generate(4, Options(width=20, height=20, lights=2)).write(tmp_path / 'gen')
     assert main(['sheet', str(tmp_path / 'gen'), '--out', str(tmp_path / 'sheet.png')]) == 0
     assert (tmp_path / 'sheet.png').stat().st_size > 1000
+    capsys.readouterr()
     (tmp_path / 'empty').mkdir()
-    assert main(['sheet', str(tmp_path / 'empty'), '--out', str(tmp_path / 'x.png')]) == 1
-    assert 'contact sheet: no scenario YAMLs to draw' in capsys.readouterr().err
+    (tmp_path / 'file').write_text('')
+    for directory, problem in [
+        ('empty', 'no scenario YAMLs (*.yaml) in it'),
+        ('missing', 'no such directory'),
+        ('file', 'is not a directory (give a directory of scenarios)'),
+    ]:
+        assert main(['sheet', str(tmp_path / directory), '--out', str(tmp_path / 'x.png')]) == 1
+        assert capsys.readouterr().err == f'stealth scenarios: {tmp_path / directory}: {problem}\n'
+    assert not (tmp_path / 'x.png').exists()
+
+
+@pytest.fixture
+def read_only_dir(tmp_path):
+    """A directory no file can be made in: mode 555 for a user; for root, who writes there all
+    the same, a read-only tmpfs (skipped where it cannot be mounted)."""
+    directory = tmp_path / 'read-only'
+    directory.mkdir()
+    if os.geteuid() != 0:
+        directory.chmod(0o555)
+        yield directory
+        directory.chmod(0o755)
+        return
+    command = ['mount', '-t', 'tmpfs', '-o', 'ro,size=16k', 'tmpfs', str(directory)]
+    try:
+        mounted = subprocess.run(command, capture_output=True, text=True, timeout=30)
+    except OSError as error:
+        pytest.skip(f'cannot mount a read-only tmpfs here: {error}')
+    if mounted.returncode != 0:
+        pytest.skip(f'cannot mount a read-only tmpfs here: {mounted.stderr.strip()}')
+    try:
+        yield directory
+    finally:
+        subprocess.run(['umount', '-l', str(directory)], capture_output=True, timeout=30)
+
+
+def generate_into(out, sheet):
+    return main(['generate', '--seed', '0', '--out', str(out), '--contact-sheet', str(sheet)])
+
+
+def test_an_unwritable_contact_sheet_is_named_before_anything_is_generated(
+    tmp_path, read_only_dir, capsys
+):
+    """It wrote the scenarios, then blamed the extension."""
+    out, sheet = tmp_path / 'gen', read_only_dir / 'x.png'
+    assert generate_into(out, sheet) == 1
+    captured = capsys.readouterr()
+    assert captured.err.startswith(
+        f'stealth scenarios: --contact-sheet {sheet}: directory {read_only_dir} is not writable ('
+    )
+    assert captured.out == '' and not out.exists()
+    assert main(['generate', '--seed', '0', '--out', str(read_only_dir / 'gen')]) == 1
+    assert f'directory {read_only_dir} is not writable' in capsys.readouterr().err
+
+
+def test_a_contact_sheet_path_that_is_no_png_file_is_named_before_generating(tmp_path, capsys):
+    (tmp_path / 'file').write_text('')
+    (tmp_path / 'dir.png').mkdir()
+    for sheet, problem in [
+        (tmp_path / 'sheet.jpg', 'expected a .png file name'),
+        (tmp_path / 'sheet', 'expected a .png file name'),
+        (tmp_path / 'dir.png', 'is a directory (give a .png file name)'),
+        (tmp_path / 'file' / 'x.png', f'{tmp_path / "file"} is not a directory'),
+    ]:
+        assert generate_into(tmp_path / 'gen', sheet) == 1
+        captured = capsys.readouterr()
+        assert captured.err == f'stealth scenarios: --contact-sheet {sheet}: {problem}\n'
+        assert captured.out == '' and not (tmp_path / 'gen').exists()
+    # A missing directory of the sheet is made, as --out's is.
+    assert generate_into(tmp_path / 'gen', tmp_path / 'new' / 'sheet.png') == 0
+    assert (tmp_path / 'new' / 'sheet.png').is_file()
 
 
 def test_rewards_are_well_posed_in_the_largest_building_with_most_lights(tmp_path):

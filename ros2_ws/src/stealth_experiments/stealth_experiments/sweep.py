@@ -29,7 +29,9 @@ from stealth_experiments.sweep_plan import MAX_TRIALS, SweepError, SweepPlan, lo
 from stealth_experiments.sweep_stop import Interrupted
 
 SAVED_FILE = 'sweep.yaml'
-BASE_FILE = 'sweep_base.txt'  # the sweep file's directory: its relative scenario paths' base
+# The sweep file's directory (its relative scenario paths' base), then the sweep's name (the
+# copy's stem, sweep, is not: a resumed sweep said 'sweep: sweep: ...').
+BASE_FILE = 'sweep_base.txt'
 SOME_FAILED = 3  # exit code: the sweep finished, but some of its runs failed (1: every run did)
 MAX_FAILED_LINES = 10
 
@@ -92,10 +94,10 @@ def _load(args) -> SweepPlan:
                 f'--resume {args.resume}: {args.config} differs from the sweep file it was '
                 f'started with ({saved}); leave SWEEP.yaml out to resume that one'
             )
-        base = Path(args.resume) / BASE_FILE
-        return load_plan(
-            saved, base.read_text(encoding='utf-8').strip() if base.is_file() else None
-        )
+        base_file = Path(args.resume) / BASE_FILE
+        lines = base_file.read_text(encoding='utf-8').splitlines() if base_file.is_file() else []
+        base, name = ([line.strip() or None for line in lines] + [None, None])[:2]
+        return load_plan(saved, base, name=name)  # no name: a sweep from before it was kept
     if not args.config:
         raise SweepError('give a sweep file (SWEEP.yaml) or --resume DIR')
     return load_plan(args.config)
@@ -204,7 +206,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     if not args.resume:
         shutil.copyfile(plan.path, out / SAVED_FILE)
-        (out / BASE_FILE).write_text(f'{plan.path.parent.resolve()}\n', encoding='utf-8')
+        (out / BASE_FILE).write_text(
+            f'{plan.path.parent.resolve()}\n{plan.name}\n', encoding='utf-8'
+        )
     say = (lambda line: None) if args.quiet else (lambda line: print(line, flush=True))
     try:
         report, status = sweep(plan, out, address=args.address, cpus=args.cpus,

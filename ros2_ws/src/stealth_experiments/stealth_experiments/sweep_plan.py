@@ -212,10 +212,13 @@ def make_trial(mode, scenario, goal, learner, seeds, episodes, eval_every, slip,
 # --- reading the file ---------------------------------------------------------------------------
 
 
-def load_plan(path: str | Path, base: str | Path | None = None) -> SweepPlan:
+def load_plan(
+    path: str | Path, base: str | Path | None = None, name: str | None = None
+) -> SweepPlan:
     """The checked plan of a sweep file; SweepError naming the field otherwise. ``base``: the
-    directory its scenario paths are relative to (default: the file's own; --resume reads a
-    copy, whose paths are relative to where the original was)."""
+    directory its scenario paths are relative to (default: the file's own), ``name``: its name
+    when the file gives none (default: the file's stem); --resume reads a copy, whose paths are
+    relative to where the original was and whose stem is not the sweep's name."""
     path = Path(path)
     try:
         import yaml
@@ -227,10 +230,12 @@ def load_plan(path: str | Path, base: str | Path | None = None) -> SweepPlan:
         where = getattr(error, 'problem_mark', None)
         line = f' (line {where.line + 1})' if where is not None else ''
         raise SweepError(f'sweep file {path}: not valid YAML{line}') from None
-    return parse_plan(data, path, base)
+    return parse_plan(data, path, base, name)
 
 
-def parse_plan(data: Any, path: Path, base: str | Path | None = None) -> SweepPlan:
+def parse_plan(
+    data: Any, path: Path, base: str | Path | None = None, name: str | None = None
+) -> SweepPlan:
     base = Path(path).parent if base is None else Path(base)
 
     def fail(field: str, problem: str):
@@ -276,7 +281,7 @@ def parse_plan(data: Any, path: Path, base: str | Path | None = None) -> SweepPl
     )
     plan = SweepPlan(
         path=path,
-        name=str(data.get('name') or path.stem),
+        name=str(data.get('name') or name or path.stem),
         groups=groups,
         seeds=tuple(seeds),
         eval_every=eval_every,

@@ -2,7 +2,8 @@
 summarised at the end. No rclpy, no Ray.
 
     DIR/sweep.yaml              the sweep file as given (what --resume reruns)
-    DIR/sweep_base.txt          the directory its relative scenario paths are relative to
+    DIR/sweep_base.txt          the directory its relative scenario paths are relative to,
+                                then the sweep's name
     DIR/status.json             complete, failed (every run) or interrupted (by which signal),
                                 and how many of the sweep's trials are done and failed
     DIR/trials/<trial>.json     each finished trial's records (sweep_trials), one per seed

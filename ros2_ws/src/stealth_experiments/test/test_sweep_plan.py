@@ -225,3 +225,23 @@ def test_scenario_paths_on_the_experiments_command_line_are_relative_to_the_curr
                              '--seeds', '0', '--out', str(tmp_path / 'out')])  # fmt: skip
     assert code == 1  # the RuntimeError is one line, not a traceback
     assert handed == [str(tmp_path / 'here' / 'map1.yaml'), 'simple-maze']
+
+
+def test_a_resumed_sweep_keeps_the_name_of_its_file(tmp_path, monkeypatch, capsys):
+    """--resume reads the copy DIR/sweep.yaml, whose stem is no name: it said `sweep: sweep:`."""
+    from stealth_experiments import sweep
+
+    monkeypatch.setattr(sweep, '_run', lambda *args: None)  # no trial runs (no Ray)
+    (tmp_path / 'mine.yaml').write_text(
+        'scenarios: [simple-maze]\nlearners: [dyna]\nseeds: [0]\nepisodes: 5\n'
+    )
+    out = tmp_path / 'out'
+    assert sweep.main([str(tmp_path / 'mine.yaml'), '--out', str(out), '--no-plots']) == 0
+    assert capsys.readouterr().out.splitlines()[0] == (
+        f'sweep: mine: 0 trial(s) already finished in {out}, 1 to run'
+    )
+    assert sweep.main(['--resume', str(out), '--no-plots']) == 0
+    assert capsys.readouterr().out.splitlines()[0] == (
+        f'sweep: mine: 0 trial(s) already finished in {out}, 1 to run'
+    )
+    assert (out / 'results.md').read_text().startswith('# Sweep mine\n')

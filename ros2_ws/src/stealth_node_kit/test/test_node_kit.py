@@ -8,6 +8,7 @@ import rclpy
 from rclpy.parameter import Parameter
 from stealth_node_kit import running
 from stealth_node_kit.conversions import quaternion_yaw, seconds, time_msg, yaw_quaternion
+from stealth_node_kit.param_table import Unset, as_declared, value_problem
 from stealth_node_kit.parameters import Param, StartupError, descriptor, non_finite
 from stealth_node_kit.running import EXIT_CANNOT_START, run_node
 
@@ -22,6 +23,34 @@ def test_integer_and_float_bounds_become_the_matching_ranges():
     assert not floats.read_only
     free = descriptor(Param('x', 'free'))
     assert not free.integer_range and not free.floating_point_range
+
+
+@pytest.mark.parametrize(
+    ('param', 'value', 'problem'),
+    [
+        (Param(0.5, 'rate', (0.0, 1.0)), 1, None),
+        (Param(0.5, 'rate', (0.0, 1.0)), 1.5, 'expected a number from 0 to 1, got 1.5'),
+        (Param(0.5, 'rate', (0.0, 1.0)), 'abc', "expected a number from 0 to 1, got 'abc'"),
+        (Param(0.5, 'rate', (0.0, 1.0)), math.nan, 'expected a number from 0 to 1, got nan'),
+        (Param(0.5, 'free'), math.inf, 'expected a finite number, got inf'),
+        (Param(3, 'count', (0, 10)), 2.0, 'expected a whole number from 0 to 10, got 2.0'),
+        (Param(3, 'count', (0, 10)), True, 'expected a whole number from 0 to 10, got True'),
+        (Param(False, 'flag'), 0, 'expected true or false, got 0'),
+        (Param('x', 'name'), 5, 'expected a string, got 5'),
+        (Param(Unset('DOUBLE_ARRAY'), 'pose'), [1, 2.5], None),
+        (Param(Unset('DOUBLE_ARRAY'), 'pose'), ['a'], "expected a list of numbers, got ['a']"),
+        (Param(Unset('STRING_ARRAY'), 'topics'), [], None),
+    ],
+)
+def test_a_value_is_checked_as_rclpy_declares_the_parameter(param, value, problem):
+    assert value_problem(param, value) == problem
+
+
+def test_a_whole_number_for_a_double_is_made_a_float():
+    made = as_declared(Param(0.5, 'rate'), 1)
+    assert made == 1.0 and isinstance(made, float)
+    assert as_declared(Param(Unset('DOUBLE_ARRAY'), 'pose'), [1, 2]) == [1.0, 2.0]
+    assert as_declared(Param(3, 'count'), 1) == 1 and as_declared(Param(0.5, 'rate'), True) is True
 
 
 def test_non_finite_names_the_parameter():

@@ -33,6 +33,7 @@ from stealth_tools.ros_session import absolute_topic, describe_qos, spin_until, 
 
 GRAPH_SETTLE = 0.5  # s without a new topic before `topic list` trusts what it has seen
 UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'  # endpoint info before the node's discovery info arrived
+HZ_PERIOD = 0.1  # s: the longest `topic hz` waits for a message before it looks at its window
 
 
 @contextlib.contextmanager
@@ -210,23 +211,26 @@ def topic_hz(args, stop: threading.Event) -> int:
         if not types:
             return 0  # stopped while waiting
         window = RateWindow(args.window_size)
-        last_message = [started]
+        received = [False]
         clock = node.get_clock()
 
         def on_message(_) -> None:
             window.add(time.time_ns() if args.use_wtime else clock.now().nanoseconds)
-            last_message[0] = time.monotonic()
+            received[0] = True
 
         node.create_subscription(
             _class_of(types[0]), topic, on_message, qos_profile_sensor_data, raw=True
         )
         while not stop.is_set():
-            executor.spin_once(timeout_sec=0.1)
+            left = _within(args.timeout, started, HZ_PERIOD)
+            if left is not None and left <= 0.0:  # --timeout: the command's time is up
+                break
+            executor.spin_once(timeout_sec=left)
             stats = window.report()
             if stats:
                 print(stats.text(), flush=True)
-            if args.timeout is not None and time.monotonic() - last_message[0] > args.timeout:
-                raise CommandError(f'no message on {topic} for {args.timeout:g} s')
+    if args.timeout is not None and not received[0] and not stop.is_set():
+        raise CommandError(f'no message on {topic} within {args.timeout:g} s')
     return 0
 
 

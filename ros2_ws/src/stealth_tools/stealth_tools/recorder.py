@@ -22,9 +22,9 @@ None.
 
 ## Parameters
 
-Names in ``stealth_tools.recorder_parameters``, defaults in ``RecorderSettings``: ``output``
-(the file; default rosbag2's name, rosbag2_YYYY_MM_DD-HH_MM_SS), ``topics`` (unset: every
-topic), ``discovery_period`` (s, > 0), ``max_chunk_duration`` (s) and ``chunk_size`` (bytes):
+The table in ``stealth_tools.recorder_parameters`` (defaults, ranges; all read-only):
+``output`` (the file; default rosbag2's name, rosbag2_YYYY_MM_DD-HH_MM_SS), ``topics`` (unset:
+every topic), ``discovery_period`` (s), ``max_chunk_duration`` (s) and ``chunk_size`` (bytes):
 when a chunk is closed, ``compression`` of the chunks (zstd, lz4, none),
 ``include_hidden_topics``, ``batch_period`` (s, 0 to MAX_BATCH_PERIOD; see Batches).
 
@@ -57,7 +57,7 @@ import sys
 import time
 
 from rclpy.clock import Clock, ClockType
-from rclpy.exceptions import InvalidParameterValueException, ParameterException
+from rclpy.exceptions import ParameterException
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -65,16 +65,12 @@ from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock as ClockMessage
 from stealth_node_kit.full_disk import EXIT_DISK_FULL, disk_full_message, is_disk_full
 from stealth_node_kit.on_demand import OnDemand, clock_on_demand
+from stealth_node_kit.parameters import StartupError, declare_parameters
 from stealth_node_kit.running import StartupNode
 
-from stealth_tools.bag_format import (
-    DEFAULT_CHUNK_SIZE,
-    DEFAULT_MAX_CHUNK_DURATION,
-    BagError,
-    BagWriter,
-)
+from stealth_tools.bag_format import BagError, BagWriter
 from stealth_tools.qos_text import subscription_policies
-from stealth_tools.recorder_parameters import SETTINGS
+from stealth_tools.recorder_parameters import PARAMETERS
 from stealth_tools.ros_session import (
     DRAIN_BATCH,
     absolute_topic,
@@ -86,7 +82,6 @@ from stealth_tools.ros_session import (
 )
 
 NODE_NAME = 'recorder'
-MAX_BATCH_PERIOD = 1.0  # s: a longer wait would only hold more in DDS's queues
 # A batch that took this many from one queue means messages pour in: the next is taken without
 # a pause, so that a queue never nears DDS's limit of a KEEP_ALL reader (5,000 samples; beyond
 # it a best-effort sample is dropped and a reliable one waits for the writer's repair).
@@ -103,14 +98,14 @@ def default_output() -> str:
 class RecorderSettings:
     """The recorder's parameters (names as on the command line: -p name:=value)."""
 
-    output: str = ''
+    output: str = PARAMETERS['output'].default
     topics: tuple[str, ...] = ()
-    discovery_period: float = 0.2
-    max_chunk_duration: float = DEFAULT_MAX_CHUNK_DURATION
-    chunk_size: int = DEFAULT_CHUNK_SIZE
-    compression: str = 'zstd'
-    include_hidden_topics: bool = False
-    batch_period: float = 0.05
+    discovery_period: float = PARAMETERS['discovery_period'].default
+    max_chunk_duration: float = PARAMETERS['max_chunk_duration'].default
+    chunk_size: int = PARAMETERS['chunk_size'].default
+    compression: str = PARAMETERS['compression'].default
+    include_hidden_topics: bool = PARAMETERS['include_hidden_topics'].default
+    batch_period: float = PARAMETERS['batch_period'].default
 
     def parameters(self) -> list[Parameter]:
         """As parameter overrides for the node (how `stealth bag record` configures it)."""
@@ -167,22 +162,10 @@ class Recorder(StartupNode):
         self.discover()
 
     def _declare_settings(self) -> RecorderSettings:
-        defaults = RecorderSettings()
-        self.declare_parameter('topics', Parameter.Type.STRING_ARRAY)
-        values = {
-            name: self.declare_parameter(name, getattr(defaults, name)).value for name in SETTINGS
-        }
-        if values['discovery_period'] <= 0:
-            raise InvalidParameterValueException(
-                'discovery_period', values['discovery_period'], 'it must be positive'
-            )
-        if not 0.0 <= values['batch_period'] <= MAX_BATCH_PERIOD:
-            raise InvalidParameterValueException(
-                'batch_period',
-                values['batch_period'],
-                f'it must be between 0 and {MAX_BATCH_PERIOD:g} s',
-            )
-        topics = self.get_parameter_or('topics', Parameter('topics', value=[])).value
+        """The parameters declared with their table's descriptors: rclpy refuses a value out
+        of range (StartupError naming it)."""
+        values = declare_parameters(self, PARAMETERS)
+        topics = values.pop('topics')
         return RecorderSettings(topics=tuple(topics or ()), **values)
 
     def _clock_started(self) -> bool:
@@ -331,7 +314,7 @@ def record(args: list[str] | None = None, overrides: list[Parameter] | None = No
     with ros_session(args) as stop:
         try:
             node = Recorder(parameter_overrides=overrides or [])
-        except (BagError, ParameterException) as error:
+        except (BagError, ParameterException, StartupError) as error:
             print(f'{NODE_NAME}: {error}', file=sys.stderr)
             return 1
         executor = SingleThreadedExecutor()

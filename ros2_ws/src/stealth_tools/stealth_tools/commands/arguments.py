@@ -100,8 +100,16 @@ def add_discovery_arguments(parser: argparse.ArgumentParser, default_ms: int) ->
     parser.add_argument('--include-hidden-topics', action='store_true', help='hidden ones too')
 
 
-def add_timeout(parser: argparse.ArgumentParser, help_text: str) -> None:
-    parser.add_argument('--timeout', metavar='N', type=positive_float, help=help_text)
+def add_timeout(parser: argparse.ArgumentParser) -> None:
+    """--timeout of the verbs that listen to a topic (echo, hz): as ros2 topic echo's, the
+    command ends after N seconds, however many messages arrive."""
+    parser.add_argument(
+        '--timeout',
+        metavar='N',
+        type=positive_float,
+        help="stop after N seconds, finding the topic's type included (default: no limit); "
+        'exit status 1 when no message arrived',
+    )
 
 
 def add_qos_arguments(parser: argparse.ArgumentParser) -> None:

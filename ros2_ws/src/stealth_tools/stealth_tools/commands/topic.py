@@ -61,7 +61,7 @@ def _add_echo(verbs) -> None:
     parser.add_argument('--no-str', action='store_true', help='do not print string fields')
     parser.add_argument('--flow-style', action='store_true', help='YAML flow style')
     parser.add_argument('--once', action='store_true', help='print the first message and exit')
-    add_timeout(parser, 'stop after N seconds; exit status 1 when no message arrived')
+    add_timeout(parser)
     add_spin_time(parser, 5.0)
     parser.set_defaults(handler=lazy('graph_tools', 'topic_echo', ros=True))
 
@@ -71,7 +71,7 @@ def _add_hz(verbs) -> None:
         'hz',
         help='Print the average publishing rate to screen',
         description='Print the rate of a topic about once a second: mean rate, min and max '
-        'interval, standard deviation, window.',
+        'interval, standard deviation, window; until Ctrl-C, or for --timeout seconds.',
     )
     parser.add_argument('topic_name', help="name of the topic (e.g. '/chatter')")
     parser.add_argument(
@@ -89,9 +89,7 @@ def _add_hz(verbs) -> None:
         action='store_true',
         help='use wall time (when /clock is not published in a simulation)',
     )
-    add_timeout(
-        parser, 'give up, exit status 1, after N seconds without a message (default: wait)'
-    )
+    add_timeout(parser)
     add_spin_time(parser, 5.0)
     parser.set_defaults(handler=lazy('graph_tools', 'topic_hz', ros=True))
 
