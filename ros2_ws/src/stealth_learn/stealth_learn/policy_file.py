@@ -20,6 +20,7 @@ fully convolutional, so any scenario's grid fits.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 from pathlib import Path
@@ -35,31 +36,59 @@ FORMAT = 'stealth-generalist-v1'
 SHIPPED = Path(__file__).resolve().parent / 'policies' / 'generalist-full.npz'  # lights known
 HEADER = '__header__'
 PARAMS = 'params/'
+ZIP_MAGIC = b'PK\x03\x04'  # an npz is a zip archive
+NPY_MAGIC = b'\x93NUMPY'
 # Bellman backups at decision time: 40x the shipped 240, 25x the longest episode of a generated
 # building (400 steps; a backup more than an episode has steps changes no decision). The bound
 # keeps one plan of the largest generated building (80 x 120 nodes) under a second or so.
 MAX_ITERATIONS = 10_000
 MAX_HIDDEN = 1024  # the reward network's width (32 shipped)
 MAX_FEATURES = 256  # the 3x3 convolution's channels (8 shipped)
-# name -> (integer?, lowest, highest): the architecture's fields (the header's ``architecture``)
+
+
+@dataclasses.dataclass(frozen=True)
+class Range:
+    """A header field's type and range: a whole number ``low..high`` (``high`` None: no
+    bound), or a finite real number >= ``low`` (> ``low`` when ``above``)."""
+
+    integer: bool
+    low: float
+    high: int | None = None
+    above: bool = False
+
+    @property
+    def text(self) -> str:
+        if self.integer and self.high is None:
+            return f'an integer >= {self.low}'
+        if self.integer:
+            return f'an integer {self.low}..{self.high}'
+        return f'a finite number {">" if self.above else ">="} {self.low:g}'
+
+    def holds(self, value) -> bool:
+        if self.integer:
+            return self.low <= value and (self.high is None or value <= self.high)
+        return value > self.low if self.above else value >= self.low
+
+
+# the architecture's fields (the header's ``architecture``), all required
 ARCHITECTURE_RANGES = {
-    'iterations': (True, 1, MAX_ITERATIONS),
-    'hidden': (True, 1, MAX_HIDDEN),
-    'features': (True, 1, MAX_FEATURES),
-    'threshold': (False, 0.0, None),  # > 0: the detection threshold it was trained for
+    'iterations': Range(True, 1, MAX_ITERATIONS),
+    'hidden': Range(True, 1, MAX_HIDDEN),
+    'features': Range(True, 1, MAX_FEATURES),
+    'threshold': Range(False, 0.0, above=True),  # the detection threshold it was trained for
 }
 ARCHITECTURE = tuple(ARCHITECTURE_RANGES)
-# The training record (optional; read by no decision): name -> (integer?, lowest, highest)
+# the training record (optional, each field optional; read by no decision)
 TRAINING_FIELDS = {
-    'train_iterations': (True, 1, MAX_ITERATIONS),
-    'steps': (True, 1, None),
-    'batch': (True, 1, None),
-    'lr': (False, 0.0, None),
-    'seed': (True, 0, None),
-    'train_scenarios': (True, 1, None),
-    'selected_step': (True, 0, None),
-    'validation_loss': (False, 0.0, None),
-    'seconds': (False, 0.0, None),
+    'train_iterations': Range(True, 1, MAX_ITERATIONS),
+    'steps': Range(True, 1),
+    'batch': Range(True, 1),
+    'lr': Range(False, 0.0, above=True),
+    'seed': Range(True, 0),
+    'train_scenarios': Range(True, 1),
+    'selected_step': Range(True, 0),  # and <= steps
+    'validation_loss': Range(False, 0.0),
+    'seconds': Range(False, 0.0),
 }
 SIZES = 'sizes'  # training: [[width m, height m, lights], ...], whole numbers >= 1
 # The largest network the ranges allow has ~1 MB of parameters: a bigger file is not one.
@@ -145,20 +174,32 @@ def _read(path: Path) -> tuple[object, dict[str, np.ndarray]]:
     """(the header's JSON value, {parameter name: array}), or PolicyFileError."""
     try:
         with path.open('rb') as stream:
-            data = np.load(stream, allow_pickle=False)
-            if not isinstance(data, np.lib.npyio.NpzFile):  # a bare .npy: one array, no header
+            start = stream.read(len(ZIP_MAGIC))
+            stream.seek(0)
+            if start.startswith(NPY_MAGIC):
                 raise PolicyFileError(f'{path}: a single .npy array, expected an .npz archive')
-            with data:
+            if start != ZIP_MAGIC:  # np.load would try it as a pickle
+                raise PolicyFileError(
+                    f'{path}: not an npz archive (it does not start as a zip file), expected a '
+                    'generalist policy file'
+                )
+            with np.load(stream, allow_pickle=False) as data:
                 text, arrays = _members(path, data)
     except PolicyFileError:
         raise
     except OSError as error:
         raise PolicyFileError(f'{path}: cannot read the policy file ({_reason(error)})') from None
     except Exception as error:  # noqa: BLE001 -- any failure to parse the bytes is a corrupt file
+        kind = type(error)
+        name = (
+            kind.__name__
+            if kind.__module__ == 'builtins'
+            else f'{kind.__module__}.{kind.__name__}'
+        )
         first = str(error).strip().splitlines()
-        detail = f'{type(error).__name__}: {first[0][:200]}' if first else type(error).__name__
+        detail = f'{name}: {first[0][:200]}' if first else name
         raise PolicyFileError(
-            f'{path}: not a readable generalist policy file (.npz; {detail})'
+            f'{path}: not a readable generalist policy file (a damaged npz: {detail})'
         ) from None
     if text.ndim != 0 or text.dtype.kind != 'U':
         raise PolicyFileError(
@@ -238,16 +279,11 @@ def check_header(path, header) -> dict:
 
 def _check_ranges(fields: FieldReader, ranges: dict, required: bool, extra=()) -> None:
     fields.reject_unknown((*ranges, *extra))
-    for name, (integer, low, high) in ranges.items():
+    for name, valid in ranges.items():
         if not required and not fields.has(name):
             continue
-        if integer:
-            text = f'an integer {low}..{high}' if high is not None else f'an integer >= {low}'
-            fields.integer(
-                name, text, lambda v, lo=low, hi=high: lo <= v and (hi is None or v <= hi)
-            )
-        else:
-            fields.number(name, f'a finite number > {low:g}', lambda v, lo=low: v > lo)
+        read = fields.integer if valid.integer else fields.number
+        read(name, valid.text, valid.holds)
 
 
 def _check_sizes(training: FieldReader) -> None:
@@ -304,7 +340,8 @@ def _check_params(path: Path, flat: dict[str, np.ndarray], architecture: dict) -
             raise PolicyFileError(
                 f'{path}: parameter {name!r}: expected floating-point values, found {value.dtype}'
             )
-        bad = int(np.count_nonzero(~np.isfinite(value.astype(np.float32))))
+        with np.errstate(over='ignore'):  # float64 beyond float32: inf, counted below
+            bad = int(np.count_nonzero(~np.isfinite(value.astype(np.float32))))
         if bad:
             raise PolicyFileError(
                 f'{path}: parameter {name!r}: {bad} of {value.size} values not finite (NaN or '
