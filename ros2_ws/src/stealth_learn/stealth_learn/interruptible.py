@@ -1,33 +1,42 @@
 """Ctrl-C during the network's JAX work: ``interruptible(work)`` runs it where the main thread
-can still react.
+can still react, and an interrupted process exits without waiting for it.
 
 Python runs a signal's handler in the main thread, between bytecodes. An XLA compile or run is
 one call into C++: on the main thread, SIGINT and SIGTERM wait until it returns (a plan of 1e8
 Bellman backups never did, issue 40). So on the main thread the work runs in a daemon thread
 while the main thread waits for it in short timed waits, returning to Python each time: the
 handler runs within ``POLL`` s of the signal, whichever thread the kernel delivered it to, and
-its exception (KeyboardInterrupt, ``sweep_stop.Interrupted``) comes out of here. The abandoned
-work goes on in its daemon thread until it ends (the header's iteration bound,
-``policy_file.MAX_ITERATIONS``, keeps one call short: under a second on the largest generated
-building, a compile 1-2 s). At exit the process waits for it (``_finish_abandoned``): Python
-3.11 aborts the process ("FATAL: exception not rethrown") when a daemon thread comes back from
-C++ while the interpreter finalises; a second Ctrl-C then exits at once (130). Off the main
-thread (a ROS executor's, a worker's) the work simply runs: signals are not that thread's.
+its exception (KeyboardInterrupt, ``sweep_stop.Interrupted``) comes out of here. Off the main
+thread (a ROS executor's, a Ray worker's task) the work simply runs: signals are not its.
+
+The abandoned work goes on until it ends (the header's iteration bound,
+``policy_file.MAX_ITERATIONS``, keeps one plan of a generated building under a second or so; a
+200 x 200 m floor plan takes ~10 s). A process that exits meanwhile cannot end normally: the
+interpreter's and JAX's teardown wait for the running computation, and Python 3.11 aborts the
+process ("FATAL: exception not rethrown") when the daemon thread comes back from C++ while the
+interpreter finalises. So at exit (``_exit_now``, the first exit handler to run), if the work
+has not ended within ``GRACE`` s, stdout, stderr and logging are flushed and the process ends
+with ``os._exit`` and the status of the signal that interrupted it (130 SIGINT, 143 SIGTERM:
+what the project's commands return then), skipping the exit handlers registered before.
 """
 
 from __future__ import annotations
 
 import atexit
 from collections.abc import Callable
+import contextlib
+import logging
 import os
 import sys
 import threading
+import time
 from typing import TypeVar
 
 POLL = 0.05  # s between the main thread's looks at pending signals while the work runs
-SAY_AFTER = 1.0  # s of waiting at exit before saying what the process waits for
+GRACE = 0.5  # s the exiting process gives abandoned work to end before it exits at once
 T = TypeVar('T')
 _abandoned: list[threading.Thread] = []  # work whose waiting main thread was interrupted
+_status = {'code': 130}  # the exit status of the last interruption
 
 
 def interruptible(work: Callable[[], T]) -> T:
@@ -51,32 +60,37 @@ def interruptible(work: Callable[[], T]) -> T:
     try:
         while not done.wait(POLL):
             pass
-    except BaseException:
-        if not _abandoned:  # registered after JAX's own exit handlers: runs before them
-            atexit.register(_finish_abandoned)
-        _abandoned.append(thread)
+    except BaseException as stop:
+        _abandon(thread, stop)
         raise
     if 'error' in outcome:
         raise outcome['error']
     return outcome['value']
 
 
-def _finish_abandoned() -> None:
-    """At exit: wait for interrupted work to end (module docstring); Ctrl-C again exits now."""
-    waited = 0.0
+def _abandon(thread: threading.Thread, stop: BaseException) -> None:
+    if isinstance(stop, SystemExit):
+        code = stop.code if isinstance(stop.code, int) else 1
+    else:  # sweep_stop.Interrupted: 128 + its signal; a bare KeyboardInterrupt: SIGINT's
+        code = getattr(stop, 'exit_code', 130 if isinstance(stop, KeyboardInterrupt) else 1)
+    _status['code'] = code
+    if not _abandoned:  # registered after JAX's exit handlers (JAX ran): runs before them
+        atexit.register(_exit_now)
+    _abandoned.append(thread)
+
+
+def _exit_now() -> None:
+    """At exit: ``os._exit`` unless the abandoned work ends within GRACE (module docstring)."""
+    deadline = time.monotonic() + GRACE
     try:
-        for thread in _abandoned:
-            while thread.is_alive():
-                thread.join(POLL)
-                waited += POLL
-                if waited >= SAY_AFTER > waited - POLL:
-                    print(
-                        "waiting for the network's running computation to end (Ctrl-C again "
-                        'to exit at once)',
-                        file=sys.stderr,
-                        flush=True,
-                    )
-    except KeyboardInterrupt:
-        for stream in (sys.stdout, sys.stderr):
+        while any(t.is_alive() for t in _abandoned) and time.monotonic() < deadline:
+            time.sleep(POLL)
+        if not any(t.is_alive() for t in _abandoned):
+            return
+    except KeyboardInterrupt:  # Ctrl-C again: no more waiting
+        pass
+    logging.shutdown()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError):  # closed, a broken pipe: nothing to say
             stream.flush()
-        os._exit(130)
+    os._exit(_status['code'])
