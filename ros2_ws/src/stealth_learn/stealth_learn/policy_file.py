@@ -20,6 +20,7 @@ fully convolutional, so any scenario's grid fits.
 
 from __future__ import annotations
 
+from collections import Counter
 import dataclasses
 import functools
 import json
@@ -93,6 +94,7 @@ TRAINING_FIELDS = {
 SIZES = 'sizes'  # training: [[width m, height m, lights], ...], whole numbers >= 1
 # The largest network the ranges allow has ~1 MB of parameters: a bigger file is not one.
 MAX_FILE_BYTES = 32 * 2**20  # on disk, and the npz's members unpacked together
+MAX_ARRAYS = 64  # the header and the parameters (8 in the network)
 
 
 class PolicyFileError(ValueError):
@@ -210,37 +212,45 @@ def _read(path: Path) -> tuple[object, dict[str, np.ndarray]]:
         header = json.loads(str(text), object_pairs_hook=_unique_keys)
     except ValueError as error:  # JSONDecodeError and a duplicated key
         raise PolicyFileError(f'{path}: {HEADER}: not valid JSON ({error})') from None
-    unexpected = sorted(name for name in arrays if not name.startswith(PARAMS))
-    if unexpected:
-        raise PolicyFileError(
-            f'{path}: unexpected array {unexpected[0]!r} (expected {HEADER} and {PARAMS}*)'
-        )
     return header, {name[len(PARAMS) :]: array for name, array in arrays.items()}
 
 
 def _members(path: Path, data) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """(the header array, the other arrays) of an open npz, its size and names checked first."""
+    """(the header array, the parameters' arrays) of an open npz; its size, the number of its
+    arrays and their names are checked before any is read."""
     unpacked = sum(info.file_size for info in data.zip.infolist())
     if unpacked > MAX_FILE_BYTES:
         raise PolicyFileError(
             f'{path}: the archive unpacks to {unpacked} bytes, more than any generalist policy '
             f'file (at most {MAX_FILE_BYTES})'
         )
-    twice = sorted({name for name in data.files if data.files.count(name) > 1})
+    if len(data.files) > MAX_ARRAYS:
+        raise PolicyFileError(
+            f'{path}: {len(data.files)} arrays, more than any generalist policy file (at most '
+            f'{MAX_ARRAYS})'
+        )
+    twice = sorted(name for name, count in Counter(data.files).items() if count > 1)
     if twice:
         raise PolicyFileError(f'{path}: array {twice[0]!r} stored twice in the archive')
     if HEADER not in data.files:
         raise PolicyFileError(
             f'{path}: not a generalist policy file (no {HEADER}; expected format {FORMAT})'
         )
+    unexpected = sorted(n for n in data.files if n != HEADER and not n.startswith(PARAMS))
+    if unexpected:
+        raise PolicyFileError(
+            f'{path}: unexpected array {unexpected[0]!r} (expected {HEADER} and {PARAMS}*)'
+        )
     return data[HEADER], {name: np.asarray(data[name]) for name in data.files if name != HEADER}
 
 
 def _unique_keys(pairs: list) -> dict:
-    keys = [key for key, _ in pairs]
-    for key in keys:
-        if keys.count(key) > 1:
+    """json's object hook: a field given twice is an error (json keeps the last silently)."""
+    seen = set()
+    for key, _ in pairs:
+        if key in seen:
             raise ValueError(f'field {key!r} given twice')
+        seen.add(key)
     return dict(pairs)
 
 

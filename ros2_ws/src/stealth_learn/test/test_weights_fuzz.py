@@ -258,6 +258,10 @@ class Mutations:
         self.add('too large', REFUSED, path)
         big = {**self.arrays, 'params/big': np.zeros(10_000_000, np.float32)}
         self.write_npz('too large', REFUSED, big)
+        many = {f'params/extra/{k}': np.zeros(1, np.float32) for k in range(2000)}
+        self.write_npz('too large', REFUSED, {**self.arrays, **many})
+        wide = {**self.header, **{f'note{k}': k for k in range(50_000)}}
+        self.write_npz('too large', REFUSED, header=wide)
 
     def paths(self) -> None:
         directory = self.path('directory')
