@@ -1,8 +1,10 @@
 """`stealth benchmark` end to end, as a user runs it: two small shipped scenarios and an
 unreadable file one after another (--jobs 1), then on a local Ray of two CPUs; and Ctrl-C in
-the middle, which writes the trials done, marks the rest interrupted and exits 130."""
+the middle, which writes the trials done, marks the rest interrupted and exits 130, the
+generalist's JAX work included; a bad generalist weights file refused in one line."""
 
 import csv
+import json
 import os
 from pathlib import Path
 import signal
@@ -10,6 +12,8 @@ import subprocess
 import sys
 import time
 
+import numpy as np
+import pytest
 from ros_support import _sourced_environment
 from stealth_experiments.benchmark_methods import learning_extra
 from stealth_experiments.sweep_engine import RAY_ENVIRONMENT
@@ -140,3 +144,103 @@ def test_ctrl_c_writes_the_trials_done_and_marks_the_rest_interrupted(tmp_path):
         ('qlearning', 'full', 'interrupted'),
     ]
     assert '**Interrupted by SIGINT: 1 of 2 trials done' in (out / 'summary.md').read_text()
+
+
+needs_learning = pytest.mark.skipif(not learning_extra(), reason='needs the learning extra')
+
+
+def _weights(tmp_path: Path, name: str, change) -> Path:
+    """The shipped generalist weights, ``change(arrays, header)`` applied, unchecked."""
+    from stealth_learn import policy_file
+
+    with np.load(policy_file.SHIPPED) as stored:
+        arrays = {key: np.array(stored[key]) for key in stored.files}
+    header = json.loads(str(arrays.pop(policy_file.HEADER)))
+    change(arrays, header)
+    path = tmp_path / name
+    np.savez_compressed(path, **arrays, **{policy_file.HEADER: np.array(json.dumps(header))})
+    return path
+
+
+@needs_learning
+def test_a_bad_generalist_weights_file_stops_the_benchmark_in_one_line(tmp_path):
+    """Refused before any trial (issue 40: a wrong shape ran every generalist row into Flax's
+    error and exited 0; an empty file was a traceback)."""
+    empty = tmp_path / 'empty.npz'
+    empty.write_bytes(b'')
+
+    def shape(arrays, header):
+        arrays['params/reward_hidden/kernel'] = arrays['params/reward_hidden/kernel'][:-1]
+
+    def nan(arrays, header):
+        arrays['params/goal_value'] = np.array(np.nan, np.float32)
+
+    def iterations(arrays, header):
+        header['architecture']['iterations'] = 100_000_000
+
+    files = {
+        empty: 'empty file (0 bytes)',
+        _weights(tmp_path, 'shape.npz', shape): (
+            "parameter 'reward_hidden/kernel': expected shape (13, 32)"
+        ),
+        _weights(tmp_path, 'nan.npz', nan): "parameter 'goal_value': 1 of 1 values not finite",
+        _weights(tmp_path, 'long.npz', iterations): (
+            "field 'architecture.iterations': expected an integer 1..10000, got 100000000"
+        ),
+    }
+    for path, expected in files.items():
+        done = subprocess.run(
+            [sys.executable, '-m', 'stealth_tools.cli', 'benchmark', 'simple-maze', '--jobs',
+             '1', '--methods', 'vi', 'generalist', '--policy-file', str(path), '--out',
+             str(tmp_path / 'out')],
+            env=_env(), capture_output=True, text=True, timeout=TIMEOUT, check=False,
+        )  # fmt: skip
+        assert done.returncode == 1, done.stdout[-2000:] + done.stderr
+        lines = done.stderr.splitlines()
+        assert len(lines) == 1 and lines[0].startswith(f'stealth benchmark: {path}'), lines
+        assert expected in lines[0], lines
+        assert not (tmp_path / 'out' / 'results.csv').exists()
+
+
+@needs_learning
+def test_ctrl_c_during_the_generalist_exits_130_at_once(tmp_path):
+    """The generalist at the most Bellman backups the header allows, on the largest generated
+    building (60 x 40 m, 8 lights; the sensed track plans anew as it senses): Ctrl-C while it
+    plans ends the benchmark within seconds, its rows interrupted (issue 40: a header of 1e8
+    backups ignored SIGINT and SIGTERM until SIGKILL)."""
+    from stealth_core.scenario_generator import Options, generate
+    from stealth_learn import policy_file
+
+    scenario = generate(1_000_000, Options(width=60, height=40, lights=8)).write(tmp_path)
+    params, header = policy_file.load(policy_file.SHIPPED, policy_file.policy_layout('full'))
+    architecture = {**header['architecture'], 'iterations': policy_file.MAX_ITERATIONS}
+    weights = policy_file.save(tmp_path / 'longest.npz', params, 'full', architecture)
+    out = tmp_path / 'out'
+    with open(tmp_path / 'log', 'w+') as log:
+        process = _benchmark(
+            [str(scenario), '--jobs', '1', '--tracks', 'sensed', '--methods', 'vi', 'generalist',
+             '--policy-file', str(weights), '--no-plots', '--out', str(out)], log,
+        )  # fmt: skip
+        try:
+            deadline = time.monotonic() + TIMEOUT
+            while time.monotonic() < deadline and process.poll() is None:
+                log.seek(0)
+                if 'benchmark: trial finished: 1/2 done' in log.read():
+                    break
+                time.sleep(0.2)
+            time.sleep(4.0)  # into the generalist's trial: JAX's compile, then its plans
+            assert process.poll() is None, 'the generalist trial ended before Ctrl-C'
+        finally:
+            sent = time.monotonic()
+            os.killpg(process.pid, signal.SIGINT)
+        code, output = _finish(process, log)
+    latency = time.monotonic() - sent
+    print(f'SIGINT to exit during the generalist trial: {latency:.2f} s')
+    assert code == 130, output[-3000:]
+    assert latency < 5.0, f'{latency:.1f} s'
+    assert 'Traceback' not in output and 'FATAL' not in output, output[-3000:]
+    rows = _rows(out)
+    assert [(r['method'], r['track'], r['status']) for r in rows] == [
+        ('value iteration', 'sensed', 'ok'),
+        ('generalist', 'sensed', 'interrupted'),
+    ]

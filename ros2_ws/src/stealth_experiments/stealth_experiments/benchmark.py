@@ -281,8 +281,8 @@ def _methods(args) -> list[str]:
         names.append('generalist')
     if 'generalist' in names and learning_extra():
         # a missing, corrupt or foreign weights file: refused here, one line naming it
-        # (PolicyFileError, LayoutError: ValueErrors); numpy only: no jax in this process
-        # before Ray forks its workers
+        # (PolicyFileError, LayoutError: ValueErrors); the parameters' shapes are found
+        # abstractly: no JAX backend, no XLA threads in this process before Ray starts workers
         from stealth_learn import policy_file
 
         path = args.policy_file or policy_file.SHIPPED

@@ -29,6 +29,7 @@ from stealth_core.scenario_generator import GenerationError, Options
 from stealth_learn import generalist_data as data
 from stealth_learn import policy_file
 from stealth_learn.env_tables import TaskArrays
+from stealth_learn.interruptible import interruptible
 from stealth_learn.jax_deps import jax, jnp
 from stealth_learn.jax_env import build
 from stealth_learn.vin import ROBOT, Vin, logits_of_cells
@@ -58,8 +59,10 @@ class GeneralistPolicy:
         return cls(model.init(jax.random.PRNGKey(seed), grid)['params'], architecture)
 
     def cell_logits(self, grid) -> np.ndarray:
-        """(R, C, 4) the logits of every cell of one grid (R, C, 7)."""
-        return np.asarray(self._logits(self.variables, jnp.asarray(grid)[None]))[0]
+        """(R, C, 4) the logits of every cell of one grid (R, C, 7); Ctrl-C stops it at once,
+        compile or run (``interruptible``)."""
+        batch = jnp.asarray(grid)[None]
+        return interruptible(lambda: np.asarray(self._logits(self.variables, batch)))[0]
 
     def act(self, grid) -> int:
         """The move (0 up, 1 down, 2 left, 3 right) at the robot's cell of one grid."""
@@ -179,7 +182,9 @@ def summary(episodes) -> dict:
         'timeouts': int(sum(e.outcome == 2 for e in episodes)),
         'return_ratio': float(
             sum(e.episode_return for e in episodes) / sum(e.optimal_return for e in episodes)
-        ),
+        )
+        if episodes
+        else float('nan'),
         'path_length_ratio': float(np.mean([e.steps / e.optimal_steps for e in both]))
         if both
         else float('nan'),
@@ -206,23 +211,35 @@ def main(argv=None) -> int:
     parser.add_argument(
         '--policy', type=Path, default=DEFAULT_POLICY, help='the weights file (default: shipped)'
     )
-    parser.add_argument('--test', type=int, default=30, help='generated test scenarios (30)')
+    parser.add_argument('--test', type=int, default=30, help='generated test scenarios, >= 1 (30)')
     parser.add_argument('--width', type=int, default=30, help='building width, m (30)')
     parser.add_argument('--height', type=int, default=30, help='building height, m (30)')
     parser.add_argument('--lights', type=int, default=4, help='searchlights per building (4)')
     args = parser.parse_args(argv)
+    if args.test < 1:
+        parser.error(f'--test: expected a whole number >= 1, got {args.test}')
     try:
-        options = Options(width=args.width, height=args.height, lights=args.lights)
-        options.check()
-        policy = GeneralistPolicy.load(args.policy, policy_file.policy_layout('full'))
-    except (GenerationError, policy_file.PolicyFileError, ValueError) as error:
-        print(f'generalist: {error}', file=sys.stderr)
-        return 2
+        try:
+            options = Options(width=args.width, height=args.height, lights=args.lights)
+            options.check()
+            policy = GeneralistPolicy.load(args.policy, policy_file.policy_layout('full'))
+        except (GenerationError, ValueError) as error:  # PolicyFileError, LayoutError
+            print(f'generalist: {error}', file=sys.stderr)
+            return 2
+        evaluate(policy, options, args.test)
+    except KeyboardInterrupt:
+        print('generalist: interrupted', file=sys.stderr)
+        return 130
+    return 0
+
+
+def evaluate(policy: GeneralistPolicy, options: Options, count: int) -> None:
+    """Print the trained and the untrained network's figures on ``count`` test scenarios."""
     started = time.monotonic()
-    scenarios = unseen_scenarios(args.test, options, Path(tempfile.mkdtemp(prefix='test-')))
+    scenarios = unseen_scenarios(count, options, Path(tempfile.mkdtemp(prefix='test-')))
     untrained = GeneralistPolicy.untrained(policy.header['architecture'])
     for name, who in (('generalist', policy), ('untrained', untrained)):
-        episodes = [rollout(who, s) for s in scenarios]
+        episodes = [interruptible(lambda w=who, s=s: rollout(w, s)) for s in scenarios]
         figures = summary(episodes)
         print(
             f'{name}: '
@@ -231,7 +248,6 @@ def main(argv=None) -> int:
             )
         )
     print(f'{time.monotonic() - started:.0f} s, load {os.getloadavg()[0]:.1f}')
-    return 0
 
 
 if __name__ == '__main__':

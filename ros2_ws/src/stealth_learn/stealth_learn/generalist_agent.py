@@ -51,8 +51,11 @@ def load_policy(path=None, iterations: int | None = None) -> GeneralistPolicy:
     policy = GeneralistPolicy.load(path, policy_file.policy_layout('full'))
     if iterations is None:
         return policy
-    if iterations < 1:
-        raise ValueError(f'iterations: expected >= 1, got {iterations}')
+    if not 1 <= iterations <= policy_file.MAX_ITERATIONS:
+        raise ValueError(
+            f"iterations: expected 1..{policy_file.MAX_ITERATIONS} (the weights file's range), "
+            f'got {iterations}'
+        )
     architecture = {**policy.header['architecture'], 'iterations': int(iterations)}
     params = policy.variables['params']
     return GeneralistPolicy(params, architecture, {**policy.header, 'architecture': architecture})

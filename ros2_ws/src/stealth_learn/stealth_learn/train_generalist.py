@@ -11,6 +11,7 @@ Curriculum: the first half of the steps on the smallest buildings only, then all
 from __future__ import annotations
 
 import argparse
+import math
 import os
 from pathlib import Path
 import sys
@@ -76,6 +77,19 @@ def parse_args(argv=None) -> argparse.Namespace:
     ):
         if getattr(args, name) < 1:
             parser.error(f'--{name.replace("_", "-")}: expected a positive whole number')
+    # the weights file's ranges (policy_file), so the file written is one load accepts
+    for name, highest in (
+        ('iterations', policy_file.MAX_ITERATIONS),
+        ('eval_iterations', policy_file.MAX_ITERATIONS),
+        ('hidden', policy_file.MAX_HIDDEN),
+        ('features', policy_file.MAX_FEATURES),
+    ):
+        if getattr(args, name) > highest:
+            parser.error(f'--{name.replace("_", "-")}: expected at most {highest}')
+    if not (math.isfinite(args.lr) and args.lr > 0):
+        parser.error('--lr: expected a finite number > 0')
+    if args.seed < 0:
+        parser.error('--seed: expected a whole number >= 0')
     return args
 
 
@@ -226,21 +240,23 @@ def main(argv=None) -> int:
         'features': args.features,
         'threshold': THRESHOLD,
     }
-    extra = {
-        'training': {
-            'train_iterations': args.iterations,
-            'steps': args.steps,
-            'batch': args.batch,
-            'lr': args.lr,
-            'seed': args.seed,
-            'train_scenarios': record['train_scenarios'],
-            'selected_step': record['selected_step'],
-            'validation_loss': record['validation_loss'],
-            'seconds': round(record['seconds'], 1),
-            'sizes': [list(s) for s in SIZES],
-        }
+    training = {
+        'train_iterations': args.iterations,
+        'steps': args.steps,
+        'batch': args.batch,
+        'lr': args.lr,
+        'seed': args.seed,
+        'train_scenarios': record['train_scenarios'],
+        'selected_step': record['selected_step'],
+        'validation_loss': record['validation_loss'],
+        'seconds': round(record['seconds'], 1),
+        'sizes': [list(s) for s in SIZES],
     }
-    path = policy_file.save(args.out, record['params'], 'full', architecture, extra)
+    try:
+        path = policy_file.save(args.out, record['params'], 'full', architecture, training)
+    except (OSError, policy_file.PolicyFileError) as error:  # e.g. a diverged (NaN) loss
+        print(f'train_generalist: {args.out}: not written ({error})', file=sys.stderr)
+        return 2
     picture = plot_curve(record['curve'], args.out.with_suffix('.png'))
     print(
         f'wrote {path} (selected step {record["selected_step"]}) and {picture}; '

@@ -30,9 +30,9 @@ def _params(seed=0):
 
 def test_policy_file_round_trip(tmp_path):
     params = _params()
-    path = policy_file.save(tmp_path / 'p.npz', params, 'full', ARCH, {'note': 1})
+    path = policy_file.save(tmp_path / 'p.npz', params, 'full', ARCH, {'steps': 2, 'seed': 1})
     loaded, header = policy_file.load(path, layout_id('grid', 'full', 40, 40))
-    assert header['layout'] == 'stealth-grid-v1/full' and header['note'] == 1
+    assert header['layout'] == 'stealth-grid-v1/full' and header['training']['seed'] == 1
     assert header['architecture'] == ARCH
     flat = jax.tree_util.tree_leaves_with_path(params)
     assert len(flat) == len(jax.tree_util.tree_leaves(loaded))

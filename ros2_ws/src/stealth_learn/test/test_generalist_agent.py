@@ -10,6 +10,7 @@ from stealth_learn.generalist_agent import GeneralistAgent, load_policy
 from stealth_learn.jax_deps import jax
 from stealth_learn.jax_env import build
 from stealth_learn.obs_layout import CHANNELS
+from stealth_learn.policy_file import MAX_ITERATIONS
 
 LIGHT, MOVE_UP, MOVE_RIGHT = (CHANNELS.index(c) for c in ('light', 'move_up', 'move_right'))
 LIGHT_CHANNELS = slice(LIGHT, MOVE_RIGHT + 1)  # what the value map depends on
@@ -91,5 +92,8 @@ def test_an_unknown_rule_that_does_not_exist_is_refused(generated, policy):
         GeneralistAgent(policy, gym, unknown='grey')
     with pytest.raises(ValueError, match="lights: expected one of cycle, now, got 'then'"):
         GeneralistAgent(policy, gym, lights='then')
-    with pytest.raises(ValueError, match='iterations: expected >= 1, got 0'):
-        load_policy(iterations=0)
+    for iterations in (0, MAX_ITERATIONS + 1):
+        with pytest.raises(
+            ValueError, match=f'iterations: expected 1..10000 .*, got {iterations}'
+        ):
+            load_policy(iterations=iterations)

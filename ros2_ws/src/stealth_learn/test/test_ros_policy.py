@@ -68,5 +68,9 @@ def test_refusals_name_the_path_or_both_layouts(tmp_path):
         ros_policy.load(str(missing))
     corrupt = tmp_path / 'corrupt.npz'
     corrupt.write_bytes(b'not a zip')
-    with pytest.raises(ValueError, match=f'{corrupt}: not a readable generalist policy file'):
+    with pytest.raises(ValueError, match=f'{corrupt}: not an npz archive'):
         ros_policy.load(str(corrupt))
+    empty = tmp_path / 'empty.npz'  # issue 40: an EOFError, and through stealth rollout no path
+    empty.write_bytes(b'')
+    with pytest.raises(ValueError, match=rf'{empty}: empty file \(0 bytes\)'):
+        ros_policy.load(str(empty))
