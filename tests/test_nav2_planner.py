@@ -3,7 +3,9 @@ planner_server (started with `stealth run`) on a private domain, called by plain
 clients the way nav2_simple_commander's getPath / getPathThroughPoses call Nav2's."""
 
 import math
+import os
 import random
+import signal
 import sys
 import time
 
@@ -420,3 +422,21 @@ def test_goals_wait_their_turn_while_one_is_planned(client, node_processes):
     assert 'busy: 2 goals are waiting already (max_queued_goals 2)' in result.error_msg
     long_took = ended['long'][0] - sent
     assert accepted_after < long_took, (accepted_after, long_took)
+
+
+def test_stopped_while_planning_it_exits_cleanly(client, node_processes):
+    """Ctrl-C while a plan runs on the planning thread: the plan ends, the process exits 0 with
+    no traceback (the job's done callback woke a destroyed executor's guard condition)."""
+    scene = scene_from_scenario('lgfloor')
+    process = start_planner(node_processes, scenario='lgfloor')
+    client.wait_for_server(process)
+    goals = [stamped(p.x, p.y) for p in covert_chain(scene, 200, 7)]
+    goal_msg = ComputePathThroughPoses.Goal(
+        start=stamped(*scene.scenario.start), goals=goals, use_start=True
+    )
+    sent = client.through.send_goal_async(goal_msg)
+    assert client.spin_until(sent.done, 10.0) and sent.result().accepted
+    client.spin_for(0.2)  # planning
+    os.killpg(process.pid, signal.SIGINT)
+    assert process.wait(30) == 0
+    assert 'Traceback' not in process.log_path.read_text()

@@ -46,6 +46,7 @@ pose; the last keeps the goal's orientation.
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
+import contextlib
 import functools
 import time
 import traceback
@@ -56,6 +57,7 @@ from nav2_msgs.action import ComputePathThroughPoses, ComputePathToPose
 from nav_msgs.msg import OccupancyGrid, Path
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionServer, CancelResponse
+from rclpy.exceptions import InvalidHandle
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
 from stealth_interfaces.msg import SearchlightArray
@@ -275,7 +277,7 @@ class PlannerServer(StartupNode):
                 self._plan_path, scene, start, targets, planner_id, t, limit, now,
                 self._value('path_resolution'),
             )  # fmt: skip
-            job.add_done_callback(lambda _job: self._planned.trigger())
+            job.add_done_callback(self._on_planned)
             path = await _Finished(job)
         except PlanError as error:
             return self._abort(goal_handle, result, error.code, str(error), planner_id, goals)
@@ -293,6 +295,12 @@ class PlannerServer(StartupNode):
         self.plan_publisher.publish(path)
         goal_handle.succeed()
         return result
+
+    def _on_planned(self, _job) -> None:
+        """A planning job's done callback (on the planning thread): wake the executor, whose
+        task awaiting the job then runs again; once the node is destroyed none waits."""
+        with contextlib.suppress(InvalidHandle):
+            self._planned.trigger()
 
     def _plan_path(self, scene, start, targets, planner_id, t, limit, now, resolution) -> Path:
         """On the planning thread: the plan's Path message (PlanError when there is none)."""
