@@ -19,7 +19,7 @@ from rclpy.action import ActionClient
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from ros_support import REPO_ROOT, SpinningNode
+from ros_support import REPO_ROOT, SpinningNode, wait_for_output
 from stealth_core.lattice_model import LatticeModel
 from stealth_core.occupancy_map import to_occupancy_grid_data
 from stealth_core.planners import optimal_path
@@ -350,6 +350,20 @@ def test_extreme_pose_fields_get_their_codes_never_a_traceback(client, node_proc
         client.spin_for(0.1)
     message = failure((status, result), TO_POSE.START_OUTSIDE_MAP)
     assert message.startswith('start (amcl_pose) orientation.x is nan: expected a finite number')
+
+    # A transform on /tf with such a field is kept out of the tree (it would carry nan into
+    # every pose through it), with a warning.
+    tf = client.node.create_publisher(TFMessage, '/tf', 100)
+    broken = TransformStamped()
+    broken.header.frame_id, broken.child_frame_id = 'map', 'odom'
+    broken.transform.rotation.w = math.inf
+    tf.publish(TFMessage(transforms=[broken]))
+    wait_for_output(
+        process, "/tf: transform 'map' -> 'odom' ignored: rotation.w is inf: expected", 10.0
+    )
+    goal = stamped(hard.x, hard.y, frame='odom')
+    message = failure(client.get_path(start, goal), TO_POSE.TF_ERROR)
+    assert "no transform from frame 'odom' to 'map'" in message
     assert process.poll() is None
     assert 'Traceback' not in process.log_path.read_text()
 

@@ -74,7 +74,13 @@ from stealth_nav2.goal_queue import GoalQueue
 from stealth_nav2.plan_errors import PlanError
 from stealth_nav2.planner_parameters import PARAMETERS, task_numbers
 from stealth_nav2.policy_behaviour import read_policy
-from stealth_nav2.request_poses import goal_label, planar_pose, point, request_pose
+from stealth_nav2.request_poses import (
+    TRANSFORM_FIELDS,
+    goal_label,
+    planar_pose,
+    point,
+    request_pose,
+)
 from stealth_nav2.scene_source import SceneError, SceneSource, scene_from_scenario
 
 NODE_NAME = 'planner_server'
@@ -197,7 +203,7 @@ class PlannerServer(StartupNode):
         for transform in message.transforms:
             p, q = transform.transform.translation, transform.transform.rotation
             try:
-                pose = planar_pose((p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
+                pose = planar_pose((p.x, p.y, p.z), (q.x, q.y, q.z, q.w), TRANSFORM_FIELDS)
             except ValueError as error:  # kept out of the tree: it would carry nan into poses
                 if self._bad_tf_log():
                     self.get_logger().warn(

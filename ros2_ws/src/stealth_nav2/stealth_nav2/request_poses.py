@@ -30,17 +30,28 @@ from stealth_nav2.plan_errors import PlanError
 ROLES = ('START', 'GOAL')
 POSITION_FIELDS = ('position.x', 'position.y', 'position.z')
 ORIENTATION_FIELDS = ('orientation.x', 'orientation.y', 'orientation.z', 'orientation.w')
+POSE_FIELDS = POSITION_FIELDS + ORIENTATION_FIELDS  # geometry_msgs/Pose's
+TRANSFORM_FIELDS = tuple(  # geometry_msgs/Transform's
+    name.replace('position', 'translation').replace('orientation', 'rotation')
+    for name in POSE_FIELDS
+)
 _PLAIN_UP_TO = 1e6  # m: coordinates shown with two decimals below this, in short form above
 
 
-def planar_pose(position: Sequence[float], orientation: Sequence[float]) -> Pose:
+def planar_pose(
+    position: Sequence[float], orientation: Sequence[float], names=POSE_FIELDS
+) -> Pose:
     """(x, y, yaw) of a pose given as position (x, y, z) and orientation (x, y, z, w);
-    ValueError naming the first field that is not finite, or a zero orientation."""
-    for name, value in zip(POSITION_FIELDS + ORIENTATION_FIELDS, (*position, *orientation),
-                           strict=True):  # fmt: skip
+    ValueError naming the first field that is not finite (as ``names`` call them), or a zero
+    orientation."""
+    for name, value in zip(names, (*position, *orientation), strict=True):
         if not math.isfinite(value):
             raise ValueError(f'{name} is {value}: expected a finite number')
-    return Pose(float(position[0]), float(position[1]), planar_yaw(*orientation))
+    try:
+        yaw = planar_yaw(*orientation)
+    except ValueError as error:  # the zero quaternion
+        raise ValueError(f'{names[3].split(".")[0]} is {error}') from None
+    return Pose(float(position[0]), float(position[1]), yaw)
 
 
 def planar_yaw(x: float, y: float, z: float, w: float) -> float:
@@ -52,8 +63,8 @@ def planar_yaw(x: float, y: float, z: float, w: float) -> float:
     largest = max(abs(x), abs(y), abs(z), abs(w))
     if largest == 0:
         raise ValueError(
-            'orientation is (0, 0, 0, 0): expected a rotation, a quaternion of non-zero length '
-            '(x = y = z = 0, w = 1 for none)'
+            '(0, 0, 0, 0): expected a rotation, a quaternion of non-zero length (x = y = z = 0, '
+            'w = 1 for none)'
         )
     x, y, z, w = x / largest, y / largest, z / largest, w / largest
     return math.atan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z)

@@ -16,7 +16,9 @@ from stealth_nav2.plan_errors import PlanError
 from stealth_nav2.request_poses import (
     ORIENTATION_FIELDS,
     POSITION_FIELDS,
+    TRANSFORM_FIELDS,
     check_on_map,
+    planar_pose,
     planar_yaw,
     point,
     request_pose,
@@ -149,8 +151,12 @@ def test_the_heading_of_a_quaternion_of_any_length():
     half = math.sqrt(0.5)
     assert math.isclose(planar_yaw(half, 0.0, 0.0, half), 0.0)  # a roll of 90 degrees
     assert math.isclose(planar_yaw(0.0, 0.0, 10.0, 10.0), math.pi / 2)  # length 14: 90 degrees
-    with pytest.raises(ValueError, match=r'orientation is \(0, 0, 0, 0\)'):
+    with pytest.raises(ValueError, match=r'^\(0, 0, 0, 0\): expected a rotation'):
         planar_yaw(0.0, -0.0, 0.0, 0.0)
+    with pytest.raises(ValueError, match=r'^rotation is \(0, 0, 0, 0\): expected a rotation'):
+        planar_pose((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0), TRANSFORM_FIELDS)
+    with pytest.raises(ValueError, match=r'^translation.y is nan: expected a finite number'):
+        planar_pose((0.0, math.nan, 0.0), (0.0, 0.0, 0.0, 1.0), TRANSFORM_FIELDS)
 
 
 def test_a_far_pose_in_messages_is_short():
