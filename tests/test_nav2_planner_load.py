@@ -19,16 +19,14 @@ from nav2_msgs.action import ComputePathToPose
 import numpy as np
 import rclpy
 from rclpy.action import ActionClient
-from ros_support import REPO_ROOT, SpinningNode
+from ros_support import SpinningNode
 from stealth_nav2.covert_planning import CovertPlanner
 from stealth_nav2.plan_errors import PlanError
 from stealth_nav2.request_poses import request_pose
 from stealth_nav2.scene_source import scene_from_scenario
 from stealth_node_kit.qos import every_request_qos
+from test_nav2_planner import start_planner
 
-STEALTH = str(
-    REPO_ROOT / 'ros2_ws' / 'install' / 'stealth_tools' / 'lib' / 'stealth_tools' / 'stealth'
-)
 CLIENTS, PER_CLIENT, IN_A_ROW = 4, 25, 1000
 CHECKPOINT = 100  # goals in a row between two readings of the server's memory
 # The server's growth allowed after the first 100 goals (RSS, MiB). What may still grow: the
@@ -168,11 +166,9 @@ class LoadClients(SpinningNode):
 def test_every_goal_is_answered_and_memory_stays_flat(node_processes, ros_context):
     scene = scene_from_scenario('lgfloor')
     pool = goal_pool(scene, count=20, seed=40)
-    process = node_processes.start(
-        [STEALTH, 'run', 'stealth_nav2', 'planner_server', '--ros-args',
-         '-p', 'scenario:=lgfloor', '-p', f'action_server_result_timeout:={RESULT_TIMEOUT}'],
-        'planner_server', extra_env={'RCUTILS_LOGGING_BUFFERED_STREAM': '0'},
-    )  # fmt: skip
+    process = start_planner(
+        node_processes, scenario='lgfloor', action_server_result_timeout=RESULT_TIMEOUT
+    )
     clients = LoadClients(ros_context)
     try:
         ready = clients.spin_until(lambda: all(c.server_is_ready() for c in clients.clients), 60)
