@@ -3,6 +3,11 @@ planner_server (started with `stealth run`) on a private domain, called by plain
 clients the way nav2_simple_commander's getPath / getPathThroughPoses call Nav2's."""
 
 import math
+import os
+import random
+import signal
+import sys
+import time
 
 from action_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, TransformStamped
@@ -14,7 +19,7 @@ from rclpy.action import ActionClient
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from ros_support import REPO_ROOT, SpinningNode
+from ros_support import REPO_ROOT, SpinningNode, wait_for_output
 from stealth_core.lattice_model import LatticeModel
 from stealth_core.occupancy_map import to_occupancy_grid_data
 from stealth_core.planners import optimal_path
@@ -23,6 +28,7 @@ from stealth_core.task import StealthTask
 from stealth_env.env_messages import searchlight_array_msg
 from stealth_interfaces.msg import SearchlightArray
 from stealth_nav2.covert_planning import CovertPlanner, Pose
+from stealth_nav2.plan_errors import PlanError
 from stealth_nav2.scene_source import scene_from_scenario
 from stealth_node_kit.conversions import quaternion_yaw, seconds, yaw_quaternion
 from tf2_msgs.msg import TFMessage
@@ -285,3 +291,166 @@ def test_a_missing_scenario_stops_the_server_with_one_line(node_processes):
     assert process.wait(30) != 0
     log = process.log_path.read_text()
     assert 'nowhere.yaml' in log and 'Traceback' not in log
+
+
+def test_extreme_pose_fields_get_their_codes_never_a_traceback(client, node_processes):
+    """Fields a start or goal may hold (1e308, the largest float, nan, inf, an orientation of
+    length 0 or 14): each answered with its documented code and one line, or planned with the
+    orientation normalised; (1e308, 1e308) gave an OverflowError traceback and code 0."""
+    scenario = load_scenario('lgfloor')
+    process = start_planner(node_processes, scenario='lgfloor')
+    client.wait_for_server(process)
+    start = stamped(*scenario.start)
+    hard = scenario.goals['hard']
+
+    def fields(x=hard.x, y=hard.y, z=0.0, q=(0.0, 0.0, 0.0, 1.0)):
+        pose = stamped(x, y)
+        pose.pose.position.z = z
+        o = pose.pose.orientation
+        o.x, o.y, o.z, o.w = q
+        return pose
+
+    big = sys.float_info.max
+    for goal, words in (
+        (fields(1e308, 1e308), 'goal (1e+308, 1e+308) is outside the map: expected x in'),
+        (fields(-big, big), 'goal (-1.8e+308, 1.8e+308) is outside the map'),
+        (fields(math.inf, 0.0), 'goal position.x is inf: expected a finite number'),
+        (fields(z=math.nan), 'goal position.z is nan: expected a finite number'),
+        (fields(q=(0.0, 0.0, 0.0, 0.0)), 'goal orientation is (0, 0, 0, 0): expected a rotation'),
+        (fields(q=(0.0, 0.0, -math.inf, 1.0)), 'goal orientation.z is -inf'),
+    ):
+        assert words in failure(client.get_path(start, goal), TO_POSE.GOAL_OUTSIDE_MAP)
+    message = failure(
+        client.get_path(fields(-12.0, math.nan), fields()), TO_POSE.START_OUTSIDE_MAP
+    )
+    assert message.startswith('start position.y is nan')
+    message = failure(
+        client.get_path_through_poses(start, [fields(), fields(1e308, 0.0), fields()]),
+        THROUGH.GOAL_OUTSIDE_MAP,
+    )
+    assert 'goal 2 of 3 (1e+308, 0.00) is outside the map' in message
+
+    # A quaternion of any length but 0 is a rotation: normalised, as tf2 does (length 14, and
+    # length ~1.4e308, both 90 degrees about z).
+    for q in ((0.0, 0.0, 10.0, 10.0), (0.0, 0.0, 1e308, 1e308)):
+        status, result = client.get_path(start, fields(q=q))
+        assert status == GoalStatus.STATUS_SUCCEEDED, result.error_msg
+        assert math.isclose(quaternion_yaw(result.path.poses[-1].pose.orientation), math.pi / 2)
+
+    # use_start false: the robot's pose from amcl_pose is checked the same way.
+    amcl = client.node.create_publisher(PoseWithCovarianceStamped, 'amcl_pose', LATCHED)
+    robot = PoseWithCovarianceStamped()
+    robot.header.frame_id = 'map'
+    robot.pose.pose = fields(q=(math.nan, 0.0, 0.0, 1.0)).pose
+    amcl.publish(robot)
+    for _ in range(50):  # until the pose has arrived
+        status, result = client.get_path(start, fields(), use_start=False)
+        if result.error_code != TO_POSE.TF_ERROR:
+            break
+        client.spin_for(0.1)
+    message = failure((status, result), TO_POSE.START_OUTSIDE_MAP)
+    assert message.startswith('start (amcl_pose) orientation.x is nan: expected a finite number')
+
+    # A transform on /tf with such a field is kept out of the tree (it would carry nan into
+    # every pose through it), with a warning.
+    tf = client.node.create_publisher(TFMessage, '/tf', 100)
+    broken = TransformStamped()
+    broken.header.frame_id, broken.child_frame_id = 'map', 'odom'
+    broken.transform.rotation.w = math.inf
+    tf.publish(TFMessage(transforms=[broken]))
+    wait_for_output(
+        process, "/tf: transform 'map' -> 'odom' ignored: rotation.w is inf: expected", 10.0
+    )
+    goal = stamped(hard.x, hard.y, frame='odom')
+    message = failure(client.get_path(start, goal), TO_POSE.TF_ERROR)
+    assert "no transform from frame 'odom' to 'map'" in message
+    assert process.poll() is None
+    assert 'Traceback' not in process.log_path.read_text()
+
+
+def covert_chain(scene, legs: int, seed: int) -> list[Pose]:
+    """Unlit lattice points each reachable unseen from the last (from the scenario's start)."""
+    planner = CovertPlanner()
+    planner.prepare(scene)
+    model = planner.model
+    dark = [tuple(map(float, model.points[i])) for i in np.flatnonzero(~model.seen)]
+    rng = random.Random(seed)
+    chain, last = [], Pose(*scene.scenario.start)
+    while len(chain) < legs:
+        candidate = Pose(*rng.choice(dark))
+        try:
+            planner.plan(scene, last, candidate)
+        except PlanError:
+            continue
+        chain.append(candidate)
+        last = candidate
+    return chain
+
+
+def test_goals_wait_their_turn_while_one_is_planned(client, node_processes):
+    """Goals are accepted while another is planned (Nav2's clients wait 20 ms for that) and run
+    in the order they came; a waiting goal cancelled ends at once; a goal that finds
+    max_queued_goals waiting is aborted at once (UNKNOWN, saying so)."""
+    scene = scene_from_scenario('lgfloor')
+    scenario = scene.scenario
+    process = start_planner(node_processes, scenario='lgfloor', max_queued_goals=2)
+    client.wait_for_server(process)
+    start = stamped(*scenario.start)
+    hard = scenario.goals['hard']
+    long_goal = ComputePathThroughPoses.Goal(
+        start=start, goals=[stamped(p.x, p.y) for p in covert_chain(scene, 150, 7)], use_start=True
+    )
+    ended = {}  # name -> (time, status, result)
+
+    def send(action_client, name, goal_msg):
+        handles = {}
+
+        def on_response(future):
+            handle = handles[name] = future.result()
+            assert handle.accepted
+            handle.get_result_async().add_done_callback(
+                lambda done: ended.__setitem__(
+                    name, (time.monotonic(), done.result().status, done.result().result)
+                )
+            )
+
+        action_client.send_goal_async(goal_msg).add_done_callback(on_response)
+        assert client.spin_until(lambda: name in handles, 5.0), f'{name}: no goal response'
+        return handles[name]
+
+    sent = time.monotonic()
+    send(client.through, 'long', long_goal)
+    to_hard = ComputePathToPose.Goal(start=start, goal=stamped(hard.x, hard.y), use_start=True)
+    send(client.to_pose, 'first', to_hard)
+    accepted_after = time.monotonic() - sent
+    second = send(client.to_pose, 'second', to_hard)
+    send(client.to_pose, 'third', to_hard)  # two wait already: refused
+    second.cancel_goal_async()
+    assert client.spin_until(lambda: len(ended) == 4, 60.0), ended
+    order = sorted(ended, key=lambda name: ended[name][0])
+    assert order[-2:] == ['long', 'first'], order  # the rest ended while 'long' was planned
+    assert ended['long'][1] == ended['first'][1] == GoalStatus.STATUS_SUCCEEDED
+    assert ended['second'][1] == GoalStatus.STATUS_CANCELED
+    status, result = ended['third'][1:]
+    assert status == GoalStatus.STATUS_ABORTED and result.error_code == TO_POSE.UNKNOWN
+    assert 'busy: 2 goals are waiting already (max_queued_goals 2)' in result.error_msg
+    long_took = ended['long'][0] - sent
+    assert accepted_after < long_took, (accepted_after, long_took)
+
+
+def test_stopped_while_planning_it_exits_cleanly(client, node_processes):
+    """Ctrl-C while a plan runs on the planning thread: the plan ends, the process exits 0 with
+    no traceback (the job's done callback woke a destroyed executor's guard condition)."""
+    scene = scene_from_scenario('lgfloor')
+    process = start_planner(node_processes, scenario='lgfloor')
+    client.wait_for_server(process)
+    goals = [stamped(p.x, p.y) for p in covert_chain(scene, 200, 7)]
+    goal_msg = ComputePathThroughPoses.Goal(
+        start=stamped(*scene.scenario.start), goals=goals, use_start=True
+    )
+    sent = client.through.send_goal_async(goal_msg)
+    assert client.spin_until(sent.done, 10.0) and sent.result().accepted
+    client.spin_for(0.2)  # planning
+    os.killpg(process.pid, signal.SIGINT)
+    assert process.wait(30) == 0
+    assert 'Traceback' not in process.log_path.read_text()

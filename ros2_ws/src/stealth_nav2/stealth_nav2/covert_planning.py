@@ -57,6 +57,7 @@ from stealth_core.task import StealthTask
 
 from stealth_nav2.plan_errors import PlanError
 from stealth_nav2.policy_behaviour import greedy_actions
+from stealth_nav2.request_poses import check_on_map, goal_label
 from stealth_nav2.scene_source import Scene
 
 PLANNER_IDS = ('covert', 'dark_path', 'astar', 'policy')
@@ -168,9 +169,9 @@ class CovertPlanner:
             raise PlanError('NO_VIAPOINTS_GIVEN', 'no goals given: expected at least one pose')
         clock = _Deadline(max_time)
         occupancy = scene.map
-        _check_point(occupancy, start, 'START')
-        for goal in goals:
-            _check_point(occupancy, goal, 'GOAL')
+        check_on_map(occupancy, start, 'START', 'start')
+        for k, goal in enumerate(goals):
+            check_on_map(occupancy, goal, 'GOAL', goal_label(k, len(goals)))
         setting, cached = self._setting_for(scene, start)
         clock.check('building the lattice model')
         place, t0 = self._start_place(setting, start, t)
@@ -402,28 +403,6 @@ class _Deadline:
                 f'planning took {took:.3f} s, more than max_planning_time {self.max_time:g} s '
                 f'(after {stage})',
             )
-
-
-def _check_point(occupancy, pose: Pose, what: str) -> None:
-    """{what}_OUTSIDE_MAP or {what}_OCCUPIED (an occupied or unknown cell)."""
-    name = what.lower()
-    if not (math.isfinite(pose.x) and math.isfinite(pose.y) and math.isfinite(pose.yaw)):
-        raise PlanError(
-            f'{what}_OUTSIDE_MAP', f'{name} ({pose.x}, {pose.y}, yaw {pose.yaw}): not finite'
-        )
-    if not occupancy.contains_point(pose.x, pose.y):
-        x_min, y_min, x_max, y_max = occupancy.bounds
-        raise PlanError(
-            f'{what}_OUTSIDE_MAP',
-            f'{name} ({pose.x:.2f}, {pose.y:.2f}) is outside the map: expected x in '
-            f'[{x_min:g}, {x_max:g}) and y in [{y_min:g}, {y_max:g})',
-        )
-    col, row = occupancy.world_to_cell(pose.x, pose.y)
-    if occupancy.blocked[row, col]:
-        kind = 'unknown' if occupancy.unknown[row, col] else 'occupied'
-        raise PlanError(
-            f'{what}_OCCUPIED', f'{name} ({pose.x:.2f}, {pose.y:.2f}) is in an {kind} cell'
-        )
 
 
 def _fitting_node(lattice: MoveLattice, x: float, y: float, steps: float):

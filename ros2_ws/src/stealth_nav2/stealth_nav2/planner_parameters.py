@@ -38,6 +38,20 @@ PARAMETERS = {
         "Planner id 'dark_path': metres of detour one unit of visibility is worth.",
         (0.0, 1e6),
     ),
+    'max_queued_goals': Param(
+        100,
+        'Goals that may wait behind the one being planned, served in the order they came; a '
+        'goal that finds them all taken is aborted at once (UNKNOWN, saying so).',
+        (0, 100_000),
+    ),
+    'action_server_result_timeout': Param(
+        10.0,
+        "Seconds a goal's result is kept after the goal ended, for a client that asks for it "
+        "late (Nav2's parameter and default; rclpy's own, 900 s, keeps every result of a busy "
+        "quarter of an hour in memory).",
+        (0.1, 86_400.0),
+        read_only=True,
+    ),
     'lights_time_offset': Param(
         0.0,
         "The lights' clock is the node's clock (use_sim_time honoured) minus this (s): where "

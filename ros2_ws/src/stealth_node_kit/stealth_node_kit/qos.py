@@ -1,4 +1,4 @@
-"""The QoS profile the nodes' latched topics and reports share."""
+"""The QoS profiles the nodes' latched topics, reports and request services share."""
 
 from __future__ import annotations
 
@@ -13,4 +13,17 @@ def kept_qos(depth: int) -> QoSProfile:
         depth=depth,
         reliability=ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    )
+
+
+def every_request_qos() -> QoSProfile:
+    """Reliable, volatile, keep all: for a service (an action's goal, cancel and result services
+    too) that must answer every request of a burst, on the server's side and on a bursting
+    client's. rclpy's default (``qos_profile_services_default``) keeps the last 10 not yet
+    taken: the 11th request pushes out the oldest, which is never answered (measured on the
+    planner server: 10 of 20 goals sent at once answered, the rest left waiting forever)."""
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_ALL,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.VOLATILE,
     )
