@@ -53,6 +53,16 @@ class RateWindow:
             return None
         if self.last_arrival < self.last_report + NS:
             return None
+        return self._stats()
+
+    def final_report(self) -> RateStats | None:
+        """Stats of what arrived since the last report, however short: the closing line of a
+        command that ends (its --timeout) before the next second's report was due."""
+        if not self.deltas or self.last_arrival == self.last_report:
+            return None
+        return self._stats()
+
+    def _stats(self) -> RateStats:
         self.last_report = self.last_arrival
         count = len(self.deltas)
         mean = sum(self.deltas) / count

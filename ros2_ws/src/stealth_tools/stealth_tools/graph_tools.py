@@ -224,6 +224,9 @@ def topic_hz(args, stop: threading.Event) -> int:
         while not stop.is_set():
             left = _within(args.timeout, started, HZ_PERIOD)
             if left is not None and left <= 0.0:  # --timeout: the command's time is up
+                stats = window.final_report()  # what came since the last line, however short
+                if stats:
+                    print(stats.text(), flush=True)
                 break
             executor.spin_once(timeout_sec=left)
             stats = window.report()

@@ -21,6 +21,19 @@ def test_rate_is_reported_once_a_second_over_the_window():
     )
 
 
+def test_a_command_ending_before_the_next_report_closes_with_what_came_since():
+    window = RateWindow(window=20)
+    assert window.final_report() is None  # nothing yet
+    window.add(0)
+    assert window.final_report() is None  # one arrival: no interval
+    for t in (50, 100, 150, 200, 250):  # ms: 20 Hz for a quarter of a second, no report due
+        window.add(t * 1_000_000)
+        assert window.report() is None
+    stats = window.final_report()
+    assert stats.rate == pytest.approx(20.0) and stats.window == 5
+    assert window.final_report() is None  # nothing new since that line
+
+
 def test_spread_of_intervals():
     window = RateWindow()
     for t in (0, 100, 300, 400, 600, 700, 900, 1000, 1200):
