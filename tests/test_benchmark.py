@@ -32,6 +32,16 @@ def _env() -> dict:
     return env
 
 
+def _wait_for_log(process, log, text: str) -> None:
+    """Until the running benchmark's log holds text (or it ended, or TIMEOUT passed)."""
+    deadline = time.monotonic() + TIMEOUT
+    while time.monotonic() < deadline and process.poll() is None:
+        log.seek(0)
+        if text in log.read():
+            return
+        time.sleep(0.2)
+
+
 def _benchmark(args, log) -> subprocess.Popen:
     return subprocess.Popen(
         [sys.executable, '-m', 'stealth_tools.cli', 'benchmark', *args],
@@ -125,12 +135,7 @@ def test_ctrl_c_writes_the_trials_done_and_marks_the_rest_interrupted(tmp_path):
              '--episodes', '10000000', '--out', str(out)], log,
         )  # fmt: skip
         try:
-            deadline = time.monotonic() + TIMEOUT
-            while time.monotonic() < deadline and process.poll() is None:
-                log.seek(0)
-                if 'benchmark: trial finished: 1/2 done' in log.read():
-                    break
-                time.sleep(0.5)
+            _wait_for_log(process, log, 'benchmark: trial finished: 1/2 done')
         finally:
             os.killpg(process.pid, signal.SIGINT)  # Ctrl-C: the terminal signals the group
         code, output = _finish(process, log)
@@ -222,12 +227,7 @@ def test_ctrl_c_during_the_generalist_exits_130_at_once(tmp_path):
              '--policy-file', str(weights), '--no-plots', '--out', str(out)], log,
         )  # fmt: skip
         try:
-            deadline = time.monotonic() + TIMEOUT
-            while time.monotonic() < deadline and process.poll() is None:
-                log.seek(0)
-                if 'benchmark: trial finished: 1/2 done' in log.read():
-                    break
-                time.sleep(0.2)
+            _wait_for_log(process, log, 'benchmark: trial finished: 1/2 done')
             time.sleep(4.0)  # into the generalist's trial: JAX's compile, then its plans
             assert process.poll() is None, 'the generalist trial ended before Ctrl-C'
         finally:
