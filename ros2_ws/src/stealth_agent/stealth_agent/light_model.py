@@ -229,7 +229,24 @@ class LightModelLearner(TabularLearner):
         arrays['evidence'] = np.array(
             [(e.place, e.direction, e.low, e.high) for e in evidence], dtype=np.float64
         ).reshape(-1, 4)
+        if self.belief is not None:
+            belief = self.belief_arrays()
+            arrays['belief_lights'], arrays['belief_weights'] = belief['lights'], belief['weights']
         return arrays
+
+    def belief_arrays(self) -> dict[str, np.ndarray]:
+        """The belief as arrays: ``lights`` (k, 7): particle, x, y, direction (rad), fov (rad),
+        beta (1/m^2), range (m) of every hypothesised light; ``weights`` (particles,)."""
+        belief = self._attached()
+        rows = [
+            (k, *light.params)
+            for k, particle in enumerate(belief.particles)
+            for light in particle.lights
+        ]
+        return {
+            'lights': np.array(rows, dtype=np.float64).reshape(-1, 7),
+            'weights': belief.weights(),
+        }
 
     def to_meta(self) -> dict:
         return {**super().to_meta(), 'rule': self.rule}
