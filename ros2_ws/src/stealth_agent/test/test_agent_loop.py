@@ -32,6 +32,7 @@ class FakeNode:
         self.summary_publisher = False
         self.timer_running = False
         self.accepting_states = False
+        self.shown: list[int] = []  # the learner's episodes each time it was shown
 
     def param(self, name):
         return self.params[name]
@@ -73,6 +74,9 @@ class FakeNode:
 
     def accept_states(self):
         self.accepting_states = True
+
+    def show_learner(self, learner):
+        self.shown.append(learner.episodes)
 
     def told(self, level, part):
         return [text for lvl, text in self.logs if lvl == level and part in text]
