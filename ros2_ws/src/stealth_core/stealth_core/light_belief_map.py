@@ -86,6 +86,16 @@ def check_belief_arrays(lights, weights) -> tuple[np.ndarray, np.ndarray]:
     return lights, weights / weights.sum()
 
 
+def belief_rows(lights, particle: int = 0) -> np.ndarray:
+    """(lights, 7) belief rows of static Searchlights as one particle: what a belief sure of
+    them holds (to draw the true field on the belief's grid)."""
+    rows = [
+        (particle, s.x, s.y, s.direction, s.fov, (1.0 / s.delta - 1.0) / s.range**2, s.range)
+        for s in lights
+    ]
+    return np.array(rows, dtype=np.float64).reshape(-1, LIGHT_COLUMNS)
+
+
 def cell_factor(map_resolution: float, step_distance: float) -> int:
     """Map cells per belief cell on a side: the most that keeps a cell within half the
     lattice step (at least 1)."""

@@ -7,6 +7,7 @@ import pytest
 from stealth_core.light_belief_map import (
     BeliefArrayError,
     BeliefMapper,
+    belief_rows,
     cell_factor,
 )
 from stealth_core.light_world import LightWorld
@@ -24,16 +25,8 @@ def mapper(scenario):
     return BeliefMapper(LightWorld(scenario, 'easy'))
 
 
-def rows_of(lights, particle):
-    """Belief rows (particle, x, y, direction, fov, beta, range) of Searchlights."""
-    return [
-        (particle, s.x, s.y, s.direction, s.fov, (1.0 / s.delta - 1.0) / s.range**2, s.range)
-        for s in lights
-    ]
-
-
 def test_the_grid_lies_on_the_map(scenario, mapper):
-    grid = mapper.grid(np.array(rows_of(scenario.lights, 0)), [1.0])
+    grid = mapper.grid(belief_rows(scenario.lights), [1.0])
     occupancy = scenario.map
     assert mapper.factor == cell_factor(occupancy.resolution, scenario.step_distance) == 5
     assert grid.resolution == pytest.approx(0.25)
@@ -47,7 +40,7 @@ def test_the_grid_lies_on_the_map(scenario, mapper):
 def test_the_likely_field_of_the_true_lights_is_the_true_field(scenario, mapper):
     """A belief sure of the scenario's own lights shows the environment's light, scaled so the
     detection threshold is 100, at each cell's centre."""
-    grid = mapper.grid(np.array(rows_of(scenario.lights, 0)), [1.0])
+    grid = mapper.grid(belief_rows(scenario.lights), [1.0])
     occupancy = scenario.map
     truth, _ = visibility_field(occupancy.blocked, occupancy.resolution, occupancy.origin,
                                 scenario.lights)  # fmt: skip
@@ -63,7 +56,7 @@ def test_the_likely_field_of_the_true_lights_is_the_true_field(scenario, mapper)
 
 def test_the_uncertain_places_are_where_the_weight_splits(scenario, mapper):
     shortcut = [light for light in scenario.lights if light.name == 'shortcut']
-    lights = np.array(rows_of(shortcut, 1))  # particle 0 has no light at all
+    lights = belief_rows(shortcut, 1)  # particle 0 has no light at all
     even = mapper.grid(lights, [0.5, 0.5])
     lit = even.lit_probability == 0.5
     assert np.count_nonzero(lit) > 20
