@@ -32,6 +32,7 @@ import math
 import numpy as np
 
 from stealth_core.light_world import LightWorld, StepEvidence, light_from_parameters
+from stealth_core.visibility import _occluded, corner_maps
 
 Z_CAP = 10.0  # a step missed by more tolerances than this costs no more (robustness)
 CONTRADICTION_Z = 6.0
@@ -85,6 +86,12 @@ class LightBelief:
         self._high = np.zeros(0)
         self.particles = [_Particle([]) for _ in range(self.settings.particles)]
         self._lamps = _lamp_places(world)
+        frame = world.points.frame
+        self._lamp_cells = tuple(
+            np.floor((self._lamps[:, k] - origin) / frame.resolution).astype(np.int64)
+            for k, origin in ((0, frame.origin_x), (1, frame.origin_y))
+        )
+        self._sight_from: dict[tuple[int, int], np.ndarray] = {}
         self._field_cache: dict[tuple, np.ndarray] = {}
 
     # --- evidence ------------------------------------------------------------------------------
@@ -232,6 +239,7 @@ class LightBelief:
         unexplained steps near the anchor (their arrivals' missing light)."""
         lamps = self._lamps
         near = np.hypot(*(lamps - anchor).T) <= self.settings.max_range
+        near &= self._seen_from(anchor)
         lamps = lamps[near]
         if lamps.size == 0:
             return None
@@ -255,12 +263,29 @@ class LightBelief:
         for index in order[:40]:
             if self.rng.random() < 0.3:
                 continue
-            lamp = lamps[index] + self.rng.uniform(-_LAMP_STRIDE / 2, _LAMP_STRIDE / 2, 2)
+            lamp = lamps[index]  # on the grid: its lines of sight are traced once, then kept
             if self._blocked(*lamp):
                 continue
             if see.line_of_sight(frame.cell_of(*lamp), target_cell):
                 return lamp
         return None
+
+    def _seen_from(self, anchor) -> np.ndarray:
+        """(lamp places,) bool: the lamp places in sight of the anchor's cell, traced from the
+        anchor in one call (the line is nearly symmetric; the lamp chosen is checked exactly)."""
+        frame = self.world.points.frame
+        cell = frame.cell_of(*anchor)
+        mask = self._sight_from.get(cell)
+        if mask is None:
+            points = self.world.points
+            if points._corners is None:
+                points._corners = corner_maps(points.blocked)
+            cols, rows = self._lamp_cells
+            mask = ~_occluded(points.blocked, points._corners, cell, cols, rows)
+            if len(self._sight_from) > 4096:
+                self._sight_from.clear()
+            self._sight_from[cell] = mask
+        return mask
 
     # --- what the belief says ------------------------------------------------------------------
 
