@@ -31,7 +31,6 @@ from stealth_core.searchlight import Searchlight
 from stealth_core.task import StealthTask
 from stealth_core.visibility import PointVisibility, scenario_point_visibility
 
-
 # Lamp cells whose lines of sight a world keeps (one int8 per map cell each) and blocks of them
 # (16 x 16 bools each): a belief's search asks a few hundred lamp places over and over.
 SIGHT_LAMPS = 384
