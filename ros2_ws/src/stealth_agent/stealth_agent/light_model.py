@@ -37,7 +37,7 @@ from .learners import LearnerConfig, TabularLearner, argmax_random, register_lea
 
 PLANNING_RULES = ('expected', 'thompson', 'cautious')
 DEFAULT_RULE = 'expected'
-SURPRISE_MOVES = 30  # Metropolis moves per particle after a surprising step, mid-episode
+SURPRISE_MOVES = 15  # Metropolis moves per particle after a surprising step, mid-episode
 
 
 class LightModelError(ValueError):

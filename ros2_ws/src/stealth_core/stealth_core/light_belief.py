@@ -7,7 +7,7 @@ such lights; it predicts every step's visibility exactly as the environment judg
 (``LatticeSamples``). The evidence is what the steps said (``StepEvidence``: a value read off the
 reward, or a bound from a detection or a goal). A hypothesis' energy is
 
-    E = 1/2 * sum_k min(z_k^2, Z_CAP^2) + light_cost * lights,
+    E = sum_k (sqrt(1 + z_k^2) - 1) + light_cost * lights,
 
 z_k the step's miss in units of its tolerance (``abs_tol + rel_tol * v``: the environment's
 rounding in-process, the pose noise through ROS), and the belief is ``particles`` hypotheses
@@ -32,11 +32,17 @@ import math
 import numpy as np
 
 from stealth_core.light_world import LightWorld, StepEvidence, light_from_parameters
+from stealth_core.visibility import _occluded, corner_maps
 
-Z_CAP = 10.0  # a step missed by more tolerances than this costs no more (robustness)
 CONTRADICTION_Z = 6.0
+ANNEAL_START = 30.0  # the search's first temperature, in units of energy
 _MIN_FOV = math.radians(5.0)
 _LAMP_STRIDE = 0.25  # m between the candidate lamp places of a birth
+# The pattern search's first steps: x, y (m), direction, fov (rad), log beta, range (m), and a
+# slide along the beam (m) that keeps the light at the reach of intensity 0.3 (x and beta alone
+# trade off: a lamp farther back with a smaller beta lights a far patch alike).
+POLISH_STEPS = (0.2, 0.2, math.radians(4.0), math.radians(4.0), 0.2, 0.5, 0.4)
+POLISH_HALVINGS = 5
 
 
 @dataclasses.dataclass(frozen=True)
@@ -85,6 +91,12 @@ class LightBelief:
         self._high = np.zeros(0)
         self.particles = [_Particle([]) for _ in range(self.settings.particles)]
         self._lamps = _lamp_places(world)
+        frame = world.points.frame
+        self._lamp_cells = tuple(
+            np.floor((self._lamps[:, k] - origin) / frame.resolution).astype(np.int64)
+            for k, origin in ((0, frame.origin_x), (1, frame.origin_y))
+        )
+        self._sight_from: dict[tuple[int, int], np.ndarray] = {}
         self._field_cache: dict[tuple, np.ndarray] = {}
 
     # --- evidence ------------------------------------------------------------------------------
@@ -114,9 +126,7 @@ class LightBelief:
 
     def _energy(self, lights: list[_Light]) -> float:
         z = self.misses(self._predict(lights))
-        return 0.5 * float(np.sum(np.minimum(z, Z_CAP) ** 2)) + self.settings.light_cost * len(
-            lights
-        )
+        return float(np.sum(np.sqrt(1.0 + z * z) - 1.0)) + self.settings.light_cost * len(lights)
 
     def _predict(self, lights: list[_Light]) -> np.ndarray:
         if not lights:
@@ -135,23 +145,57 @@ class LightBelief:
 
     # --- search --------------------------------------------------------------------------------
 
-    def fit(self, moves: int | None = None) -> None:
-        """Metropolis moves on every particle (``settings.moves`` each by default)."""
+    def fit(self, moves: int | None = None, polish: bool = True) -> None:
+        """Metropolis moves on every particle (``settings.moves`` each by default), then each
+        particle's lights polished (``polish``)."""
         moves = self.settings.moves if moves is None else moves
         if not self.evidence:
             return
         for particle in self.particles:
             if not math.isfinite(particle.energy):
                 particle.energy = self._energy(particle.lights)
-            for _ in range(moves):
+            for move in range(moves):
                 proposal = self._propose(particle.lights)
                 if proposal is None:
                     continue
                 energy = self._energy(proposal)
+                # Annealed from ANNEAL_START down to 1 (the posterior's own temperature): the
+                # misses are counted in tolerances, so the landscape is rugged when cold.
+                temperature = ANNEAL_START ** (1.0 - move / max(moves - 1, 1))
                 if energy <= particle.energy or self.rng.random() < math.exp(
-                    particle.energy - energy
+                    (particle.energy - energy) / temperature
                 ):
                     particle.lights, particle.energy = proposal, energy
+            if polish:
+                self.polish(particle)
+
+    def polish(self, particle: _Particle, halvings: int = POLISH_HALVINGS) -> None:
+        """Pattern search on each light of a particle: every parameter stepped both ways, a
+        step that lowers the energy kept, a step that does not halved, ``halvings`` times. The
+        Metropolis moves find a light near the truth; this fits it to the tolerances."""
+        if not math.isfinite(particle.energy):
+            particle.energy = self._energy(particle.lights)
+        for k in range(len(particle.lights)):
+            steps = list(POLISH_STEPS)
+            for parameter in range(len(steps)):
+                for _ in range(halvings):
+                    for sign in (1.0, -1.0):
+                        params = _stepped(
+                            particle.lights[k].params, parameter, sign * steps[parameter]
+                        )
+                        if params is None or self._blocked(params[0], params[1]):
+                            continue
+                        lights = [
+                            *particle.lights[:k],
+                            self._make(params),
+                            *particle.lights[k + 1 :],
+                        ]
+                        energy = self._energy(lights)
+                        if energy < particle.energy:
+                            particle.lights, particle.energy = lights, energy
+                            break
+                    else:
+                        steps[parameter] /= 2
 
     def _propose(self, lights: list[_Light]) -> list[_Light] | None:
         kind = self.rng.random()
@@ -168,19 +212,22 @@ class LightBelief:
         x, y, direction, fov, beta, light_range = params
         rng = self.rng
         which = int(rng.integers(5))
+        scale = 10.0 ** rng.uniform(-1.5, 0.0)  # coarse moves to find, fine ones to fit
         if which == 0:
-            x, y = x + rng.normal(0, 0.2), y + rng.normal(0, 0.2)
+            x, y = x + rng.normal(0, 0.4 * scale), y + rng.normal(0, 0.4 * scale)
             if self._blocked(x, y):
                 return None
         elif which == 1:
-            direction += rng.normal(0, math.radians(4.0))
+            direction += rng.normal(0, math.radians(10.0) * scale)
         elif which == 2:
-            fov = float(np.clip(fov + rng.normal(0, math.radians(5.0)), _MIN_FOV, 2 * math.pi))
+            fov = float(
+                np.clip(fov + rng.normal(0, math.radians(10.0) * scale), _MIN_FOV, 2 * math.pi)
+            )
         elif which == 3:
-            beta *= math.exp(rng.normal(0, 0.15))
+            beta *= math.exp(rng.normal(0, 0.3 * scale))
         else:
             light_range = float(
-                np.clip(light_range + rng.normal(0, 0.4), 0.2, self.settings.max_range)
+                np.clip(light_range + rng.normal(0, 1.0 * scale), 0.2, self.settings.max_range)
             )
         return (x, y, direction, fov, beta, light_range)
 
@@ -212,14 +259,27 @@ class LightBelief:
         anchor = np.array([samples.x[row, samples.width - 1], samples.y[row, samples.width - 1]])
         if samples.weighs_heading:
             anchor = np.array([samples.x[row, 0], samples.y[row, 0]])
-        lamp = self._lamp_for(anchor, target, candidates, missing, predicted)
-        if lamp is None:
+        found = self._lamp_for(anchor, target, candidates, missing)
+        if found is None:
             return None
-        offset = anchor - lamp
-        distance = max(float(np.hypot(*offset)), 0.1)
-        beta = (1.0 / target - 1.0) / distance**2
-        fov = float(self.rng.uniform(math.radians(15.0), math.radians(120.0)))
-        aim = math.atan2(offset[1], offset[0]) + self.rng.uniform(-0.4, 0.4) * fov / 2
+        lamp, points, values = found
+        # Aimed at the middle of the lit steps it explains, opened to take them all in; beta
+        # the median their distances imply.
+        offsets = np.vstack([anchor, points]) - lamp
+        distances = np.maximum(np.hypot(*offsets.T), 0.1)
+        implied = (1.0 / np.append(target, values) - 1.0) / distances**2
+        beta = float(np.median(implied))
+        first = math.atan2(offsets[0, 1], offsets[0, 0])
+        turns = np.angle(np.exp(1j * (np.arctan2(offsets[:, 1], offsets[:, 0]) - first)))
+        aim = first + (turns.min() + turns.max()) / 2
+        fov = float(
+            np.clip(
+                turns.max() - turns.min() + math.radians(self.rng.uniform(5.0, 40.0)),
+                math.radians(10.0),
+                2 * math.pi,
+            )
+        )
+        distance = float(distances.max())
         delta = 0.1 if self.rng.random() < 0.5 else math.exp(self.rng.uniform(-3.5, -0.7))
         light_range = math.sqrt((1.0 - delta) / (delta * beta))
         if light_range < distance:
@@ -227,11 +287,12 @@ class LightBelief:
         light_range = min(light_range, self.settings.max_range)
         return self._make((float(lamp[0]), float(lamp[1]), aim, fov, beta, light_range))
 
-    def _lamp_for(self, anchor, target, candidates, missing, predicted) -> np.ndarray | None:
-        """A lamp place that sees the anchor, scored by how well one beta explains the other
-        unexplained steps near the anchor (their arrivals' missing light)."""
+    def _lamp_for(self, anchor, target, candidates, missing):
+        """(lamp place, the nearby unexplained steps' arrivals, their missing light): a place
+        that sees the anchor, scored by how well one beta explains those steps; or None."""
         lamps = self._lamps
         near = np.hypot(*(lamps - anchor).T) <= self.settings.max_range
+        near &= self._seen_from(anchor)
         lamps = lamps[near]
         if lamps.size == 0:
             return None
@@ -241,7 +302,7 @@ class LightBelief:
         points = np.stack(
             [samples.x[rows, samples.width - 1], samples.y[rows, samples.width - 1]], 1
         )
-        close = np.hypot(*(points - anchor).T) <= 3.0
+        close = np.hypot(*(points - anchor).T) <= 4.0
         points, values = points[close][:12], np.minimum(missing[others][close][:12], 0.95)
         d_anchor = np.maximum(np.hypot(*(lamps - anchor).T), 0.1)
         log_beta = [np.log((1.0 / target - 1.0) / d_anchor**2)]
@@ -255,12 +316,29 @@ class LightBelief:
         for index in order[:40]:
             if self.rng.random() < 0.3:
                 continue
-            lamp = lamps[index] + self.rng.uniform(-_LAMP_STRIDE / 2, _LAMP_STRIDE / 2, 2)
+            lamp = lamps[index]  # on the grid: its lines of sight are traced once, then kept
             if self._blocked(*lamp):
                 continue
             if see.line_of_sight(frame.cell_of(*lamp), target_cell):
-                return lamp
+                return lamp, points, values
         return None
+
+    def _seen_from(self, anchor) -> np.ndarray:
+        """(lamp places,) bool: the lamp places in sight of the anchor's cell, traced from the
+        anchor in one call (the line is nearly symmetric; the lamp chosen is checked exactly)."""
+        frame = self.world.points.frame
+        cell = frame.cell_of(*anchor)
+        mask = self._sight_from.get(cell)
+        if mask is None:
+            points = self.world.points
+            if points._corners is None:
+                points._corners = corner_maps(points.blocked)
+            cols, rows = self._lamp_cells
+            mask = ~_occluded(points.blocked, points._corners, cell, cols, rows)
+            if len(self._sight_from) > 4096:
+                self._sight_from.clear()
+            self._sight_from[cell] = mask
+        return mask
 
     # --- what the belief says ------------------------------------------------------------------
 
@@ -324,6 +402,27 @@ class LightBelief:
             light_from_parameters(f'inferred-{i}', *light.params)
             for i, light in enumerate(self.particles[particle].lights)
         ]
+
+
+def _stepped(params: tuple, parameter: int, step: float) -> tuple | None:
+    """params with one parameter moved by ``step`` (beta by a factor exp(step)); None when
+    that leaves its range."""
+    moved = list(params)
+    if parameter == 4:
+        moved[4] = params[4] * math.exp(step)
+    elif parameter == 6:  # slide along the beam, beta keeping the light where it is dim
+        x, y, direction, _, beta, _ = params
+        reach = math.sqrt((1.0 / 0.3 - 1.0) / beta)
+        if reach - step <= 0.1:
+            return None
+        moved[0], moved[1] = x + step * math.cos(direction), y + step * math.sin(direction)
+        moved[4] = beta * (reach / (reach - step)) ** 2
+        moved[5] = params[5] - step
+    else:
+        moved[parameter] = params[parameter] + step
+    if not (_MIN_FOV <= moved[3] <= 2 * math.pi) or moved[5] <= 0.2:
+        return None
+    return tuple(moved)
 
 
 def _normalised(values: np.ndarray) -> np.ndarray:

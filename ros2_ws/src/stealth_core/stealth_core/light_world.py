@@ -31,6 +31,11 @@ from stealth_core.searchlight import Searchlight
 from stealth_core.task import StealthTask
 from stealth_core.visibility import PointVisibility, scenario_point_visibility
 
+# Lamp cells whose lines of sight a world keeps (one int8 per map cell each) and blocks of them
+# (16 x 16 bools each): a belief's search asks a few hundred lamp places over and over.
+SIGHT_LAMPS = 384
+SIGHT_TILES = 65536
+
 
 class UnmodelledLawError(ValueError):
     """A scenario whose light law or reward the light model cannot model (one line, naming it)."""
@@ -64,7 +69,9 @@ class LightWorld:
         self.scenario = dataclasses.replace(scenario, lights=())
         self.task = StealthTask(self.scenario, goal)
         self.model = LatticeModel.build(self.task)  # the dark world's lattice
-        self.points = scenario_point_visibility(self.scenario)  # no lights: sight caches only
+        # No lights: the lines of sight its hypotheses share, kept for many lamp places.
+        self.points = scenario_point_visibility(self.scenario)
+        self.points.max_lamps, self.points.max_tiles = SIGHT_LAMPS, SIGHT_TILES
         self.samples = LatticeSamples(self.task, self.model)
 
     @property
