@@ -5,9 +5,9 @@ Drawn from the saved policy's belief (``belief_lights``, ``belief_weights``: the
 ``LightModelLearner.to_arrays`` saves) on the grid the agent publishes it on
 (``stealth_core.light_belief_map``), so the picture is what Foxglove showed last: the true
 field (the scenario's lights, which only the orchestrator knows), the most likely field, and
-the weight of the hypotheses that light each cell (the uncertain places are those strictly
-between 0 and 1). Each field is drawn in units of the detection threshold, with the threshold's
-contour.
+the weight of the hypotheses that light each cell (counted as uncertain where at least
+UNSURE_PERCENT % of the weight disagrees). Each field is drawn in units of the detection
+threshold, with the threshold's contour.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from stealth_core.light_world import LightWorld
 from stealth_bringup.run_outputs import replacing
 
 SHOWN_MAX = 1.5  # the fields' colour scale tops out at 1.5x the detection threshold
+UNSURE_PERCENT = 5  # a cell counts as uncertain where at least this % of the weight disagrees
 
 
 def saved_belief(policy_path: Path) -> tuple[np.ndarray, np.ndarray] | None:
@@ -49,13 +50,14 @@ def plot_light_belief(scenario, goal: str, policy_path: Path, path: Path, title:
     lights, weights = belief
     best = int(np.argmax(weights))
     count = int(np.count_nonzero(lights[:, 0] == best))
-    unsure = np.count_nonzero((grid.lit_probability > 0) & (grid.lit_probability < 1))
+    unsure = np.count_nonzero(grid.uncertain >= 2 * UNSURE_PERCENT)  # the minority's >= 5 %
     panels = (
         (truth / threshold, f'true field ({len(scenario.lights)} lights)', 'magma', SHOWN_MAX),
         (grid.likely_field / threshold,
          f'most likely belief ({count} lights, weight {weights[best] / weights.sum():.2f})',
          'magma', SHOWN_MAX),
-        (grid.lit_probability, f'weight that says lit ({unsure} uncertain cells)', 'viridis',
+        (grid.lit_probability,
+         f'weight that says lit ({unsure} cells where >= {UNSURE_PERCENT} % disagree)', 'viridis',
          1.0),
     )  # fmt: skip
     figure = Figure(figsize=(15, 5.4), layout='constrained')
