@@ -31,6 +31,7 @@ import math
 
 import numpy as np
 
+from stealth_core import exposure
 from stealth_core.light_world import LightWorld, StepEvidence, light_from_parameters
 from stealth_core.visibility import _occluded, corner_maps
 
@@ -254,21 +255,15 @@ class LightBelief:
         if not np.isfinite(self._high[k]):  # a detection: at least that much more
             target += float(self.rng.uniform(0.0, 0.5))
         target = min(target, 0.95)
-        samples = self.world.samples
-        row = self._rows[k]
-        anchor = np.array([samples.x[row, samples.width - 1], samples.y[row, samples.width - 1]])
-        if samples.weighs_heading:
-            anchor = np.array([samples.x[row, 0], samples.y[row, 0]])
-        found = self._lamp_for(anchor, target, candidates, missing)
+        found = self._lamp_for(k, target, candidates, missing)
         if found is None:
             return None
-        lamp, points, values = found
+        lamp, points, intensities = found
         # Aimed at the middle of the lit steps it explains, opened to take them all in; beta
-        # the median their distances imply.
-        offsets = np.vstack([anchor, points]) - lamp
+        # the median their distances and intensities imply.
+        offsets = points - lamp
         distances = np.maximum(np.hypot(*offsets.T), 0.1)
-        implied = (1.0 / np.append(target, values) - 1.0) / distances**2
-        beta = float(np.median(implied))
+        beta = float(np.median((1.0 / intensities - 1.0) / distances**2))
         first = math.atan2(offsets[0, 1], offsets[0, 0])
         turns = np.angle(np.exp(1j * (np.arctan2(offsets[:, 1], offsets[:, 0]) - first)))
         aim = first + (turns.min() + turns.max()) / 2
@@ -287,29 +282,38 @@ class LightBelief:
         light_range = min(light_range, self.settings.max_range)
         return self._make((float(lamp[0]), float(lamp[1]), aim, fov, beta, light_range))
 
-    def _lamp_for(self, anchor, target, candidates, missing):
-        """(lamp place, the nearby unexplained steps' arrivals, their missing light): a place
-        that sees the anchor, scored by how well one beta explains those steps; or None."""
+    def _lamp_for(self, k: int, target: float, candidates, missing):
+        """(lamp place, points, the unweighted intensities there) for evidence step k: a lamp
+        place in sight of the step, scored by how well one beta explains the step and the
+        unexplained steps within 4 m of it (each by its arrival and missing light; where
+        exposure weighs the lights, divided by the share of the robot the lamp would see)."""
+        samples = self.world.samples
+        arrival = samples.width - 1 if not samples.weighs_heading else 0
+        others = candidates[np.isfinite(self._high[candidates]) & (candidates != k)]
+        rows = self._rows[np.append(k, others)]
+        points = np.stack([samples.x[rows, arrival], samples.y[rows, arrival]], 1)
+        values = np.minimum(np.append(target, missing[others]), 0.95)
+        close = np.hypot(*(points - points[0]).T) <= 4.0
+        close[0] = True
+        keep = np.flatnonzero(close)[:13]
+        points, values, rows = points[keep], values[keep], rows[keep]
+        anchor = points[0]
         lamps = self._lamps
         near = np.hypot(*(lamps - anchor).T) <= self.settings.max_range
         near &= self._seen_from(anchor)
         lamps = lamps[near]
         if lamps.size == 0:
             return None
-        samples = self.world.samples
-        others = candidates[np.isfinite(self._high[candidates])]
-        rows = self._rows[others]
-        points = np.stack(
-            [samples.x[rows, samples.width - 1], samples.y[rows, samples.width - 1]], 1
-        )
-        close = np.hypot(*(points - anchor).T) <= 4.0
-        points, values = points[close][:12], np.minimum(missing[others][close][:12], 0.95)
-        d_anchor = np.maximum(np.hypot(*(lamps - anchor).T), 0.1)
-        log_beta = [np.log((1.0 / target - 1.0) / d_anchor**2)]
-        for point, value in zip(points, values, strict=True):
-            d = np.maximum(np.hypot(*(lamps - point).T), 0.1)
-            log_beta.append(np.log((1.0 / value - 1.0) / d**2))
-        spread = np.std(np.stack(log_beta), axis=0) if len(log_beta) > 1 else np.zeros(len(lamps))
+        dx = points[None, :, 0] - lamps[:, None, 0]  # (lamps, points)
+        dy = points[None, :, 1] - lamps[:, None, 1]
+        intensities = np.broadcast_to(values, dx.shape)
+        footprint = self.world.task.footprint
+        if samples.weighs_heading and footprint is not None:
+            share = exposure.factor(footprint, samples.yaw[rows, arrival][None, :], dx, dy)
+            intensities = intensities / np.maximum(share, 1e-3)
+        intensities = np.clip(intensities, 1e-6, 0.95)
+        log_beta = np.log((1.0 / intensities - 1.0) / np.maximum(dx * dx + dy * dy, 0.01))
+        spread = log_beta.std(axis=1) if len(points) > 1 else np.zeros(len(lamps))
         order = np.argsort(spread + self.rng.uniform(0, 0.05, size=spread.size))
         frame, see = self.world.points.frame, self.world.points
         target_cell = frame.cell_of(*anchor)
@@ -320,7 +324,7 @@ class LightBelief:
             if self._blocked(*lamp):
                 continue
             if see.line_of_sight(frame.cell_of(*lamp), target_cell):
-                return lamp, points, values
+                return lamp, points, intensities[index]
         return None
 
     def _seen_from(self, anchor) -> np.ndarray:
