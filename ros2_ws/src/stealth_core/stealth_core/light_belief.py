@@ -70,7 +70,13 @@ class _Light:
     """One hypothesised light: its parameters and its light at the evidence's samples."""
 
     params: tuple  # x, y, direction, fov, beta, range
-    at_evidence: np.ndarray  # (evidence rows, width)
+    at_evidence: np.ndarray  # (evidence rows, width): its direct light
+    # Its bounced light there, where light bounces (None: none yet). Tracing a light's bounce
+    # costs tens of ms, so a moved light keeps its parent's until the fit's end refreshes it.
+    bounced: np.ndarray | None = None
+
+    def light(self) -> np.ndarray:
+        return self.at_evidence if self.bounced is None else self.at_evidence + self.bounced
 
 
 class _Particle:
@@ -99,6 +105,7 @@ class LightBelief:
         )
         self._sight_from: dict[tuple[int, int], np.ndarray] = {}
         self._field_cache: dict[tuple, np.ndarray] = {}
+        self._seeing_cache: dict[tuple, object] = {}
 
     # --- evidence ------------------------------------------------------------------------------
 
@@ -113,6 +120,9 @@ class LightBelief:
             for light in particle.lights:
                 extra = self._light_at(light.params, self._rows[-1:])
                 light.at_evidence = np.concatenate([light.at_evidence, extra])
+                if light.bounced is not None:
+                    bounced = self._bounced_at(light.params, self._rows[-1:])
+                    light.bounced = np.concatenate([light.bounced, bounced])
             particle.energy = math.inf
 
     def _tolerance(self) -> np.ndarray:
@@ -132,17 +142,41 @@ class LightBelief:
     def _predict(self, lights: list[_Light]) -> np.ndarray:
         if not lights:
             return np.zeros(len(self.evidence))
-        total = lights[0].at_evidence
+        total = lights[0].light()
         for light in lights[1:]:
-            total = total + light.at_evidence
+            total = total + light.light()
         return total.max(axis=1)
 
     def _light_at(self, params: tuple, rows: np.ndarray) -> np.ndarray:
+        """A light's direct light at the samples of evidence rows."""
         light = light_from_parameters('hypothesis', *params)
-        return self.world.samples.light_at(self.world.see([light]), rows)
+        return self.world.samples.light_at(self.world.see([light], bounce=False), rows)
 
-    def _make(self, params: tuple) -> _Light:
-        return _Light(params, self._light_at(params, self._rows))
+    def _seeing(self, params: tuple):
+        """The point visibility of one light, bounce included, kept while its light is asked
+        (its bounce's emitters are traced once)."""
+        see = self._seeing_cache.get(params)
+        if see is None:
+            see = self.world.see([light_from_parameters('hypothesis', *params)])
+            if len(self._seeing_cache) >= 64:
+                self._seeing_cache.pop(next(iter(self._seeing_cache)))
+            self._seeing_cache[params] = see
+        return see
+
+    def _bounced_at(self, params: tuple, rows: np.ndarray) -> np.ndarray:
+        """A light's bounced light at the samples of evidence rows."""
+        samples = self.world.samples
+        return samples.light_at(self._seeing(params), rows) - self._light_at(params, rows)
+
+    def _make(self, params: tuple, bounced: np.ndarray | None = None) -> _Light:
+        return _Light(params, self._light_at(params, self._rows), bounced)
+
+    def _refresh_bounce(self, particle: _Particle) -> None:
+        """Trace the bounce of every light of a particle afresh, and its energy with it."""
+        if self.world.bounces:
+            for light in particle.lights:
+                light.bounced = self._bounced_at(light.params, self._rows)
+            particle.energy = self._energy(particle.lights)
 
     # --- search --------------------------------------------------------------------------------
 
@@ -169,6 +203,7 @@ class LightBelief:
                     particle.lights, particle.energy = proposal, energy
             if polish:
                 self.polish(particle)
+            self._refresh_bounce(particle)
 
     def polish(self, particle: _Particle, halvings: int = POLISH_HALVINGS) -> None:
         """Pattern search on each light of a particle: every parameter stepped both ways, a
@@ -188,7 +223,7 @@ class LightBelief:
                             continue
                         lights = [
                             *particle.lights[:k],
-                            self._make(params),
+                            self._make(params, particle.lights[k].bounced),
                             *particle.lights[k + 1 :],
                         ]
                         energy = self._energy(lights)
@@ -207,7 +242,9 @@ class LightBelief:
         if kind < 0.4:
             return lights[:k] + lights[k + 1 :]
         params = self._perturbed(lights[k].params)
-        return None if params is None else [*lights[:k], self._make(params), *lights[k + 1 :]]
+        if params is None:
+            return None
+        return [*lights[:k], self._make(params, lights[k].bounced), *lights[k + 1 :]]
 
     def _perturbed(self, params: tuple) -> tuple | None:
         x, y, direction, fov, beta, light_range = params
@@ -364,9 +401,7 @@ class LightBelief:
         for light in self.particles[particle].lights:
             field = self._field_cache.get(light.params)
             if field is None:
-                field = samples.light_at(
-                    self.world.see([light_from_parameters('h', *light.params)])
-                )
+                field = samples.light_at(self._seeing(light.params))
                 if len(self._field_cache) > 256:
                     self._field_cache.clear()
                 self._field_cache[light.params] = field
