@@ -35,7 +35,7 @@ from stealth_core.reward import detection_reward, step_reward, success_reward
 
 from .learners import LearnerConfig, TabularLearner, argmax_random, register_learner
 
-PLANNING_RULES = ('expected', 'thompson', 'cautious')
+PLANNING_RULES = ('expected', 'optimistic', 'thompson', 'cautious')
 DEFAULT_RULE = 'expected'
 SURPRISE_MOVES = 15  # Metropolis moves per particle after a surprising step, mid-episode
 
@@ -58,6 +58,7 @@ class LightModelLearner(TabularLearner):
         self.notes: list[str] = []  # contradictions and unmatched steps, for the log
         self.replans = 0
         self._visibility: np.ndarray | None = None  # (places, directions) the plan assumed
+        self._explore: np.ndarray | None = None  # training's action values (the rule's plan)
         self._loaded_evidence: np.ndarray | None = None
 
     def attach(
@@ -100,9 +101,12 @@ class LightModelLearner(TabularLearner):
     # --- acting (exploration is the plan's: no random moves) -----------------------------------
 
     def act(self, s: int, rng: np.random.Generator, *, greedy: bool = False) -> int:
+        """Training's action: the rule's plan (the table's, ``greedy``)."""
         s = self._check_row(s)
         self.ensure_rows(s + 1)
-        return argmax_random(self._q[s], rng)
+        if greedy or self._explore is None or s >= self._explore.shape[0]:
+            return argmax_random(self._q[s], rng)
+        return argmax_random(self._explore[s], rng)
 
     # --- learning ------------------------------------------------------------------------------
 
@@ -158,13 +162,15 @@ class LightModelLearner(TabularLearner):
             raise LightModelError('light-model: attach(world, index, rng) before learning')
         return self.belief
 
-    def planned_visibility(self) -> tuple[np.ndarray, np.ndarray]:
+    def planned_visibility(self, rule: str | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(probability each step is detected, the light it costs if not), (places,
-        directions), by the planning rule, with the steps taken set to what they said."""
+        directions), by a planning rule (the learner's by default), with the steps taken set
+        to what they said."""
+        rule = self.rule if rule is None else rule
         belief = self._attached()
         threshold = belief.world.threshold
         weights = belief.weights()
-        if self.rule == 'thompson':
+        if rule == 'thompson':
             chosen = int(belief.rng.choice(len(weights), p=weights))
             tables, weights = [belief.step_visibility(chosen)], np.ones(1)
         else:
@@ -172,11 +178,12 @@ class LightModelLearner(TabularLearner):
         tables = [self._with_evidence(table) for table in tables]
         lit = np.stack([table >= threshold for table in tables])
         values = np.stack(tables)
-        if self.rule == 'cautious':
+        if rule in ('cautious', 'optimistic'):
             heavy = weights > 0.01
-            p_detected = lit[heavy].any(axis=0).astype(np.float64)
-            light = np.where(lit[heavy], 0.0, values[heavy]).max(axis=0)
-            return p_detected, light
+            agree = lit[heavy].any(axis=0) if rule == 'cautious' else lit[heavy].all(axis=0)
+            light = np.where(lit[heavy], 0.0, values[heavy])
+            light = light.max(axis=0) if rule == 'cautious' else light.min(axis=0)
+            return agree.astype(np.float64), light
         w = weights[:, None, None]
         p_detected = np.sum(w * lit, axis=0)
         dark_weight = np.sum(w * ~lit, axis=0)
@@ -203,10 +210,21 @@ class LightModelLearner(TabularLearner):
         return table
 
     def _plan(self) -> None:
-        belief = self._attached()
-        world = belief.world
+        """Value iteration against the belief: the greedy plan (the table, what evaluations
+        and a saved policy follow) by the posterior's expectation, and the plan training
+        follows by the learner's rule (the same where the rule is ``expected``)."""
+        greedy, assumed = self._values('expected')
+        self._q[: greedy.shape[0]] = greedy
+        self._explore = greedy if self.rule == 'expected' else self._values(self.rule)[0]
+        self._visibility = assumed
+        self.replans += 1
+
+    def _values(self, rule: str) -> tuple[np.ndarray, np.ndarray]:
+        """(action values, (places, directions) the light each step is assumed to meet) of
+        value iteration on the lattice with the steps' detection and light by ``rule``."""
+        world = self._attached().world
         model, weights = world.model, world.scenario.rewards
-        p_detected, light = self.planned_visibility()
+        p_detected, light = self.planned_visibility(rule)
         distance = model.distance[model.successors]
         at_goal = model.goal[model.successors]
         caught = detection_reward(distance, weights)
@@ -216,9 +234,8 @@ class LightModelLearner(TabularLearner):
             step_reward(light, distance, weights),
         )
         result = value_iteration(model, gamma=self.config.gamma, terms=(p_detected, caught, safe))
-        self._q[: model.size] = result.q
-        self._visibility = np.where(p_detected >= 0.5, np.maximum(light, world.threshold), light)
-        self.replans += 1
+        assumed = np.where(p_detected >= 0.5, np.maximum(light, world.threshold), light)
+        return result.q, assumed
 
     # --- saving --------------------------------------------------------------------------------
 
