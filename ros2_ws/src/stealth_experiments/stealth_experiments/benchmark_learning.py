@@ -18,7 +18,6 @@ training episodes that ended DETECTED against episodes, kept per seed (``curves`
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 
@@ -92,7 +91,6 @@ def learning_row(trial: dict) -> dict:
     trained for the budget (the regret curve runs over all of it), the row's figures
     (LEARNING_COLUMNS), its budget, and ``seeds``: every seed's ``seed_figures`` (the curves
     learning.csv and learning.png are drawn from)."""
-    started = time.perf_counter()
     seeds = [
         seed_figures(
             run(
@@ -107,12 +105,7 @@ def learning_row(trial: dict) -> dict:
         )
         for k in range(trial.get('learning_seeds') or LEARNING_SEEDS)
     ]
-    return {
-        **summarise_seeds(seeds),
-        'budget': seeds[0]['budget'],
-        'seeds': seeds,
-        'seconds': time.perf_counter() - started,
-    }
+    return {**summarise_seeds(seeds), 'budget': seeds[0]['budget'], 'seeds': seeds}
 
 
 def seed_case(trial: dict) -> list[dict]:
