@@ -1,7 +1,8 @@
-"""Tabular reinforcement learners (Q-learning, SARSA, Dyna-Q, prioritized sweeping).
+"""Tabular reinforcement learners (Q-learning, SARSA, Dyna-Q, prioritized sweeping) and the
+light model (a learner that infers the searchlights).
 
 Also the agent node speaking the rl_msgs protocol of rl-texplore-ros-pkg.
 """
 
-# Registers its learner with learners.make_learner (it imports learners, not the reverse).
-from . import prioritized_sweeping  # noqa: E402, F401
+# Register their learners with learners.make_learner (they import learners, not the reverse).
+from . import light_model, prioritized_sweeping  # noqa: E402, F401

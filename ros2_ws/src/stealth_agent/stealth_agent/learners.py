@@ -29,7 +29,7 @@ import numpy as np
 
 from .schedules import Schedule
 
-LEARNER_NAMES = ('qlearning', 'sarsa', 'dyna', 'prioritized')
+LEARNER_NAMES = ('qlearning', 'sarsa', 'dyna', 'prioritized', 'light-model')
 # Learners that explore by optimism (prioritized sweeping's docstring): started at an upper bound
 # on the true values (the floor plan's, stealth_core.floor_plan_prior) they need no random moves,
 # so the harness and `stealth train` run them with epsilon 0 and the floor plan's prior.
@@ -48,6 +48,9 @@ LEARNER_ALIASES = {
     'prioritized_sweeping': 'prioritized',
     'prioritized-sweeping': 'prioritized',
     'psweep': 'prioritized',
+    'light-model': 'light-model',
+    'light_model': 'light-model',
+    'lightmodel': 'light-model',
 }
 _INITIAL_CAPACITY = 64
 MAX_ROWS = 2**31 - 1

@@ -228,16 +228,21 @@ def step_terms(model: LatticeModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
 def value_iteration(
-    model: LatticeModel, slip: float = 0.0, gamma: float = 1.0, horizon: int | None = None
+    model: LatticeModel,
+    slip: float = 0.0,
+    gamma: float = 1.0,
+    horizon: int | None = None,
+    terms: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> ValueIterationResult:
     """Optimal expected return and policy by backward induction over ``horizon`` steps (default:
     the scenario's step limit), V_0 = 0 (the episode is truncated); over (node, bin) places
-    where lights move, so exact with time."""
+    where lights move, so exact with time. ``terms`` replaces the model's ``step_terms`` (a
+    learner planning against a belief gives its own detection probabilities and rewards)."""
     if not 0.0 <= gamma <= 1.0:
         raise ValueError(f'gamma: expected a number in [0, 1], got {gamma!r}')
     horizon = model.task.step_limit if horizon is None else int(horizon)
     moves = action_distribution(slip, model.num_actions)  # (actions, directions)
-    p_detected, caught, safe = step_terms(model)
+    p_detected, caught, safe = step_terms(model) if terms is None else terms
     # probability the episode continues after each step
     goes_on = (1.0 - p_detected) * ~model.goal[model.successors]
     immediate = p_detected * caught + (1.0 - p_detected) * safe  # (places, directions)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from collections.abc import Iterable, Sequence
+import copy
 import time
 
 import numpy as np
@@ -266,6 +267,18 @@ class PointVisibility:
                 value *= float(exposure.factor(self.footprint, heading, dx, dy))
             values.append(value)
         return values
+
+    def with_lights(self, lights: Iterable[Searchlight]) -> PointVisibility:
+        """The same map, footprint and bounce with other lights, sharing this one's traced lines
+        of sight (a learner weighing light hypotheses asks the same lamp cells over and over)."""
+        if self._corners is None:
+            self._corners = corner_maps(self.blocked)
+        other = copy.copy(self)  # the sight memos and blocks are the same objects
+        other.lights = tuple(lights)
+        if other.bounce is not None:
+            check_static(other.lights)
+        other._sources = None  # the bounce's emitters receive these lights' light
+        return other
 
     def _weighs(self, heading) -> bool:
         return heading is not None and self.footprint is not None

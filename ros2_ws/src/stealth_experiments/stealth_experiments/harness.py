@@ -35,6 +35,7 @@ from stealth_agent.learners import (
     canonical_learner_name,
     make_learner,
 )
+from stealth_agent.light_model import LightModelLearner
 from stealth_agent.policy_store import save_policy
 from stealth_agent.protocol import ProtocolAgent, parse_description
 from stealth_agent.schedules import Schedule
@@ -42,6 +43,7 @@ from stealth_agent.state_index import StateIndex
 from stealth_core.floor_plan_prior import PRIORS, floor_plan_prior
 from stealth_core.gym_env import StealthNavEnv, lattice_model
 from stealth_core.lattice_model import LatticeModel
+from stealth_core.light_world import LightWorld
 from stealth_core.path_scores import (
     DEFAULT_CRITERION,
     OPTIMUM_GAMMA,
@@ -60,7 +62,9 @@ from stealth_core.scenario import content_identity
 # Dyna-Q's 20 planning updates make its episodes ~5x dearer and it needs ~1/6 as many;
 # prioritized sweeping, exploring from the floor plan, settled on every seed of every static
 # scenario by episode 70 (map1-exposure; bench_learners, 2026-11-28).
-DEFAULT_EPISODES = {'qlearning': 1500, 'sarsa': 1500, 'dyna': 500, 'prioritized': 300}
+DEFAULT_EPISODES = {
+    'qlearning': 1500, 'sarsa': 1500, 'dyna': 500, 'prioritized': 300, 'light-model': 30,
+}  # fmt: skip
 # Scenarios with the phase in the state (moving lights) have phase_bins times the states: each
 # learner gets a larger budget there (README: Q-learning settled at 2580 on simple-maze-moving,
 # 5730 on lgfloor-moving and 11,610-11,740 on floorplan-moving, where 6000 never reached the
@@ -69,7 +73,9 @@ DEFAULT_EPISODES = {'qlearning': 1500, 'sarsa': 1500, 'dyna': 500, 'prioritized'
 # from 300 on simple-maze-moving, 240 on map1-moving, 190 on lgfloor-moving and 1010 on
 # floorplan-moving, seed 0; with the goal reward as its optimism 250, 320, 610 and 790; before
 # optimism 270, 280, 600 (seed 1; seed 0 settled on a 1.12x path) and 690).
-MOVING_EPISODES = {'qlearning': 15000, 'sarsa': 15000, 'dyna': 3000, 'prioritized': 1500}
+MOVING_EPISODES = {
+    'qlearning': 15000, 'sarsa': 15000, 'dyna': 3000, 'prioritized': 1500, 'light-model': 300,
+}  # fmt: skip
 DEFAULT_EVAL_EVERY = 10
 WITHIN = 0.05  # of the optimal return: the old criterion, kept for settled_within only
 STREAK = 3  # evaluations in a row that meet the criterion (first_streak)
@@ -405,6 +411,9 @@ def run(spec: RunSpec) -> RunResult:
     )
     index = StateIndex()
     rng = np.random.default_rng(spec.seed)
+    if isinstance(learner, LightModelLearner):  # it knows the floor plan, never the lights
+        learner.attach(LightWorld(env.task.scenario, spec.goal), index, rng)
+        prior = None
     agent = ProtocolAgent(learner, index, rng, prior=prior)
     greedy = ProtocolAgent(
         learner, index, np.random.default_rng([spec.seed, 1]), learning=False, prior=prior

@@ -1,0 +1,260 @@
+"""The learner `light-model`: infers the searchlights from what its steps tell it, and plans
+against what it believes. Plain Python + numpy, no rclpy.
+
+Where the tabular learners pay for every lit move once, this one reads each step's reward as
+the light it met (``stealth_core.light_world``), keeps the light hypotheses that explain every
+step so far (``stealth_core.light_belief``), and after each episode (and whenever a step
+surprises the current plan) plans by value iteration on the lattice against that belief. Its
+Q-table is the plan's action values, one row per lattice place (``attach`` gives every place
+its row, so a saved table is a whole policy).
+
+It may read the floor plan, the start, the goal, the reward weights and the law's form: the
+``LightWorld`` it is attached to is the scenario with every light removed. It never sees a
+light.
+
+Planning rules (``PLANNING_RULES``), how the belief's uncertainty becomes a plan:
+
+- ``expected``: each step is detected with the posterior probability that it is lit (the
+  weighed particles that say so) and costs the mean light of those that do not: the plan of
+  the posterior's mean model;
+- ``thompson``: one particle drawn by weight each episode, planned on as if it were the truth;
+- ``cautious``: a step any particle of weight > 1 % lights is taken as a detection.
+
+Steps the robot has taken are known exactly: their evidence overrides every particle.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from stealth_core.light_belief import BeliefSettings, LightBelief
+from stealth_core.light_world import LightWorld, StepEvidence, evidence_of_step
+from stealth_core.planners import value_iteration
+from stealth_core.reward import detection_reward, step_reward, success_reward
+
+from .learners import LearnerConfig, TabularLearner, argmax_random, register_learner
+
+PLANNING_RULES = ('expected', 'thompson', 'cautious')
+DEFAULT_RULE = 'expected'
+SURPRISE_MOVES = 15  # Metropolis moves per particle after a surprising step, mid-episode
+
+
+class LightModelError(ValueError):
+    """The light model used before it knows its world, or given a world it cannot use."""
+
+
+@register_learner
+class LightModelLearner(TabularLearner):
+    """Infers the lights (a ``LightBelief``) and acts on value iteration against it."""
+
+    name = 'light-model'
+
+    def __init__(self, num_actions: int, config: LearnerConfig | None = None):
+        super().__init__(num_actions, config)
+        self.world: LightWorld | None = None
+        self.belief: LightBelief | None = None
+        self.rule = DEFAULT_RULE
+        self.notes: list[str] = []  # contradictions and unmatched steps, for the log
+        self.replans = 0
+        self._visibility: np.ndarray | None = None  # (places, directions) the plan assumed
+        self._loaded_evidence: np.ndarray | None = None
+
+    def attach(
+        self,
+        world: LightWorld,
+        index,
+        rng: np.random.Generator,
+        rule: str = DEFAULT_RULE,
+        settings: BeliefSettings | None = None,
+    ) -> None:
+        """Know the world: register every lattice place's state in ``index`` (a place's row is
+        its place number), start the belief (drawing from ``rng``) and plan. LightModelError when
+        the index already numbers states otherwise or the actions differ."""
+        if rule not in PLANNING_RULES:
+            raise LightModelError(
+                f'light-model rule: expected one of {", ".join(PLANNING_RULES)}, got {rule!r}'
+            )
+        model = world.model
+        if model.num_actions != self.num_actions:
+            raise LightModelError(
+                f'light-model: the world has {model.num_actions} actions, the learner '
+                f'{self.num_actions}'
+            )
+        for place, state in enumerate(model.states):
+            if index.row(state) != place:
+                raise LightModelError(
+                    'light-model: the state index already numbers states otherwise (attach it '
+                    'to a fresh index, or to the one saved with its table)'
+                )
+        self.ensure_rows(model.size)
+        self.world, self.rule = world, rule
+        self.belief = LightBelief(world, rng, settings)
+        if self._loaded_evidence is not None:
+            for place, direction, low, high in self._loaded_evidence.tolist():
+                self.belief.observe(StepEvidence(int(place), int(direction), low, high))
+            self._loaded_evidence = None
+            self.belief.fit()
+        self._plan()
+
+    # --- acting (exploration is the plan's: no random moves) -----------------------------------
+
+    def act(self, s: int, rng: np.random.Generator, *, greedy: bool = False) -> int:
+        s = self._check_row(s)
+        self.ensure_rows(s + 1)
+        return argmax_random(self._q[s], rng)
+
+    # --- learning ------------------------------------------------------------------------------
+
+    def update(self, s, a, r, s_next, terminated, a_next=None, rng=None) -> float:
+        """Read the step's light off its reward, add it to the belief, and replan when it
+        surprised the plan (mid-episode: a short search). Returns the surprise, in lights."""
+        s, a, r = self._check_row(s), self._check_action(a), self._check_reward(r)
+        if not terminated:
+            if s_next is None:
+                raise ValueError('a non-terminal update needs the next state')
+            s_next = self._check_row(s_next)
+        belief = self._attached()
+        self.updates += 1
+        model = belief.world.model
+        if s >= model.size:
+            return 0.0
+        direction = a
+        if not terminated and model.successors[s, a] != s_next:
+            found = np.flatnonzero(model.successors[s] == s_next) if s_next < model.size else []
+            if len(found) == 0:  # not a lattice step (through ROS: the pose strayed)
+                self.notes.append(f'step from place {s} by action {a} left the lattice')
+                return 0.0
+            direction = int(found[0])
+        evidence = evidence_of_step(belief.world, s, direction, r, bool(terminated))
+        if evidence.exact and evidence.low >= belief.world.threshold:
+            self.notes.append(
+                f'an undetected step read light {evidence.low:.3f}, at or above the detection '
+                f'threshold {belief.world.threshold}: the reward is not the law modelled'
+            )
+        belief.observe(evidence)
+        assumed = float(self._visibility[s, direction])
+        low, high = evidence.low, evidence.high
+        surprise = max(low - assumed, assumed - high, 0.0)
+        tolerance = belief.settings.abs_tol + belief.settings.rel_tol * low
+        if surprise > tolerance and not terminated:
+            belief.fit(SURPRISE_MOVES)
+            self._plan()
+        return float(surprise)
+
+    def end_episode(self) -> None:
+        """Search the belief with the whole episode's evidence, report contradictions, replan."""
+        super().end_episode()
+        if self.belief is None:
+            return
+        self.belief.fit()
+        self.notes.extend(self.belief.contradictions())
+        self._plan()
+
+    # --- planning ------------------------------------------------------------------------------
+
+    def _attached(self) -> LightBelief:
+        if self.belief is None:
+            raise LightModelError('light-model: attach(world, index, rng) before learning')
+        return self.belief
+
+    def planned_visibility(self) -> tuple[np.ndarray, np.ndarray]:
+        """(probability each step is detected, the light it costs if not), (places,
+        directions), by the planning rule, with the steps taken set to what they said."""
+        belief = self._attached()
+        threshold = belief.world.threshold
+        weights = belief.weights()
+        if self.rule == 'thompson':
+            chosen = int(belief.rng.choice(len(weights), p=weights))
+            tables, weights = [belief.step_visibility(chosen)], np.ones(1)
+        else:
+            tables = [belief.step_visibility(k) for k in range(len(weights))]
+        tables = [self._with_evidence(table) for table in tables]
+        lit = np.stack([table >= threshold for table in tables])
+        values = np.stack(tables)
+        if self.rule == 'cautious':
+            heavy = weights > 0.01
+            p_detected = lit[heavy].any(axis=0).astype(np.float64)
+            light = np.where(lit[heavy], 0.0, values[heavy]).max(axis=0)
+            return p_detected, light
+        w = weights[:, None, None]
+        p_detected = np.sum(w * lit, axis=0)
+        dark_weight = np.sum(w * ~lit, axis=0)
+        light = np.divide(
+            np.sum(w * np.where(lit, 0.0, values), axis=0),
+            dark_weight,
+            out=np.zeros_like(dark_weight),
+            where=dark_weight > 0,
+        )
+        return np.clip(p_detected, 0.0, 1.0), light
+
+    def _with_evidence(self, table: np.ndarray) -> np.ndarray:
+        belief = self._attached()
+        table = table.copy()
+        threshold = belief.world.threshold
+        for e in belief.evidence:
+            here = table[e.place, e.direction]
+            if e.exact:
+                table[e.place, e.direction] = e.low
+            elif not math.isfinite(e.high):
+                table[e.place, e.direction] = max(here, threshold)
+            else:
+                table[e.place, e.direction] = min(here, e.high)
+        return table
+
+    def _plan(self) -> None:
+        belief = self._attached()
+        world = belief.world
+        model, weights = world.model, world.scenario.rewards
+        p_detected, light = self.planned_visibility()
+        distance = model.distance[model.successors]
+        at_goal = model.goal[model.successors]
+        caught = detection_reward(distance, weights)
+        safe = np.where(
+            at_goal,
+            success_reward(distance, world.task.goal.radius, weights),
+            step_reward(light, distance, weights),
+        )
+        result = value_iteration(model, gamma=self.config.gamma, terms=(p_detected, caught, safe))
+        self._q[: model.size] = result.q
+        self._visibility = np.where(p_detected >= 0.5, np.maximum(light, world.threshold), light)
+        self.replans += 1
+
+    # --- saving --------------------------------------------------------------------------------
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """The plan's table and the evidence (place, direction, low, high per step)."""
+        arrays = super().to_arrays()
+        evidence = [] if self.belief is None else self.belief.evidence
+        arrays['evidence'] = np.array(
+            [(e.place, e.direction, e.low, e.high) for e in evidence], dtype=np.float64
+        ).reshape(-1, 4)
+        if self.belief is not None:
+            belief = self.belief_arrays()
+            arrays['belief_lights'], arrays['belief_weights'] = belief['lights'], belief['weights']
+        return arrays
+
+    def belief_arrays(self) -> dict[str, np.ndarray]:
+        """The belief as arrays: ``lights`` (k, 7): particle, x, y, direction (rad), fov (rad),
+        beta (1/m^2), range (m) of every hypothesised light; ``weights`` (particles,)."""
+        belief = self._attached()
+        rows = [
+            (k, *light.params)
+            for k, particle in enumerate(belief.particles)
+            for light in particle.lights
+        ]
+        return {
+            'lights': np.array(rows, dtype=np.float64).reshape(-1, 7),
+            'weights': belief.weights(),
+        }
+
+    def to_meta(self) -> dict:
+        return {**super().to_meta(), 'rule': self.rule}
+
+    def _load_extra(self, arrays, rows: int) -> None:
+        if 'evidence' not in arrays:
+            raise ValueError('light-model policy file: the evidence array is missing')
+        evidence = np.asarray(arrays['evidence'], dtype=np.float64)
+        if evidence.ndim != 2 or evidence.shape[1] != 4:
+            raise ValueError(f'light-model evidence: expected (steps, 4), got {evidence.shape}')
+        self._loaded_evidence = evidence
