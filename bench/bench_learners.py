@@ -5,8 +5,9 @@ settings and budgets and a greedy evaluation after every training episode.
 Per scenario and learner, over seeds 0-2 (median [min-max]): episodes to the criterion, the
 training episodes until the first of 3 greedy evaluations in a row that meet the success
 criterion (issue 41's measure: stealth_experiments.benchmark_learning; each run stops there),
-the training episodes that ended DETECTED before it, the environment steps and the training
-wall time; a learner whose median seed never met it in its budget is reported as such. Then
+the training episodes that ended DETECTED before it, the environment steps and the wall time
+(its greedy evaluations included); a learner whose median seed never met it in its budget is
+reported as such. Then
 prioritized sweeping's episodes relative to Q-learning's (target <= 0.1x) and Dyna-Q's (target
 <= 0.5x), and light-model's against prioritized sweeping's (issue 41's targets: on the static
 scenarios episodes <= 5 and detections <= 0.25x, on the moving ones episodes <= 0.2x). SARSA is
@@ -123,8 +124,8 @@ def run(report=print, scenarios=SCENARIOS, learners=LEARNERS, jobs: int | None =
     report(
         f'episodes to the criterion: training episodes until the first of {STREAK} greedy '
         f'evaluations in a row that meet it ({DEFAULT_CRITERION.describe()}), a greedy evaluation '
-        f'after every episode; detections, steps and training seconds before it; {len(SEEDS)} '
-        'seeds, median [min-max]:'
+        'after every episode; detections, steps and seconds (evaluations included) before it; '
+        f'{len(SEEDS)} seeds, median [min-max]:'
     )
     if MODEL not in learners:
         report(f'  ({MODEL} is not a registered learner here: benched once it is)')

@@ -93,7 +93,7 @@ def parser() -> argparse.ArgumentParser:
         f'--learning-seeds seeds (from --seed on) for its budget, a greedy evaluation after '
         f'every episode; per scenario goal the median over the seeds of the episodes to the '
         f'criterion (until the first of {STREAK} evaluations in a row that meet the success '
-        'criterion), the detections, environment steps and training seconds before it '
+        'criterion), the detections, environment steps and wall time before it '
         '(results.csv, summary.md, learning.csv per seed), and learning.png, the cumulative '
         'training detections against episodes per method, median over the seeds and min-max '
         'band (the regret curve). The generalist needs the learning extra (make learn): a '

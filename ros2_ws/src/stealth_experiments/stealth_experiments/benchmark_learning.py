@@ -7,8 +7,8 @@ episode, on LEARNING_SEEDS seeds (``seed``, ``seed + 1``, ...). Per seed
 (``harness.LearningCost``): **episodes to the criterion**, the training episodes until the first
 of ``harness.STREAK`` (3) greedy evaluations in a row that meet it (issue 41's measure, not
 ``harness.settled``'s); the **detections** before it (training episodes that ended DETECTED, up
-to and including that one), the environment **steps** and the training **wall time** (the
-greedy evaluations not counted). A row gives each as the median over its seeds (``median_of``:
+to and including that one), the environment **steps** and the **wall time** (the greedy
+evaluations up to it included). A row gives each as the median over its seeds (``median_of``:
 a seed that never met the criterion in its budget counts as more than any, so the median is
 none when most seeds never met it) and how many seeds met it. The regret curve, the field's
 (Qi, Bindel and Vladimirsky report observed captures per episode): the cumulative count of

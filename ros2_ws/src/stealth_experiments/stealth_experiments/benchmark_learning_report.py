@@ -4,7 +4,7 @@
 Per method, over the scenario goals its learning rows ran on: on how many the median seed met
 the criterion, and the median over them of each row's median (a row whose median seed never
 met it counting as more than any, as ``benchmark_learning.median_of``) of the episodes to the
-criterion, the detections, steps and training seconds before it, and the detections over the
+criterion, the detections, steps and seconds before it, and the detections over the
 whole budget.
 """
 
@@ -80,7 +80,7 @@ def learning_lines(rows: list[dict]) -> list[str]:
         f'episodes to criterion: training episodes until the first of {STREAK} greedy '
         f'evaluations in a row that met the success criterion ({DEFAULT_CRITERION.describe()}), '
         'a greedy evaluation after every episode; detections (training episodes that ended '
-        'DETECTED), environment steps and training seconds (evaluations not counted) up to it. '
+        'DETECTED), environment steps and wall time (its greedy evaluations included) up to it. '
         f'Each row the median over its {"/".join(str(n) for n in sorted(seeds)) or "-"} seeds, '
         'each figure here the median over the scenario goals (a row whose median seed never met '
         "the criterion counts as more than any; '-': most never did). Per seed: learning.csv; "

@@ -18,8 +18,8 @@ issue 41's measure, the bench's and the benchmark's learning track) is the first
 the first STREAK consecutive evaluations that meet it: it asks less than settling (a later
 failure does not undo it) but more than one lucky evaluation. What learning cost until then
 (``LearningCost``): the training episodes that ended DETECTED, the environment steps and the
-training wall time (the greedy evaluations not counted: they are the measurement's, as many as
-``eval_every`` asks for).
+wall time until the evaluation after it (the greedy evaluations included: a learner may do its
+planning when it acts greedily, light-model and prioritized sweeping's known way do).
 """
 
 from __future__ import annotations
@@ -270,7 +270,7 @@ def grid_specs(
 class LearningCost:
     """What learning cost a run until it met the criterion STREAK times in a row (None fields
     when it never did in its budget): training episodes, the detections among them, their
-    environment steps and their wall time (s, greedy evaluations not counted)."""
+    environment steps and their wall time (s, with the greedy evaluations after them)."""
 
     episodes: int | None
     detections: int | None
@@ -297,7 +297,8 @@ class RunResult:
     eval_met: np.ndarray | None = None  # (evaluations,) bool: each met the criterion
     optimum_scores: PathScores | None = None  # value iteration's path (no slip)
     train_steps: np.ndarray | None = None  # (episodes,) environment steps of each
-    train_seconds: np.ndarray | None = None  # (episodes,) training wall time of each
+    # (episodes,) wall time of each, with the greedy evaluation after it (if any)
+    train_seconds: np.ndarray | None = None
 
     @property
     def episodes_to_within(self) -> int | None:
@@ -425,7 +426,6 @@ def run(spec: RunSpec) -> RunResult:
     for episode in range(spec.episodes):
         began = time.perf_counter()
         result, info = play_episode(env, agent, seed=spec.seed if episode == 0 else None)
-        episode_seconds.append(time.perf_counter() - began)
         returns.append(result.reward)
         outcomes.append(EpisodeOutcome[info['outcome']])
         episode_steps.append(result.actions)
@@ -436,8 +436,9 @@ def run(spec: RunSpec) -> RunResult:
             scores = mean_scores([PathScores.of_summary(t) for t in tries])
             eval_met.append(meets_criterion(scores, reference, criterion))
             final = tries[0]
-            if spec.stop_at_streak and first_streak(eval_at, eval_met) is not None:
-                break
+        episode_seconds.append(time.perf_counter() - began)
+        if spec.stop_at_streak and eval_met and first_streak(eval_at, eval_met) is not None:
+            break
     if spec.policy_dir:
         save_policy(
             policy_path(spec),
