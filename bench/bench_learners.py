@@ -137,11 +137,21 @@ def run(report=print, scenarios=SCENARIOS, learners=LEARNERS, jobs: int | None =
             mine = [r for r in records if r['scenario'] == scenario and r['learner'] == learner]
             medians[learner] = {key: median_of(r[key] for r in mine) for key in FIGURES}
             final = float(np.median([r['return_per_optimum'] for r in mine]))
+            if medians[learner][FIGURES[0]] is None:
+                met = sum(r[FIGURES[0]] is not None for r in mine)
+                shown = (
+                    f'never on most seeds ({met}/{len(mine)} met the criterion in its budget '
+                    f'{mine[0]["budget"]})'
+                )
+            else:
+                shown = (
+                    f'episodes {spread(mine, FIGURES[0])} (budget {mine[0]["budget"]}), '
+                    f'detections {spread(mine, FIGURES[1])}, steps {spread(mine, FIGURES[2])}, '
+                    f'{spread(mine, FIGURES[3], 2)} s'
+                )
             report(
-                f'  {scenario:20s} {learner:11s}: episodes {spread(mine, FIGURES[0])} (budget '
-                f'{mine[0]["budget"]}), detections {spread(mine, FIGURES[1])}, steps '
-                f'{spread(mine, FIGURES[2])}, {spread(mine, FIGURES[3], 2)} s; last greedy '
-                f'return / optimum {final:.3f}'
+                f'  {scenario:20s} {learner:11s}: {shown}; last greedy return / optimum '
+                f'{final:.3f}'
             )
             key = f'learners_{scenario}_{learner}'
             for name in FIGURES:
