@@ -83,7 +83,7 @@ def learning_lines(rows: list[dict]) -> list[str]:
         'DETECTED), environment steps and wall time (its greedy evaluations included) up to it. '
         f'Each row the median over its {"/".join(str(n) for n in sorted(seeds)) or "-"} seeds, '
         'each figure here the median over the scenario goals (a row whose median seed never met '
-        "the criterion counts as more than any; '-': most never did). Per seed: learning.csv; "
+        'the criterion counts as more than any; never: most never did). Per seed: learning.csv; '
         'cumulative detections against episodes: learning.png.',
         '',
     ]
@@ -130,6 +130,14 @@ def band(curves: list[list[int]]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.median(stacked, axis=0), stacked.min(axis=0), stacked.max(axis=0)
 
 
+def learner_colours(methods) -> dict[str, str]:
+    """Each learner's colour (palette.LEARNERS), one of the path colours no learner has for a
+    learner without one (light-model, a new learner)."""
+    free = [c for c in palette.PATHS if c not in palette.LEARNERS.values()] or list(palette.PATHS)
+    others = [m for m in methods if m not in palette.LEARNERS]
+    return {m: palette.LEARNERS.get(m) or free[others.index(m) % len(free)] for m in methods}
+
+
 def write_learning_plot(path: Path, rows: list[dict]) -> Path | None:
     """learning.png: per scenario goal (the first MAX_PANELS), per method, the cumulative
     training detections against episodes, the median over seeds as a line and the min-max as a
@@ -145,10 +153,7 @@ def write_learning_plot(path: Path, rows: list[dict]) -> Path | None:
         figsize=(max(5.5, 4.6 * columns), 3.4 * lines + 0.6), dpi=100, layout='constrained'
     )
     methods = list(dict.fromkeys(r['method'] for r in ran))
-    colours = {
-        m: palette.LEARNERS.get(m, palette.PATHS[k % len(palette.PATHS)])
-        for k, m in enumerate(methods)
-    }
+    colours = learner_colours(methods)
     for k, (scenario, goal) in enumerate(shown):
         ax = figure.add_subplot(lines, columns, k + 1)
         for row in (r for r in ran if (r['scenario'], r['goal']) == (scenario, goal)):

@@ -7,7 +7,11 @@ import numpy as np
 import pytest
 from stealth_experiments import benchmark
 from stealth_experiments.benchmark_learning import median_of, summarise_seeds
-from stealth_experiments.benchmark_learning_report import band, summarise_learning
+from stealth_experiments.benchmark_learning_report import (
+    band,
+    learner_colours,
+    summarise_learning,
+)
 from stealth_experiments.benchmark_methods import LEARNERS, METHODS
 
 
@@ -117,3 +121,8 @@ def test_the_summary_of_a_method_counts_the_rows_its_median_seed_met_the_criteri
     (entry,) = summarise_learning([row(4), row(None), row(10), row(None, 'failed')])
     assert (entry['rows'], entry['ran'], entry['met']) == (4, 3, 2)
     assert entry['episodes_to_criterion'] == 10 and entry['training_detections'] == 3
+
+
+def test_every_learner_on_the_plot_has_its_own_colour():
+    colours = learner_colours([*LEARNERS, 'another-learner'])
+    assert len(set(colours.values())) == len(colours)
