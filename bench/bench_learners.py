@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import sys
 
 import numpy as np
 from stealth_agent.learners import LEARNER_NAMES
@@ -64,24 +65,36 @@ def moving(scenario: str) -> bool:
     return scenario in MOVING or scenario.endswith('-moving')
 
 
-def measure(scenarios, learners, seeds=SEEDS, jobs: int | None = None) -> list[dict]:
+def measure(
+    scenarios, learners, seeds=SEEDS, jobs: int | None = None, progress=None
+) -> list[dict]:
     """Every scenario x learner x seed: benchmark_learning.seed_case's records, on the sweep
-    engine's local Ray (or one after another with jobs 1)."""
+    engine's local Ray (or one after another with jobs 1); ``progress(line)``, if given, gets a
+    line as each run ends."""
     trials = [
         {'id': f'{scenario}-{learner}-seed{seed}', 'scenario': scenario, 'learner': learner,
          'seed': seed, 'episodes': None}
         for scenario in scenarios for learner in learners for seed in seeds
     ]  # fmt: skip
     jobs = jobs or min(os.cpu_count() or 1, 2)
-    if jobs <= 1:
-        return [record for trial in trials for record in seed_case(trial)]
-    from stealth_experiments.sweep_engine import Engine
-
     found: dict[str, dict] = {}
 
     def keep(records: list[dict]) -> None:
         for record in records:
             found[record['trial']] = record
+            if progress is not None:
+                reached = record.get('episodes_to_criterion')
+                progress(
+                    f'bench_learners: {len(found)}/{len(trials)} {record["trial"]}: '
+                    + ('not met' if reached is None else f'{reached} episodes')
+                    + f' ({record.get("episodes", "-")} trained)'
+                )
+
+    if jobs <= 1:
+        for trial in trials:
+            keep(seed_case(trial))
+        return [found[t['id']] for t in trials]
+    from stealth_experiments.sweep_engine import Engine
 
     with Engine(None, jobs, say=lambda line: None) as engine:
         engine.run_fixed(trials, keep, progress=False, runner=seed_case, label='bench')
@@ -119,8 +132,10 @@ def ratio_line(mine, theirs, budget: int, target: float, what: str) -> tuple[str
     return f'{shown} {what}{note} (target <= {target}x: {"met" if ok else "missed"})', ok, ratio
 
 
-def run(report=print, scenarios=SCENARIOS, learners=LEARNERS, jobs: int | None = None) -> dict:
-    records = measure(scenarios, learners, SEEDS, jobs)
+def run(
+    report=print, scenarios=SCENARIOS, learners=LEARNERS, jobs: int | None = None, progress=None
+) -> dict:
+    records = measure(scenarios, learners, SEEDS, jobs, progress)
     report(
         f'episodes to the criterion: training episodes until the first of {STREAK} greedy '
         f'evaluations in a row that meet it ({DEFAULT_CRITERION.describe()}), a greedy evaluation '
@@ -246,7 +261,13 @@ def main(argv=None) -> None:
         MOVING if args.moving else STATIC + MOVING if args.all else STATIC
     )
     learners = tuple(name for name in LEARNERS if name in args.learners)
-    run(scenarios=scenarios, learners=learners, jobs=max(1, args.jobs))
+    run(
+        report=lambda line: print(line, flush=True),
+        scenarios=scenarios,
+        learners=learners,
+        jobs=max(1, args.jobs),
+        progress=lambda line: print(line, file=sys.stderr, flush=True),
+    )
 
 
 if __name__ == '__main__':
