@@ -253,7 +253,8 @@ def test_the_foxglove_layout_is_whole_and_shows_the_topics_of_a_run():
     shown = panels(layout['layout'])
     assert sorted(shown) == sorted(layout['configById'])
     assert {name.split('!')[0] for name in shown} == {'3D', 'Plot', 'RosOut'}
-    run_topics = set(TOPICS) | {'/visibility_grid', '/planned_path'}
+    light_model = {'/agent/light_belief', '/agent/light_belief_uncertain'}  # its runs' belief
+    run_topics = set(TOPICS) | {'/visibility_grid', '/planned_path'} | light_model
     (scene,) = (c for n, c in layout['configById'].items() if n.startswith('3D!'))
     assert set(scene['topics']) <= run_topics
     assert {'/map', '/scan', '/amcl_pose', '/searchlight_markers', '/visibility_grid',

@@ -8,9 +8,11 @@ endings (EpisodeEndMatcher pairs the two, SummaryWait paces the wait, on the wal
 the environment's leaving ends it, so the load of the machine never changes what is learned).
 A restarted environment (its description again, or its states' DDS sequence numbers starting
 again) drops the episode in progress. Each finished episode is reported, logged (progress) and,
-every save_every, saved. A policy plugin's core (``grid_agent``) also needs the environment's
-GridObservation: a state that comes before it (on the sensed track: before the grid it matches)
-is held, and answered when it arrives.
+every save_every, saved; the learner's notes (the light model's contradictions) are logged once
+each, and after a learning episode the node shows the learner (the light model's belief). A
+policy plugin's core (``grid_agent``) also needs the environment's GridObservation: a state
+that comes before it (on the sensed track: before the grid it matches) is held, and answered
+when it arrives.
 
 The node passes itself in as the Ports (its parameters, logger, publishers, the summary timer
 that calls check_summary_wait, and whether an environment publishes summaries), so all of
@@ -77,6 +79,8 @@ class Ports(Protocol):
 
     def accept_states(self) -> None: ...  # subscribe to the states, if not yet (a plugin's)
 
+    def show_learner(self, learner) -> None: ...  # after it changed: what a viewer may watch
+
 
 class AgentLoop:
     """rl_agent's message handling over the plain-Python core; see the module docstring."""
@@ -97,6 +101,7 @@ class AgentLoop:
         self._state_writers = StateWriters()
         self._endings = EpisodeEndMatcher()
         self._summary_wait = SummaryWait(ports.param('summary_wait'))
+        self._notes_told: set[str] = set()  # the learner's notes logged so far
 
     @property
     def learning_run(self) -> bool:
@@ -179,6 +184,7 @@ class AgentLoop:
         self.core = setup.core
         self._setup_error = ''
         log.info(setup.summary)
+        self._ports.show_learner(self.core.learner)
 
     # --- states ------------------------------------------------------------------------------
 
@@ -340,9 +346,25 @@ class AgentLoop:
         )
         if line is not None:
             log.info(line)
+        self._report_notes(learner)
+        if result.learning:
+            self._ports.show_learner(learner)
         save_every = self._ports.param('save_every')
         if save_every and self.learning_run and self.core.episode % save_every == 0:
             self.save(f'every {save_every} episodes')
+
+    def _report_notes(self, learner) -> None:
+        """The learner's notes (the light model's contradictions: steps its belief cannot
+        explain) as warnings, each line once per run, then cleared."""
+        notes = getattr(learner, 'notes', None)
+        if not notes:
+            return
+        log = self._ports.get_logger()
+        for note in notes:
+            if note not in self._notes_told:
+                self._notes_told.add(note)
+                log.warning(f'{learner.name}: {note}')
+        notes.clear()
 
     def on_summary(self, msg) -> None:
         """An EpisodeSummary."""

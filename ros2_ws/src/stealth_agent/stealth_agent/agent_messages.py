@@ -2,18 +2,22 @@
 
 What the agent reads (RLEnvDescription; GridObservation for a policy plugin; EpisodeSummary's
 outcome codes; the DDS sequence numbers of the states) and what it publishes at the end of an
-episode (RLExperimentInfo, AgentEpisodeInfo), so that the node only moves messages.
+episode (RLExperimentInfo, AgentEpisodeInfo) and the light model's belief (OccupancyGrid), so
+that the node only moves messages.
 """
 
 import dataclasses
 
+from nav_msgs.msg import OccupancyGrid
 import numpy as np
+from stealth_core.light_belief_map import BeliefGrid
 from stealth_interfaces.msg import (
     AgentEpisodeInfo,
     EpisodeSummary,
     RLEnvDescription,
     RLExperimentInfo,
 )
+from stealth_node_kit.conversions import grid_msg
 
 from .grid_agent import ObservedGrid
 from .learners import TabularLearner
@@ -161,3 +165,12 @@ class StateWriters:
             return False
         last, self.last = self.last, sequence
         return last is not None and sequence <= last
+
+
+def belief_msgs(grid: BeliefGrid, t: float) -> tuple[OccupancyGrid, OccupancyGrid]:
+    """The light model's belief as (most likely field, uncertain places), stamped t (s), on the
+    map frame's grid of ``grid`` (``stealth_core.light_belief_map``)."""
+    return tuple(
+        grid_msg(levels, grid.resolution, grid.origin, t)
+        for levels in (grid.likely, grid.uncertain)
+    )

@@ -19,7 +19,13 @@ Names and QoS from ``stealth_node_kit.rl_contract``; every type is stealth_inter
   transient local), when the environment publishes it (stealth_env does): see Episode endings;
 * publishes ``rl_agent/rl_action`` (RLAction) after every non-terminal state, and
   ``rl_agent/rl_experiment_info`` (RLExperimentInfo) and ``rl_agent/episode_info``
-  (AgentEpisodeInfo: greedy or not, epsilon, alpha; transient local) at every terminal state.
+  (AgentEpisodeInfo: greedy or not, epsilon, alpha; transient local) at every terminal state;
+* publishes, with ``agent: light-model``, its belief of the lights as two
+  nav_msgs/OccupancyGrid in the ``map`` frame (reliable, transient local, depth 1):
+  ``~/light_belief`` (the most likely light field, 100 = the detection threshold) and
+  ``~/light_belief_uncertain`` (how evenly the hypotheses split on a cell being lit, 0 = all
+  agree, 100 = an even split), -1 on walls (``stealth_core.light_belief_map``); built once
+  the model is attached and after every learning episode, only while someone subscribes.
 
 ## Services
 
@@ -71,9 +77,11 @@ skipped; the node stays up and the table is never touched by a rejected message.
 from collections import deque
 import time
 
+from nav_msgs.msg import OccupancyGrid
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
+from stealth_core.light_belief_map import BeliefMapper
 from stealth_interfaces.msg import (
     AgentEpisodeInfo,
     EpisodeSummary,
@@ -95,17 +103,22 @@ from stealth_node_kit.parameters import StartupError, declare_parameters, non_fi
 from stealth_node_kit.running import StartupNode, run_node
 
 from .agent_loop import AgentLoop
+from .agent_messages import belief_msgs
 from .agent_parameters import (
     LIVE_LEARNER_PARAMETERS,
     PARAMETERS,
     change_problem,
+    is_light_model,
     learner_config,
     learns,
     startup_problem,
 )
+from .light_model import LightModelLearner
 from .policy_plugins import is_plugin
 from .progress import totals_line
 
+BELIEF_TOPIC = '~/light_belief'  # the light model's most likely light field
+UNCERTAIN_TOPIC = '~/light_belief_uncertain'  # and where its hypotheses disagree
 DECISIONS_KEPT = 100_000  # the latest decision times the totals line summarises
 # s of wall time between checks, while a terminal state waits for its summary, that the
 # environment is still there (only its leaving ends the wait; see SummaryWait).
@@ -129,6 +142,7 @@ class AgentNode(StartupNode):
         self._declared = False
         self._summary_sub = None
         self._summary_unmatched_told = False
+        self._beliefs_shown = 0
         self._decisions = deque(maxlen=DECISIONS_KEPT)  # s from a state's callback to its action
         self._decisions_cpu = deque(maxlen=DECISIONS_KEPT)  # the thread's CPU s of the same
         self._clock_messages = OnDemand()
@@ -164,6 +178,14 @@ class AgentNode(StartupNode):
             rl_contract.AGENT_EPISODE_INFO_QOS,
             event_callbacks=QUIET_PUBLISHER,
         )
+        self._belief_pubs = ()
+        self._belief_mapper: BeliefMapper | None = None
+        if is_light_model(self.param('agent')):
+            self._belief_pubs = tuple(
+                self.create_publisher(OccupancyGrid, topic, rl_contract.DESCRIPTION_QOS,
+                                      event_callbacks=QUIET_PUBLISHER)
+                for topic in (BELIEF_TOPIC, UNCERTAIN_TOPIC)
+            )  # fmt: skip
         self.create_subscription(
             RLEnvDescription,
             rl_contract.ENV_DESCRIPTION,
@@ -251,6 +273,29 @@ class AgentNode(StartupNode):
                 rl_contract.LOCKSTEP_QOS,
                 event_callbacks=warn_subscription(self.get_logger, INCOMPATIBLE_QOS),
             )
+
+    def show_learner(self, learner) -> None:
+        """The light model's belief on its two grids, while someone subscribes to either."""
+        if not isinstance(learner, LightModelLearner) or learner.belief is None:
+            return
+        if not any(pub.get_subscription_count() for pub in self._belief_pubs):
+            return
+        started = time.perf_counter()
+        if self._belief_mapper is None or self._belief_mapper.world is not learner.world:
+            self._belief_mapper = BeliefMapper(learner.world)
+        arrays = learner.belief_arrays()
+        grid = self._belief_mapper.grid(arrays['lights'], arrays['weights'])
+        self._clock_messages.drain()  # the latest /clock, under use_sim_time
+        now = self.get_clock().now().nanoseconds * 1e-9
+        for pub, message in zip(self._belief_pubs, belief_msgs(grid, now), strict=True):
+            pub.publish(message)
+        seconds = time.perf_counter() - started
+        self._beliefs_shown += 1
+        (self.get_logger().info if self._beliefs_shown == 1 else self.get_logger().debug)(
+            f'light belief published ({grid.width} x {grid.height} cells of '
+            f'{grid.resolution:g} m, {len(arrays["weights"])} hypotheses) in '
+            f'{seconds * 1e3:.1f} ms'
+        )
 
     def send_action(self, action: int) -> None:
         self._action_pub.publish(RLAction(action=action))

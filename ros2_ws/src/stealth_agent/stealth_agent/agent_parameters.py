@@ -15,8 +15,9 @@ from .schedules import SCHEDULE_KINDS, Schedule
 PARAMETERS = {
     'agent': Param(
         'qlearning',
-        'Learner: qlearning (rl_agent qlearner), sarsa, dyna or prioritized (prioritized '
-        'sweeping; also spelled prioritized_sweeping); or a policy plugin (policy_plugins: '
+        'Learner: qlearning (rl_agent qlearner), sarsa, dyna, prioritized (prioritized '
+        'sweeping; also spelled prioritized_sweeping) or light-model (infers the lights; needs '
+        'world_file); or a policy plugin (policy_plugins: '
         'generalist, from stealth_learn), greedy and not learning, its weights policy_file '
         "('' = the ones it ships), its input the environment's rl_env/observation.",
         read_only=True,
@@ -86,6 +87,13 @@ PARAMETERS = {
         '',
         "Policy file (.npz) to save to and load from; empty = none (a policy plugin's: its "
         'shipped weights).',
+        read_only=True,
+    ),
+    'world_file': Param(
+        '',
+        'light-model: the scenario as the agent may know it, every light removed (a scenario '
+        'YAML with lights: [] and the goal as default_goal; stealth train writes '
+        'runs/<name>/world.yaml); required to learn with light-model, unused otherwise.',
         read_only=True,
     ),
     'grid_sha256': Param(
@@ -228,7 +236,21 @@ def startup_problem(values: Mapping) -> str | None:
         learner_config(values)
     except ValueError as error:
         return str(error)
+    if learns(values) and is_light_model(values['agent']) and not values['world_file']:
+        return (
+            'agent light-model learns on the floor plan it is given: world_file is empty '
+            '(stealth train --learner light-model writes runs/<name>/world.yaml; else --set '
+            'agent.world_file=PATH, a scenario YAML with lights: [])'
+        )
     return None
+
+
+def is_light_model(name) -> bool:
+    """Whether the agent parameter names the light model (any spelling)."""
+    try:
+        return canonical_learner_name(name) == 'light-model'
+    except ValueError:
+        return False
 
 
 def learns(values: Mapping) -> bool:

@@ -5,7 +5,9 @@ the environment, or a policy plugin's policy (``agent: generalist``: ``policy_pl
 no table); the seeded random generator (a resumed learning run continues the file's
 random stream); and the log line saying what was built, so that a run's log tells how it
 started. An unusable policy file leaves the agent without a core: it must not act, nor
-overwrite the file.
+overwrite the file. The light model (``light-model``) learning is attached to the world of its
+``world_file`` (the scenario without its lights, ``stealth_core.world_file``), checked to be the
+environment's lattice; any problem with it leaves the agent without a core too.
 """
 
 from collections.abc import Mapping
@@ -13,14 +15,17 @@ from dataclasses import dataclass
 import pathlib
 
 import numpy as np
+from stealth_core.light_world import UnmodelledLawError
+from stealth_core.world_file import WorldFileError, load_world
 
 from .agent_parameters import learner_config
 from .grid_agent import GridPolicyAgent
 from .learners import canonical_learner_name, make_learner
+from .light_model import LightModelError, LightModelLearner
 from .policy_plugins import PluginError, is_plugin
 from .policy_plugins import load_policy as load_plugin_policy
 from .policy_store import PolicyFileError, check_compatible, load_policy
-from .protocol import EnvDescription, ProtocolAgent
+from .protocol import EnvDescription, ProtocolAgent, parse_description
 from .state_index import StateIndex, mapping_from_description
 
 
@@ -80,11 +85,18 @@ def set_up_agent(description: EnvDescription, values: Mapping) -> AgentSetup:
     else:
         learner = make_learner(learner_name, description.num_actions, learner_config(values))
         index = StateIndex(mapping)
+    if isinstance(learner, LightModelLearner) and not evaluate:
+        problem = attach_world(learner, index, rng, values['world_file'], description)
+        if problem is not None:
+            return AgentSetup(None, tuple(warnings), error=problem)
+        source += f'; the world of {values["world_file"]} (no lights)'
     core = ProtocolAgent(learner, index, rng, learning=not evaluate)
     core.episode = values['first_episode']
     config = learner.config
     if evaluate:
         settings = f'greedy, ties broken with seed {seed}'
+    elif isinstance(learner, LightModelLearner):  # it plans: no alpha, epsilon, n
+        settings = f'gamma {config.gamma}, planning rule {learner.rule}, seed {seed}'
     else:
         settings = (
             f'gamma {config.gamma}, alpha {learner.alpha} ({config.alpha.kind}), '
@@ -100,6 +112,40 @@ def set_up_agent(description: EnvDescription, values: Mapping) -> AgentSetup:
         f'from {source}; ' + ('evaluating (no learning)' if evaluate else 'learning')
     )
     return AgentSetup(core, tuple(warnings), summary=summary)
+
+
+def attach_world(learner: LightModelLearner, index, rng, path: str, description) -> str | None:
+    """Attach the light model to the world of the file at ``path`` (the scenario without its
+    lights): None, or the one line saying why it cannot be (unreadable, lights in it, a law it
+    does not model, another lattice than the environment's)."""
+    try:
+        world = load_world(path)
+    except (WorldFileError, UnmodelledLawError) as error:
+        return str(error)
+    problem = world_mismatch(world, description)
+    if problem is not None:
+        return f'world_file {path}: {problem}'
+    try:
+        learner.attach(world, index, rng)
+    except LightModelError as error:
+        return f'world_file {path}: {error}'
+    return None
+
+
+def world_mismatch(world, description: EnvDescription) -> str | None:
+    """What makes the world's lattice another environment than the one described (title,
+    actions, states, state ranges), or None."""
+    expected = parse_description(**world.task.description(False))
+    for name in ('title', 'num_actions', 'num_states'):
+        mine, theirs = getattr(expected, name), getattr(description, name)
+        if mine != theirs:
+            return f'its {name} is {mine!r}, the environment says {theirs!r}'
+    for name in ('min_state_range', 'max_state_range'):
+        mine, theirs = getattr(expected, name), getattr(description, name)
+        # RLEnvDescription carries float32: equal to that precision
+        if len(mine) != len(theirs) or not np.allclose(mine, theirs, rtol=1e-6, atol=1e-5):
+            return f'its {name} is {list(mine)}, the environment says {list(theirs)}'
+    return None
 
 
 def _plugin_agent(description: EnvDescription, values: Mapping, index, warnings) -> AgentSetup:

@@ -32,6 +32,7 @@ class FakeNode:
         self.summary_publisher = False
         self.timer_running = False
         self.accepting_states = False
+        self.shown: list[int] = []  # the learner's episodes each time it was shown
 
     def param(self, name):
         return self.params[name]
@@ -73,6 +74,9 @@ class FakeNode:
 
     def accept_states(self):
         self.accepting_states = True
+
+    def show_learner(self, learner):
+        self.shown.append(learner.episodes)
 
     def told(self, level, part):
         return [text for lvl, text in self.logs if lvl == level and part in text]
@@ -311,3 +315,28 @@ def test_state_features_keys_the_table_on_the_leading_features():
         assert len(node.actions) == step + 1
     loop.on_state(sensed_state(1.0, 0.2, 10.0, terminal=True), None)
     assert len(loop.core.index) == 1 and not node.told('error', '')
+
+
+def test_the_learners_notes_are_warned_once_each_then_cleared():
+    node, loop = started()
+    assert node.shown == [0]  # shown once set up
+    learner = loop.core.learner
+    learner.notes = ['step from (1.00, 2.00) direction 0: light 0.100, the best says 0.500']
+    run_episode(loop)
+    learner.notes.extend(['step from (1.00, 2.00) direction 0: light 0.100, the best says '
+                          '0.500', 'another contradiction'])  # fmt: skip
+    run_episode(loop)
+    warned = node.told('warning', 'qlearning: ')
+    assert warned == [
+        'qlearning: step from (1.00, 2.00) direction 0: light 0.100, the best says 0.500',
+        'qlearning: another contradiction',
+    ]
+    assert learner.notes == []
+    assert node.shown == [0, 1, 2]  # after each learning episode
+
+
+def test_a_greedy_evaluation_does_not_show_the_learner_again():
+    node, loop = started(eval_every=2)
+    run_episode(loop)
+    run_episode(loop)  # episode 1: greedy
+    assert node.shown == [0, 1]

@@ -276,6 +276,14 @@ def train_parser() -> argparse.ArgumentParser:
         'floor_plan where a new table of prioritized sweeping (the default learner) can take '
         'it, none otherwise (--resume, another learner, a plugin, the sensed track)',
     )
+    parser.add_argument(
+        '--learner',
+        metavar='NAME',
+        help="the agent's learner: qlearning, sarsa, dyna, prioritized or light-model (infers "
+        'the searchlights from its rewards; static lights, threshold detection; the agent is '
+        "given the scenario without its lights, RUN/world.yaml) (default: agent.yaml's, "
+        "prioritized; with --resume the run's)",
+    )
     _common_options(parser)
     return parser
 

@@ -16,10 +16,8 @@ from pathlib import Path
 import shlex
 import shutil
 
-from stealth_agent.agent_parameters import PARAMETERS as AGENT_PARAMETERS
-from stealth_agent.learners import OPTIMISTIC, canonical_learner_name
-from stealth_agent.policy_plugins import is_plugin
 from stealth_core.path_scores import DEFAULT_CRITERION, OPTIMUM_GAMMA, Criterion
+from stealth_core.world_file import WORLD_FILE, write_world_file
 from stealth_tools.bag_files import next_recording_file
 
 from stealth_bringup.episode_budget import STATE_ACTIONS_PER_EPISODE, default_episode_budget
@@ -53,6 +51,14 @@ from stealth_bringup.run_config import (
     scenario_parameters,
     utc_stamp,
     write_params_file,
+)
+from stealth_bringup.run_learner import (
+    agent_value,
+    asked_learner,
+    check_modelled_scenario,
+    exploration_notes,
+    run_prior,
+    table_learner,
 )
 from stealth_bringup.run_resume import (
     Continuation,
@@ -233,7 +239,7 @@ class RunPlan:
                 f', stopping after {self.streak} greedy evaluations in a row meet the success '
                 f'criterion ({self.criterion.short()})'
             )
-        return f'{self.title}, learner {_agent_value(self.parameters, "agent")}; {ending}'
+        return f'{self.title}, learner {agent_value(self.parameters, "agent")}; {ending}'
 
     def file(self, name: str) -> Path:
         return self.directory / name
@@ -260,63 +266,6 @@ def step_readers(record: bool) -> int:
     checking parameters while the first episodes ran) left those steps unscored: a run without
     a recording then missed the criterion for its first 16 episodes."""
     return 1 + bool(record)
-
-
-def run_prior(requested: str | None, continued, parameters: dict) -> str:
-    """The prior a training run's table starts from: the one asked for (RunConfigError where it
-    cannot apply), else floor_plan where a new table of a learner that explores by optimism
-    takes it, as in the harness, and none otherwise."""
-    if requested is not None:
-        if requested != 'none':
-            _check_prior(continued, parameters)
-        return requested
-    if _table_learner(parameters) not in OPTIMISTIC:
-        return 'none'
-    try:
-        _check_prior(continued, parameters)
-    except RunConfigError:
-        return 'none'
-    return 'floor_plan'
-
-
-def _agent_value(parameters: dict, name: str):
-    """An agent node parameter as the node will run with it: its file's, else its default."""
-    return parameters['agent'].values.get(name, AGENT_PARAMETERS[name].default)
-
-
-def _table_learner(parameters: dict) -> str | None:
-    """The agent's learner (a LEARNER_NAMES name); None for a policy plugin or a name the agent
-    node will refuse itself."""
-    try:
-        return canonical_learner_name(_agent_value(parameters, 'agent'))
-    except ValueError:
-        return None
-
-
-def _exploration_notes(parameters: dict) -> list[str]:
-    """A note where a learner that does not explore by optimism runs with agent.yaml's
-    epsilon 0 (set for prioritized sweeping)."""
-    name = _table_learner(parameters)
-    if name is None or name in OPTIMISTIC or _agent_value(parameters, 'epsilon') != 0.0:
-        return []
-    return [
-        f'agent {name} with epsilon 0 tries only what its initial values make look better than '
-        'what it found (prioritized sweeping alone explores by optimism); --set '
-        'agent.epsilon=0.2 to explore at random'
-    ]
-
-
-def _check_prior(continued, parameters: dict) -> None:
-    """RunConfigError where --prior cannot apply: a resumed table, a plugin, the sensed track."""
-    learner = _agent_value(parameters, 'agent')
-    if continued is not None:
-        raise RunConfigError("--prior: not with --resume (the run's table goes on)")
-    if is_plugin(learner):
-        raise RunConfigError(f'--prior: agent {learner!r} keeps no table')
-    if parameters['environment'].values.get('track', 'full') != 'full':
-        raise RunConfigError(
-            '--prior: the full track only (on the sensed track the state holds what was sensed)'
-        )
 
 
 def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
@@ -363,6 +312,8 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
     run_values = {n: {} for n in nodes}
     for node, values in scenario_parameters(scenario, goal).items():
         run_values[node].update(values)
+    if mode == 'train' and args.learner is not None:
+        run_values['agent']['agent'] = asked_learner(args.learner, overrides)
     if args.seed is not None:
         for node in ('simulator', 'environment', 'agent'):
             run_values[node]['seed'] = args.seed
@@ -422,6 +373,11 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
             'eval_every': 0,
             **first,
         }
+    world_path = None
+    if mode == 'train' and table_learner(parameters) == 'light-model':
+        check_modelled_scenario(scenario)  # before anything exists
+        world_path = directory / WORLD_FILE
+        agent['world_file'] = str(world_path.resolve())
     parameters['agent'].values.update(agent)
     if 'recorder' in parameters:
         recording = next_recording_file(directory).resolve()
@@ -436,7 +392,7 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
             'optimum, which a discounting learner may not converge to where lights move'
         )
     if mode == 'train':
-        notes += _exploration_notes(parameters)
+        notes += exploration_notes(parameters)
     if mode != 'train':
         notes += source_notes
     if continued is not None and not policy_path.is_file():
@@ -445,8 +401,14 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
     prior = run_prior(args.prior, continued, parameters) if mode == 'train' else 'none'
     if continued is None:  # created last: a refused run leaves nothing
         create_run_directory(directory)
+    if world_path is not None:  # what the light model may know: the scenario without lights
+        with _removed_on_failure(directory, 'the world file', keep=continued is not None):
+            write_world_file(scenario, goal, world_path)
+        notes.append(
+            f'the agent knows {relative_to_cwd(world_path)}: the scenario without its lights'
+        )
     if prior == 'floor_plan':  # a new run's (run_prior refuses it with --resume)
-        with _removed_on_failure(directory):
+        with _removed_on_failure(directory, 'the prior'):
             states = write_prior_policy(policy_path, scenario, goal, parameters['agent'].values)
         parameters['agent'].values['load_policy'] = True
         notes.append(f"the agent's table starts from the floor plan ({states:,} states)")
@@ -494,15 +456,17 @@ def _check_parameters(args, parameters, params_dir) -> list[str]:
 
 
 @contextlib.contextmanager
-def _removed_on_failure(directory: Path):
+def _removed_on_failure(directory: Path, what: str, keep: bool = False):
     """A new run directory goes again when what fills it before the run fails (the prior's
-    table): the name stays free. RunConfigError for a file that cannot be written."""
+    table, the world file): the name stays free (``keep``: a resumed run's stays).
+    RunConfigError for a file that cannot be written."""
     try:
         yield
     except BaseException as error:
-        shutil.rmtree(directory, ignore_errors=True)
+        if not keep:
+            shutil.rmtree(directory, ignore_errors=True)
         if isinstance(error, OSError):
-            raise RunConfigError(f'{directory}: cannot write the prior: {error}') from None
+            raise RunConfigError(f'{directory}: cannot write {what}: {error}') from None
         raise
 
 

@@ -190,6 +190,9 @@ class RunReport:
                 animation = self._animate(plan, learned, label, optimum_points, optimum_label)
                 if animation is not None:
                     files['path_animation'] = animation
+        belief = self._belief_picture() if plan.mode == 'train' else None
+        if belief is not None:
+            files['light_belief'] = belief
         files.update(self._existing_files())
         self._nodes_incomplete()
         summary = self._summary(records, optimum, files)
@@ -202,6 +205,21 @@ class RunReport:
         else:
             written['summary'] = plan.file('summary.json')
         return written
+
+    def _belief_picture(self) -> Path | None:
+        """light_belief.png of a light-model run's saved belief (None for other learners)."""
+        from stealth_bringup.belief_picture import plot_light_belief
+
+        plan = self.plan
+        title = f'{plan.title}: what light-model believes'
+        try:
+            return self._fitting(plot_light_belief, plan.scenario, plan.goal, plan.policy_path,
+                                 plan.file('light_belief.png'), title)  # fmt: skip
+        except FileNotFoundError:  # no policy saved: nothing to draw
+            return None
+        except Exception as error:  # noqa: BLE001 - a picture must not cost the run its outputs
+            self.say(f'{self.prog}: could not draw light_belief.png: {error}')
+            return None
 
     def _write_summary(self, summary: dict) -> None:
         """The final summary.json. Replacing the one written as the run went needs room for
@@ -517,6 +535,7 @@ class RunReport:
             ('learning_curve', 'learning_curve.png', 'return per episode, outcomes, epsilon'),
             ('path', 'path.png', 'the learned path over the scenario, with the optimum'),
             ('path_animation', 'path.gif', 'the same as the lights move, step by step'),
+            ('light_belief', 'light_belief.png', "light-model's belief beside the true field"),
             ('params', 'params/', 'the parameter file each node ran with'),
             ('logs', 'logs/', "each node's log"),
         )

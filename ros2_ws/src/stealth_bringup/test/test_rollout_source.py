@@ -139,3 +139,35 @@ def test_a_refused_rollout_leaves_no_directory_in_the_run(tmp_path):
     with pytest.raises(RunConfigError, match='--set agent.log_every: expected a whole number'):
         make_plan(args, 'eval', ['stealth', 'rollout', *argv])
     assert sorted(run.iterdir()) == before
+
+
+def light_model_policy_for(path: Path, scenario_path: Path) -> Path:
+    """A light-model policy as its agent saves it: attached to the scenario without its lights,
+    one detected step of evidence, the true scenario's identity (the run's hashes)."""
+    import numpy as np
+    from stealth_agent.light_model import LightModelLearner
+    from stealth_core.light_world import LightWorld
+
+    scenario = load_scenario(scenario_path)
+    learner = LightModelLearner(4)
+    index = StateIndex()
+    learner.attach(LightWorld(scenario, 'easy'), index, np.random.default_rng(0))
+    learner.update(0, 0, -1010.0, None, True)  # a detection on the first step
+    learner.end_episode()
+    identity = {'title': StealthTask(scenario, 'easy').title, **content_identity(scenario)}
+    save_policy(path, learner, index, scenario=identity)
+    return path
+
+
+def test_a_light_model_policy_runs_only_on_its_own_scenario(tmp_path):
+    policy = light_model_policy_for(tmp_path / 'policy.npz', scenario_copy(tmp_path / 'a'))
+    assert rollout_plan(policy, scenario_copy(tmp_path / 'b'), tmp_path / 'runs').notes == []
+    moved = scenario_copy(tmp_path / 'c', MAZE.replace('x: 0.75, y: 8.0', 'x: 0.75, y: 8.5'))
+    with pytest.raises(RunConfigError, match='with different lights than'):
+        rollout_plan(policy, moved, tmp_path / 'runs2')
+    argv = ['--policy', str(policy), '--scenario', 'map1']
+    args = rollout_parser().parse_args([*argv, '--runs-dir', str(tmp_path / 'runs3')])
+    with pytest.raises(RunConfigError) as other:
+        make_plan(args, 'eval', ['stealth', 'rollout', *argv])
+    assert 'simple-maze' in str(other.value) and '\n' not in str(other.value)
+    assert not (tmp_path / 'runs2').exists() and not (tmp_path / 'runs3').exists()

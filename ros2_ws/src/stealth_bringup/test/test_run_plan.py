@@ -333,3 +333,44 @@ def test_a_prior_that_cannot_be_written_leaves_no_run_directory(tmp_path, monkey
     with pytest.raises(RunConfigError, match=r'cannot write the prior: .*No space left'):
         plan_of('--name', 'g', runs_dir=runs)
     assert not any(runs.iterdir())
+
+
+def test_light_model_is_given_the_scenario_without_its_lights(tmp_path):
+    from stealth_core.scenario import load_scenario
+    import yaml
+
+    plan = plan_of('--learner', 'light_model', '--scenario', 'simple-maze', runs_dir=tmp_path)
+    agent = plan.parameters['agent'].values
+    assert agent['agent'] == 'light-model'
+    world = Path(agent['world_file'])
+    assert world == (plan.directory / 'world.yaml').resolve() and world.is_file()
+    fields = yaml.safe_load(world.read_text())
+    assert fields['lights'] == [] and fields['default_goal'] == 'easy'
+    assert load_scenario(world).lights == ()
+    shown = yaml.safe_dump(agent)
+    for light in load_scenario('simple-maze').lights:  # no light reaches the agent's values
+        assert light.name not in shown and light.name not in world.read_text()
+    assert not any('light' in key and key != 'lights_sha256' for key in agent)
+    assert plan.parameters['agent'].values.get('load_policy') is False  # no prior table
+    assert not any('epsilon 0' in note for note in plan.notes)
+
+
+@pytest.mark.parametrize(
+    ('argv', 'message'),
+    [
+        (['--scenario', 'map1-moving'],
+         'map1-moving: phase_bins (lights that move with time) is not modelled by light-model'),
+        (['--prior', 'floor_plan'], '--prior: light-model plans on the floor plan itself'),
+        (['--set', 'agent.agent=dyna'], '--learner with --set agent.agent=...'),
+    ],
+)  # fmt: skip
+def test_what_light_model_cannot_do_is_one_line_before_anything_exists(argv, message, tmp_path):
+    with pytest.raises(RunConfigError) as error:
+        plan_of('--learner', 'light-model', *argv, runs_dir=tmp_path / 'runs')
+    assert str(error.value).startswith(message) and '\n' not in str(error.value)
+    assert not (tmp_path / 'runs').exists()
+
+
+def test_an_unknown_learner_is_one_line(tmp_path):
+    with pytest.raises(RunConfigError, match=r"^--learner: unknown learner 'ppo' \(expected"):
+        plan_of('--learner', 'ppo', runs_dir=tmp_path / 'runs')

@@ -7,7 +7,7 @@ such lights; it predicts every step's visibility exactly as the environment judg
 (``LatticeSamples``). The evidence is what the steps said (``StepEvidence``: a value read off the
 reward, or a bound from a detection or a goal). A hypothesis' energy is
 
-    E = 1/2 * sum_k min(z_k^2, Z_CAP^2) + light_cost * lights,
+    E = sum_k (sqrt(1 + z_k^2) - 1) + light_cost * lights,
 
 z_k the step's miss in units of its tolerance (``abs_tol + rel_tol * v``: the environment's
 rounding in-process, the pose noise through ROS), and the belief is ``particles`` hypotheses
@@ -31,13 +31,19 @@ import math
 
 import numpy as np
 
+from stealth_core import exposure
 from stealth_core.light_world import LightWorld, StepEvidence, light_from_parameters
 from stealth_core.visibility import _occluded, corner_maps
 
-Z_CAP = 10.0  # a step missed by more tolerances than this costs no more (robustness)
 CONTRADICTION_Z = 6.0
+ANNEAL_START = 30.0  # the search's first temperature, in units of energy
 _MIN_FOV = math.radians(5.0)
 _LAMP_STRIDE = 0.25  # m between the candidate lamp places of a birth
+# The pattern search's first steps: x, y (m), direction, fov (rad), log beta, range (m), and a
+# slide along the beam (m) that keeps the light at the reach of intensity 0.3 (x and beta alone
+# trade off: a lamp farther back with a smaller beta lights a far patch alike).
+POLISH_STEPS = (0.2, 0.2, math.radians(4.0), math.radians(4.0), 0.2, 0.5, 0.4)
+POLISH_HALVINGS = 5
 
 
 @dataclasses.dataclass(frozen=True)
@@ -64,7 +70,13 @@ class _Light:
     """One hypothesised light: its parameters and its light at the evidence's samples."""
 
     params: tuple  # x, y, direction, fov, beta, range
-    at_evidence: np.ndarray  # (evidence rows, width)
+    at_evidence: np.ndarray  # (evidence rows, width): its direct light
+    # Its bounced light there, where light bounces (None: none yet). Tracing a light's bounce
+    # costs tens of ms, so a moved light keeps its parent's until the fit's end refreshes it.
+    bounced: np.ndarray | None = None
+
+    def light(self) -> np.ndarray:
+        return self.at_evidence if self.bounced is None else self.at_evidence + self.bounced
 
 
 class _Particle:
@@ -93,6 +105,7 @@ class LightBelief:
         )
         self._sight_from: dict[tuple[int, int], np.ndarray] = {}
         self._field_cache: dict[tuple, np.ndarray] = {}
+        self._seeing_cache: dict[tuple, object] = {}
 
     # --- evidence ------------------------------------------------------------------------------
 
@@ -107,6 +120,9 @@ class LightBelief:
             for light in particle.lights:
                 extra = self._light_at(light.params, self._rows[-1:])
                 light.at_evidence = np.concatenate([light.at_evidence, extra])
+                if light.bounced is not None:
+                    bounced = self._bounced_at(light.params, self._rows[-1:])
+                    light.bounced = np.concatenate([light.bounced, bounced])
             particle.energy = math.inf
 
     def _tolerance(self) -> np.ndarray:
@@ -121,44 +137,101 @@ class LightBelief:
 
     def _energy(self, lights: list[_Light]) -> float:
         z = self.misses(self._predict(lights))
-        return 0.5 * float(np.sum(np.minimum(z, Z_CAP) ** 2)) + self.settings.light_cost * len(
-            lights
-        )
+        return float(np.sum(np.sqrt(1.0 + z * z) - 1.0)) + self.settings.light_cost * len(lights)
 
     def _predict(self, lights: list[_Light]) -> np.ndarray:
         if not lights:
             return np.zeros(len(self.evidence))
-        total = lights[0].at_evidence
+        total = lights[0].light()
         for light in lights[1:]:
-            total = total + light.at_evidence
+            total = total + light.light()
         return total.max(axis=1)
 
     def _light_at(self, params: tuple, rows: np.ndarray) -> np.ndarray:
+        """A light's direct light at the samples of evidence rows."""
         light = light_from_parameters('hypothesis', *params)
-        return self.world.samples.light_at(self.world.see([light]), rows)
+        return self.world.samples.light_at(self.world.see([light], bounce=False), rows)
 
-    def _make(self, params: tuple) -> _Light:
-        return _Light(params, self._light_at(params, self._rows))
+    def _seeing(self, params: tuple):
+        """The point visibility of one light, bounce included, kept while its light is asked
+        (its bounce's emitters are traced once)."""
+        see = self._seeing_cache.get(params)
+        if see is None:
+            see = self.world.see([light_from_parameters('hypothesis', *params)])
+            if len(self._seeing_cache) >= 64:
+                self._seeing_cache.pop(next(iter(self._seeing_cache)))
+            self._seeing_cache[params] = see
+        return see
+
+    def _bounced_at(self, params: tuple, rows: np.ndarray) -> np.ndarray:
+        """A light's bounced light at the samples of evidence rows."""
+        samples = self.world.samples
+        return samples.light_at(self._seeing(params), rows) - self._light_at(params, rows)
+
+    def _make(self, params: tuple, bounced: np.ndarray | None = None) -> _Light:
+        return _Light(params, self._light_at(params, self._rows), bounced)
+
+    def _refresh_bounce(self, particle: _Particle) -> None:
+        """Trace the bounce of every light of a particle afresh, and its energy with it."""
+        if self.world.bounces:
+            for light in particle.lights:
+                light.bounced = self._bounced_at(light.params, self._rows)
+            particle.energy = self._energy(particle.lights)
 
     # --- search --------------------------------------------------------------------------------
 
-    def fit(self, moves: int | None = None) -> None:
-        """Metropolis moves on every particle (``settings.moves`` each by default)."""
+    def fit(self, moves: int | None = None, polish: bool = True) -> None:
+        """Metropolis moves on every particle (``settings.moves`` each by default), then each
+        particle's lights polished (``polish``)."""
         moves = self.settings.moves if moves is None else moves
         if not self.evidence:
             return
         for particle in self.particles:
             if not math.isfinite(particle.energy):
                 particle.energy = self._energy(particle.lights)
-            for _ in range(moves):
+            for move in range(moves):
                 proposal = self._propose(particle.lights)
                 if proposal is None:
                     continue
                 energy = self._energy(proposal)
+                # Annealed from ANNEAL_START down to 1 (the posterior's own temperature): the
+                # misses are counted in tolerances, so the landscape is rugged when cold.
+                temperature = ANNEAL_START ** (1.0 - move / max(moves - 1, 1))
                 if energy <= particle.energy or self.rng.random() < math.exp(
-                    particle.energy - energy
+                    (particle.energy - energy) / temperature
                 ):
                     particle.lights, particle.energy = proposal, energy
+            if polish:
+                self.polish(particle)
+            self._refresh_bounce(particle)
+
+    def polish(self, particle: _Particle, halvings: int = POLISH_HALVINGS) -> None:
+        """Pattern search on each light of a particle: every parameter stepped both ways, a
+        step that lowers the energy kept, a step that does not halved, ``halvings`` times. The
+        Metropolis moves find a light near the truth; this fits it to the tolerances."""
+        if not math.isfinite(particle.energy):
+            particle.energy = self._energy(particle.lights)
+        for k in range(len(particle.lights)):
+            steps = list(POLISH_STEPS)
+            for parameter in range(len(steps)):
+                for _ in range(halvings):
+                    for sign in (1.0, -1.0):
+                        params = _stepped(
+                            particle.lights[k].params, parameter, sign * steps[parameter]
+                        )
+                        if params is None or self._blocked(params[0], params[1]):
+                            continue
+                        lights = [
+                            *particle.lights[:k],
+                            self._make(params, particle.lights[k].bounced),
+                            *particle.lights[k + 1 :],
+                        ]
+                        energy = self._energy(lights)
+                        if energy < particle.energy:
+                            particle.lights, particle.energy = lights, energy
+                            break
+                    else:
+                        steps[parameter] /= 2
 
     def _propose(self, lights: list[_Light]) -> list[_Light] | None:
         kind = self.rng.random()
@@ -169,25 +242,30 @@ class LightBelief:
         if kind < 0.4:
             return lights[:k] + lights[k + 1 :]
         params = self._perturbed(lights[k].params)
-        return None if params is None else [*lights[:k], self._make(params), *lights[k + 1 :]]
+        if params is None:
+            return None
+        return [*lights[:k], self._make(params, lights[k].bounced), *lights[k + 1 :]]
 
     def _perturbed(self, params: tuple) -> tuple | None:
         x, y, direction, fov, beta, light_range = params
         rng = self.rng
         which = int(rng.integers(5))
+        scale = 10.0 ** rng.uniform(-1.5, 0.0)  # coarse moves to find, fine ones to fit
         if which == 0:
-            x, y = x + rng.normal(0, 0.2), y + rng.normal(0, 0.2)
+            x, y = x + rng.normal(0, 0.4 * scale), y + rng.normal(0, 0.4 * scale)
             if self._blocked(x, y):
                 return None
         elif which == 1:
-            direction += rng.normal(0, math.radians(4.0))
+            direction += rng.normal(0, math.radians(10.0) * scale)
         elif which == 2:
-            fov = float(np.clip(fov + rng.normal(0, math.radians(5.0)), _MIN_FOV, 2 * math.pi))
+            fov = float(
+                np.clip(fov + rng.normal(0, math.radians(10.0) * scale), _MIN_FOV, 2 * math.pi)
+            )
         elif which == 3:
-            beta *= math.exp(rng.normal(0, 0.15))
+            beta *= math.exp(rng.normal(0, 0.3 * scale))
         else:
             light_range = float(
-                np.clip(light_range + rng.normal(0, 0.4), 0.2, self.settings.max_range)
+                np.clip(light_range + rng.normal(0, 1.0 * scale), 0.2, self.settings.max_range)
             )
         return (x, y, direction, fov, beta, light_range)
 
@@ -214,19 +292,26 @@ class LightBelief:
         if not np.isfinite(self._high[k]):  # a detection: at least that much more
             target += float(self.rng.uniform(0.0, 0.5))
         target = min(target, 0.95)
-        samples = self.world.samples
-        row = self._rows[k]
-        anchor = np.array([samples.x[row, samples.width - 1], samples.y[row, samples.width - 1]])
-        if samples.weighs_heading:
-            anchor = np.array([samples.x[row, 0], samples.y[row, 0]])
-        lamp = self._lamp_for(anchor, target, candidates, missing, predicted)
-        if lamp is None:
+        found = self._lamp_for(k, target, candidates, missing)
+        if found is None:
             return None
-        offset = anchor - lamp
-        distance = max(float(np.hypot(*offset)), 0.1)
-        beta = (1.0 / target - 1.0) / distance**2
-        fov = float(self.rng.uniform(math.radians(15.0), math.radians(120.0)))
-        aim = math.atan2(offset[1], offset[0]) + self.rng.uniform(-0.4, 0.4) * fov / 2
+        lamp, points, intensities = found
+        # Aimed at the middle of the lit steps it explains, opened to take them all in; beta
+        # the median their distances and intensities imply.
+        offsets = points - lamp
+        distances = np.maximum(np.hypot(*offsets.T), 0.1)
+        beta = float(np.median((1.0 / intensities - 1.0) / distances**2))
+        first = math.atan2(offsets[0, 1], offsets[0, 0])
+        turns = np.angle(np.exp(1j * (np.arctan2(offsets[:, 1], offsets[:, 0]) - first)))
+        aim = first + (turns.min() + turns.max()) / 2
+        fov = float(
+            np.clip(
+                turns.max() - turns.min() + math.radians(self.rng.uniform(5.0, 40.0)),
+                math.radians(10.0),
+                2 * math.pi,
+            )
+        )
+        distance = float(distances.max())
         delta = 0.1 if self.rng.random() < 0.5 else math.exp(self.rng.uniform(-3.5, -0.7))
         light_range = math.sqrt((1.0 - delta) / (delta * beta))
         if light_range < distance:
@@ -234,29 +319,38 @@ class LightBelief:
         light_range = min(light_range, self.settings.max_range)
         return self._make((float(lamp[0]), float(lamp[1]), aim, fov, beta, light_range))
 
-    def _lamp_for(self, anchor, target, candidates, missing, predicted) -> np.ndarray | None:
-        """A lamp place that sees the anchor, scored by how well one beta explains the other
-        unexplained steps near the anchor (their arrivals' missing light)."""
+    def _lamp_for(self, k: int, target: float, candidates, missing):
+        """(lamp place, points, the unweighted intensities there) for evidence step k: a lamp
+        place in sight of the step, scored by how well one beta explains the step and the
+        unexplained steps within 4 m of it (each by its arrival and missing light; where
+        exposure weighs the lights, divided by the share of the robot the lamp would see)."""
+        samples = self.world.samples
+        arrival = samples.width - 1 if not samples.weighs_heading else 0
+        others = candidates[np.isfinite(self._high[candidates]) & (candidates != k)]
+        rows = self._rows[np.append(k, others)]
+        points = np.stack([samples.x[rows, arrival], samples.y[rows, arrival]], 1)
+        values = np.minimum(np.append(target, missing[others]), 0.95)
+        close = np.hypot(*(points - points[0]).T) <= 4.0
+        close[0] = True
+        keep = np.flatnonzero(close)[:13]
+        points, values, rows = points[keep], values[keep], rows[keep]
+        anchor = points[0]
         lamps = self._lamps
         near = np.hypot(*(lamps - anchor).T) <= self.settings.max_range
         near &= self._seen_from(anchor)
         lamps = lamps[near]
         if lamps.size == 0:
             return None
-        samples = self.world.samples
-        others = candidates[np.isfinite(self._high[candidates])]
-        rows = self._rows[others]
-        points = np.stack(
-            [samples.x[rows, samples.width - 1], samples.y[rows, samples.width - 1]], 1
-        )
-        close = np.hypot(*(points - anchor).T) <= 3.0
-        points, values = points[close][:12], np.minimum(missing[others][close][:12], 0.95)
-        d_anchor = np.maximum(np.hypot(*(lamps - anchor).T), 0.1)
-        log_beta = [np.log((1.0 / target - 1.0) / d_anchor**2)]
-        for point, value in zip(points, values, strict=True):
-            d = np.maximum(np.hypot(*(lamps - point).T), 0.1)
-            log_beta.append(np.log((1.0 / value - 1.0) / d**2))
-        spread = np.std(np.stack(log_beta), axis=0) if len(log_beta) > 1 else np.zeros(len(lamps))
+        dx = points[None, :, 0] - lamps[:, None, 0]  # (lamps, points)
+        dy = points[None, :, 1] - lamps[:, None, 1]
+        intensities = np.broadcast_to(values, dx.shape)
+        footprint = self.world.task.footprint
+        if samples.weighs_heading and footprint is not None:
+            share = exposure.factor(footprint, samples.yaw[rows, arrival][None, :], dx, dy)
+            intensities = intensities / np.maximum(share, 1e-3)
+        intensities = np.clip(intensities, 1e-6, 0.95)
+        log_beta = np.log((1.0 / intensities - 1.0) / np.maximum(dx * dx + dy * dy, 0.01))
+        spread = log_beta.std(axis=1) if len(points) > 1 else np.zeros(len(lamps))
         order = np.argsort(spread + self.rng.uniform(0, 0.05, size=spread.size))
         frame, see = self.world.points.frame, self.world.points
         target_cell = frame.cell_of(*anchor)
@@ -267,7 +361,7 @@ class LightBelief:
             if self._blocked(*lamp):
                 continue
             if see.line_of_sight(frame.cell_of(*lamp), target_cell):
-                return lamp
+                return lamp, points, intensities[index]
         return None
 
     def _seen_from(self, anchor) -> np.ndarray:
@@ -307,9 +401,7 @@ class LightBelief:
         for light in self.particles[particle].lights:
             field = self._field_cache.get(light.params)
             if field is None:
-                field = samples.light_at(
-                    self.world.see([light_from_parameters('h', *light.params)])
-                )
+                field = samples.light_at(self._seeing(light.params))
                 if len(self._field_cache) > 256:
                     self._field_cache.clear()
                 self._field_cache[light.params] = field
@@ -349,6 +441,27 @@ class LightBelief:
             light_from_parameters(f'inferred-{i}', *light.params)
             for i, light in enumerate(self.particles[particle].lights)
         ]
+
+
+def _stepped(params: tuple, parameter: int, step: float) -> tuple | None:
+    """params with one parameter moved by ``step`` (beta by a factor exp(step)); None when
+    that leaves its range."""
+    moved = list(params)
+    if parameter == 4:
+        moved[4] = params[4] * math.exp(step)
+    elif parameter == 6:  # slide along the beam, beta keeping the light where it is dim
+        x, y, direction, _, beta, _ = params
+        reach = math.sqrt((1.0 / 0.3 - 1.0) / beta)
+        if reach - step <= 0.1:
+            return None
+        moved[0], moved[1] = x + step * math.cos(direction), y + step * math.sin(direction)
+        moved[4] = beta * (reach / (reach - step)) ** 2
+        moved[5] = params[5] - step
+    else:
+        moved[parameter] = params[parameter] + step
+    if not (_MIN_FOV <= moved[3] <= 2 * math.pi) or moved[5] <= 0.2:
+        return None
+    return tuple(moved)
 
 
 def _normalised(values: np.ndarray) -> np.ndarray:

@@ -78,9 +78,15 @@ class LightWorld:
     def threshold(self) -> float:
         return float(self.scenario.detection_threshold)
 
-    def see(self, lights) -> PointVisibility:
-        """The point visibility of hypothesised lights, sharing the traced lines of sight."""
-        return self.points.with_lights(lights)
+    def see(self, lights, bounce: bool = True) -> PointVisibility:
+        """The point visibility of hypothesised lights, sharing the traced lines of sight (their
+        direct light only when ``bounce`` is False)."""
+        return self.points.with_lights(lights, bounce)
+
+    @property
+    def bounces(self) -> bool:
+        """Whether light bounces off the walls here (the law's one-bounce variant)."""
+        return self.points.bounce is not None
 
 
 class LatticeSamples:

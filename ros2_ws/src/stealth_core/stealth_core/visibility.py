@@ -268,13 +268,16 @@ class PointVisibility:
             values.append(value)
         return values
 
-    def with_lights(self, lights: Iterable[Searchlight]) -> PointVisibility:
-        """The same map, footprint and bounce with other lights, sharing this one's traced lines
-        of sight (a learner weighing light hypotheses asks the same lamp cells over and over)."""
+    def with_lights(self, lights: Iterable[Searchlight], bounce: bool = True) -> PointVisibility:
+        """The same map, footprint and bounce (direct light only: ``bounce`` False) with other
+        lights, sharing this one's traced lines of sight (a learner weighing light hypotheses
+        asks the same lamp cells over and over)."""
         if self._corners is None:
             self._corners = corner_maps(self.blocked)
         other = copy.copy(self)  # the sight memos and blocks are the same objects
         other.lights = tuple(lights)
+        if not bounce:
+            other.bounce = None
         if other.bounce is not None:
             check_static(other.lights)
         other._sources = None  # the bounce's emitters receive these lights' light

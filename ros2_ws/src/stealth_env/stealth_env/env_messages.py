@@ -31,7 +31,7 @@ from stealth_interfaces.msg import (
     StepInfo,
 )
 from stealth_interfaces.srv import ExecuteMove
-from stealth_node_kit.conversions import quaternion_yaw, time_msg, yaw_quaternion
+from stealth_node_kit.conversions import grid_msg, quaternion_yaw, time_msg
 from visualization_msgs.msg import Marker, MarkerArray
 
 from stealth_env.episode_flow import PlanarPose
@@ -209,23 +209,6 @@ def _colour(rgba) -> ColorRGBA:
 def visibility_grid_msg(occupancy, levels: np.ndarray, t: float) -> OccupancyGrid:
     """The lit area (``markers.visibility_levels``) at time t on the map's grid, as a costmap."""
     return grid_msg(levels, occupancy.resolution, occupancy.origin, t)
-
-
-def grid_msg(levels: np.ndarray, resolution: float, origin, t: float) -> OccupancyGrid:
-    """OccupancyGrid of (rows, cols) int8 levels (row 0 the bottom, as /map) with these cells
-    (m) from origin (x, y, yaw) of the map frame, stamped t: the visibility grid, and the sensed
-    track's ``sensed_light`` (one cell per lattice node, -1 unknown)."""
-    levels = np.ascontiguousarray(levels, dtype=np.int8)
-    grid = OccupancyGrid()
-    grid.header.stamp, grid.header.frame_id = time_msg(t), MAP_FRAME
-    grid.info.map_load_time = grid.header.stamp
-    grid.info.resolution = float(resolution)
-    grid.info.height, grid.info.width = levels.shape
-    x, y, yaw = origin
-    grid.info.origin.position.x, grid.info.origin.position.y = float(x), float(y)
-    grid.info.origin.orientation = yaw_quaternion(yaw)
-    grid.data = array.array('b', levels.tobytes())
-    return grid
 
 
 def path_msg(points) -> Path:

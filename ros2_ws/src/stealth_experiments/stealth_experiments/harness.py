@@ -63,7 +63,7 @@ from stealth_core.scenario import content_identity
 # prioritized sweeping, exploring from the floor plan, settled on every seed of every static
 # scenario by episode 70 (map1-exposure; bench_learners, 2026-11-28).
 DEFAULT_EPISODES = {
-    'qlearning': 1500, 'sarsa': 1500, 'dyna': 500, 'prioritized': 300, 'light-model': 30,
+    'qlearning': 1500, 'sarsa': 1500, 'dyna': 500, 'prioritized': 300, 'light-model': 12,
 }  # fmt: skip
 # Scenarios with the phase in the state (moving lights) have phase_bins times the states: each
 # learner gets a larger budget there (README: Q-learning settled at 2580 on simple-maze-moving,

@@ -1,0 +1,144 @@
+"""The light model: learns where the lights are from its steps, never from the scenario's lights,
+and plans around them within a few episodes."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from stealth_agent.learners import LearnerConfig, make_learner
+from stealth_agent.light_model import LightModelError, LightModelLearner
+from stealth_agent.policy_store import load_policy, save_policy
+from stealth_agent.protocol import ProtocolAgent
+from stealth_agent.state_index import StateIndex
+from stealth_core.gym_env import StealthNavEnv
+from stealth_core.light_world import LightWorld, StepEvidence
+from stealth_core.reward import EpisodeOutcome
+from stealth_core.scenario import load_scenario
+
+CONFIG = LearnerConfig.constant(gamma=1.0, epsilon=0.0)
+
+
+def light_model(scenario, seed=0, index=None):
+    learner = make_learner('light-model', 4, CONFIG)
+    index = StateIndex() if index is None else index
+    learner.attach(LightWorld(scenario), index, np.random.default_rng(seed))
+    return learner, index
+
+
+def play(env, agent, seed=None):
+    observation, _ = env.reset(seed=seed)
+    action = agent.first_action(observation)
+    while True:
+        observation, reward, terminated, truncated, info = env.step(action)
+        if terminated:
+            agent.last_action(reward)
+            return info
+        if truncated:
+            agent.truncate(reward, observation)
+            return info
+        action = agent.next_action(reward, observation)
+
+
+def moved(light, dx):
+    return dataclasses.replace(light, x=light.x + dx, direction=light.direction + 1.0)
+
+
+def test_it_never_reads_the_lights():
+    """The same experience with the scenario's lights removed, or moved, gives the same
+    decisions and the same values: everything it knows of the lights came from its steps."""
+    scenario = load_scenario('simple-maze')
+    without = dataclasses.replace(scenario, lights=())
+    elsewhere = dataclasses.replace(scenario, lights=tuple(moved(L, 0.5) for L in scenario.lights))
+    env = StealthNavEnv('simple-maze')
+    index = StateIndex()  # one numbering of the states for all three
+    learners = []
+    for world in (scenario, without, elsewhere):
+        learners.append(make_learner('light-model', 4, CONFIG))
+        learners[-1].attach(LightWorld(world), index, np.random.default_rng(3))
+    agent = ProtocolAgent(learners[0], index, np.random.default_rng(1))
+    for episode in range(2):
+        observation, _ = env.reset(seed=episode)
+        action = agent.first_action(observation)
+        done = False
+        while not done:
+            row = index.lookup(observation)
+            chosen = [int(np.argmax(learner.q[row])) for learner in learners]
+            assert chosen[1:] == chosen[:1] * 2
+            previous, taken = row, action
+            observation, reward, terminated, truncated, _ = env.step(action)
+            done = terminated or truncated
+            following = None if terminated else index.row(observation)
+            for learner in learners[1:]:
+                learner.update(previous, taken, reward, following, terminated)
+            if terminated:
+                agent.last_action(reward)
+            elif truncated:
+                agent.truncate(reward, observation)
+            else:
+                action = agent.next_action(reward, observation)
+        for learner in learners[1:]:
+            learner.end_episode()
+    for learner in learners[1:]:
+        np.testing.assert_array_equal(learner.q, learners[0].q)
+    assert learners[0].belief.evidence  # it did learn something
+
+
+def test_it_reaches_the_goal_unseen_after_a_detection_or_two():
+    """simple-maze: the first route runs into a light; within three episodes the greedy plan
+    reaches the goal undetected, and so do the next three greedy rollouts."""
+    env, evaluator = StealthNavEnv('simple-maze'), StealthNavEnv('simple-maze')
+    learner, index = light_model(env.task.scenario)
+    agent = ProtocolAgent(learner, index, np.random.default_rng(0))
+    greedy = ProtocolAgent(learner, index, np.random.default_rng(1), learning=False)
+    outcomes, greedy_outcomes = [], []
+    for episode in range(5):
+        outcomes.append(play(env, agent, seed=episode)['outcome'])
+        greedy_outcomes.append(play(evaluator, greedy, seed=episode)['outcome'])
+    assert outcomes.count(EpisodeOutcome.DETECTED.name) <= 2
+    assert greedy_outcomes[-3:] == [EpisodeOutcome.SUCCESS.name] * 3, greedy_outcomes
+
+
+def test_a_used_index_and_an_unknown_rule_are_refused():
+    scenario = load_scenario('simple-maze')
+    index = StateIndex()
+    index.row(np.array([99.0, 99.0], dtype=np.float32))
+    learner = make_learner('light-model', 4, CONFIG)
+    with pytest.raises(LightModelError, match='fresh index'):
+        learner.attach(LightWorld(scenario), index, np.random.default_rng(0))
+    with pytest.raises(LightModelError, match='rule'):
+        learner.attach(LightWorld(scenario), StateIndex(), np.random.default_rng(0), rule='bold')
+    with pytest.raises(LightModelError, match='attach'):
+        make_learner('light-model', 4, CONFIG).update(0, 0, -1.0, 1, False)
+
+
+def test_a_contradicting_step_is_reported_not_ignored():
+    """The same step read as dark and as lit: no light field explains both."""
+    learner, _ = light_model(load_scenario('simple-maze'))
+    model = learner.world.model
+    place = model.start
+    learner.belief.observe(StepEvidence(place, 0, 0.0, 0.0))
+    learner.belief.observe(StepEvidence(place, 0, 0.2, 0.2))
+    learner.end_episode()
+    assert any('direction 0' in note for note in learner.notes), learner.notes
+
+
+def test_a_saved_light_model_loads_as_a_whole_policy_and_resumes(tmp_path):
+    scenario = load_scenario('simple-maze')
+    env = StealthNavEnv('simple-maze')
+    learner, index = light_model(scenario)
+    agent = ProtocolAgent(learner, index, np.random.default_rng(0))
+    play(env, agent, seed=0)
+    path = tmp_path / 'policy.npz'
+    save_policy(path, learner, index)
+    saved = load_policy(path)
+    assert isinstance(saved.learner, LightModelLearner)
+    assert len(saved.index) == learner.world.model.size  # every place has its row
+    np.testing.assert_array_equal(saved.learner.q, learner.q)
+    saved.learner.attach(LightWorld(scenario), saved.index, np.random.default_rng(0))
+    assert [tuple(e) for e in saved.learner.belief.evidence] == [
+        tuple(e) for e in learner.belief.evidence
+    ]
+    lights = np.load(path)['belief_lights']
+    assert lights.shape[1] == 7 and np.all(np.isfinite(lights))
+    assert not math.isnan(float(saved.learner.q.max()))

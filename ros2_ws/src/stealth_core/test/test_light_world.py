@@ -1,0 +1,102 @@
+"""What the light model may know and what a step tells it: the samples of every lattice step,
+each light's light at them, and the evidence read off a step's reward."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from stealth_core.lattice_model import LatticeModel
+from stealth_core.light_world import (
+    LightWorld,
+    UnmodelledLawError,
+    evidence_of_step,
+    light_from_parameters,
+)
+from stealth_core.reward import RewardWeights
+from stealth_core.scenario import load_scenario
+from stealth_core.task import StealthTask
+
+
+@pytest.mark.parametrize('name', ['map1', 'map1-exposure', 'map1-bounce'])
+def test_the_lights_added_at_the_samples_are_the_models_step_visibility(name):
+    """Light adds up: each light's light at every step's samples, summed and maximised over the
+    step, is what the environment judges every step on (exposure's turns and the bounce too)."""
+    scenario = load_scenario(name)
+    truth = LatticeModel.build(StealthTask(scenario)).step_visibility
+    world = LightWorld(scenario)
+    total = sum(world.samples.light_at(world.see([light])) for light in scenario.lights)
+    peaks = world.samples.step_peaks(total).reshape(world.samples.shape)
+    np.testing.assert_allclose(peaks, truth, rtol=0, atol=1e-12)
+
+
+def test_the_world_holds_no_light_and_its_lattice_is_the_scenarios():
+    scenario = load_scenario('map1')
+    world = LightWorld(scenario)
+    assert world.scenario.lights == () and world.task.scenario.lights == ()
+    assert not np.any(world.model.step_visibility)
+    truth = LatticeModel.build(StealthTask(scenario))
+    np.testing.assert_array_equal(world.model.successors, truth.successors)
+    np.testing.assert_array_equal(world.model.states, truth.states)
+
+
+def test_every_step_reward_reads_back_as_its_light():
+    """Exact for steps that go on, a bound for a detection and for the goal."""
+    scenario = load_scenario('map1')
+    task = StealthTask(scenario)
+    model = LatticeModel.build(task)
+    world = LightWorld(scenario)
+    threshold = scenario.detection_threshold
+    kinds = set()
+    rng = np.random.default_rng(0)
+    for place in rng.choice(model.size, 400, replace=False).tolist() + [model.start]:
+        for direction in range(model.num_actions):
+            arrival = int(model.successors[place, direction])
+            judged = model.judge(arrival, 1, direction, previous=place)
+            evidence = evidence_of_step(world, place, direction, judged.reward, judged.terminal)
+            v = model.step_visibility[place, direction]
+            assert evidence.low - 1e-9 <= v <= evidence.high + 1e-9  # the reward rounds
+            if evidence.exact:
+                assert evidence.low == pytest.approx(v, abs=1e-9)
+                kinds.add('exact')
+            else:
+                kinds.add('detected' if evidence.high == math.inf else 'goal')
+                assert (evidence.low == threshold) == (v >= threshold)
+    assert {'exact', 'detected'} <= kinds
+    goal_place = int(np.flatnonzero(model.goal)[0])
+    for place in range(model.size):
+        hits = np.flatnonzero(model.successors[place] == goal_place)
+        lit = hits.size and model.step_visibility[place, hits[0]] >= threshold
+        if hits.size and not lit and not model.goal[place]:
+            judged = model.judge(goal_place, 1, int(hits[0]), previous=place)
+            evidence = evidence_of_step(world, place, int(hits[0]), judged.reward, True)
+            assert evidence.low == 0.0 and evidence.high < threshold
+            break
+    else:
+        pytest.fail('no step into the goal')
+
+
+@pytest.mark.parametrize(
+    ('change', 'feature'),
+    [
+        ({'detection_mode': 'probabilistic'}, 'detection_mode'),
+        ({'rewards': RewardWeights(visibility_weight=0.0)}, 'visibility_weight'),
+    ],
+)
+def test_a_law_it_cannot_model_is_refused_in_one_line_naming_it(change, feature):
+    scenario = dataclasses.replace(load_scenario('map1'), **change)
+    with pytest.raises(UnmodelledLawError, match=feature) as error:
+        LightWorld(scenario)
+    assert '\n' not in str(error.value)
+
+
+def test_moving_lights_are_refused_in_one_line():
+    with pytest.raises(UnmodelledLawError, match='phase_bins') as error:
+        LightWorld(load_scenario('map1-moving'))
+    assert '\n' not in str(error.value)
+
+
+def test_a_light_from_its_search_parameters_has_that_beta_and_range():
+    light = light_from_parameters('h', 1.0, 2.0, 7.0, 0.5, 0.25, 6.0)
+    assert light.beta == pytest.approx(0.25)
+    assert light.range == 6.0 and 0 <= light.direction < 2 * math.pi
