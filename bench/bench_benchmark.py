@@ -19,7 +19,7 @@ import tempfile
 import time
 
 from stealth_experiments.benchmark import DEFAULT_METHODS
-from stealth_experiments.benchmark_methods import TRACKS, run_case
+from stealth_experiments.benchmark_methods import DEFAULT_TRACKS, run_case
 from stealth_experiments.benchmark_plan import generated_cases, trials
 from stealth_experiments.sweep_engine import Engine
 
@@ -30,7 +30,7 @@ EPISODES = 200
 def run(report=print) -> dict:
     with tempfile.TemporaryDirectory(prefix='bench-benchmark-') as work:
         cases = generated_cases(COUNT, Path(work) / 'scenarios', report)
-        todo = trials(cases, list(DEFAULT_METHODS), list(TRACKS), episodes=EPISODES)
+        todo = trials(cases, list(DEFAULT_METHODS), list(DEFAULT_TRACKS), episodes=EPISODES)
 
         started = time.perf_counter()
         sequential = [row for trial in todo for row in run_case(trial)]

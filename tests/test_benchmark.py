@@ -15,6 +15,7 @@ import time
 import numpy as np
 import pytest
 from ros_support import _sourced_environment
+from stealth_agent.learners import LEARNER_NAMES
 from stealth_experiments.benchmark_methods import learning_extra
 from stealth_experiments.sweep_engine import RAY_ENVIRONMENT
 
@@ -80,19 +81,20 @@ def test_a_benchmark_one_after_another_names_an_unreadable_scenario_and_runs_the
     assert f'stealth benchmark: {broken}: YAML syntax error' in output, output[-3000:]
     assert 'its rows are marked failed' in output
     rows = _rows(out)
-    # per scenario: value iteration and A* on both tracks, Dark Path and 4 learners on the
-    # full one, the 2 replanners on the sensed one; the generalist on both where the learning
-    # extra is installed (a default method only there)
+    # per scenario: value iteration and A* on both tracks, Dark Path and every learner on the
+    # full one (not on the learning track: asked for by name), the 2 replanners on the sensed
+    # one; the generalist on both where the learning extra is installed (a default method only
+    # there)
     generalist = {('generalist', 'full'), ('generalist', 'sensed')} if learning_extra() else set()
-    per = 11 + len(generalist)
+    learners = {(name, 'full') for name in LEARNER_NAMES}
+    per = 7 + len(learners) + len(generalist)
     assert len(rows) == 3 * per
     ran = [r for r in rows if r['scenario'] in ('simple-maze', 'map1')]
     assert {r['status'] for r in ran} == {'ok'}
     assert {(r['method'], r['track']) for r in ran if r['scenario'] == 'map1'} == {
         ('value iteration', 'full'), ('value iteration', 'sensed'), ('A*', 'full'),
         ('A*', 'sensed'), ('Dark Path', 'full'), ('replan (unknown dark)', 'sensed'),
-        ('replan (unknown lit)', 'sensed'), ('qlearning', 'full'), ('sarsa', 'full'),
-        ('dyna', 'full'), ('prioritized', 'full'), *generalist,
+        ('replan (unknown lit)', 'sensed'), *learners, *generalist,
     }  # fmt: skip
     oracle = [r for r in ran if r['method'] == 'value iteration']
     assert all(r['success'] == 'True' and r['return'] == r['vi_return'] for r in oracle)
@@ -100,6 +102,7 @@ def test_a_benchmark_one_after_another_names_an_unreadable_scenario_and_runs_the
     assert len(failed) == per and {r['status'] for r in failed} == {'failed'}
     summary = (out / 'summary.md').read_text()
     assert '## Track: full' in summary and '## Track: sensed' in summary
+    assert '## Track: learning' not in summary and not (out / 'learning.csv').exists()
     assert 'Learners trained 20 episodes per scenario goal' in summary
     assert (out / 'benchmark.png').stat().st_size > 10_000
     assert f'stealth benchmark: {per} of {3 * per} rows failed' in output

@@ -6,7 +6,8 @@ The scenarios (``benchmark_plan``: a named set, generated test scenarios and the
 goals, or files), the methods and their tracks (``benchmark_methods``), one trial per scenario,
 goal and method on a local Ray over ``--jobs`` CPUs (``sweep_engine``, with a progress line per
 trial) or, with ``--jobs 1``, one after another in this process without Ray (a line per trial).
-Written to ``--out`` (``benchmark_report``): results.csv, summary.md, benchmark.png.
+Written to ``--out`` (``benchmark_report``): results.csv, summary.md, benchmark.png, and with
+the learning track (``--tracks learning``, ``benchmark_learning``) learning.csv and learning.png.
 
 Before anything runs (``benchmark_checks``), one line and exit 1 for: a scenario name that is not
 on the search path, a method asked for on none of the tracks asked for, an unusable --policy or
@@ -35,7 +36,10 @@ from stealth_experiments.benchmark_checks import (
     check_tracks,
     policy_cases,
 )
+from stealth_experiments.benchmark_learning import LEARNING_SEEDS
+from stealth_experiments.benchmark_learning_report import write_learning_csv, write_learning_plot
 from stealth_experiments.benchmark_methods import (
+    DEFAULT_TRACKS,
     LEARNERS,
     METHODS,
     TRACKS,
@@ -59,7 +63,7 @@ from stealth_experiments.benchmark_report import (
     write_plot,
     write_summary,
 )
-from stealth_experiments.harness import DEFAULT_EPISODES, MOVING_EPISODES
+from stealth_experiments.harness import DEFAULT_EPISODES, MOVING_EPISODES, STREAK
 from stealth_experiments.options import add_episodes_option, add_output_options, capped_jobs
 from stealth_experiments.sweep_pool import duration as _duration
 
@@ -80,11 +84,21 @@ def parser() -> argparse.ArgumentParser:
         description='Benchmark the planners, the replanning baselines, the tabular learners, '
         'a learned policy and the generalist on a test set of scenarios, on the full-knowledge '
         'and the sensed track: results.csv, summary.md (success rate, normalised regret, path '
-        "and exposure against value iteration's optimum) and benchmark.png.",
-        epilog='Tracks per method: value iteration (the oracle), A* and the generalist on both; '
-        'Dark Path, the learners and policy on the full track only; the replanners on the sensed '
-        'track only. The generalist needs the learning extra (make learn): a default method only '
-        'where it is installed; asked for without it, its rows fail saying so and the rest run. '
+        "and exposure against value iteration's optimum) and benchmark.png; with --tracks "
+        'learning, how fast each learner learns: learning.csv and learning.png.',
+        epilog='Tracks per method: value iteration (the oracle), A* and the generalist on full '
+        'and sensed; Dark Path and policy on the full track only; the learners on the full and '
+        'the learning track; the replanners on the sensed track only. The learning track (not a '
+        'default: it costs several times the default run): each learner trained on '
+        f'--learning-seeds seeds (from --seed on) for its budget, a greedy evaluation after '
+        f'every episode; per scenario goal the median over the seeds of the episodes to the '
+        f'criterion (until the first of {STREAK} evaluations in a row that meet the success '
+        'criterion), the detections, environment steps and wall time before it '
+        '(results.csv, summary.md, learning.csv per seed), and learning.png, the cumulative '
+        'training detections against episodes per method, median over the seeds and min-max '
+        'band (the regret curve). The generalist needs the learning extra (make learn): a '
+        'default method only where it is installed; asked for without it, its rows fail saying '
+        'so and the rest run. '
         f'Test scenarios are generated from seed {TEST_SEED:,} on (the test range) into the '
         'cache, each with a provenance record, and generated again where a file no longer '
         'matches it. Refused before anything runs (one line, exit 1): an unknown scenario, '
@@ -119,7 +133,18 @@ def parser() -> argparse.ArgumentParser:
         'record (default: OUT/scenarios)',
     )
     p.add_argument(
-        '--tracks', nargs='+', choices=TRACKS, default=list(TRACKS), help='default: both'
+        '--tracks',
+        nargs='+',
+        choices=TRACKS,
+        default=list(DEFAULT_TRACKS),
+        help=f'default: {" ".join(DEFAULT_TRACKS)} (learning: asked for by name)',
+    )
+    p.add_argument(
+        '--learning-seeds',
+        type=int,
+        default=LEARNING_SEEDS,
+        help="the learning track's seeds per learner and scenario goal, from --seed on "
+        '(default: %(default)s)',
     )
     p.add_argument(
         '--methods',
@@ -160,8 +185,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = p.parse_args(argv)
     if args.scenarios and args.set:
         p.error('give scenarios or --set, not both')
-    if args.count < 1 or args.jobs < 1 or (args.episodes is not None and args.episodes < 1):
-        p.error('--count, --jobs and --episodes must be >= 1')
+    if (
+        args.count < 1
+        or args.jobs < 1
+        or args.learning_seeds < 1
+        or (args.episodes is not None and args.episodes < 1)
+    ):
+        p.error('--count, --jobs, --learning-seeds and --episodes must be >= 1')
     say = _say
     generated = not args.scenarios and (args.set or 'test') != 'shipped'
     cache = args.cache or args.out / 'scenarios'
@@ -208,6 +238,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             say(f'{PROG}: {where}{case.error}; its rows are marked failed')
     laid = trials(
         cases, methods, args.tracks, episodes=args.episodes, seed=args.seed,
+        learning_seeds=args.learning_seeds,
         policy=str(args.policy.resolve()) if args.policy else None,
         policy_file=str(args.policy_file.resolve()) if args.policy_file else None,
         policy_cases=policy_on,
@@ -227,12 +258,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     rows = collect(laid, done)
     elapsed = time.monotonic() - started
     settings = _settings(args, methods, laid, elapsed, len(cases), jobs)
-    csv_file, summary_file, plot = (args.out / name for name in RESULT_FILES)
+    csv_file, summary_file, plot, seeds_file, curves = (args.out / name for name in RESULT_FILES)
     try:
         write_csv(csv_file, rows)
         summary = write_summary(summary_file, rows, settings, note)
-        if args.no_plots or write_plot(plot, rows) is None:
-            plot.unlink(missing_ok=True)  # not an earlier benchmark's beside these (--force)
+        if write_learning_csv(seeds_file, rows) is None:
+            seeds_file.unlink(missing_ok=True)  # not an earlier benchmark's beside these
+        for picture, draw in ((plot, write_plot), (curves, write_learning_plot)):
+            if args.no_plots or draw(picture, rows) is None:
+                picture.unlink(missing_ok=True)  # not an earlier benchmark's (--force)
     except OSError as error:
         print(f'{PROG}: cannot write the results to {args.out} ({error.strerror or error})',
               file=sys.stderr)  # fmt: skip
@@ -366,7 +400,14 @@ def _settings(
                 )
                 + ') per scenario goal'
             )
-        budget += ', then one greedy episode.'
+        if 'full' in args.tracks:
+            budget += ', then one greedy episode (full track)'
+        if 'learning' in args.tracks:
+            budget += (
+                f'; on the learning track on {args.learning_seeds} seeds from {args.seed} on, '
+                'a greedy evaluation after every episode'
+            )
+        budget += '.'
     if 'generalist' in methods:
         budget += f' Generalist weights: {args.policy_file or "the shipped generalist-full.npz"}.'
     alone = jobs <= 1 or sum(not trial['error'] for trial in laid) <= 1  # as run_trials runs

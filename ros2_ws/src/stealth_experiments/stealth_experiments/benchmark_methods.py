@@ -3,7 +3,13 @@ of its tracks, as result rows. No Ray, no rclpy.
 
 The tracks (``TRACKS``): ``full``, the robot knows the lights (today's task), and ``sensed``,
 it knows the floor plan only and senses the light in its line of sight (``stealth_core.sensing``,
-the Gym env's ``track='sensed'``). Which method runs on which track (``METHODS``), and why:
+the Gym env's ``track='sensed'``), each a row of one episode; and ``learning``, for the learners
+only, how much experience one needs to meet the success criterion and what it pays on the way
+(``benchmark_learning``: episodes to the criterion, 3 in a row, detections, steps and wall time
+before it, the median over LEARNING_SEEDS seeds; a greedy evaluation after every episode). The
+learning track is not a default (``DEFAULT_TRACKS``): it trains every learner on several seeds
+and evaluates after every episode, several times the default benchmark's work. Which method
+runs on which track (``METHODS``), and why:
 
 - ``value iteration``: the oracle, full knowledge, on both tracks (on the sensed track it is
   the same optimum: what a robot that knew the lights could do; every row's ``vi_return`` is
@@ -15,9 +21,12 @@ the Gym env's ``track='sensed'``). Which method runs on which track (``METHODS``
   track only. On the full track they would see every light from the start and plan Dark Path's
   way on it (with static lights their first plan is Dark Path's route), so they add nothing
   there.
-- ``qlearning``, ``sarsa``, ``dyna``, ``prioritized``: trained per scenario (``harness.run``)
-  for a stated budget of episodes, then one greedy episode: full track only (their state is
-  the full track's; the sensed track's observation is not a table key).
+- the learners (``stealth_agent.learners.LEARNER_NAMES``: ``qlearning``, ``sarsa``, ``dyna``,
+  ``prioritized`` and any learner registered there): on the full track trained per scenario
+  (``harness.run``) for a stated budget of episodes, then one greedy episode; on the learning
+  track trained on each seed for the budget with a greedy evaluation after every episode. Not
+  on the sensed track (their state is the full track's; the sensed track's observation is not a
+  table key).
 - ``policy``: a learned policy file (``--policy``, ``stealth_agent.policy_store``) played
   greedily: full track only for now (a tabular file's state is the full track's).
 - ``generalist``: the lights-known generalist of ``stealth_learn`` (``--policy-file``, default
@@ -51,20 +60,23 @@ from stealth_core.planners import astar, dark_path, follow, value_iteration, wal
 from stealth_core.replanning import SensedReplanner, play
 from stealth_core.reward import EpisodeOutcome, detection_reward
 
+from stealth_experiments.benchmark_learning import LEARNING_COLUMNS, learning_row
 from stealth_experiments.harness import RunSpec, default_budget, play_episode, run
 
-TRACKS = ('full', 'sensed')
+EPISODE_TRACKS = ('full', 'sensed')  # a row is one episode of the method
+TRACKS = (*EPISODE_TRACKS, 'learning')
+DEFAULT_TRACKS = EPISODE_TRACKS  # the learning track is asked for by name (module docstring)
 ORACLE = 'value iteration'
 # method -> the tracks it runs on (module docstring)
 METHODS = {
-    ORACLE: TRACKS,
-    'A*': TRACKS,
+    ORACLE: EPISODE_TRACKS,
+    'A*': EPISODE_TRACKS,
     'Dark Path': ('full',),
     'replan (unknown dark)': ('sensed',),
     'replan (unknown lit)': ('sensed',),
-    **dict.fromkeys(LEARNER_NAMES, ('full',)),
+    **dict.fromkeys(LEARNER_NAMES, ('full', 'learning')),
     'policy': ('full',),
-    'generalist': TRACKS,
+    'generalist': EPISODE_TRACKS,
 }
 LEARNERS = tuple(LEARNER_NAMES)
 REPLANNERS = {'replan (unknown dark)': 'dark', 'replan (unknown lit)': 'lit'}
@@ -80,7 +92,7 @@ ALIASES = {
 COLUMNS = (
     'scenario', 'goal', 'track', 'method', 'status', 'success', 'detected', 'outcome',
     'return', 'vi_return', 'floor', 'regret', 'path_length', 'vi_path_length', 'exposure',
-    'vi_exposure', 'steps', 'budget', 'seconds', 'file', 'error',
+    'vi_exposure', 'steps', 'budget', *LEARNING_COLUMNS, 'seconds', 'file', 'error',
 )  # fmt: skip
 
 
@@ -114,8 +126,9 @@ def run_case(trial: dict) -> list[dict]:
     on each of ``trial['tracks']``; one row per track, a failed row (with its error) where the
     method raised. Keys of ``trial``: id, scenario, goal, method, tracks, file (the scenario
     file, for the rows), episodes (learners' budget, None: the harness's default), seed,
-    policy (a policy file's path, for method 'policy'), policy_file (the generalist's weights,
-    None: the shipped ones)."""
+    learning_seeds (the learning track's seeds from ``seed`` on, None: LEARNING_SEEDS), policy
+    (a policy file's path, for method 'policy'), policy_file (the generalist's weights, None:
+    the shipped ones)."""
     rows = []
     for track in trial['tracks']:
         started = time.perf_counter()
@@ -144,6 +157,10 @@ def failed_row(base: dict, error: str, status: str = 'failed', seconds=None) -> 
 
 
 def _measure(trial: dict, track: str) -> dict:
+    if track == 'learning':
+        if track not in METHODS[trial['method']]:
+            raise ValueError(f'{trial["method"]} does not run on the learning track')
+        return learning_row(trial)
     model = lattice_model(trial['scenario'], trial['goal'])
     optimum = value_iteration(model)
     vi_walk = walk(model, follow(model, lambda i: int(optimum.policy[i])))

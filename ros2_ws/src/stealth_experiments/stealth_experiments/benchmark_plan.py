@@ -111,6 +111,7 @@ def trials(
     *,
     episodes: int | None = None,
     seed: int = 0,
+    learning_seeds: int | None = None,
     policy: str | None = None,
     policy_file: str | None = None,
     policy_cases: Collection[Case] | None = None,
@@ -136,6 +137,7 @@ def trials(
                 'tracks': mine,
                 'episodes': episodes,
                 'seed': seed,
+                'learning_seeds': learning_seeds,
                 'policy': policy,
                 'policy_file': policy_file,
             })  # fmt: skip

@@ -1,8 +1,9 @@
 """The benchmark's report: results.csv (one row per scenario, goal, track and method),
-summary.md (per track and method) and benchmark.png. No Ray, no rclpy.
+summary.md (per track and method) and benchmark.png; the learning track's learning.csv and
+learning.png (``benchmark_learning_report``, which also writes its table). No Ray, no rclpy.
 
-Per track and method, over the rows that ran (``status`` ok; failed and interrupted rows are
-counted apart):
+Per episode track (full, sensed) and method, over the rows that ran (``status`` ok; failed and
+interrupted rows are counted apart):
 
 - **success**: the undetected success rate, the fraction of episodes that reached the goal
   without being detected (detection ends an episode);
@@ -33,9 +34,10 @@ from stealth_core import palette
 from stealth_core.path_scores import DEFAULT_CRITERION, PathScores, meets_criterion
 from stealth_core.reward import EpisodeOutcome
 
-from stealth_experiments.benchmark_methods import COLUMNS, METHODS, TRACKS
+from stealth_experiments.benchmark_learning_report import LEARNING_FILES, learning_lines
+from stealth_experiments.benchmark_methods import COLUMNS, EPISODE_TRACKS, METHODS
 
-RESULT_FILES = ('results.csv', 'summary.md', 'benchmark.png')  # what a benchmark writes
+RESULT_FILES = ('results.csv', 'summary.md', 'benchmark.png', *LEARNING_FILES)  # all it writes
 
 
 def write_csv(path: Path, rows: list[dict]) -> Path:
@@ -57,10 +59,10 @@ def _cell(value):
 
 
 def summarise(rows: list[dict]) -> list[dict]:
-    """One entry per track and method present (TRACKS, then METHODS order): see the module
-    docstring for each figure; None where no row gives it."""
+    """One entry per episode track and method present (EPISODE_TRACKS, then METHODS order): see
+    the module docstring for each figure; None where no row gives it."""
     found = []
-    for track in TRACKS:
+    for track in EPISODE_TRACKS:
         for method in METHODS:
             mine = [r for r in rows if r['track'] == track and r['method'] == method]
             if not mine:
@@ -122,7 +124,7 @@ def write_summary(path: Path, rows: list[dict], settings: str, note: str = '') -
     cases = {(r['scenario'], r['goal']) for r in rows}
     lines += [f'{len(cases)} scenario goals. {settings}', '']
     summary = summarise(rows)
-    for track in TRACKS:
+    for track in EPISODE_TRACKS:
         mine = [s for s in summary if s['track'] == track]
         if not mine:
             continue
@@ -152,6 +154,7 @@ def write_summary(path: Path, rows: list[dict], settings: str, note: str = '') -
         'exposure / optimum: summed exposure (accumulated step visibility) over the '
         "optimum's, successful rows.",
         '',
+        *learning_lines(rows),
     ]
     failures: dict[tuple, list[str]] = {}
     for r in rows:
@@ -170,26 +173,27 @@ def write_summary(path: Path, rows: list[dict], settings: str, note: str = '') -
 
 
 def write_plot(path: Path, rows: list[dict]) -> Path | None:
-    """benchmark.png: the success rate and the mean regret per method, a bar per track."""
+    """benchmark.png: the success rate and the mean regret per method, a bar per episode
+    track; None without rows of those."""
     summary = summarise(rows)
     methods = [m for m in METHODS if any(s['method'] == m for s in summary)]
     if not methods:
         return None
     figure = Figure(figsize=(max(8, 1.1 * len(methods) + 3), 7), dpi=100)
-    width = 0.8 / len(TRACKS)
+    width = 0.8 / len(EPISODE_TRACKS)
     x = np.arange(len(methods))
     for k, (key, title) in enumerate(
         (('success', 'undetected success rate'), ('regret', 'normalised regret (0: optimum)'))
     ):
         ax = figure.add_subplot(2, 1, k + 1)
-        for t, track in enumerate(TRACKS):
+        for t, track in enumerate(EPISODE_TRACKS):
             values = [
                 next((s[key] for s in summary if s['track'] == track and s['method'] == m), None)
                 for m in methods
             ]
             heights = [np.nan if v is None else v for v in values]
             ax.bar(
-                x + (t - (len(TRACKS) - 1) / 2) * width, heights, width,
+                x + (t - (len(EPISODE_TRACKS) - 1) / 2) * width, heights, width,
                 color=palette.TRACKS[track], label=f'{track} track',
             )  # fmt: skip
         ax.set_xticks(x, methods, rotation=20, ha='right', fontsize=8)

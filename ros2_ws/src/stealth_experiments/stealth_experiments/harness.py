@@ -13,7 +13,13 @@ undetected, path <= ``max_path_ratio`` x the optimum's, accumulated exposure <= 
 ``exposure_tolerance``; with slip, the mean of its rollouts). "Episodes to the criterion" is the
 first evaluation point from which every later greedy evaluation of the run meets it (it stays
 there, not just touches it); a run that never settles is reported as not meeting it in its
-budget.
+budget. "Episodes to the criterion, STREAK in a row" (``first_streak``, ``RunResult.cost``;
+issue 41's measure, the bench's and the benchmark's learning track) is the first evaluation of
+the first STREAK consecutive evaluations that meet it: it asks less than settling (a later
+failure does not undo it) but more than one lucky evaluation. What learning cost until then
+(``LearningCost``): the training episodes that ended DETECTED, the environment steps and the
+wall time until the evaluation after it (the greedy evaluations included: a learner may do its
+planning when it acts greedily, light-model and prioritized sweeping's known way do).
 """
 
 from __future__ import annotations
@@ -72,6 +78,7 @@ MOVING_EPISODES = {
 }  # fmt: skip
 DEFAULT_EVAL_EVERY = 10
 WITHIN = 0.05  # of the optimal return: the old criterion, kept for settled_within only
+STREAK = 3  # evaluations in a row that meet the criterion (first_streak)
 BASELINES = ('A*', 'Dark Path', 'value iteration')
 # The unknown-light track's baselines (stealth_core.replanning), by the rule for unsensed places.
 SENSED_BASELINES = {'replan (unknown dark)': 'dark', 'replan (unknown lit)': 'lit'}
@@ -207,6 +214,9 @@ class RunSpec:
     goal: str | None = None
     policy_dir: str | None = None  # where to save the final policy, if anywhere
     params: tuple = ()  # (name, value) pairs: PARAMETERS over tuned_config, CRITERION_PARAMETERS
+    # Stop training once STREAK evaluations in a row met the criterion (first_streak): the
+    # learning cost is then known, and the rest of the budget would only add to the wall time.
+    stop_at_streak: bool = False
 
     @property
     def criterion(self) -> Criterion:
@@ -256,6 +266,22 @@ def grid_specs(
     ]
 
 
+@dataclasses.dataclass(frozen=True)
+class LearningCost:
+    """What learning cost a run until it met the criterion STREAK times in a row (None fields
+    when it never did in its budget): training episodes, the detections among them, their
+    environment steps and their wall time (s, with the greedy evaluations after them)."""
+
+    episodes: int | None
+    detections: int | None
+    steps: int | None
+    seconds: float | None
+
+    @property
+    def met(self) -> bool:
+        return self.episodes is not None
+
+
 @dataclasses.dataclass
 class RunResult:
     spec: RunSpec
@@ -270,11 +296,35 @@ class RunResult:
     env_steps: int
     eval_met: np.ndarray | None = None  # (evaluations,) bool: each met the criterion
     optimum_scores: PathScores | None = None  # value iteration's path (no slip)
+    train_steps: np.ndarray | None = None  # (episodes,) environment steps of each
+    # (episodes,) wall time of each, with the greedy evaluation after it (if any)
+    train_seconds: np.ndarray | None = None
 
     @property
     def episodes_to_within(self) -> int | None:
         """The former name of episodes_to_criterion (sweep_trials reads it)."""
         return self.episodes_to_criterion
+
+    @property
+    def episodes_to_streak(self) -> int | None:
+        """Training episodes until the first of STREAK evaluations in a row that met the
+        criterion (first_streak), or None."""
+        if self.eval_met is None:
+            return None
+        return first_streak(self.eval_at, self.eval_met)
+
+    @property
+    def cost(self) -> LearningCost:
+        """What learning cost until episodes_to_streak (module docstring)."""
+        return learning_cost(
+            self.episodes_to_streak, self.train_outcomes, self.train_steps, self.train_seconds
+        )
+
+    @property
+    def detections(self) -> np.ndarray:
+        """The cumulative count of training episodes that ended DETECTED, per episode: the
+        regret curve of Qi et al. (observed captures against episodes)."""
+        return np.cumsum(self.train_outcomes == int(EpisodeOutcome.DETECTED))
 
 
 def default_budget(learner: str, scenario: str | None = None) -> int:
@@ -305,6 +355,36 @@ def settled(eval_at, passed) -> int | None:
         return None
     bad = np.flatnonzero(~good)
     return int(eval_at[0] if bad.size == 0 else eval_at[bad[-1] + 1])
+
+
+def first_streak(eval_at, passed, streak: int = STREAK) -> int | None:
+    """The evaluation point (episodes trained) of the first of the first ``streak``
+    consecutive evaluations that passed, or None: a streak cut short by a failure or by the end
+    of the run does not count."""
+    if streak < 1:
+        raise ValueError(f'streak must be at least 1, got {streak}')
+    run = 0
+    for k, good in enumerate(np.asarray(passed, dtype=bool)):
+        run = run + 1 if good else 0
+        if run == streak:
+            return int(eval_at[k - streak + 1])
+    return None
+
+
+def learning_cost(episodes: int | None, outcomes, steps, seconds) -> LearningCost:
+    """LearningCost of the first ``episodes`` training episodes (their outcomes, environment
+    steps and wall times, one per episode); all None for ``episodes`` None."""
+    if episodes is None:
+        return LearningCost(None, None, None, None)
+    if episodes > len(outcomes):
+        raise ValueError(f'{episodes} episodes asked for, {len(outcomes)} trained')
+    detected = np.asarray(outcomes[:episodes]) == int(EpisodeOutcome.DETECTED)
+    return LearningCost(
+        episodes,
+        int(np.count_nonzero(detected)),
+        None if steps is None else int(np.sum(steps[:episodes])),
+        None if seconds is None else float(np.sum(seconds[:episodes])),
+    )
 
 
 def settled_within(eval_at, eval_returns, optimum: float, within: float = WITHIN) -> int | None:
@@ -341,13 +421,14 @@ def run(spec: RunSpec) -> RunResult:
     )
     rollouts = 1 if spec.slip == 0 else 10
     returns, outcomes, eval_at, eval_returns, eval_met = [], [], [], [], []
-    steps = 0
+    episode_steps, episode_seconds = [], []
     final: dict = {}
     for episode in range(spec.episodes):
+        began = time.perf_counter()
         result, info = play_episode(env, agent, seed=spec.seed if episode == 0 else None)
         returns.append(result.reward)
         outcomes.append(EpisodeOutcome[info['outcome']])
-        steps += result.actions
+        episode_steps.append(result.actions)
         if (episode + 1) % spec.eval_every == 0 or episode + 1 == spec.episodes:
             tries = [_greedy_rollout(evaluator, greedy, spec.seed + k) for k in range(rollouts)]
             eval_at.append(episode + 1)
@@ -355,6 +436,9 @@ def run(spec: RunSpec) -> RunResult:
             scores = mean_scores([PathScores.of_summary(t) for t in tries])
             eval_met.append(meets_criterion(scores, reference, criterion))
             final = tries[0]
+        episode_seconds.append(time.perf_counter() - began)
+        if spec.stop_at_streak and eval_met and first_streak(eval_at, eval_met) is not None:
+            break
     if spec.policy_dir:
         save_policy(
             policy_path(spec),
@@ -377,9 +461,11 @@ def run(spec: RunSpec) -> RunResult:
         settled(eval_at, eval_met),
         final,
         time.perf_counter() - started,
-        steps,
+        int(sum(episode_steps)),
         np.array(eval_met, dtype=bool),
         reference,
+        np.array(episode_steps, dtype=np.int64),
+        np.array(episode_seconds),
     )
 
 

@@ -9,11 +9,14 @@ import subprocess
 import sys
 
 import pytest
+from stealth_agent.learners import LEARNER_NAMES
 from stealth_core.gym_env import lattice_model
 from stealth_core.planners import step_terms, value_iteration
 from stealth_experiments import benchmark
 from stealth_experiments.benchmark_methods import (
     COLUMNS,
+    DEFAULT_TRACKS,
+    EPISODE_TRACKS,
     METHODS,
     TRACKS,
     floor_of,
@@ -39,7 +42,7 @@ REQUIRED = (
 )  # fmt: skip
 
 
-def _trial(method, tracks=TRACKS, scenario=SCENARIO, goal='easy', **extra):
+def _trial(method, tracks=EPISODE_TRACKS, scenario=SCENARIO, goal='easy', **extra):
     case = Case(scenario, Path(scenario).stem, goal, scenario)
     laid = trials([case], [method], list(tracks), episodes=extra.pop('episodes', 50), **extra)
     return laid[0]
@@ -165,7 +168,7 @@ def test_an_unreadable_scenario_is_a_case_naming_the_file_and_its_rows_are_faile
     assert case.error.startswith(str(broken)) and 'YAML' in case.error
     missing = file_case('no-such-scenario', tmp_path)
     assert 'no-such-scenario' in missing.error
-    laid = trials([case], ['value iteration', 'Dark Path'], list(TRACKS))
+    laid = trials([case], ['value iteration', 'Dark Path'], list(TRACKS))  # learning too
     rows = benchmark.collect(laid, {})
     assert [(r['method'], r['track'], r['status']) for r in rows] == [
         ('value iteration', 'full', 'failed'),
@@ -195,12 +198,13 @@ def test_a_method_that_raises_fails_its_row_only(tmp_path):
 
 
 def test_the_method_registry_says_which_track_each_method_runs_on():
-    assert METHODS['value iteration'] == TRACKS and METHODS['A*'] == TRACKS
+    assert METHODS['value iteration'] == EPISODE_TRACKS and METHODS['A*'] == EPISODE_TRACKS
+    assert (*EPISODE_TRACKS, 'learning') == TRACKS and DEFAULT_TRACKS == EPISODE_TRACKS
     assert METHODS['Dark Path'] == ('full',) and METHODS['policy'] == ('full',)
     for name in ('replan (unknown dark)', 'replan (unknown lit)'):
         assert METHODS[name] == ('sensed',)
-    for learner in ('qlearning', 'sarsa', 'dyna'):
-        assert METHODS[learner] == ('full',)
+    for learner in LEARNER_NAMES:  # light-model too, once registered
+        assert METHODS[learner] == ('full', 'learning')
     assert method_name('replan-lit') == 'replan (unknown lit)' and method_name('dyna') == 'dyna'
     with pytest.raises(ValueError, match=r"--methods: unknown method 'greedy' \(expected one of"):
         method_name('greedy')
