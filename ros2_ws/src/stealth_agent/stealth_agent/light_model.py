@@ -37,6 +37,7 @@ from .learners import LearnerConfig, TabularLearner, argmax_random, register_lea
 
 PLANNING_RULES = ('expected', 'optimistic', 'thompson', 'cautious')
 DEFAULT_RULE = 'expected'
+MIN_WEIGHT = 1e-3  # particles lighter than this are left out of a plan
 SURPRISE_MOVES = 15  # Metropolis moves per particle after a surprising step, mid-episode
 
 
@@ -142,7 +143,7 @@ class LightModelLearner(TabularLearner):
         surprise = max(low - assumed, assumed - high, 0.0)
         tolerance = belief.settings.abs_tol + belief.settings.rel_tol * low
         if surprise > tolerance and not terminated:
-            belief.fit(SURPRISE_MOVES)
+            belief.fit(SURPRISE_MOVES, polish=False)
             self._plan()
         return float(surprise)
 
@@ -173,8 +174,10 @@ class LightModelLearner(TabularLearner):
         if rule == 'thompson':
             chosen = int(belief.rng.choice(len(weights), p=weights))
             tables, weights = [belief.step_visibility(chosen)], np.ones(1)
-        else:
-            tables = [belief.step_visibility(k) for k in range(len(weights))]
+        else:  # the particles that carry weight (each table costs a light field)
+            kept = np.flatnonzero(weights >= MIN_WEIGHT)
+            tables, weights = [belief.step_visibility(k) for k in kept], weights[kept]
+            weights = weights / weights.sum()
         tables = [self._with_evidence(table) for table in tables]
         lit = np.stack([table >= threshold for table in tables])
         values = np.stack(tables)
