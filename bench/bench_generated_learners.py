@@ -65,7 +65,9 @@ def main(argv=None) -> None:
                     flush=True,
                 )
             rows.append(row)
-    settled = [r for r in rows if r['light-model'][0] is not None and r['light-model'][0] <= WITHIN]
+    settled = [
+        r for r in rows if r['light-model'][0] is not None and r['light-model'][0] <= WITHIN
+    ]
     ratios = [
         r['light-model'][1] / r['prioritized'][1]
         for r in rows
@@ -73,7 +75,7 @@ def main(argv=None) -> None:
     ]
     print(
         f'light-model met the criterion within {WITHIN} episodes on {len(settled)} of '
-        f'{len(rows)} buildings; detections before it / prioritized sweeping\'s: median '
+        f"{len(rows)} buildings; detections before it / prioritized sweeping's: median "
         f'{np.median(ratios) if ratios else float("nan"):.2f} over {len(ratios)} buildings'
     )
 
