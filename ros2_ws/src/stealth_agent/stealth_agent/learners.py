@@ -30,6 +30,9 @@ import numpy as np
 from .schedules import Schedule
 
 LEARNER_NAMES = ('qlearning', 'sarsa', 'dyna', 'prioritized', 'light-model')
+# The learners that learn any MDP from its rewards alone; light-model needs the stealth task's
+# world (``LightModelLearner.attach``).
+TABULAR_LEARNERS = ('qlearning', 'sarsa', 'dyna', 'prioritized')
 # Learners that explore by optimism (prioritized sweeping's docstring): started at an upper bound
 # on the true values (the floor plan's, stealth_core.floor_plan_prior) they need no random moves,
 # so the harness and `stealth train` run them with epsilon 0 and the floor plan's prior.

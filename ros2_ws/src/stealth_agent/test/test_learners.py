@@ -4,7 +4,7 @@ from grid_mdps import DYNA_MAZE, STEALTH_GRID, GridMDP, greedy_return, run_episo
 import numpy as np
 import pytest
 from stealth_agent.learners import (
-    LEARNER_NAMES,
+    TABULAR_LEARNERS,
     DynaQ,
     LearnerConfig,
     QLearning,
@@ -62,7 +62,7 @@ def test_rl_agent_defaults():
         make_learner('texplore', 4)
 
 
-@pytest.mark.parametrize('name', LEARNER_NAMES)
+@pytest.mark.parametrize('name', TABULAR_LEARNERS)
 @pytest.mark.parametrize(
     'mapping', [None, StateMapping('grid', (0.5,))], ids=['exact-index', 'grid-0.5m']
 )
@@ -92,7 +92,7 @@ def test_dyna_needs_markedly_fewer_episodes_than_qlearning():
     assert dyna_mean * 2.5 <= q_mean
 
 
-@pytest.mark.parametrize('name', LEARNER_NAMES)
+@pytest.mark.parametrize('name', TABULAR_LEARNERS)
 def test_same_seed_same_learning_curve_bit_for_bit(name):
     agent_a, curve_a = train(name, STEALTH_GRID, 40, seed=11)
     agent_b, curve_b = train(name, STEALTH_GRID, 40, seed=11)

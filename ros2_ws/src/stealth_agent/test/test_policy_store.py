@@ -7,7 +7,7 @@ from grid_mdps import STEALTH_GRID, run_episode
 import numpy as np
 import pytest
 from stealth_agent import policy_store
-from stealth_agent.learners import LEARNER_NAMES, LearnerConfig, make_learner
+from stealth_agent.learners import TABULAR_LEARNERS, LearnerConfig, make_learner
 from stealth_agent.policy_store import (
     PolicyFileError,
     PolicyMismatchError,
@@ -30,7 +30,7 @@ def trained(name='qlearning', episodes=10, seed=0, mapping=None):
     return agent, results
 
 
-@pytest.mark.parametrize('name', LEARNER_NAMES)
+@pytest.mark.parametrize('name', TABULAR_LEARNERS)  # light-model: test_light_model
 def test_round_trip_keeps_table_index_and_metadata(tmp_path, name):
     agent, _ = trained(name)
     path = tmp_path / 'policy.npz'
@@ -47,7 +47,7 @@ def test_round_trip_keeps_table_index_and_metadata(tmp_path, name):
         assert policy.learner.model_size == agent.learner.model_size > 0
 
 
-@pytest.mark.parametrize('name', LEARNER_NAMES)
+@pytest.mark.parametrize('name', TABULAR_LEARNERS)  # light-model: test_light_model
 def test_resume_continues_the_same_learning_curve_bit_for_bit(tmp_path, name):
     straight, curve = trained(name, episodes=20, seed=4)
     first, first_half = trained(name, episodes=10, seed=4)
