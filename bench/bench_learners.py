@@ -31,7 +31,9 @@ import sys
 
 import numpy as np
 from stealth_agent.learners import LEARNER_NAMES
+from stealth_core.light_world import UnmodelledLawError, check_modelled
 from stealth_core.path_scores import DEFAULT_CRITERION
+from stealth_core.scenario import load_scenario
 from stealth_experiments.benchmark_learning import median_of, seed_case
 from stealth_experiments.harness import STREAK, default_budget
 
@@ -65,6 +67,18 @@ def moving(scenario: str) -> bool:
     return scenario in MOVING or scenario.endswith('-moving')
 
 
+def refusal(scenario: str, learner: str) -> str | None:
+    """Why a learner cannot learn a scenario at all (light-model: a law it does not model,
+    ``light_world.check_modelled``), or None."""
+    if learner != MODEL:
+        return None
+    try:
+        check_modelled(load_scenario(scenario))
+    except UnmodelledLawError as error:
+        return str(error)
+    return None
+
+
 def measure(
     scenarios, learners, seeds=SEEDS, jobs: int | None = None, progress=None
 ) -> list[dict]:
@@ -75,6 +89,7 @@ def measure(
         {'id': f'{scenario}-{learner}-seed{seed}', 'scenario': scenario, 'learner': learner,
          'seed': seed, 'episodes': None}
         for scenario in scenarios for learner in learners for seed in seeds
+        if refusal(scenario, learner) is None
     ]  # fmt: skip
     jobs = jobs or min(os.cpu_count() or 1, 2)
     found: dict[str, dict] = {}
@@ -149,6 +164,11 @@ def run(
     for scenario in scenarios:
         medians: dict[str, dict] = {}
         for learner in learners:
+            reason = refusal(scenario, learner)
+            if reason is not None:  # its targets count as missed
+                report(f'  {scenario:20s} {learner:11s}: refused: {reason}')
+                medians[learner] = dict.fromkeys(FIGURES)
+                continue
             mine = [r for r in records if r['scenario'] == scenario and r['learner'] == learner]
             medians[learner] = {key: median_of(r[key] for r in mine) for key in FIGURES}
             final = float(np.median([r['return_per_optimum'] for r in mine]))
