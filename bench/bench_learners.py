@@ -173,9 +173,9 @@ def run(
             medians[learner] = {key: median_of(r[key] for r in mine) for key in FIGURES}
             final = float(np.median([r['return_per_optimum'] for r in mine]))
             if medians[learner][FIGURES[0]] is None:
-                met = sum(r[FIGURES[0]] is not None for r in mine)
+                reached = sum(r[FIGURES[0]] is not None for r in mine)
                 shown = (
-                    f'never on most seeds ({met}/{len(mine)} met the criterion in its budget '
+                    f'never on most seeds ({reached}/{len(mine)} met the criterion in its budget '
                     f'{mine[0]["budget"]})'
                 )
             else:
