@@ -10,13 +10,16 @@ reward, or a bound from a detection or a goal). A hypothesis' energy is
     E = sum_k (sqrt(1 + z_k^2) - 1) + light_cost * lights,
 
 z_k the step's miss in units of its tolerance (``abs_tol + rel_tol * v``: the environment's
-rounding in-process, the pose noise through ROS), and the belief is ``particles`` hypotheses
-kept by Metropolis moves at temperature 1 (birth, death, perturbation), each particle weighed by
-``exp(-E)``: a sample of the posterior under a sparsity prior, the number of lights included.
-A birth is proposed from the data: a step lit more than the hypothesis says is explained by a
-lamp at a free place that sees it, aimed at it, with ``beta`` chosen so that its light there is
-the missing light, the place scored by how well one ``beta`` fits the other unexplained steps
-near it (one light's intensities ``1/(1 + beta*d^2)`` fix the ratio of its distances).
+rounding in-process, the pose noise through ROS), and the belief is ``particles`` hypotheses,
+each weighed by ``exp(-E)``: an approximation of the posterior under a sparsity prior, the
+number of lights included. Each fit runs Metropolis moves on every particle (birth, death,
+perturbation at a random scale), annealed from ANNEAL_START down to temperature 1, then a
+pattern-search polish of each light (``polish``). A birth is proposed from the data: a step lit
+more than the hypothesis says is explained by a lamp at a free place that sees it, aimed at the
+unexplained steps near it, with ``beta`` their median, the place scored by how well one
+``beta`` fits them (one light's intensities ``1/(1 + beta*d^2)`` fix the ratio of its
+distances). Where light bounces, a light's bounce is traced when the fit ends and kept through
+the moves (a trace costs tens of ms; the direct light is recomputed at every move).
 
 Where the evidence says nothing (rooms not yet seen) the particles hold no light: the plan is
 optimistic there, and the robot finds out. A step the best particle still misses by more than
