@@ -12,12 +12,16 @@ It may read the floor plan, the start, the goal, the reward weights and the law'
 ``LightWorld`` it is attached to is the scenario with every light removed. It never sees a
 light.
 
-Planning rules (``PLANNING_RULES``), how the belief's uncertainty becomes a plan:
+Greedy actions (evaluations, a saved policy) follow the ``expected`` plan; training follows
+the plan of the learner's rule (``PLANNING_RULES``), as E3 keeps exploitation apart from
+exploration:
 
-- ``expected``: each step is detected with the posterior probability that it is lit (the
-  weighed particles that say so) and costs the mean light of those that do not: the plan of
-  the posterior's mean model;
-- ``thompson``: one particle drawn by weight each episode, planned on as if it were the truth;
+- ``expected`` (the default, chosen by measurement: docs, the light model): each step is
+  detected with the posterior probability that it is lit (the weighed particles that say so)
+  and costs the mean light of those that do not: the plan of the posterior's mean model;
+- ``optimistic``: a step is taken as a detection only where every particle of weight > 1 %
+  lights it;
+- ``thompson``: one particle drawn by weight for each plan, planned on as if it were the truth;
 - ``cautious``: a step any particle of weight > 1 % lights is taken as a detection.
 
 Steps the robot has taken are known exactly: their evidence overrides every particle.
