@@ -36,7 +36,6 @@ import numpy as np
 
 from stealth_core import exposure
 from stealth_core.light_world import LightWorld, StepEvidence, light_from_parameters
-from stealth_core.visibility import _occluded, corner_maps
 
 CONTRADICTION_Z = 6.0
 ANNEAL_START = 30.0  # the search's first temperature, in units of energy
@@ -101,11 +100,6 @@ class LightBelief:
         self._high = np.zeros(0)
         self.particles = [_Particle([]) for _ in range(self.settings.particles)]
         self._lamps = _lamp_places(world)
-        frame = world.points.frame
-        self._lamp_cells = tuple(
-            np.floor((self._lamps[:, k] - origin) / frame.resolution).astype(np.int64)
-            for k, origin in ((0, frame.origin_x), (1, frame.origin_y))
-        )
         self._sight_from: dict[tuple[int, int], np.ndarray] = {}
         self._field_cache: dict[tuple, np.ndarray] = {}
         self._seeing_cache: dict[tuple, object] = {}
@@ -370,15 +364,10 @@ class LightBelief:
     def _seen_from(self, anchor) -> np.ndarray:
         """(lamp places,) bool: the lamp places in sight of the anchor's cell, traced from the
         anchor in one call (the line is nearly symmetric; the lamp chosen is checked exactly)."""
-        frame = self.world.points.frame
-        cell = frame.cell_of(*anchor)
+        cell = self.world.points.frame.cell_of(*anchor)
         mask = self._sight_from.get(cell)
         if mask is None:
-            points = self.world.points
-            if points._corners is None:
-                points._corners = corner_maps(points.blocked)
-            cols, rows = self._lamp_cells
-            mask = ~_occluded(points.blocked, points._corners, cell, cols, rows)
+            mask = self.world.points.sight_from(*anchor, *self._lamps.T)
             if len(self._sight_from) > 4096:
                 self._sight_from.clear()
             self._sight_from[cell] = mask

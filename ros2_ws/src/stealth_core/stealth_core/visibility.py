@@ -283,6 +283,18 @@ class PointVisibility:
         other._sources = None  # the bounce's emitters receive these lights' light
         return other
 
+    def sight_from(self, x: float, y: float, xs, ys) -> np.ndarray:
+        """Bool per point (arrays of x and y, m): whether the cell of (x, y) sees the point's
+        cell, all traced from (x, y) in one ``_occluded`` call (not memoised: from a lamp, ask
+        ``line_of_sight``). ValueError for a point off the map."""
+        if self._corners is None:
+            self._corners = corner_maps(self.blocked)
+        source = self.frame.cell_of(x, y)
+        cols, rows = self._cells(
+            np.asarray(xs, dtype=np.float64), np.asarray(ys, dtype=np.float64)
+        )
+        return ~_occluded(self.blocked, self._corners, source, cols, rows)
+
     def _weighs(self, heading) -> bool:
         return heading is not None and self.footprint is not None
 

@@ -100,3 +100,17 @@ def test_a_light_from_its_search_parameters_has_that_beta_and_range():
     light = light_from_parameters('h', 1.0, 2.0, 7.0, 0.5, 0.25, 6.0)
     assert light.beta == pytest.approx(0.25)
     assert light.range == 6.0 and 0 <= light.direction < 2 * math.pi
+
+
+def test_sight_from_one_place_is_the_line_of_sight_from_its_cell():
+    """The one-call trace a birth uses agrees with the per-lamp lines of sight."""
+    world = LightWorld(load_scenario('map1'))
+    points = world.points
+    rng = np.random.default_rng(0)
+    xs, ys = rng.uniform(0.1, 19.9, 300), rng.uniform(0.1, 19.9, 300)
+    seen = points.sight_from(13.0, 8.5, xs, ys)
+    source = points.frame.cell_of(13.0, 8.5)
+    cells = [points.frame.cell_of(x, y) for x, y in zip(xs, ys, strict=True)]
+    expected = [points.line_of_sight(source, cell) for cell in cells]
+    np.testing.assert_array_equal(seen, expected)
+    assert seen.any() and not seen.all()
