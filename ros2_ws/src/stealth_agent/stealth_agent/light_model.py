@@ -260,15 +260,18 @@ class LightModelLearner(TabularLearner):
 
     def belief_arrays(self) -> dict[str, np.ndarray]:
         """The belief as arrays: ``lights`` (k, 7): particle, x, y, direction (rad), fov (rad),
-        beta (1/m^2), range (m) of every hypothesised light; ``weights`` (particles,)."""
+        beta (1/m^2), range (m) of every hypothesised light (k, 12 where lights move: and kind,
+        a, b, period_bins, offset, ``light_world.hypothesis_light``); ``weights``
+        (particles,)."""
         belief = self._attached()
         rows = [
             (k, *light.params)
             for k, particle in enumerate(belief.particles)
             for light in particle.lights
         ]
+        columns = 7 if belief.world.timing is None else 12
         return {
-            'lights': np.array(rows, dtype=np.float64).reshape(-1, 7),
+            'lights': np.array(rows, dtype=np.float64).reshape(-1, columns),
             'weights': belief.weights(),
         }
 

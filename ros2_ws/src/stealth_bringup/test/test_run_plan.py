@@ -355,11 +355,20 @@ def test_light_model_is_given_the_scenario_without_its_lights(tmp_path):
     assert not any('epsilon 0' in note for note in plan.notes)
 
 
+def test_light_model_on_moving_lights_is_given_their_timing_not_the_lights(tmp_path):
+    import yaml
+
+    plan = plan_of('--learner', 'light-model', '--scenario', 'map1-moving', runs_dir=tmp_path)
+    world = Path(plan.parameters['agent'].values['world_file'])
+    fields = yaml.safe_load(world.read_text())
+    assert fields['lights'] == [] and fields['phase_bins'] == 8
+    assert fields['cycle_seconds'] == 24.0 and fields['step_seconds'] == 3.0
+    assert 'kitchen' not in world.read_text()
+
+
 @pytest.mark.parametrize(
     ('argv', 'message'),
     [
-        (['--scenario', 'map1-moving'],
-         'map1-moving: phase_bins (lights that move with time) is not modelled by light-model'),
         (['--prior', 'floor_plan'], '--prior: light-model plans on the floor plan itself'),
         (['--set', 'agent.agent=dyna'], '--learner with --set agent.agent=...'),
     ],

@@ -35,17 +35,35 @@ import math
 import numpy as np
 
 from stealth_core import exposure
-from stealth_core.light_world import LightWorld, StepEvidence, light_from_parameters
+from stealth_core.light_world import (
+    PATROL,
+    STATIC,
+    SWEEP,
+    LightWorld,
+    StepEvidence,
+    hypothesis_light,
+)
 
 CONTRADICTION_Z = 6.0
 ANNEAL_START = 30.0  # the search's first temperature, in units of energy
 _MIN_FOV = math.radians(5.0)
 _LAMP_STRIDE = 0.25  # m between the candidate lamp places of a birth
-# The pattern search's first steps: x, y (m), direction, fov (rad), log beta, range (m), and a
-# slide along the beam (m) that keeps the light at the reach of intensity 0.3 (x and beta alone
-# trade off: a lamp farther back with a smaller beta lights a far patch alike).
-POLISH_STEPS = (0.2, 0.2, math.radians(4.0), math.radians(4.0), 0.2, 0.5, 0.4)
+SLIDE = -1  # the polish's slide along the beam, as a parameter number
+# The pattern search's first steps, (parameter, step): x, y (m), direction, fov (rad), log beta,
+# range (m), and a slide along the beam (m) that keeps the light at the reach of intensity 0.3
+# (x and beta alone trade off: a lamp farther back with a smaller beta lights a far patch
+# alike). A moving light adds its motion's: a sweep's span and offset (rad), a patrol's far end
+# (m) and offset (m).
+POLISH_STEPS = (
+    (0, 0.2), (1, 0.2), (2, math.radians(4.0)), (3, math.radians(4.0)), (4, 0.2), (5, 0.5),
+    (SLIDE, 0.4),
+)  # fmt: skip
+MOTION_POLISH_STEPS = {
+    SWEEP: ((7, math.radians(8.0)), (10, math.radians(8.0))),
+    PATROL: ((7, 0.2), (8, 0.2), (10, 0.3)),
+}
 POLISH_HALVINGS = 5
+_STILL_TAIL = (float(STATIC), 0.0, 0.0, 0.0, 0.0)  # a timed world's static light's motion
 
 
 @dataclasses.dataclass(frozen=True)
@@ -55,6 +73,10 @@ class BeliefSettings:
     particles: int = 8
     moves: int = 120  # Metropolis moves per particle per fit
     light_cost: float = 4.0  # energy of one more light (sparsity)
+    motion_cost: float = 0.0  # and of its moving (a motion's four more unknowns)
+    # Of a hypothesis with no moving light where the world has phase bins, which a scenario
+    # has only when a light moves.
+    still_cost: float = 4.0
     abs_tol: float = 0.004  # tolerance of a read visibility, absolute
     rel_tol: float = 0.02  # and relative to it
     max_range: float = 30.0  # m, the farthest a hypothesised light may reach
@@ -71,7 +93,7 @@ class BeliefSettings:
 class _Light:
     """One hypothesised light: its parameters and its light at the evidence's samples."""
 
-    params: tuple  # x, y, direction, fov, beta, range
+    params: tuple  # x, y, direction, fov, beta, range (and kind, a, b, period_bins, offset)
     at_evidence: np.ndarray  # (evidence rows, width): its direct light
     # Its bounced light there, where light bounces (None: none yet). Tracing a light's bounce
     # costs tens of ms, so a moved light keeps its parent's until the fit's end refreshes it.
@@ -79,6 +101,10 @@ class _Light:
 
     def light(self) -> np.ndarray:
         return self.at_evidence if self.bounced is None else self.at_evidence + self.bounced
+
+    @property
+    def moving(self) -> bool:
+        return len(self.params) > 6 and int(self.params[6]) != STATIC
 
 
 class _Particle:
@@ -134,7 +160,12 @@ class LightBelief:
 
     def _energy(self, lights: list[_Light]) -> float:
         z = self.misses(self._predict(lights))
-        return float(np.sum(np.sqrt(1.0 + z * z) - 1.0)) + self.settings.light_cost * len(lights)
+        cost = self.settings.light_cost * len(lights)
+        moving = sum(light.moving for light in lights)
+        cost += self.settings.motion_cost * moving
+        if self.world.timing is not None and not moving:  # the world says a light moves
+            cost += self.settings.still_cost
+        return float(np.sum(np.sqrt(1.0 + z * z) - 1.0)) + cost
 
     def _predict(self, lights: list[_Light]) -> np.ndarray:
         if not lights:
@@ -146,7 +177,7 @@ class LightBelief:
 
     def _light_at(self, params: tuple, rows: np.ndarray) -> np.ndarray:
         """A light's direct light at the samples of evidence rows."""
-        light = light_from_parameters('hypothesis', *params)
+        light = hypothesis_light('hypothesis', params, self.world.timing)
         return self.world.samples.light_at(self.world.see([light], bounce=False), rows)
 
     def _seeing(self, params: tuple):
@@ -154,7 +185,7 @@ class LightBelief:
         (its bounce's emitters are traced once)."""
         see = self._seeing_cache.get(params)
         if see is None:
-            see = self.world.see([light_from_parameters('hypothesis', *params)])
+            see = self.world.see([hypothesis_light('hypothesis', params, self.world.timing)])
             if len(self._seeing_cache) >= 64:
                 self._seeing_cache.pop(next(iter(self._seeing_cache)))
             self._seeing_cache[params] = see
@@ -209,14 +240,14 @@ class LightBelief:
         if not math.isfinite(particle.energy):
             particle.energy = self._energy(particle.lights)
         for k in range(len(particle.lights)):
-            steps = list(POLISH_STEPS)
-            for parameter in range(len(steps)):
+            params = particle.lights[k].params
+            kind = STATIC if len(params) == 6 else int(params[6])
+            for parameter, first in POLISH_STEPS + MOTION_POLISH_STEPS.get(kind, ()):
+                step = first
                 for _ in range(halvings):
                     for sign in (1.0, -1.0):
-                        params = _stepped(
-                            particle.lights[k].params, parameter, sign * steps[parameter]
-                        )
-                        if params is None or self._blocked(params[0], params[1]):
+                        params = _stepped(particle.lights[k].params, parameter, sign * step)
+                        if params is None or not self._placeable(params):
                             continue
                         lights = [
                             *particle.lights[:k],
@@ -228,7 +259,7 @@ class LightBelief:
                             particle.lights, particle.energy = lights, energy
                             break
                     else:
-                        steps[parameter] /= 2
+                        step /= 2
 
     def _propose(self, lights: list[_Light]) -> list[_Light] | None:
         kind = self.rng.random()
@@ -238,13 +269,114 @@ class LightBelief:
         k = int(self.rng.integers(len(lights)))
         if kind < 0.4:
             return lights[:k] + lights[k + 1 :]
-        params = self._perturbed(lights[k].params)
+        if self.world.timing is not None and kind < 0.55:  # set moving, or stopped
+            params = self._stilled(lights[k]) if lights[k].moving else self._animated(lights[k])
+        elif lights[k].moving and kind < 0.75:
+            params = self._motion_perturbed(lights[k].params)
+        else:
+            params = self._perturbed(lights[k].params)
         if params is None:
             return None
         return [*lights[:k], self._make(params, lights[k].bounced), *lights[k + 1 :]]
 
+    # --- moving lights (a world with timing) ---------------------------------------------------
+
+    def _periods(self) -> list[int]:
+        """The periods (bins) a moving light may have: the divisors of the cycle's bins (every
+        moving light's period divides the joint cycle), a single bin only where it is all."""
+        bins = self.world.timing.cycle_bins
+        periods = [d for d in range(2, bins + 1) if bins % d == 0]
+        return periods or [bins]
+
+    def _lit_time(self, light: _Light) -> float:
+        """The time of the evidence sample the light lights most (a random time of the cycle
+        when it lights none): where a motion keeps it."""
+        samples, timing = self.world.samples, self.world.timing
+        lit = light.at_evidence
+        if lit.size == 0 or lit.max() <= 0.0:
+            return float(self.rng.uniform(0.0, timing.cycle))
+        row, column = np.unravel_index(int(np.argmax(lit)), lit.shape)
+        return float(samples.t[self._rows[row], column])
+
+    def _animated(self, light: _Light) -> tuple | None:
+        """A static light set sweeping or patrolling with a random span or rail and period,
+        placed so that it is as it is now at the time of the evidence it lights most."""
+        rng, timing = self.rng, self.world.timing
+        x, y, direction, fov, beta, light_range = light.params[:6]
+        when = self._lit_time(light)
+        period = int(rng.choice(self._periods()))
+        seconds = period * timing.bin_seconds
+        if rng.random() < 0.5:  # a sweep: the phase at that time drawn, the start solved for
+            span = float(rng.uniform(math.radians(20.0), math.pi))
+            travelled = float(rng.uniform(0.0, 2.0 * span))
+            along = travelled if travelled <= span else 2.0 * span - travelled
+            low = direction - along
+            start = (travelled - 2.0 * span * when / seconds) % (2.0 * span)
+            if start > span:  # turning down at time 0: the same beam at `when` turning up
+                start = (2.0 * span - travelled - 2.0 * span * when / seconds) % (2.0 * span)
+                if start > span:
+                    return None
+            return (x, y, low, fov, beta, light_range, float(SWEEP), span, 0.0, period, start)
+        # A patrol: mostly across the beam (a lamp on a rail lights a band that travels).
+        axis = direction + (math.pi / 2 if rng.random() < 0.5 else -math.pi / 2)
+        if rng.random() < 0.3:
+            axis = float(rng.uniform(0.0, 2.0 * math.pi))
+        length = float(rng.uniform(1.0, 8.0))
+        unit = np.array([math.cos(axis), math.sin(axis)])
+        travelled = float(rng.uniform(0.0, 2.0 * length))
+        here = np.array([x, y])
+        if travelled <= length:
+            start = here - travelled * unit
+        else:
+            start = here + (travelled - length) * unit - length * unit
+        end = start + length * unit
+        if not self._rail_free(start, end):
+            return None
+        offset = (travelled - 2.0 * length * when / seconds) % (2.0 * length)
+        return (
+            float(start[0]), float(start[1]), direction, fov, beta, light_range,
+            float(PATROL), float(end[0]), float(end[1]), period, offset,
+        )  # fmt: skip
+
+    def _rail_free(self, start, end) -> bool:
+        """Whether a patrol's rail runs over free places only (every 0.1 m)."""
+        steps = max(2, math.ceil(float(np.hypot(*(end - start))) / 0.1) + 1)
+        points = start + (end - start) * np.linspace(0.0, 1.0, steps)[:, None]
+        return not any(self._blocked(px, py) for px, py in points)
+
+    def _stilled(self, light: _Light) -> tuple:
+        """A moving light stopped where it is at the time of the evidence it lights most."""
+        still = hypothesis_light('h', light.params, self.world.timing).at(self._lit_time(light))
+        return (still.x, still.y, still.direction, *light.params[3:6], *_STILL_TAIL)
+
+    def _motion_perturbed(self, params: tuple) -> tuple | None:
+        """A moving light's motion moved: its span or rail end, its offset, or its period."""
+        rng = self.rng
+        moved = list(params)
+        scale = 10.0 ** rng.uniform(-1.5, 0.0)
+        which = int(rng.integers(3))
+        if which == 2:
+            moved[9] = float(rng.choice(self._periods()))
+        elif int(params[6]) == SWEEP:
+            if which == 0:
+                span = params[7] * math.exp(rng.normal(0, 0.3 * scale))
+                moved[7] = float(np.clip(span, _MIN_FOV, math.pi * 2))
+            moved[10] = float(
+                np.clip(params[10] + rng.normal(0, math.radians(20.0) * scale), 0.0, moved[7])
+            )
+        else:
+            if which == 0:
+                moved[7] += rng.normal(0, 0.5 * scale)
+                moved[8] += rng.normal(0, 0.5 * scale)
+                if not self._rail_free(np.array(moved[:2]), np.array(moved[7:9])):
+                    return None
+            length = math.hypot(moved[7] - moved[0], moved[8] - moved[1])
+            moved[10] = float((params[10] + rng.normal(0, 0.5 * scale)) % max(2 * length, 1e-9))
+        return tuple(moved)
+
     def _perturbed(self, params: tuple) -> tuple | None:
-        x, y, direction, fov, beta, light_range = params
+        x, y, direction, fov, beta, light_range = params[:6]
+        tail = params[6:]
         rng = self.rng
         which = int(rng.integers(5))
         scale = 10.0 ** rng.uniform(-1.5, 0.0)  # coarse moves to find, fine ones to fit
@@ -264,7 +396,17 @@ class LightBelief:
             light_range = float(
                 np.clip(light_range + rng.normal(0, 1.0 * scale), 0.2, self.settings.max_range)
             )
-        return (x, y, direction, fov, beta, light_range)
+        if tail and int(tail[0]) == PATROL and which == 0:  # the rail moves with its lamp
+            tail = (tail[0], tail[1] + x - params[0], tail[2] + y - params[1], *tail[3:])
+            if not self._rail_free(np.array([x, y]), np.array(tail[1:3])):
+                return None
+        return (x, y, direction, fov, beta, light_range, *tail)
+
+    def _placeable(self, params: tuple) -> bool:
+        """Whether a light's lamp (and a patrol's whole rail) stands on free places."""
+        if len(params) > 6 and int(params[6]) == PATROL:
+            return self._rail_free(np.array(params[:2]), np.array(params[7:9]))
+        return not self._blocked(params[0], params[1])
 
     def _blocked(self, x: float, y: float) -> bool:
         """Whether a lamp cannot stand at (x, y): off the map or in a wall."""
@@ -314,7 +456,15 @@ class LightBelief:
         if light_range < distance:
             light_range = distance + float(self.rng.uniform(0.0, 1.0))
         light_range = min(light_range, self.settings.max_range)
-        return self._make((float(lamp[0]), float(lamp[1]), aim, fov, beta, light_range))
+        params = (float(lamp[0]), float(lamp[1]), aim, fov, beta, light_range)
+        if self.world.timing is None:
+            return self._make(params)
+        born = self._make((*params, *_STILL_TAIL))
+        if self.rng.random() < 0.5:  # where lights move, half the births move
+            moving = self._animated(born)
+            if moving is not None:
+                return self._make(moving)
+        return born
 
     def _lamp_for(self, k: int, target: float, candidates, missing):
         """(lamp place, points, the unweighted intensities there) for evidence step k: a lamp
@@ -430,28 +580,37 @@ class LightBelief:
         """The lights of a particle (the best by default) as Searchlights."""
         particle = self.best() if particle is None else particle
         return [
-            light_from_parameters(f'inferred-{i}', *light.params)
+            hypothesis_light(f'inferred-{i}', light.params, self.world.timing)
             for i, light in enumerate(self.particles[particle].lights)
         ]
 
 
 def _stepped(params: tuple, parameter: int, step: float) -> tuple | None:
-    """params with one parameter moved by ``step`` (beta by a factor exp(step)); None when
-    that leaves its range."""
+    """params with one parameter moved by ``step`` (beta by a factor exp(step); ``SLIDE``
+    along the beam); None when that leaves its range."""
     moved = list(params)
     if parameter == 4:
         moved[4] = params[4] * math.exp(step)
-    elif parameter == 6:  # slide along the beam, beta keeping the light where it is dim
-        x, y, direction, _, beta, _ = params
+    elif parameter == SLIDE:  # slide along the beam, beta keeping the light where it is dim
+        x, y, direction, _, beta, _ = params[:6]
         reach = math.sqrt((1.0 / 0.3 - 1.0) / beta)
         if reach - step <= 0.1:
             return None
-        moved[0], moved[1] = x + step * math.cos(direction), y + step * math.sin(direction)
+        dx, dy = step * math.cos(direction), step * math.sin(direction)
+        moved[0], moved[1] = x + dx, y + dy
+        if len(params) > 6 and int(params[6]) == PATROL:  # the rail slides with its lamp
+            moved[7], moved[8] = params[7] + dx, params[8] + dy
         moved[4] = beta * (reach / (reach - step)) ** 2
         moved[5] = params[5] - step
     else:
         moved[parameter] = params[parameter] + step
     if not (_MIN_FOV <= moved[3] <= 2 * math.pi) or moved[5] <= 0.2:
+        return None
+    if (
+        len(moved) > 6
+        and int(moved[6]) == SWEEP
+        and not (_MIN_FOV <= moved[7] <= 2 * math.pi and 0.0 <= moved[10] <= moved[7])
+    ):
         return None
     return tuple(moved)
 

@@ -3,10 +3,13 @@ most likely light field and the places the belief is unsure of. No rclpy.
 
 The belief is the arrays ``LightModelLearner.belief_arrays`` gives and a saved light-model
 policy holds (``belief_lights``: one row per hypothesised light, particle, x, y, direction (rad),
-fov (rad), beta (1/m^2), range (m); ``belief_weights``: one weight per particle). Each particle's
-field is its lights' summed light at the grid's cell centres, by the law the environment judges
-a robot by without a heading (``LightWorld.see``: occlusion, the one-bounce light where the
-scenario has it; a heading can only lower a light). The grids (``BeliefGrid``) are:
+fov (rad), beta (1/m^2), range (m), and where lights move five more columns, the motion of
+``light_world.hypothesis_light``; ``belief_weights``: one weight per particle). Moving lights
+are drawn where they are at the start of the cycle (time 0), as the true field beside them is.
+Each particle's field is its lights' summed light at the grid's cell centres, by the law the
+environment judges a robot by without a heading (``LightWorld.see``: occlusion, the one-bounce
+light where the scenario has it; a heading can only lower a light). The grids
+(``BeliefGrid``) are:
 
 - ``likely``: the highest-weight particle's field, 100 where it reaches the detection threshold
   (nav_msgs/OccupancyGrid's lethal value), ``floor(100 * v / threshold)`` below it (0..99):
@@ -30,9 +33,10 @@ import math
 
 import numpy as np
 
-from stealth_core.light_world import LightWorld, light_from_parameters
+from stealth_core.light_world import STATIC, LightWorld, hypothesis_light
 
 LIGHT_COLUMNS = 7  # particle, x, y, direction, fov, beta, range
+MOVING_LIGHT_COLUMNS = 12  # and kind, a, b, period_bins, offset (light_world.hypothesis_light)
 UNKNOWN = -1
 LETHAL = 100
 
@@ -67,10 +71,11 @@ def check_belief_arrays(lights, weights) -> tuple[np.ndarray, np.ndarray]:
     wrong (a saved policy's arrays are read through this too)."""
     lights = np.asarray(lights, dtype=np.float64)
     weights = np.asarray(weights, dtype=np.float64)
-    if lights.ndim != 2 or lights.shape[1] != LIGHT_COLUMNS:
+    if lights.ndim != 2 or lights.shape[1] not in (LIGHT_COLUMNS, MOVING_LIGHT_COLUMNS):
         raise BeliefArrayError(
             f'belief lights: expected (lights, {LIGHT_COLUMNS}) rows of particle, x, y, '
-            f'direction, fov, beta, range; got shape {lights.shape}'
+            f'direction, fov, beta, range (or {MOVING_LIGHT_COLUMNS}, with kind, a, b, '
+            f'period_bins, offset); got shape {lights.shape}'
         )
     if weights.ndim != 1 or weights.size == 0:
         raise BeliefArrayError(f'belief weights: expected one per particle, got {weights.shape}')
@@ -131,12 +136,20 @@ class BeliefMapper:
         """(particles, free cells): each particle's summed light at the free cells' centres."""
         lights, weights = check_belief_arrays(lights, weights)
         fields = np.zeros((weights.size, self._xs.size))
+        timing = self.world.timing
+        moving = lights.shape[1] == MOVING_LIGHT_COLUMNS and np.any(lights[:, 7] != STATIC)
+        if moving and timing is None:
+            raise BeliefArrayError(
+                'belief lights: moving lights (column kind) in a world whose lights do not '
+                'move (no phase_bins)'
+            )
         for particle in range(weights.size):
             rows = lights[lights[:, 0] == particle]
             if len(rows) == 0:
                 continue
             hypothesis = [
-                light_from_parameters(f'belief-{i}', *row[1:]) for i, row in enumerate(rows)
+                hypothesis_light(f'belief-{i}', tuple(row[1:]), timing)
+                for i, row in enumerate(rows)
             ]
             fields[particle] = self.world.see(hypothesis).many(self._xs, self._ys)
         return fields

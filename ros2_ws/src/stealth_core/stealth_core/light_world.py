@@ -5,10 +5,16 @@ the form of the light law (cone, ``1/(1 + beta*d^2)`` out to the range, occlusio
 Bresenham line, lights adding up; the one-bounce and exposure variants where the scenario turns
 them on). It does not know the lights. ``LightWorld`` is that knowledge: the scenario with its
 lights removed (``lights=()``) and the lattice model of that dark world, so nothing built from it
-can read a light. ``LatticeSamples`` are the points every lattice step is judged on (the move's
-samples, and the turn's where lights are weighed by exposure), laid out so that one light's
-light at all of them is one vectorised call; a light field's step visibilities are the most of
-the lights' sum over each step's samples, as ``LatticeModel.step_visibility`` is.
+can read a light. Where lights move, it keeps the scenario's ``Timing`` (the phase bins, the
+cycle they split and a step's seconds): what the state's phase means, which the robot reads off
+its states (the phase advances by ``bins_per_step`` a step), not off the lights; the dark world's
+lattice is then time-expanded with the wait action, as the task's is.
+
+``LatticeSamples`` are the points every lattice step is judged on (the move's samples, and the
+turn's where lights are weighed by exposure; where lights move, each at its time), laid out so
+that one light's light at all of them is one vectorised call (one per sample time where it
+moves); a light field's step visibilities are the most of the lights' sum over each step's
+samples, as ``LatticeModel.step_visibility`` is.
 
 Each step's reward gives the light the robot met on it (``evidence_of_step``): a non-terminal
 reward is ``-(visibility_weight*v + distance_weight*d + time_cost)`` with d known, so v; a
@@ -25,9 +31,10 @@ import numpy as np
 
 from stealth_core import exposure
 from stealth_core.lattice_model import LatticeModel
+from stealth_core.light_cycle import Timing
 from stealth_core.reward import detection_reward
 from stealth_core.scenario import Scenario
-from stealth_core.searchlight import Searchlight
+from stealth_core.searchlight import PatrolMotion, Searchlight, SweepMotion
 from stealth_core.task import StealthTask
 from stealth_core.visibility import PointVisibility, scenario_point_visibility
 
@@ -49,11 +56,6 @@ def check_modelled(scenario: Scenario) -> None:
             f'{scenario.name}: detection_mode {scenario.detection_mode!r} is not modelled by '
             "light-model (it infers lights seen at a threshold: detection_mode 'threshold')"
         )
-    if scenario.timing is not None:
-        raise UnmodelledLawError(
-            f'{scenario.name}: phase_bins (lights that move with time) is not modelled by '
-            'light-model yet; train a tabular learner (--learner prioritized)'
-        )
     if scenario.rewards.visibility_weight <= 0.0:
         raise UnmodelledLawError(
             f'{scenario.name}: rewards.visibility_weight 0 leaves the light out of the reward; '
@@ -66,7 +68,7 @@ class LightWorld:
 
     def __init__(self, scenario: Scenario, goal=None):
         check_modelled(scenario)
-        self.scenario = dataclasses.replace(scenario, lights=())
+        self.scenario = dataclasses.replace(scenario, lights=())  # the timing kept
         self.task = StealthTask(self.scenario, goal)
         self.model = LatticeModel.build(self.task)  # the dark world's lattice
         # No lights: the lines of sight its hypotheses share, kept for many lamp places.
@@ -84,6 +86,11 @@ class LightWorld:
         return self.points.with_lights(lights, bounce)
 
     @property
+    def timing(self) -> Timing | None:
+        """The phase's meaning where lights move (None where they do not)."""
+        return self.scenario.timing
+
+    @property
     def bounces(self) -> bool:
         """Whether light bounces off the walls here (the law's one-bounce variant)."""
         return self.points.bounce is not None
@@ -91,15 +98,25 @@ class LightWorld:
 
 class LatticeSamples:
     """Every step (place, direction) of the lattice model as ``width`` sample points (x, y and,
-    where exposure weighs the lights, the robot's heading), padded by repeating the arrival, so
-    that a step's visibility is the most of the field over its row (``step_peaks``)."""
+    where exposure weighs the lights, the robot's heading; where lights move, the time in the
+    cycle), padded by repeating the arrival, so that a step's visibility is the most of the
+    field over its row (``step_peaks``)."""
 
     def __init__(self, task: StealthTask, model: LatticeModel):
         places, directions = model.successors.shape
         x0, y0 = (np.broadcast_to(model.points[:, None, k], (places, directions)) for k in (0, 1))
         ends = model.points[model.successors]
-        drive_x, drive_y, _ = task.step_samples_of(x0, y0, 0.0, ends[..., 0], ends[..., 1], 0.0)
+        timing = task.timing
+        # Each step from its place's bin start, as LatticeModel.build times it.
+        bins = (np.arange(places) // len(model.nodes)) % model.cycle_bins
+        bin_seconds = 0.0 if timing is None else timing.bin_seconds
+        t0 = np.broadcast_to((bins * bin_seconds)[:, None], (places, directions))
+        step = 0.0 if timing is None else timing.step_seconds
+        drive_x, drive_y, drive_t = task.step_samples_of(
+            x0, y0, 0.0, ends[..., 0], ends[..., 1], step
+        )
         columns_x, columns_y, columns_yaw = list(drive_x), list(drive_y), []
+        columns_t = [t0 + dt for dt in drive_t]
         self.weighs_heading = task.footprint is not None
         if self.weighs_heading:
             yaw0 = np.broadcast_to(
@@ -113,6 +130,7 @@ class LatticeSamples:
                 columns_x.append(np.where(turned, x0, ends[..., 0]))
                 columns_y.append(np.where(turned, y0, ends[..., 1]))
                 columns_yaw.append(np.where(turned, yaws, yaw1))
+                columns_t.append(np.where(turned, t0, t0 + step))
         self.shape = (places, directions)
         self.width = len(columns_x)
         self.x = np.stack(columns_x, axis=-1).reshape(places * directions, self.width)
@@ -122,6 +140,11 @@ class LatticeSamples:
             if self.weighs_heading
             else None
         )
+        self.t = (
+            np.stack(columns_t, axis=-1).reshape(places * directions, self.width)
+            if timing is not None
+            else None
+        )
 
     def step_rows(self, places, directions) -> np.ndarray:
         """The sample rows of steps (arrays of places and directions)."""
@@ -129,11 +152,19 @@ class LatticeSamples:
 
     def light_at(self, see: PointVisibility, rows: np.ndarray | None = None) -> np.ndarray:
         """(rows, width): the light of ``see`` (one light's, usually) at the samples of the step
-        rows (all steps when None)."""
+        rows (all steps when None); moving lights where each sample's time puts them."""
         pick = slice(None) if rows is None else rows
         xs, ys = self.x[pick], self.y[pick]
         headings = None if self.yaw is None else self.yaw[pick]
-        return see.many(xs, ys, 0.0, headings)
+        if self.t is None or not any(light.is_moving for light in see.lights):
+            return see.many(xs, ys, 0.0, headings)
+        times, inverse = np.unique(self.t[pick], return_inverse=True)
+        inverse = inverse.reshape(xs.shape)
+        light = np.empty(xs.shape)
+        for k, time in enumerate(times.tolist()):
+            at = inverse == k
+            light[at] = see.many(xs[at], ys[at], time, None if headings is None else headings[at])
+        return light
 
     def step_peaks(self, light: np.ndarray) -> np.ndarray:
         """A field at the samples, (rows, width), as each step's visibility: its most."""
@@ -173,6 +204,9 @@ def evidence_of_step(
     return StepEvidence(place, direction, value, value)
 
 
+STATIC, SWEEP, PATROL = 0, 1, 2  # a hypothesised light's motion (``hypothesis_light``)
+
+
 def light_from_parameters(name: str, x, y, direction, fov, beta, light_range) -> Searchlight:
     """A static light from the parameters the model searches over: ``beta`` (1/m^2) and the
     range (m) instead of ``delta``, the intensity at the range, ``1/(1 + beta*range^2)``."""
@@ -181,3 +215,39 @@ def light_from_parameters(name: str, x, y, direction, fov, beta, light_range) ->
         name, float(x), float(y), float(direction) % (2 * math.pi), float(fov),
         float(light_range), delta,
     )  # fmt: skip
+
+
+def hypothesis_light(name: str, params, timing: Timing | None = None) -> Searchlight:
+    """The Searchlight of a hypothesis' parameters: the six of ``light_from_parameters``, then,
+    where lights move, ``kind, a, b, period_bins, offset``:
+
+    - ``STATIC``: the rest unused;
+    - ``SWEEP``: ``direction`` is the sweep's lower end, ``a`` its span (rad), ``offset`` how far
+      along it (rad, in [0, a]) the beam is at time 0, turning up;
+    - ``PATROL``: the lamp's rail runs from (x, y) to (a, b) and back; ``offset`` is the way
+      along that loop (m, in [0, 2 * length)) it has come at time 0.
+
+    A moving light repeats every ``period_bins`` bins of the timing (a whole number of them, as
+    every moving light's period is), which sets its speed."""
+    light = light_from_parameters(name, *params[:6])
+    if len(params) == 6 or int(params[6]) == STATIC:
+        return light
+    kind, a, b, period_bins, offset = params[6:11]
+    period = float(period_bins) * timing.bin_seconds
+    if int(kind) == SWEEP:
+        low, span = float(params[2]), float(a)
+        motion = SweepMotion(low, low + span, 2.0 * span / period)
+        return dataclasses.replace(light, direction=low + float(offset), motion=motion)
+    start, end = np.array(params[:2], dtype=np.float64), np.array([a, b], dtype=np.float64)
+    length = float(np.hypot(*(end - start)))
+    along = float(offset) % (2.0 * length) if length > 0 else 0.0
+    if along <= length:  # on the way out: from here to the far end, back, and here
+        here = start + (end - start) * (along / max(length, 1e-12))
+        waypoints = (tuple(end), tuple(start))
+    else:
+        here = end + (start - end) * ((along - length) / length)
+        waypoints = (tuple(start), tuple(end))
+    motion = PatrolMotion(
+        tuple((float(px), float(py)) for px, py in waypoints), 2.0 * length / period
+    )
+    return dataclasses.replace(light, x=float(here[0]), y=float(here[1]), motion=motion)

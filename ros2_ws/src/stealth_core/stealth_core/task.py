@@ -170,7 +170,10 @@ class StealthTask:
             self.timing.step_seconds if self.timing is not None else DEFAULT_STEP_SECONDS
         )
         self.footprint = scenario.exposure
-        names = ACTION_NAMES if scenario.has_moving_lights else ACTION_NAMES[:NUM_ACTIONS]
+        # Waiting is an action wherever time matters: lights that move, or a world that keeps
+        # their timing with the lights unknown (``light_world``).
+        timed = scenario.has_moving_lights or self.timing is not None
+        names = ACTION_NAMES if timed else ACTION_NAMES[:NUM_ACTIONS]
         if self.footprint is not None and self.footprint.turn_actions:
             names += tuple(TURNS)
         self.action_names: tuple[str, ...] = names

@@ -6,19 +6,28 @@ light-model`` run writes the scenario's own fields with ``lights: []``, the map'
 and the run's goal as ``default_goal`` into the run directory (``world.yaml``), and the agent
 reads that file (parameter ``world_file``) into a ``LightWorld``. A file that still holds lights
 is refused, so handing the agent the scenario itself is an error, not a leak.
+
+Where lights move, the phase the agent's states carry needs its meaning: the file keeps
+``phase_bins`` and ``step_seconds`` and adds ``cycle_seconds`` (the lights' joint cycle, which a
+robot reads off how its phase advances, not off the lights). A scenario file refuses
+``phase_bins`` without moving lights, so these three are read here, beside the scenario.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from pathlib import Path
 
 import yaml
 
+from stealth_core.light_cycle import Timing
 from stealth_core.light_world import LightWorld, check_modelled
 from stealth_core.scenario import Scenario, ScenarioError, load_scenario, scenario_from_fields
 from stealth_core.yaml_fields import read_yaml_mapping
 
 WORLD_FILE = 'world.yaml'  # its name in a run directory
+TIMING_FIELDS = ('phase_bins', 'step_seconds', 'cycle_seconds')  # read here, not by scenario
 HEADER = (
     '# The world the light-model agent may know: {name} ({goal}) with every light removed\n'
     '# (stealth_core.world_file). Written by the run; the agent reads it (world_file).\n'
@@ -37,6 +46,9 @@ def world_fields(scenario: Scenario, goal: str) -> dict:
     fields['map'] = str(Path(scenario.map_path).resolve())
     fields['default_goal'] = goal
     fields['lights'] = []
+    if scenario.timing is not None:
+        fields['cycle_seconds'] = scenario.timing.cycle
+        fields['step_seconds'] = scenario.timing.step_seconds
     return fields
 
 
@@ -44,7 +56,7 @@ def write_world_file(scenario: Scenario, goal: str, path: Path) -> Path:
     """Write the world file of ``scenario`` and ``goal`` at ``path``, checked to load as a
     scenario (ScenarioError otherwise); OSError where it cannot be written."""
     fields = world_fields(scenario, goal)
-    scenario_from_fields(Path(path), fields)  # what the agent will read must load
+    _world_scenario(Path(path), fields)  # what the agent will read must load
     text = HEADER.format(name=scenario.name, goal=goal) + yaml.safe_dump(fields, sort_keys=False)
     Path(path).write_text(text, encoding='utf-8')
     return Path(path)
@@ -55,7 +67,10 @@ def load_world(path: str | Path) -> LightWorld:
     file that cannot be read as a scenario or that holds lights; UnmodelledLawError for a
     scenario whose law the light model does not model."""
     try:
-        scenario = load_scenario(Path(path))
+        path = Path(path)
+        if not path.is_file():
+            load_scenario(path)  # its own error: no such file
+        scenario = _world_scenario(path, read_yaml_mapping(path, ScenarioError, 'scenario'))
     except (ScenarioError, OSError) as error:
         raise WorldFileError(f'world_file: {error}') from None
     if scenario.lights:
@@ -65,3 +80,33 @@ def load_world(path: str | Path) -> LightWorld:
             f'runs/<name>/{WORLD_FILE})'
         )
     return LightWorld(scenario, scenario.default_goal)
+
+
+def _world_scenario(path: Path, fields: dict) -> Scenario:
+    """The scenario of a world file's fields, its timing (``TIMING_FIELDS``) read here;
+    ScenarioError naming the file and the field."""
+    fields = dict(fields)
+    if 'cycle_seconds' not in fields:
+        return scenario_from_fields(path, fields)
+    bins, step, cycle = (fields.pop(name, None) for name in TIMING_FIELDS)
+    scenario = scenario_from_fields(path, fields)
+    if (
+        isinstance(cycle, bool)
+        or not isinstance(cycle, int | float)
+        or not (math.isfinite(cycle) and cycle > 0)
+    ):
+        raise ScenarioError(
+            f"{path}: field 'cycle_seconds': expected a time > 0 (s), got {cycle!r}"
+        )
+    if scenario.lights:
+        return scenario  # load_world refuses it, naming the lights
+    if isinstance(bins, bool) or not isinstance(bins, int) or bins < 1:
+        raise ScenarioError(f"{path}: field 'phase_bins': expected an integer >= 1, got {bins!r}")
+    timing = Timing(float(cycle), bins, float(cycle) / bins if step is None else step)
+    steps = timing.step_seconds / timing.bin_seconds if isinstance(step, int | float) else 0.0
+    if isinstance(step, bool) or round(steps) < 1 or abs(steps - round(steps)) > 1e-6 * steps:
+        raise ScenarioError(
+            f"{path}: field 'step_seconds': expected a whole number (>= 1) of phase bins of "
+            f'{timing.bin_seconds:g} s, got {step!r}'
+        )
+    return dataclasses.replace(scenario, timing=timing)

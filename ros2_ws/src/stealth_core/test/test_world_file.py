@@ -1,6 +1,6 @@
 """The world file the light-model agent reads: the scenario without its lights (no ROS)."""
 
-import math
+import dataclasses
 
 import numpy as np
 import pytest
@@ -48,11 +48,38 @@ def test_an_unreadable_world_file_is_one_line(tmp_path):
         assert line.startswith('world_file: ') and part in line and '\n' not in line
 
 
-def test_a_moving_light_scenario_is_refused_before_any_file(tmp_path):
+def test_a_moving_world_file_carries_the_phase_and_no_light(tmp_path):
     scenario = load_scenario('map1-moving')
+    path = write_world_file(scenario, 'easy', tmp_path / 'world.yaml')
+    text = path.read_text()
+    assert 'lights: []' in text and 'cycle_seconds: 24.0' in text and 'kitchen' not in text
+    world = load_world(path)
+    assert world.scenario.lights == () and world.timing == scenario.timing
+    known = LightWorld(scenario, 'easy')
+    assert np.array_equal(world.model.states, known.model.states)
+    assert np.array_equal(world.model.successors, known.model.successors)
+
+
+@pytest.mark.parametrize(
+    ('line', 'field'),
+    [('cycle_seconds: -1', 'cycle_seconds'), ('step_seconds: 4.0', 'step_seconds')],
+)
+def test_a_world_file_with_timing_that_does_not_fit_is_one_line(tmp_path, line, field):
+    scenario = load_scenario('map1-moving')
+    path = write_world_file(scenario, 'easy', tmp_path / 'world.yaml')
+    key = line.split(':')[0]
+    kept = [row for row in path.read_text().splitlines() if not row.startswith(key + ':')]
+    path.write_text('\n'.join([*kept, line]) + '\n')
+    with pytest.raises(WorldFileError) as error:
+        load_world(path)
+    message = str(error.value)
+    assert message.startswith('world_file: ') and field in message and '\n' not in message
+
+
+def test_a_law_it_does_not_model_is_refused_before_any_file(tmp_path):
+    scenario = dataclasses.replace(load_scenario('map1'), detection_mode='probabilistic')
     with pytest.raises(UnmodelledLawError) as error:
         write_world_file(scenario, scenario.default_goal, tmp_path / 'world.yaml')
     line = str(error.value)
-    assert 'phase_bins' in line and 'light-model' in line and '\n' not in line
+    assert 'detection_mode' in line and 'light-model' in line and '\n' not in line
     assert not (tmp_path / 'world.yaml').exists()
-    assert math.isfinite(scenario.detection_threshold)
