@@ -12,9 +12,9 @@ lattice is then time-expanded with the wait action, as the task's is.
 
 ``LatticeSamples`` are the points every lattice step is judged on (the move's samples, and the
 turn's where lights are weighed by exposure; where lights move, each at its time), laid out so
-that one light's light at all of them is one vectorised call (one per sample time where it
-moves); a light field's step visibilities are the most of the lights' sum over each step's
-samples, as ``LatticeModel.step_visibility`` is.
+that one light's light at all of them is one vectorised call; a light field's step visibilities
+are the most of the lights' sum over each step's samples, as ``LatticeModel.step_visibility``
+is.
 
 Each step's reward gives the light the robot met on it (``evidence_of_step``): a non-terminal
 reward is ``-(visibility_weight*v + distance_weight*d + time_cost)`` with d known, so v; a
@@ -158,13 +158,7 @@ class LatticeSamples:
         headings = None if self.yaw is None else self.yaw[pick]
         if self.t is None or not any(light.is_moving for light in see.lights):
             return see.many(xs, ys, 0.0, headings)
-        times, inverse = np.unique(self.t[pick], return_inverse=True)
-        inverse = inverse.reshape(xs.shape)
-        light = np.empty(xs.shape)
-        for k, time in enumerate(times.tolist()):
-            at = inverse == k
-            light[at] = see.many(xs[at], ys[at], time, None if headings is None else headings[at])
-        return light
+        return see.many_at_times(xs, ys, self.t[pick], headings)
 
     def step_peaks(self, light: np.ndarray) -> np.ndarray:
         """A field at the samples, (rows, width), as each step's visibility: its most."""

@@ -27,6 +27,8 @@ from dataclasses import dataclass, field, replace
 import math
 import numbers
 
+import numpy as np
+
 
 class LightError(ValueError):
     """A searchlight parameter is out of range; the message names the light and the field."""
@@ -229,3 +231,40 @@ class Searchlight:
             x, y = self.motion.position_at((self.x, self.y), t)
             return replace(self, x=x, y=y, motion=None)
         return self
+
+
+def poses_at(light: Searchlight, ts) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(x, y, direction) arrays of the light at the times ts (an array, s): ``light.at(t)``
+    for every t at once (equal to rounding), so a moving light over thousands of sample times
+    is a few array operations, not a Searchlight each."""
+    ts = np.asarray(ts, dtype=np.float64)
+    x, y = np.full(ts.shape, light.x), np.full(ts.shape, light.y)
+    direction = np.full(ts.shape, light.direction)
+    motion = light.motion
+    if isinstance(motion, SweepMotion):
+        span = motion.max_direction - motion.min_direction
+        if span != 0.0 and motion.angular_speed != 0.0:
+            start = motion.start_offset(light.name, light.direction)
+            travelled = np.mod(start + motion.angular_speed * ts, 2 * span)
+            along = np.where(travelled <= span, travelled, 2 * span - travelled)
+            direction = motion.min_direction + along
+        else:
+            direction = np.full(
+                ts.shape, motion.min_direction + motion.start_offset(light.name, light.direction)
+            )
+    elif isinstance(motion, PatrolMotion):
+        route = np.array(((light.x, light.y), *motion.waypoints, (light.x, light.y)))
+        lengths = np.hypot(*np.diff(route, axis=0).T)
+        lap = float(lengths.sum())
+        if lap > 0.0 and motion.speed != 0.0:
+            remaining = np.mod(motion.speed * ts, lap)
+            ends = np.cumsum(lengths)
+            leg = np.minimum(np.searchsorted(ends, remaining, side='left'), len(lengths) - 1)
+            before = ends[leg] - lengths[leg]
+            fraction = np.where(
+                lengths[leg] > 0, (remaining - before) / np.maximum(lengths[leg], 1e-300), 0.0
+            )
+            start, end = route[leg], route[leg + 1]
+            x = start[..., 0] + fraction * (end[..., 0] - start[..., 0])
+            y = start[..., 1] + fraction * (end[..., 1] - start[..., 1])
+    return x, y, direction

@@ -4,7 +4,13 @@ import math
 
 import numpy as np
 import pytest
-from stealth_core.searchlight import LightError, PatrolMotion, Searchlight, SweepMotion
+from stealth_core.searchlight import (
+    LightError,
+    PatrolMotion,
+    Searchlight,
+    SweepMotion,
+    poses_at,
+)
 
 PI = math.pi
 
@@ -200,3 +206,23 @@ def test_bad_patrols_are_refused(waypoints, speed, field):
 def test_time_must_be_finite(t):
     with pytest.raises(LightError, match='time'):
         sweeping().at(t)
+
+
+@pytest.mark.parametrize(
+    'motion',
+    [
+        None,
+        SweepMotion(0.5, 2.5, 0.8),
+        SweepMotion(1.0, 1.0, 0.8),
+        PatrolMotion(((4.0, 1.0), (4.0, 5.0)), 0.6),
+        PatrolMotion(((1.0, 1.0),), 0.0),
+    ],
+)
+def test_poses_at_many_times_are_the_light_at_each(motion):
+    light = Searchlight('l', 1.0, 1.0, 1.0, 0.5, 3.0, motion=motion)
+    ts = np.linspace(-7.0, 40.0, 301)
+    xs, ys, directions = poses_at(light, ts)
+    for t, x, y, direction in zip(ts, xs, ys, directions, strict=True):
+        at = light.at(float(t))
+        assert (x, y) == pytest.approx((at.x, at.y), abs=1e-9)
+        assert direction == pytest.approx(at.direction, abs=1e-9)

@@ -1,5 +1,6 @@
 """The vectorised visibility field equals the per-point reference on every cell; the cache."""
 
+import dataclasses
 import math
 import os
 from pathlib import Path
@@ -323,6 +324,35 @@ def test_point_visibility_of_moving_lights_equals_the_reference():
         x, y, t = (float(v) for v in rng.uniform((0.0, 0.0, 0.0), (3.0, 3.0, 20.0)))
         expected = point_light_visibilities(blocked, 0.1, (0.0, 0.0), lights, x, y, t)
         assert fast.light_visibilities(x, y, t) == expected
+
+
+@pytest.mark.parametrize('seed', range(6))
+def test_many_at_times_is_each_point_at_its_own_time(seed):
+    """One call over points at many times (a moving light over a lattice's samples) equals the
+    point-by-point reference at each point's time, static lights and soft edges included."""
+    blocked, resolution, origin, lights = random_case(seed)
+    blocked[:] = False  # a free map, so that patrols may go anywhere on it
+    frame = GridFrame.of(blocked, resolution, origin)
+    span_x, span_y = frame.width * resolution, frame.height * resolution
+    low, high = (origin[0], origin[1]), (origin[0] + span_x, origin[1] + span_y)
+    moving = [
+        dataclasses.replace(
+            lights[0], motion=SweepMotion(lights[0].direction, lights[0].direction + 2.0, 0.7)
+        ),
+        dataclasses.replace(
+            lights[-1],
+            x=low[0] + 0.1 * span_x,
+            y=low[1] + 0.1 * span_y,
+            motion=PatrolMotion(((low[0] + 0.9 * span_x, low[1] + 0.6 * span_y),), 0.3 * span_x),
+        ),
+    ]
+    lights = [*moving, *lights[1:-1]]
+    fast = visibility.PointVisibility(blocked, resolution, origin, lights, max_tiles=20)
+    rng = np.random.default_rng(seed)
+    xs, ys = rng.uniform(low, high, (300, 2)).T
+    ts = rng.uniform(0.0, 30.0, 300)
+    expected = [fast(x, y, t) for x, y, t in zip(xs, ys, ts, strict=True)]
+    np.testing.assert_allclose(fast.many_at_times(xs, ys, ts), expected, rtol=0, atol=1e-12)
 
 
 def test_point_visibility_refuses_what_the_reference_refuses():
