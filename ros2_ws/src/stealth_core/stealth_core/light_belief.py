@@ -317,9 +317,10 @@ class LightBelief:
                 if start > span:
                     return None
             return (x, y, low, fov, beta, light_range, float(SWEEP), span, 0.0, period, start)
-        # A patrol: mostly across the beam (a lamp on a rail lights a band that travels).
-        axis = direction + (math.pi / 2 if rng.random() < 0.5 else -math.pi / 2)
-        if rng.random() < 0.3:
+        # A patrol: a rail across the beam (a lit band that travels) or along it (a lamp down a
+        # corridor), as the shipped and generated rails run, now and then any way.
+        axis = direction + float(rng.choice([0.0, 0.5, 1.0, 1.5])) * math.pi
+        if rng.random() < 0.2:
             axis = float(rng.uniform(0.0, 2.0 * math.pi))
         length = float(rng.uniform(1.0, 8.0))
         unit = np.array([math.cos(axis), math.sin(axis)])
