@@ -35,10 +35,17 @@ import math
 import numpy as np
 
 from stealth_core import exposure
+from stealth_core.light_motion import (
+    MOTION_POLISH_STEPS,
+    STILL_TAIL,
+    animated,
+    motion_perturbed,
+    motion_valid,
+    stilled,
+)
 from stealth_core.light_world import (
     PATROL,
     STATIC,
-    SWEEP,
     LightWorld,
     StepEvidence,
     hypothesis_light,
@@ -53,17 +60,12 @@ SLIDE = -1  # the polish's slide along the beam, as a parameter number
 # range (m), and a slide along the beam (m) that keeps the light at the reach of intensity 0.3
 # (x and beta alone trade off: a lamp farther back with a smaller beta lights a far patch
 # alike). A moving light adds its motion's: a sweep's span and offset (rad), a patrol's far end
-# (m) and offset (m).
+# (m) and offset (m): light_motion.MOTION_POLISH_STEPS.
 POLISH_STEPS = (
     (0, 0.2), (1, 0.2), (2, math.radians(4.0)), (3, math.radians(4.0)), (4, 0.2), (5, 0.5),
     (SLIDE, 0.4),
 )  # fmt: skip
-MOTION_POLISH_STEPS = {
-    SWEEP: ((7, math.radians(8.0)), (10, math.radians(8.0))),
-    PATROL: ((7, 0.2), (8, 0.2), (10, 0.3)),
-}
 POLISH_HALVINGS = 5
-_STILL_TAIL = (float(STATIC), 0.0, 0.0, 0.0, 0.0)  # a timed world's static light's motion
 
 
 @dataclasses.dataclass(frozen=True)
@@ -270,9 +272,15 @@ class LightBelief:
         if kind < 0.4:
             return lights[:k] + lights[k + 1 :]
         if self.world.timing is not None and kind < 0.55:  # set moving, or stopped
-            params = self._stilled(lights[k]) if lights[k].moving else self._animated(lights[k])
+            light, timing = lights[k], self.world.timing
+            if light.moving:
+                params = stilled(light.params, self._lit_time(light), timing)
+            else:
+                params = self._animated(light)
         elif lights[k].moving and kind < 0.75:
-            params = self._motion_perturbed(lights[k].params)
+            params = motion_perturbed(
+                self.rng, lights[k].params, self.world.timing, self._rail_free
+            )
         else:
             params = self._perturbed(lights[k].params)
         if params is None:
@@ -280,13 +288,6 @@ class LightBelief:
         return [*lights[:k], self._make(params, lights[k].bounced), *lights[k + 1 :]]
 
     # --- moving lights (a world with timing) ---------------------------------------------------
-
-    def _periods(self) -> list[int]:
-        """The periods (bins) a moving light may have: the divisors of the cycle's bins (every
-        moving light's period divides the joint cycle), a single bin only where it is all."""
-        bins = self.world.timing.cycle_bins
-        periods = [d for d in range(2, bins + 1) if bins % d == 0]
-        return periods or [bins]
 
     def _lit_time(self, light: _Light) -> float:
         """The time of the evidence sample the light lights most (a random time of the cycle
@@ -299,81 +300,14 @@ class LightBelief:
         return float(samples.t[self._rows[row], column])
 
     def _animated(self, light: _Light) -> tuple | None:
-        """A static light set sweeping or patrolling with a random span or rail and period,
-        placed so that it is as it is now at the time of the evidence it lights most."""
-        rng, timing = self.rng, self.world.timing
-        x, y, direction, fov, beta, light_range = light.params[:6]
         when = self._lit_time(light)
-        period = int(rng.choice(self._periods()))
-        seconds = period * timing.bin_seconds
-        if rng.random() < 0.5:  # a sweep: the phase at that time drawn, the start solved for
-            span = float(rng.uniform(math.radians(20.0), math.pi))
-            travelled = float(rng.uniform(0.0, 2.0 * span))
-            along = travelled if travelled <= span else 2.0 * span - travelled
-            low = direction - along
-            start = (travelled - 2.0 * span * when / seconds) % (2.0 * span)
-            if start > span:  # turning down at time 0: the same beam at `when` turning up
-                start = (2.0 * span - travelled - 2.0 * span * when / seconds) % (2.0 * span)
-                if start > span:
-                    return None
-            return (x, y, low, fov, beta, light_range, float(SWEEP), span, 0.0, period, start)
-        # A patrol: a rail across the beam (a lit band that travels) or along it (a lamp down a
-        # corridor), as the shipped and generated rails run, now and then any way.
-        axis = direction + float(rng.choice([0.0, 0.5, 1.0, 1.5])) * math.pi
-        if rng.random() < 0.2:
-            axis = float(rng.uniform(0.0, 2.0 * math.pi))
-        length = float(rng.uniform(1.0, 8.0))
-        unit = np.array([math.cos(axis), math.sin(axis)])
-        travelled = float(rng.uniform(0.0, 2.0 * length))
-        here = np.array([x, y])
-        if travelled <= length:
-            start = here - travelled * unit
-        else:
-            start = here + (travelled - length) * unit - length * unit
-        end = start + length * unit
-        if not self._rail_free(start, end):
-            return None
-        offset = (travelled - 2.0 * length * when / seconds) % (2.0 * length)
-        return (
-            float(start[0]), float(start[1]), direction, fov, beta, light_range,
-            float(PATROL), float(end[0]), float(end[1]), period, offset,
-        )  # fmt: skip
+        return animated(self.rng, light.params, when, self.world.timing, self._rail_free)
 
     def _rail_free(self, start, end) -> bool:
         """Whether a patrol's rail runs over free places only (every 0.1 m)."""
         steps = max(2, math.ceil(float(np.hypot(*(end - start))) / 0.1) + 1)
         points = start + (end - start) * np.linspace(0.0, 1.0, steps)[:, None]
         return not any(self._blocked(px, py) for px, py in points)
-
-    def _stilled(self, light: _Light) -> tuple:
-        """A moving light stopped where it is at the time of the evidence it lights most."""
-        still = hypothesis_light('h', light.params, self.world.timing).at(self._lit_time(light))
-        return (still.x, still.y, still.direction, *light.params[3:6], *_STILL_TAIL)
-
-    def _motion_perturbed(self, params: tuple) -> tuple | None:
-        """A moving light's motion moved: its span or rail end, its offset, or its period."""
-        rng = self.rng
-        moved = list(params)
-        scale = 10.0 ** rng.uniform(-1.5, 0.0)
-        which = int(rng.integers(3))
-        if which == 2:
-            moved[9] = float(rng.choice(self._periods()))
-        elif int(params[6]) == SWEEP:
-            if which == 0:
-                span = params[7] * math.exp(rng.normal(0, 0.3 * scale))
-                moved[7] = float(np.clip(span, _MIN_FOV, math.pi * 2))
-            moved[10] = float(
-                np.clip(params[10] + rng.normal(0, math.radians(20.0) * scale), 0.0, moved[7])
-            )
-        else:
-            if which == 0:
-                moved[7] += rng.normal(0, 0.5 * scale)
-                moved[8] += rng.normal(0, 0.5 * scale)
-                if not self._rail_free(np.array(moved[:2]), np.array(moved[7:9])):
-                    return None
-            length = math.hypot(moved[7] - moved[0], moved[8] - moved[1])
-            moved[10] = float((params[10] + rng.normal(0, 0.5 * scale)) % max(2 * length, 1e-9))
-        return tuple(moved)
 
     def _perturbed(self, params: tuple) -> tuple | None:
         x, y, direction, fov, beta, light_range = params[:6]
@@ -460,7 +394,7 @@ class LightBelief:
         params = (float(lamp[0]), float(lamp[1]), aim, fov, beta, light_range)
         if self.world.timing is None:
             return self._make(params)
-        born = self._make((*params, *_STILL_TAIL))
+        born = self._make((*params, *STILL_TAIL))
         if self.rng.random() < 0.5:  # where lights move, half the births move
             moving = self._animated(born)
             if moving is not None:
@@ -607,11 +541,7 @@ def _stepped(params: tuple, parameter: int, step: float) -> tuple | None:
         moved[parameter] = params[parameter] + step
     if not (_MIN_FOV <= moved[3] <= 2 * math.pi) or moved[5] <= 0.2:
         return None
-    if (
-        len(moved) > 6
-        and int(moved[6]) == SWEEP
-        and not (_MIN_FOV <= moved[7] <= 2 * math.pi and 0.0 <= moved[10] <= moved[7])
-    ):
+    if not motion_valid(moved):
         return None
     return tuple(moved)
 
