@@ -12,7 +12,7 @@ set, the checks, the report and Ctrl-C are the benchmark's own:
 - the set: generated test buildings only (``--set generated``), of the development part of the
   test range by default; the final test range (seeds 2,000,000 and up) only with
   ``--final-test-range``;
-- written to ``runs/generalist`` (results.csv, summary.md, benchmark.png), the summary's
+- written to ``runs/generalist-eval`` (results.csv, summary.md, benchmark.png), the summary's
   tables printed.
 """
 
@@ -42,13 +42,13 @@ GENERALIST = Preset(
     'network untrained, and the replanners (unknown dark, unknown lit), on the lights-known '
     '(full) and the lights-sensed track: undetected and success rates, regret against the '
     "oracle, mean return, path and exposure over the optimum's. It is stealth benchmark with "
-    'these defaults (--set generated, these --methods, --out runs/generalist); every '
+    'these defaults (--set generated, these --methods, --out runs/generalist-eval); every '
     'benchmark option applies.',
     lambda: list(METHODS),
     'vi, generalist, generalist-hand-set, generalist-dark-steps, generalist-untrained, '
     'replan-dark, replan-lit',
     'generated',
-    Path('runs/generalist'),
+    Path('runs/generalist-eval'),
     prints_summary=True,
 )
 

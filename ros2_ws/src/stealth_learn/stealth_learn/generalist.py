@@ -170,7 +170,10 @@ class Episode:
 
 def rollout(policy: GeneralistPolicy, scenario) -> Episode:
     """One greedy episode of ``policy`` on ``scenario`` in the JAX environment, and value
-    iteration's return and path length on the same scenario."""
+    iteration's return and path length on the same scenario (moving lights refused:
+    ``GeneralistPolicy.check_scenario``)."""
+    model = TaskArrays(scenario).model
+    policy.check_scenario(model.task.scenario)
     env, params = build([scenario], track='full', layout='grid')
     one = env.scenario(params, 0)
     obs, state = env.reset(jax.random.PRNGKey(0), one)
@@ -191,7 +194,6 @@ def rollout(policy: GeneralistPolicy, scenario) -> Episode:
     limit = int(one.step_limit)
     carry, _ = jax.lax.scan(body, (state, jnp.asarray(False), info0), None, length=limit)
     info = carry[2]
-    model = TaskArrays(scenario).model
     optimum = value_iteration(model)
     path = follow(model, lambda i: int(optimum.policy[i]))
     return Episode(
