@@ -1,7 +1,7 @@
 """`stealth benchmark`: methods x scenarios x tracks, on the Ray engine of the sweeps.
 
     stealth benchmark --set test --count 20 --out runs/benchmark      # or scenario files
-    stealth benchmark --set generated --seeds 1500000 --count 50 --width 50 --height 40 --lights 8
+    stealth benchmark --set generated --seeds 1710000 --count 50 --width 50 --height 40 --lights 8
 
 ``Preset``: the defaults of a command that is this benchmark with other defaults
 (`stealth generalist`, ``generalist_benchmark``).
