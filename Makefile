@@ -30,8 +30,9 @@ underlay_of = $(firstword $(foreach prefix,$(subst :, ,$(AMENT_PREFIX_PATH)),\
 UNDERLAY_VENDORED := $(foreach pkg,$(VENDORED),$(call underlay_of,$(pkg)))
 SKIPPED_VENDORED := $(notdir $(UNDERLAY_VENDORED))
 SKIP_PACKAGES := $(if $(SKIPPED_VENDORED),--packages-skip $(SKIPPED_VENDORED))
-# The learning extra (jax, flax, optax: requirements-learn.in), heavy, so not in make setup/run.
-LEARN_STAMP := $(STAMPS)/learn-$(call hash_files,requirements-learn.in requirements.lock)
+# The learning extra (jax, flax, optax, gymnax: requirements-learn.in), heavy, so not in make
+# setup/run.
+LEARN_STAMP := $(STAMPS)/learn-$(call hash_files,requirements-learn.in requirements.lock requirements-overrides.txt)
 BUILD_STAMP := $(STAMPS)/build-$(shell (echo $(VENV_STAMP) $(UNDERLAY_VENDORED); printf '%s\n' $(WS_SOURCES); cat $(WS_SOURCES)) | sha256sum | cut -c1-16)
 
 .PHONY: help setup venv learn generalist build test test-packages test-system lint format clean distclean
@@ -66,12 +67,12 @@ $(VENV_STAMP):
 	@$(PYTHON) scripts/fix_ros_wheels.py
 	@mkdir -p $(STAMPS) && rm -f $(STAMPS)/venv-* && echo "$@" > $@
 
-learn: $(LEARN_STAMP) ## Install the learning extra (jax, flax, optax, pinned; ~400 MB of CPU wheels)
+learn: $(LEARN_STAMP) ## Install the learning extra (jax, flax, optax, gymnax, pinned; ~400 MB of CPU wheels)
 
 $(LEARN_STAMP): $(VENV_STAMP)
-	@echo "setup: installing the learning extra (requirements-learn.in: jax, flax, optax) into .venv"
+	@echo "setup: installing the learning extra (requirements-learn.in: jax, flax, optax, gymnax) into .venv"
 	@VIRTUAL_ENV=$(VENV) $(VENV)/bin/uv pip install --quiet --compile-bytecode --python $(PYTHON) \
-		-r requirements-learn.in -c requirements.lock
+		-r requirements-learn.in -c requirements.lock --override requirements-overrides.txt
 	@mkdir -p $(STAMPS) && rm -f $(STAMPS)/learn-* && echo "$@" > $@
 
 build: $(BUILD_STAMP) ## colcon build the workspace (symlink install)

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from ros_support import _sourced_environment
 from stealth_agent.learners import LEARNER_NAMES
-from stealth_experiments.benchmark_methods import learning_extra
+from stealth_experiments.benchmark_methods import TWINS, learning_extra
 from stealth_experiments.sweep_engine import RAY_ENVIRONMENT
 
 TIMEOUT = 420.0  # s, on two loaded cores (a local Ray's start included)
@@ -83,9 +83,10 @@ def test_a_benchmark_one_after_another_names_an_unreadable_scenario_and_runs_the
     rows = _rows(out)
     # per scenario: value iteration and A* on both tracks, Dark Path and every learner on the
     # full one (not on the learning track: asked for by name), the 2 replanners on the sensed
-    # one; the generalist on both where the learning extra is installed (a default method only
-    # there)
-    generalist = {('generalist', 'full'), ('generalist', 'sensed')} if learning_extra() else set()
+    # one; the generalist and its three twins on both where the learning extra is installed
+    # (default methods only there)
+    twins = ('generalist', *TWINS)
+    generalist = {(m, t) for m in twins for t in ('full', 'sensed')} if learning_extra() else set()
     learners = {(name, 'full') for name in LEARNER_NAMES}
     per = 7 + len(learners) + len(generalist)
     assert len(rows) == 3 * per

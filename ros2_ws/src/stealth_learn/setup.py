@@ -13,6 +13,8 @@ setup(
     package_data={package_name: ['policies/*.npz', 'policies/*.png']},
     # The learning extra's exact versions live in the repository's requirements.lock; the world
     # model (stealth_core) is not on PyPI: install it from ros2_ws/src/stealth_core first.
+    # gymnax (stealth_learn.gymnax_env only) is not required here: it declares gymnasium<1.4
+    # against the project's 1.4.0, which `make learn` overrides (requirements-overrides.txt).
     install_requires=[
         'setuptools',
         'stealth_core',

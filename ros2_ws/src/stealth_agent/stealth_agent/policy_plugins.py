@@ -15,6 +15,9 @@ and the agent parameter ``agent`` then takes its name (``agent: generalist``). T
 - ``policy.layout``: the observation layout it reads (e.g. ``stealth-grid-v1/full``);
   ``policy.check(layout)``: ValueError, one line naming both, unless it reads the environment's
   layout (GridObservation.layout, e.g. ``stealth-grid-v1/full/40x60``).
+- ``policy.check_scenario(path)`` (optional): ValueError, one line naming the weights and the
+  scenario file, for a scenario the policy cannot play (the generalist: moving lights); `stealth
+  rollout --learner` asks it before anything starts.
 - ``policy(observation) -> int``: the action for one observation, a float32 (rows, cols,
   channels) array in GridObservation's layout with the robot's cell set. A policy that
   depends on the static channels only through a plan caches it (the agent's decision time).

@@ -104,8 +104,11 @@ _LOAD_PLUGIN = (
     'import sys\n'
     'from stealth_agent.policy_plugins import PluginError, load_policy\n'
     'try:\n'
-    '    print(load_policy(sys.argv[1], sys.argv[2]).path)\n'
-    'except PluginError as error:\n'
+    '    policy = load_policy(sys.argv[1], sys.argv[2])\n'
+    "    if hasattr(policy, 'check_scenario'):\n"
+    '        policy.check_scenario(sys.argv[3])\n'
+    '    print(policy.path)\n'
+    'except (PluginError, ValueError) as error:\n'
     '    sys.exit(str(error))\n'
 )
 PLUGIN_CHECK_TIMEOUT = 120.0  # s: importing JAX and reading the weights on a loaded machine
@@ -113,16 +116,23 @@ PLUGIN_CHECK_TIMEOUT = 120.0  # s: importing JAX and reading the weights on a lo
 
 def plugin_source(args):
     """(scenario, goal, weights path, params dir, notes) of `stealth rollout --learner NAME`:
-    the plugin loads its weights before anything starts (in a child process), so a missing
-    extra or a bad weights file stops the run in one line (naming what to install, or the
-    path)."""
+    the plugin loads its weights and checks the scenario before anything starts (in a child
+    process), so a missing extra, a bad weights file or a scenario it cannot play stops the
+    run in one line (naming what to install, the path, or the weights and the scenario)."""
     if args.scenario is None:
         raise RunConfigError(
             f'--learner {args.learner}: give --scenario (any, with static lights)'
         )
     scenario = load_run_scenario(args.scenario)
     goal = check_goal(scenario, args.goal, None)
-    command = [sys.executable, '-c', _LOAD_PLUGIN, args.learner, args.policy or '']
+    command = [
+        sys.executable,
+        '-c',
+        _LOAD_PLUGIN,
+        args.learner,
+        args.policy or '',
+        str(scenario.path),
+    ]
     try:
         done = subprocess.run(
             command, capture_output=True, text=True, timeout=PLUGIN_CHECK_TIMEOUT, check=False

@@ -119,6 +119,21 @@ def test_a_policy_plugin_runs_with_the_grid_sent_to_it(tmp_path):
                     '--policy', str(tmp_path / 'none.npz'))  # fmt: skip
 
 
+def test_a_plugin_refuses_a_scenario_it_cannot_play_naming_both(tmp_path):
+    """The generalist reads no phase and cannot wait: a moving-light scenario is refused
+    before anything starts, naming the weights and the scenario (issue 42)."""
+    pytest.importorskip('jax', reason='the generalist plugin needs the learning extra')
+    from stealth_core.scenario import find_scenario
+
+    with pytest.raises(RunConfigError) as error:
+        plugin_plan(tmp_path, '--learner', 'generalist', '--scenario', 'map1-moving')
+    message = str(error.value)
+    assert message.startswith('--learner generalist: ')
+    assert 'policies/generalist-full.npz: the policy was trained for static lights' in message
+    assert f"scenario 'map1-moving' ({find_scenario('map1-moving')}) has moving lights" in message
+    assert '\n' not in message and not list(tmp_path.iterdir())
+
+
 def test_a_plugin_needs_a_scenario_and_must_exist(tmp_path):
     with pytest.raises(RunConfigError, match='give --scenario'):
         plugin_plan(tmp_path, '--learner', 'generalist')

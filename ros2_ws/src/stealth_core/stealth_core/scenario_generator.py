@@ -21,6 +21,9 @@ Decisions:
   benchmark`'s) knows its files are outdated (``test_fast_paths`` holds the files' digests).
 - **Seeds** (``SEED_RANGES``): a scenario is named by its seed; train, validation and test
   scenarios come from disjoint ranges, and the test range is never used for tuning anything.
+  Its seeds from ``FINAL_TEST_SEED`` on are the final test range: development measures below
+  it, and the final range is evaluated once, at an issue's end (`stealth benchmark` and
+  `stealth generalist` refuse it unless asked for by name).
 - **Difficulty**, measured on the proven scenario: ``lit``, the fraction of the valid lattice
   nodes seen at some phase of the lights, and ``detour``, the covert route's steps over the
   shortest route's. Each difficulty sets the lights' size (``guard_lights.LIGHT_SIZES``: easy
@@ -65,6 +68,7 @@ SEED_RANGES = {  # inclusive; None: no upper end
     'validation': (100_000, 109_999),
     'test': (1_000_000, None),
 }
+FINAL_TEST_SEED = 2_000_000  # the test range's final part (module docstring)
 WIDTH_RANGE = (20, 60)  # m, whole metres
 HEIGHT_RANGE = (20, 40)
 LIGHTS_RANGE = (2, 8)

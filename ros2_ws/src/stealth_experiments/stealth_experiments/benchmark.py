@@ -1,6 +1,10 @@
 """`stealth benchmark`: methods x scenarios x tracks, on the Ray engine of the sweeps.
 
     stealth benchmark --set test --count 20 --out runs/benchmark      # or scenario files
+    stealth benchmark --set generated --seeds 1710000 --count 50 --width 50 --height 40 --lights 8
+
+``Preset``: the defaults of a command that is this benchmark with other defaults
+(`stealth generalist`, ``generalist_benchmark``).
 
 The scenarios (``benchmark_plan``: a named set, generated test scenarios and the shipped maps'
 goals, or files), the methods and their tracks (``benchmark_methods``), one trial per scenario,
@@ -24,9 +28,12 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable, Sequence
+import dataclasses
 from pathlib import Path
 import sys
 import time
+
+from stealth_core.scenario_generator import FINAL_TEST_SEED, Options
 
 from stealth_experiments import sweep_stop
 from stealth_experiments.benchmark_cache import check_cache
@@ -40,6 +47,7 @@ from stealth_experiments.benchmark_learning import LEARNING_SEEDS
 from stealth_experiments.benchmark_learning_report import write_learning_csv, write_learning_plot
 from stealth_experiments.benchmark_methods import (
     DEFAULT_TRACKS,
+    GENERALISTS,
     LEARNERS,
     METHODS,
     TRACKS,
@@ -53,6 +61,7 @@ from stealth_experiments.benchmark_plan import (
     SETS,
     SHIPPED,
     TEST_SEED,
+    check_seeds,
     file_case,
     set_cases,
     trials,
@@ -69,27 +78,55 @@ from stealth_experiments.sweep_pool import duration as _duration
 
 PROG = 'stealth benchmark'
 DEFAULT_OUT = Path('runs/benchmark')
-# The generalist is a default method where the learning extra is installed (default_methods).
-DEFAULT_METHODS = tuple(m for m in METHODS if m not in ('policy', 'generalist'))
+# The generalist and its twins are default methods where the learning extra is installed
+# (default_methods).
+DEFAULT_METHODS = tuple(m for m in METHODS if m != 'policy' and m not in GENERALISTS)
 
 
 def default_methods() -> list[str]:
-    """DEFAULT_METHODS, and the generalist when the learning extra is installed."""
-    return [*DEFAULT_METHODS, *(['generalist'] if learning_extra() else [])]
+    """DEFAULT_METHODS, and the generalist and its twins when the learning extra is installed."""
+    return [*DEFAULT_METHODS, *(GENERALISTS if learning_extra() else ())]
 
 
-def parser() -> argparse.ArgumentParser:
+@dataclasses.dataclass(frozen=True)
+class Preset:
+    """A command that is the benchmark with other defaults: its name, what it says it does,
+    its default methods (a function: the generalist's depend on the learning extra) and their
+    --help, set and --out."""
+
+    prog: str
+    description: str
+    methods: Callable[[], list[str]]
+    methods_help: str
+    set: str
+    out: Path
+    prints_summary: bool = False  # its tables on stdout at the end, not only summary.md's path
+
+
+BENCHMARK = Preset(
+    PROG,
+    'Benchmark the planners, the replanning baselines, the tabular learners, a learned policy '
+    'and the generalist (and its hand-set and untrained twins) on a test set of scenarios, on '
+    'the full-knowledge and the sensed track: results.csv, summary.md (undetected and success '
+    "rates, normalised regret, mean return, path and exposure against value iteration's "
+    'optimum) and benchmark.png; with --tracks learning, how fast each learner learns: '
+    'learning.csv and learning.png.',
+    default_methods,
+    'all but policy (policy too with --policy; the generalist and its twins where the '
+    'learning extra is installed)',
+    'test',
+    DEFAULT_OUT,
+)
+
+
+def parser(preset: Preset = BENCHMARK) -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
-        prog=PROG,
-        description='Benchmark the planners, the replanning baselines, the tabular learners, '
-        'a learned policy and the generalist on a test set of scenarios, on the full-knowledge '
-        'and the sensed track: results.csv, summary.md (success rate, normalised regret, path '
-        "and exposure against value iteration's optimum) and benchmark.png; with --tracks "
-        'learning, how fast each learner learns: learning.csv and learning.png.',
-        epilog='Tracks per method: value iteration (the oracle), A* and the generalist on full '
-        'and sensed; Dark Path and policy on the full track only; the learners on the full and '
-        'the learning track; the replanners on the sensed track only. The learning track (not a '
-        'default: it costs several times the default run): each learner trained on '
+        prog=preset.prog,
+        description=preset.description,
+        epilog='Tracks per method: value iteration (the oracle), A*, the generalist and its twins '
+        'on full and sensed; Dark Path and policy on the full track only; the learners on the '
+        'full and the learning track; the replanners on the sensed track only. The learning '
+        'track (not a default: it costs several times the default run): each learner trained on '
         f'--learning-seeds seeds (from --seed on) for its budget, a greedy evaluation after '
         f'every episode; per scenario goal the median over the seeds of the episodes to the '
         f'criterion (until the first of {STREAK} evaluations in a row that meet the success '
@@ -99,9 +136,11 @@ def parser() -> argparse.ArgumentParser:
         'band (the regret curve). The generalist needs the learning extra (make learn): a '
         'default method only where it is installed; asked for without it, its rows fail saying '
         'so and the rest run. '
-        f'Test scenarios are generated from seed {TEST_SEED:,} on (the test range) into the '
-        'cache, each with a provenance record, and generated again where a file no longer '
-        'matches it. Refused before anything runs (one line, exit 1): an unknown scenario, '
+        f'Test scenarios are generated from seed --seeds on (default {TEST_SEED:,}, the test '
+        'range) into the cache, each with a provenance record, and generated again where a file '
+        f'no longer matches it. Seeds {FINAL_TEST_SEED:,} and up are the final test range, '
+        'evaluated once at the end of an issue: refused unless --final-test-range is given '
+        '(then only they). Refused before anything runs (one line, exit 1): an unknown scenario, '
         'method or track, a policy file trained on none of the scenario goals, an --out with '
         'earlier results (without --force), a --cache that is not one; --jobs is capped at the '
         'CPUs this process may use. A scenario file that cannot be read is named and its rows '
@@ -118,7 +157,8 @@ def parser() -> argparse.ArgumentParser:
         '--set',
         choices=SETS,
         help=f'a named set: test (--count generated test scenarios + every goal of '
-        f'{", ".join(SHIPPED)}), shipped, generated (default: test, unless scenarios are given)',
+        f'{", ".join(SHIPPED)}), shipped, generated (default: {preset.set}, unless scenarios '
+        'are given)',
     )
     p.add_argument(
         '--count',
@@ -126,6 +166,7 @@ def parser() -> argparse.ArgumentParser:
         default=DEFAULT_COUNT,
         help='generated test scenarios in the set (default: %(default)s)',
     )
+    add_generated_options(p)
     p.add_argument(
         '--cache',
         type=Path,
@@ -150,10 +191,10 @@ def parser() -> argparse.ArgumentParser:
         '--methods',
         nargs='+',
         metavar='METHOD',
-        help='default: all but policy (policy too with --policy; generalist where the '
-        'learning extra is installed): vi, astar, dark-path, replan-dark, replan-lit, '
+        help=f'default: {preset.methods_help}: vi, astar, dark-path, replan-dark, replan-lit, '
         + ', '.join(LEARNERS)
-        + ', policy, generalist',
+        + ', policy, generalist, generalist-hand-set, generalist-dark-steps, '
+        'generalist-untrained',
     )
     add_episodes_option(
         p, "the learners' training budget per scenario, in episodes (default: the harness's, "
@@ -171,7 +212,7 @@ def parser() -> argparse.ArgumentParser:
         help="the generalist's weights (method generalist; default: the shipped "
         'stealth_learn/policies/generalist-full.npz)',
     )
-    add_output_options(p, 'trials', DEFAULT_OUT, 'benchmark.png')
+    add_output_options(p, 'trials', preset.out, 'benchmark.png')
     p.add_argument(
         '--force',
         action='store_true',
@@ -180,9 +221,58 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    p = parser()
+def add_generated_options(p: argparse.ArgumentParser) -> None:
+    """The generated set's seeds and generator options."""
+    p.add_argument(
+        '--seeds',
+        type=int,
+        metavar='START',
+        help=f'the first generated test seed (default {TEST_SEED:,}; with --final-test-range '
+        f'{FINAL_TEST_SEED:,}): seeds START .. START + --count - 1, below {FINAL_TEST_SEED:,}',
+    )
+    defaults = Options()
+    for name, unit in (('width', 'm'), ('height', 'm'), ('lights', 'searchlights')):
+        p.add_argument(
+            f'--{name}',
+            type=int,
+            help=f"generated buildings' {name} ({unit}; default: {getattr(defaults, name)})",
+        )
+    p.add_argument(
+        '--final-test-range',
+        action='store_true',
+        help=f'evaluate the final test range (seeds {FINAL_TEST_SEED:,} and up): once, at the '
+        'end of an issue, never while developing; refused without this flag',
+    )
+
+
+GENERATED_OPTIONS = ('seeds', 'width', 'height', 'lights')
+
+
+def generated_options(args, generated: bool) -> tuple[int, Options]:
+    """(the first seed, the generator's options) of the generated set; ValueError, one line,
+    for seeds outside the range asked for, options out of the generator's ranges, or any of
+    them given where nothing is generated."""
+    given = [f'--{n}' for n in GENERATED_OPTIONS if getattr(args, n) is not None]
+    given += ['--final-test-range'] if args.final_test_range else []
+    if given and not generated:
+        raise ValueError(
+            f'{", ".join(given)}: for generated scenarios (--set test or generated), not '
+            'for scenario files or --set shipped'
+        )
+    first = args.seeds
+    if first is None:
+        first = FINAL_TEST_SEED if args.final_test_range else TEST_SEED
+    check_seeds(first, args.count, args.final_test_range)
+    sizes = {n: getattr(args, n) for n in GENERATED_OPTIONS[1:] if getattr(args, n) is not None}
+    options = Options(**sizes)
+    options.check()  # GenerationError, a ValueError: '--width: expected ...'
+    return first, options
+
+
+def main(argv: Sequence[str] | None = None, preset: Preset = BENCHMARK) -> int:
+    p = parser(preset)
     args = p.parse_args(argv)
+    prog = preset.prog
     if args.scenarios and args.set:
         p.error('give scenarios or --set, not both')
     if (
@@ -193,49 +283,52 @@ def main(argv: Sequence[str] | None = None) -> int:
     ):
         p.error('--count, --jobs, --learning-seeds and --episodes must be >= 1')
     say = _say
-    generated = not args.scenarios and (args.set or 'test') != 'shipped'
+    chosen = args.set or preset.set
+    generated = not args.scenarios and chosen != 'shipped'
     cache = args.cache or args.out / 'scenarios'
     try:  # everything a user gave, before anything is made or run (benchmark_checks)
-        methods = _methods(args)
+        first, options = generated_options(args, generated)
+        methods = _methods(args, preset)
         check_tracks(_asked(args, methods), args.tracks)
         check_scenarios(args.scenarios, Path.cwd())
         check_out(args.out, args.force)
         if generated:
             check_cache(cache)
     except ValueError as error:  # BenchmarkError, CacheError, PolicyFileError: one line
-        print(f'{PROG}: {error}', file=sys.stderr)
+        print(f'{prog}: {error}', file=sys.stderr)
         return 1
     jobs, capped = capped_jobs(args.jobs)
     if capped:
-        say(f'{PROG}: {capped}')
-    if 'generalist' in methods and not learning_extra():
-        say(f'{PROG}: generalist needs the learning extra (jax, flax, optax): install it with '
-            'make learn; its rows are marked failed')  # fmt: skip
+        say(f'{prog}: {capped}')
+    wanting = [m for m in methods if m in GENERALISTS]
+    if wanting and not learning_extra():
+        say(f'{prog}: {", ".join(wanting)} need the learning extra (jax, flax, optax): install '
+            'it with make learn; their rows are marked failed')  # fmt: skip
     notes = []
     try:
         if args.scenarios:
             cases = [file_case(entry, Path.cwd()) for entry in args.scenarios]
         else:
-            cases = set_cases(args.set or 'test', args.count, cache, notes.append)
+            cases = set_cases(chosen, args.count, cache, notes.append, first, options)
         policy_on = None
         if 'policy' in methods:
             policy_on, policy_notes = policy_cases(args.policy, cases)
             notes += policy_notes
     except ValueError as error:  # CacheError, BenchmarkError: one line
-        print(f'{PROG}: {error}', file=sys.stderr)
+        print(f'{prog}: {error}', file=sys.stderr)
         return 1
     try:
         args.out.mkdir(parents=True, exist_ok=True)
     except OSError as error:
-        print(f'{PROG}: --out {args.out}: cannot be made ({error.strerror or error})',
+        print(f'{prog}: --out {args.out}: cannot be made ({error.strerror or error})',
               file=sys.stderr)  # fmt: skip
         return 1
     for line in notes:
-        say(f'{PROG}: {line}')
+        say(f'{prog}: {line}')
     for case in cases:
         if case.error:
             where = '' if case.error.startswith(case.file) else f'{case.file}: '
-            say(f'{PROG}: {where}{case.error}; its rows are marked failed')
+            say(f'{prog}: {where}{case.error}; its rows are marked failed')
     laid = trials(
         cases, methods, args.tracks, episodes=args.episodes, seed=args.seed,
         learning_seeds=args.learning_seeds,
@@ -257,7 +350,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         note += ' interrupted.'
     rows = collect(laid, done)
     elapsed = time.monotonic() - started
-    settings = _settings(args, methods, laid, elapsed, len(cases), jobs)
+    made = ''
+    if generated:
+        made = (
+            f'Generated: seeds {first:,} to {first + args.count - 1:,}, {options.width} x '
+            f'{options.height} m, {options.lights} lights ({options.difficulty}, moving: '
+            f'{options.moving}). '
+        )
+    settings = _settings(args, methods, laid, elapsed, len(cases), jobs, made)
     csv_file, summary_file, plot, seeds_file, curves = (args.out / name for name in RESULT_FILES)
     try:
         write_csv(csv_file, rows)
@@ -268,16 +368,16 @@ def main(argv: Sequence[str] | None = None) -> int:
             if args.no_plots or draw(picture, rows) is None:
                 picture.unlink(missing_ok=True)  # not an earlier benchmark's (--force)
     except OSError as error:
-        print(f'{PROG}: cannot write the results to {args.out} ({error.strerror or error})',
+        print(f'{prog}: cannot write the results to {args.out} ({error.strerror or error})',
               file=sys.stderr)  # fmt: skip
         return 1
     failed = sum(r['status'] == 'failed' for r in rows)
-    print(summary)
+    print(summary.read_text(encoding='utf-8') if preset.prints_summary else summary)
     if code:
-        print(f'{PROG}: {note} Partial results in {args.out}', file=sys.stderr)
+        print(f'{prog}: {note} Partial results in {args.out}', file=sys.stderr)
         return code
     if failed:
-        print(f'{PROG}: {failed} of {len(rows)} rows failed (see {summary})', file=sys.stderr)
+        print(f'{prog}: {failed} of {len(rows)} rows failed (see {summary})', file=sys.stderr)
     return 1 if failed == len(rows) else 0
 
 
@@ -307,13 +407,14 @@ def _asked(args, methods: list[str]) -> list[str]:
     return [m for m in methods if m == 'policy' or (m == 'generalist' and args.policy_file)]
 
 
-def _methods(args) -> list[str]:
-    names = [method_name(m) for m in args.methods] if args.methods else default_methods()
+def _methods(args, preset: Preset = BENCHMARK) -> list[str]:
+    names = [method_name(m) for m in args.methods] if args.methods else preset.methods()
     if args.policy and 'policy' not in names:
         names.append('policy')
     if args.policy_file and 'generalist' not in names:
         names.append('generalist')
-    if 'generalist' in names and learning_extra():
+    if any(m in GENERALISTS for m in names) and learning_extra():
+        # the twins take the file's architecture
         # a missing, corrupt or foreign weights file: refused here, one line naming it
         # (PolicyFileError, LayoutError: ValueErrors); the parameters' shapes are found
         # abstractly: no JAX backend, no XLA threads in this process before Ray starts workers
@@ -384,7 +485,7 @@ def collect(laid: list[dict], done: dict[str, list[dict]]) -> list[dict]:
 
 
 def _settings(
-    args, methods: list[str], laid: list[dict], elapsed: float, cases: int, jobs: int
+    args, methods: list[str], laid: list[dict], elapsed: float, cases: int, jobs: int, made=''
 ) -> str:
     learners = [m for m in methods if m in LEARNERS]
     budget = ''
@@ -408,12 +509,12 @@ def _settings(
                 'a greedy evaluation after every episode'
             )
         budget += '.'
-    if 'generalist' in methods:
+    if any(m in GENERALISTS for m in methods):
         budget += f' Generalist weights: {args.policy_file or "the shipped generalist-full.npz"}.'
     alone = jobs <= 1 or sum(not trial['error'] for trial in laid) <= 1  # as run_trials runs
     where = 'one after another' if alone else f'local Ray, {jobs} CPUs'
     return (
-        f'Tracks: {", ".join(args.tracks)}. Methods: {", ".join(methods)}.{budget} Seed '
+        f'{made}Tracks: {", ".join(args.tracks)}. Methods: {", ".join(methods)}.{budget} Seed '
         f'{args.seed}. {_counted(laid)} in {elapsed:.0f} s ({where}): '
         f'{cases * 60 / max(elapsed, 1e-9):.1f} scenario goals/min.'
     )

@@ -1,15 +1,15 @@
 """The cache of the benchmark's generated test scenarios (``--cache``). No Ray, no rclpy.
 
 An entry is one scenario as the generator writes it (``gen-<seed>.yaml``, ``maps/gen-<seed>.pgm``
-and ``.yaml``) and its provenance record, ``gen-<seed>.provenance.json``: the seed, the
-generator's options (``OPTIONS``) and version (``scenario_generator.GENERATOR_VERSION``) and the
-SHA-256 of every file written. An entry is reused when its record holds: the same seed, options
-and generator version, and every file as recorded. Otherwise it is generated again over its old
-files, said in one line: a file edited since, a newer generator, a cache written before the
-records were kept (its scenario's header names the generator's command for that seed and
-options). A cache that is a file, or holds anything else (other scenarios, other files), is
-refused in one line naming it (``CacheError``), before anything is written: the cache overwrites
-only what the benchmark wrote there.
+and ``.yaml``) and its provenance record, ``gen-<seed>.provenance.json``: the seed, the generator's
+options (``OPTIONS``, or the size and lights the benchmark is given) and version
+(``scenario_generator.GENERATOR_VERSION``) and the SHA-256 of every file written. An entry is
+reused when its record holds: the same seed, options and generator version, and every file as
+recorded. Otherwise it is generated again over its old files, said in one line: a file edited
+since, a newer generator, a cache written before the records were kept (its scenario's header names
+the generator's command for that seed and options). A cache that is a file, or holds anything else
+(other scenarios, other files), is refused in one line naming it (``CacheError``), before anything
+is written: the cache overwrites only what the benchmark wrote there.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from stealth_core.scenario_generator import (
     seed_range_of,
 )
 
-OPTIONS = Options()  # the test set's: the generator's defaults
+OPTIONS = Options()  # the test set's by default: the generator's defaults
 FORMAT = 'stealth benchmark cache entry'
 RECORD = '.provenance.json'  # gen-<seed> + RECORD: the entry's provenance record
 # The files of an entry, at the top of the cache and in its maps/ (the seed: group 1).
@@ -71,9 +71,12 @@ def _entry_file(path: Path, pattern: re.Pattern = _MAPS) -> bool:
     return bool(found) and path.is_file() and seed_range_of(int(found[1])) == 'test'
 
 
-def cached_scenario(cache: Path, seed: int, say: Callable[[str], None]) -> Path:
-    """The scenario file of ``seed`` in the cache (``check_cache`` first), generated where its
-    entry is missing and again where it does not match its record (``say`` gets the line).
+def cached_scenario(
+    cache: Path, seed: int, say: Callable[[str], None], options: Options = OPTIONS
+) -> Path:
+    """The scenario file of ``seed`` with ``options`` in the cache (``check_cache`` first),
+    generated where its entry is missing and again where it does not match its record (``say``
+    gets the line).
     GenerationError when the seed gives no scenario; CacheError when the entry cannot be
     written, or is a scenario the benchmark did not write (no record, another generator command
     in its header)."""
@@ -81,24 +84,24 @@ def cached_scenario(cache: Path, seed: int, say: Callable[[str], None]) -> Path:
     path = cache / f'{name}.yaml'
     record = cache / f'{name}{RECORD}'
     if not path.exists() and not record.exists():
-        _write(cache, generate(seed, OPTIONS))
+        _write(cache, generate(seed, options), options)
         return path
-    stale = _stale(cache, seed, record)
+    stale = _stale(cache, seed, record, options)
     if not stale:
         return path
-    generated = generate(seed, OPTIONS)
+    generated = generate(seed, options)
     if not record.exists() and path.is_file() and _header(path) != _header(generated):
         raise CacheError(
             f'--cache {cache}: {path.name} has no provenance record and another header than '
-            f"the generator's for seed {seed} with the benchmark's options (the scenario of "
+            f"the generator's for seed {seed} with these options (the scenario of "
             'another command?); give a new or empty directory'
         )
-    _write(cache, generated)
+    _write(cache, generated, options)
     say(f'--cache {cache}: {name} generated again: {stale}')
     return path
 
 
-def _stale(cache: Path, seed: int, record: Path) -> str:
+def _stale(cache: Path, seed: int, record: Path, options: Options) -> str:
     """Why the entry of ``seed`` does not match its record ('' when it does)."""
     if not record.exists():
         return 'it has no provenance record (a cache written before they were kept)'
@@ -118,7 +121,7 @@ def _stale(cache: Path, seed: int, record: Path) -> str:
     if kept.get('generator_version') != GENERATOR_VERSION:
         version = kept.get('generator_version')
         return f'generator version {version!r} wrote it, this is version {GENERATOR_VERSION}'
-    if kept.get('options') != dataclasses.asdict(OPTIONS):
+    if kept.get('options') != dataclasses.asdict(options):
         return f'generated with other options ({kept.get("options")!r})'
     for relative, digest in sorted(files.items()):
         file = cache / relative
@@ -129,12 +132,12 @@ def _stale(cache: Path, seed: int, record: Path) -> str:
     return ''
 
 
-def _write(cache: Path, generated: Generated) -> None:
+def _write(cache: Path, generated: Generated, options: Options) -> None:
     """The entry's files, then its record (a crash between: no record, generated again)."""
     record = {
         'format': FORMAT,
         'seed': generated.seed,
-        'options': dataclasses.asdict(OPTIONS),
+        'options': dataclasses.asdict(options),
         'generator_version': GENERATOR_VERSION,
         'files': {relative: _sha256(data) for relative, data in generated.files().items()},
     }

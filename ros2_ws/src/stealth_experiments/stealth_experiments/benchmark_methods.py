@@ -35,7 +35,14 @@ runs on which track (``METHODS``), and why:
   map of the most light each node and move gets over the lights' cycle (the lights themselves
   where they stand still), on the sensed track of what was sensed so far (never sensed: dark,
   as ``replan (unknown dark)``). It needs the learning extra (``make learn``);
-  without it its rows fail with the one line saying so, and the other methods run.
+  without it its rows fail with the one line saying so, and the other methods run. A
+  scenario with moving lights is refused in its row, naming the weights and the scenario (the
+  network reads no phase and cannot wait).
+- its twins, the same network played the same way, nothing learned (``TWINS``): ``generalist
+  (hand-set)``, the scenario's reward written into its weights
+  (``GeneralistPolicy.hand_set``); ``generalist (dark steps)``, -1 a move and -1e4 a lit one
+  written in instead; ``generalist (untrained)``, its initialisation. The baselines a trained
+  generalist must beat: where it does not beat its hand-set twin, learning bought nothing.
 
 Every row is measured the same way: one episode (a planner's path walked through the task,
 ``planners.walk``, or an episode on the Gym env), its outcome, return (undiscounted, the
@@ -77,7 +84,17 @@ METHODS = {
     **dict.fromkeys(LEARNER_NAMES, ('full', 'learning')),
     'policy': ('full',),
     'generalist': EPISODE_TRACKS,
+    'generalist (hand-set)': EPISODE_TRACKS,
+    'generalist (dark steps)': EPISODE_TRACKS,
+    'generalist (untrained)': EPISODE_TRACKS,
 }
+# the generalist's twins: method -> GeneralistPolicy's weights ('env', 'dark-steps': hand-set)
+TWINS = {
+    'generalist (hand-set)': 'env',
+    'generalist (dark steps)': 'dark-steps',
+    'generalist (untrained)': 'untrained',
+}
+GENERALISTS = ('generalist', *TWINS)  # the methods that need the learning extra
 LEARNERS = tuple(LEARNER_NAMES)
 REPLANNERS = {'replan (unknown dark)': 'dark', 'replan (unknown lit)': 'lit'}
 # Names accepted by --methods for methods whose names have spaces or symbols.
@@ -88,6 +105,9 @@ ALIASES = {
     'dark-path': 'Dark Path',
     'replan-dark': 'replan (unknown dark)',
     'replan-lit': 'replan (unknown lit)',
+    'generalist-hand-set': 'generalist (hand-set)',
+    'generalist-dark-steps': 'generalist (dark steps)',
+    'generalist-untrained': 'generalist (untrained)',
 }
 COLUMNS = (
     'scenario', 'goal', 'track', 'method', 'status', 'success', 'detected', 'outcome',
@@ -224,7 +244,7 @@ def _episode(trial: dict, track: str, model, optimum, vi_walk) -> tuple[dict, in
         return run(spec).final, budget
     if method == 'policy':
         return _play_policy(trial), None
-    if method == 'generalist':
+    if method in GENERALISTS:
         return _play_generalist(trial, track), None
     raise ValueError(f'unknown method {method!r}')
 
@@ -242,12 +262,17 @@ def _play_policy(trial: dict) -> dict:
 
 
 def _play_generalist(trial: dict, track: str) -> dict:
-    """One greedy episode of the generalist on ``track`` (its imports here: the learning extra's
-    MissingExtraError, one line naming make learn, fails this row only)."""
+    """One greedy episode of the generalist or one of its twins (``trial['method']``) on
+    ``track`` (its imports here: the learning extra's MissingExtraError, one line naming make
+    learn, fails this row only)."""
     from stealth_learn.generalist_agent import GeneralistAgent
 
     env = StealthNavEnv(trial['scenario'], trial['goal'], track=track)
-    agent = GeneralistAgent(generalist_policy(trial.get('policy_file')), env)
+    policy = generalist_policy(trial.get('policy_file'))
+    twin = TWINS.get(trial['method'])
+    if twin is not None:
+        policy = _twin(policy.header['architecture'], twin, env.scenario, env.model.task.goal.name)
+    agent = GeneralistAgent(policy, env)
     return play(env, agent.act, seed=trial['seed'])
 
 
@@ -258,6 +283,24 @@ def generalist_policy(path: str | None):
     from stealth_learn.generalist_agent import load_policy
 
     return load_policy(path)
+
+
+def _twin(architecture: dict, kind: str, scenario, goal: str):
+    """The twin ``kind`` ('env', 'dark-steps': hand-set for this scenario's reward and goal;
+    'untrained') of the weights of ``architecture``."""
+    from stealth_learn.generalist import GeneralistPolicy
+    from stealth_learn.hand_set import ScenarioReward
+
+    if kind == 'untrained':
+        return _untrained(tuple(sorted(architecture.items())))
+    return GeneralistPolicy.hand_set(architecture, ScenarioReward.of(scenario, goal), kind)
+
+
+@functools.lru_cache(maxsize=2)
+def _untrained(architecture: tuple):
+    from stealth_learn.generalist import GeneralistPolicy
+
+    return GeneralistPolicy.untrained(dict(architecture))
 
 
 def learning_extra() -> bool:

@@ -3,10 +3,12 @@
 
 Sets (``SETS``):
 
-- ``test``: ``count`` generated test scenarios, seeds ``TEST_SEED``, ``TEST_SEED + 1``, ...
-  (``scenario_generator.SEED_RANGES``' test range, never used for tuning), generated on the fly
-  with the generator's default options into a cache directory (``benchmark_cache``: a scenario
-  there is reused while its provenance record holds), plus every goal of the shipped maps;
+- ``test``: ``count`` generated test scenarios, seeds ``first`` (default ``TEST_SEED``),
+  ``first + 1``, ... (``scenario_generator.SEED_RANGES``' test range, never used for tuning;
+  below ``FINAL_TEST_SEED``, the development part, unless the final test range is asked for by
+  name), generated on the fly with the generator's default options (or the size and lights
+  given) into a cache directory (``benchmark_cache``: a scenario there is reused while its
+  provenance record holds), plus every goal of the shipped maps;
 - ``shipped``: every goal of the shipped maps (``SHIPPED``) only;
 - ``generated``: the generated test scenarios only.
 
@@ -24,9 +26,15 @@ from pathlib import Path
 import re
 
 from stealth_core.scenario import find_scenario, load_scenario
-from stealth_core.scenario_generator import SEED_RANGES, GenerationError, scenario_name
+from stealth_core.scenario_generator import (
+    FINAL_TEST_SEED,
+    SEED_RANGES,
+    GenerationError,
+    Options,
+    scenario_name,
+)
 
-from stealth_experiments.benchmark_cache import cached_scenario, check_cache
+from stealth_experiments.benchmark_cache import OPTIONS, cached_scenario, check_cache
 from stealth_experiments.benchmark_methods import METHODS, TRACKS
 from stealth_experiments.harness import scenario_argument, scenario_label
 
@@ -34,6 +42,30 @@ SHIPPED = ('simple-maze', 'map1', 'lgfloor', 'floorplan')  # the shipped maps (s
 SETS = ('test', 'shipped', 'generated')
 TEST_SEED = SEED_RANGES['test'][0]
 DEFAULT_COUNT = 20
+
+
+def check_seeds(first: int, count: int, final: bool) -> None:
+    """ValueError, one line, unless seeds ``first`` .. ``first + count - 1`` are all in the
+    test range's development part (``TEST_SEED`` up to ``FINAL_TEST_SEED``) or, with
+    ``final``, all in the final test range (``FINAL_TEST_SEED`` and up): the final range is
+    evaluated once, at the end, and only when asked for by name."""
+    last = first + count - 1
+    if final and first < FINAL_TEST_SEED:
+        raise ValueError(
+            f'--final-test-range: the final test range starts at seed {FINAL_TEST_SEED:,}, '
+            f'--seeds starts at {first:,}'
+        )
+    if not final and first < TEST_SEED:
+        raise ValueError(
+            f'--seeds: expected a test seed >= {TEST_SEED:,} (the training and validation '
+            f'ranges lie below), got {first:,}'
+        )
+    if not final and last >= FINAL_TEST_SEED:
+        raise ValueError(
+            f'--seeds {first:,} --count {count}: seeds up to {last:,} reach the final test range '
+            f'({FINAL_TEST_SEED:,} and up), which is evaluated once at the end of an issue; '
+            'give --final-test-range to evaluate it'
+        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -61,16 +93,22 @@ def shipped_cases() -> list[Case]:
     return cases
 
 
-def generated_cases(count: int, cache: Path, say: Callable[[str], None]) -> list[Case]:
-    """The first ``count`` generated test scenarios, written to (or found in) ``cache``
-    (``benchmark_cache``: ``say`` gets a line for each entry generated again; CacheError for a
-    cache that cannot be used)."""
+def generated_cases(
+    count: int,
+    cache: Path,
+    say: Callable[[str], None],
+    first: int = TEST_SEED,
+    options: Options = OPTIONS,
+) -> list[Case]:
+    """The ``count`` generated test scenarios of seeds ``first`` on, with ``options``, written
+    to (or found in) ``cache`` (``benchmark_cache``: ``say`` gets a line for each entry
+    generated again; CacheError for a cache that cannot be used)."""
     cache = Path(cache)
     check_cache(cache)
     cases = []
-    for seed in range(TEST_SEED, TEST_SEED + count):
+    for seed in range(first, first + count):
         try:
-            path = cached_scenario(cache, seed, say)
+            path = cached_scenario(cache, seed, say, options)
         except GenerationError as error:  # `stealth benchmark` names it, rows failed
             path = cache / f'{scenario_name(seed)}.yaml'
             cases.append(Case(str(path), path.stem, None, str(path), _one_line(error)))
@@ -92,13 +130,21 @@ def file_case(entry: str, base: Path) -> Case:
     return Case(scenario, label, goal, file)
 
 
-def set_cases(name: str, count: int, cache: Path, say: Callable[[str], None]) -> list[Case]:
-    """The cases of a named set (module docstring); ``say`` as generated_cases'."""
+def set_cases(
+    name: str,
+    count: int,
+    cache: Path,
+    say: Callable[[str], None],
+    first: int = TEST_SEED,
+    options: Options = OPTIONS,
+) -> list[Case]:
+    """The cases of a named set (module docstring); ``say``, ``first`` and ``options`` as
+    generated_cases'."""
     if name not in SETS:
         raise ValueError(f'--set: expected one of {", ".join(SETS)}, got {name!r}')
     cases = []
     if name in ('test', 'generated'):
-        cases += generated_cases(count, cache, say)
+        cases += generated_cases(count, cache, say, first, options)
     if name in ('test', 'shipped'):
         cases += shipped_cases()
     return cases

@@ -5,6 +5,8 @@ learning.png (``benchmark_learning_report``, which also writes its table). No Ra
 Per episode track (full, sensed) and method, over the rows that ran (``status`` ok; failed and
 interrupted rows are counted apart):
 
+- **undetected**: the fraction of episodes never detected (they reached the goal or ran out
+  of steps);
 - **success**: the undetected success rate, the fraction of episodes that reached the goal
   without being detected (detection ends an episode);
 - **criterion**: the fraction that met the success criterion (``stealth_core.path_scores``:
@@ -14,6 +16,7 @@ interrupted rows are counted apart):
   floor being the return of being detected at the first step (``benchmark_methods.floor_of``):
   0 at the optimum, 1 as bad as being caught at once (a timeout that wandered in the light can
   be worse than 1);
+- **mean return**: the mean undiscounted return (value iteration's is the optimum's);
 - **path / optimum**: the mean over the successful rows of the path length over the optimum's
   (value iteration's path on the same scenario and goal);
 - **exposure / optimum**: over the successful rows, the summed exposure over the optimum's
@@ -71,6 +74,7 @@ def summarise(rows: list[dict]) -> list[dict]:
             won = [r for r in ran if r['success']]
             met = [r for r in won if row_meets_criterion(r)]
             regrets = [r['regret'] for r in ran if _finite(r['regret'])]
+            returns = [r['return'] for r in ran if _finite(r['return'])]
             lengths = [r['path_length'] / r['vi_path_length'] for r in won if r['vi_path_length']]
             vi_exposure = sum(r['vi_exposure'] for r in won)
             found.append({
@@ -83,7 +87,9 @@ def summarise(rows: list[dict]) -> list[dict]:
                 'success': len(won) / len(ran) if ran else None,
                 'criterion': len(met) / len(ran) if ran else None,
                 'detected': sum(bool(r['detected']) for r in ran) / len(ran) if ran else None,
+                'undetected': sum(not r['detected'] for r in ran) / len(ran) if ran else None,
                 'regret': float(np.mean(regrets)) if regrets else None,
+                'return': float(np.mean(returns)) if returns else None,
                 'path_ratio': float(np.mean(lengths)) if lengths else None,
                 'exposure': float(np.mean([r['exposure'] for r in ran])) if ran else None,
                 'exposure_ratio': (
@@ -113,7 +119,9 @@ def _finite(value) -> bool:
 def _figure(value, digits: int = 3, percent: bool = False) -> str:
     if value is None:
         return '-'
-    return f'{100 * value:.0f} %' if percent else f'{value:.{digits}f}'
+    if percent:
+        return f'{100 * value:.0f} %'
+    return f'{round(value, digits) or 0.0:.{digits}f}'  # no '-0.000' for a rounding's sign
 
 
 def write_summary(path: Path, rows: list[dict], settings: str, note: str = '') -> Path:
@@ -131,25 +139,28 @@ def write_summary(path: Path, rows: list[dict], settings: str, note: str = '') -
         lines += [
             f'## Track: {track}',
             '',
-            '| method | success | criterion | detected | regret | path / optimum '
-            '| exposure / optimum | mean exposure | s per row | rows (failed) |',
-            '|---|---|---|---|---|---|---|---|---|---|',
+            '| method | undetected | success | criterion | regret | mean return '
+            '| path / optimum | exposure / optimum | mean exposure | s per row | rows (failed) |',
+            '|---|---|---|---|---|---|---|---|---|---|---|',
         ]
         for s in mine:
             failed = s['failed'] + s['interrupted']
             lines.append(
-                f'| {s["method"]} | {_figure(s["success"], percent=True)} | '
-                f'{_figure(s["criterion"], percent=True)} | '
-                f'{_figure(s["detected"], percent=True)} | {_figure(s["regret"])} | '
+                f'| {s["method"]} | {_figure(s["undetected"], percent=True)} | '
+                f'{_figure(s["success"], percent=True)} | '
+                f'{_figure(s["criterion"], percent=True)} | {_figure(s["regret"])} | '
+                f'{_figure(s["return"], 1)} | '
                 f'{_figure(s["path_ratio"], 2)} | {_figure(s["exposure_ratio"], 2)} | '
                 f'{_figure(s["exposure"], 2)} | {_figure(s["seconds"], 2)} | '
                 f'{s["rows"]} ({failed}) |'
             )
         lines.append('')
     lines += [
+        'undetected: never detected (reached the goal or ran out of steps). '
         'success: reached the goal undetected. criterion: met the success criterion '
         f'({DEFAULT_CRITERION.describe()}). regret: mean of (vi_return - return) / '
         '(vi_return - floor), floor = the return of being detected at the first step. '
+        'mean return: the mean undiscounted return. '
         "path / optimum: mean path length over value iteration's, successful rows. "
         'exposure / optimum: summed exposure (accumulated step visibility) over the '
         "optimum's, successful rows.",

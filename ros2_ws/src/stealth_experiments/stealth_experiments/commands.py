@@ -16,4 +16,10 @@ COMMANDS = {
         'main',
         'Benchmark planners, replanners, learners and a policy on a test set, both tracks.',
     ),
+    'generalist': (
+        'stealth_experiments.generalist_benchmark',
+        'main',
+        'Evaluate the generalist beside the oracle, its hand-set and untrained twins and the '
+        'replanners.',
+    ),
 }

@@ -81,7 +81,7 @@ def _row(method, success, regret_value, length, vi_length, exposure, vi_exposure
         'scenario': 's', 'goal': 'g', 'track': 'full', 'method': method, 'status': 'ok',
         'error': '', 'success': success, 'detected': not success, 'regret': regret_value,
         'path_length': length, 'vi_path_length': vi_length, 'exposure': exposure,
-        'vi_exposure': vi_exposure, 'seconds': 2.0, **extra,
+        'vi_exposure': vi_exposure, 'seconds': 2.0, 'return': 10.0 * length, **extra,
     }  # fmt: skip
 
 
@@ -97,7 +97,8 @@ def test_the_summary_rates_regret_path_and_exposure_over_the_rows_that_ran():
     star = summary['A*']
     assert (star['rows'], star['ran'], star['failed']) == (4, 3, 1)
     assert star['success'] == pytest.approx(2 / 3)
-    assert star['detected'] == pytest.approx(1 / 3)
+    assert star['detected'] == pytest.approx(1 / 3) and star['undetected'] == pytest.approx(2 / 3)
+    assert star['return'] == pytest.approx(sum(r['return'] for r in rows[:3]) / 3)
     assert star['regret'] == pytest.approx((0.0 + 0.2 + 0.9) / 3)
     assert star['path_ratio'] == pytest.approx((1.2 + 1.5) / 2)
     assert star['exposure_ratio'] == pytest.approx((3.0 + 1.0) / (1.0 + 1.0))
@@ -132,7 +133,8 @@ def test_summary_md_has_a_table_per_track_and_names_the_rows_that_did_not_run(tm
     ]
     text = write_summary(tmp_path / 'summary.md', rows, 'settings here', 'a note').read_text()
     assert '## Track: full' in text and '## Track: sensed' in text
-    assert '| A* | 100 % | 0 % | 0 % | 0.000 | 1.20 | 3.00 | 3.00 | 2.00 | 2 (1) |' in text
+    row = '| A* | 100 % | 100 % | 0 % | 0.000 | 120.0 | 1.20 | 3.00 | 3.00 | 2.00 | 2 (1) |'
+    assert row in text
     assert 'criterion: met the success criterion (reached the goal undetected, path' in text
     assert '- broken g: failed: A* (full): broken.yaml: no such file' in text
     assert '**a note**' in text and 'settings here' in text

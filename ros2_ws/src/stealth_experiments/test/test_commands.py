@@ -6,14 +6,14 @@ from stealth_experiments.commands import COMMANDS
 from stealth_tools import cli
 
 
-def test_stealth_finds_sweep_and_benchmark():
+def test_stealth_finds_sweep_benchmark_and_generalist():
     added = cli.added_commands()
     assert {name: added[name] for name in COMMANDS} == COMMANDS
-    assert set(COMMANDS) == {'sweep', 'benchmark'}
-    assert cli.build_parser().description.endswith(', sweep and benchmark.')
+    assert set(COMMANDS) == {'sweep', 'benchmark', 'generalist'}
+    assert cli.build_parser().description.endswith(', sweep, benchmark and generalist.')
 
 
-@pytest.mark.parametrize('command', ['sweep', 'benchmark'])
+@pytest.mark.parametrize('command', ['sweep', 'benchmark', 'generalist'])
 def test_each_command_has_help(capsys, command):
     try:
         status = cli.main([command, '--help'])

@@ -1,26 +1,24 @@
-"""The lights-known generalist as a policy, and its evaluation on generated test scenarios in
-the JAX environment against value iteration's optimum and the same network untrained.
+"""The lights-known generalist as a policy, its twins (the same network untrained, or with the
+environment's reward written in: ``hand_set``), and one greedy episode in the JAX environment.
 
     policy = GeneralistPolicy.load(path, env.layout_id)     # refused for another layout
+    twin = GeneralistPolicy.hand_set(policy.header['architecture'], ScenarioReward.of(scenario))
     action = policy.act(observation.grid)                   # the grid of jax_env's 'grid' layout
-
-    python -m stealth_learn.generalist --test 30            # the report's figures
+    episode = rollout(policy, scenario)                     # against value iteration's optimum
 
 The light field is static on this track, so the value map depends only on the grid's static
 channels: ``rollout`` computes it once per episode and attends at the robot's cell each step,
 which is exactly what ``act`` gives step by step (``test_generalist`` checks they agree).
+The evaluation beside the baselines is `stealth generalist` (``stealth_experiments``: the
+benchmark's methods, which this package may not import).
 """
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
+import functools
 import hashlib
-import os
 from pathlib import Path
-import sys
-import tempfile
-import time
 
 import numpy as np
 from stealth_core.planners import follow, value_iteration
@@ -29,34 +27,61 @@ from stealth_core.scenario_generator import GenerationError, Options
 from stealth_learn import generalist_data as data
 from stealth_learn import policy_file
 from stealth_learn.env_tables import TaskArrays
+from stealth_learn.hand_set import ScenarioReward, hand_set_params
 from stealth_learn.interruptible import interruptible
 from stealth_learn.jax_deps import jax, jnp
 from stealth_learn.jax_env import build
+from stealth_learn.obs_layout import LayoutError
 from stealth_learn.vin import ROBOT, Vin, logits_of_cells
 
 DEFAULT_POLICY = policy_file.SHIPPED
 
 
 class GeneralistPolicy:
-    """The network and its parameters; decisions come from the parameters alone."""
+    """The network and its parameters; decisions come from the parameters alone. ``source``
+    names them in messages: the weights file, or how they were set."""
 
-    def __init__(self, params, architecture: dict, header: dict | None = None):
+    def __init__(self, params, architecture: dict, header: dict | None = None, source=''):
         self.model = Vin(**architecture)
         self.variables = {'params': jax.tree_util.tree_map(jnp.asarray, params)}
-        self.header = header or {}
-        self._logits = jax.jit(lambda v, g: logits_of_cells(self.model, v, g))
+        self.header = header or {'architecture': dict(architecture)}
+        self.source = str(source) or 'the generalist'
+        self._logits = _compiled(tuple(sorted(architecture.items())))
 
     @classmethod
     def load(cls, path, env_layout: str) -> GeneralistPolicy:
         params, header = policy_file.load(path, env_layout)
-        return cls(params, header['architecture'], header)
+        return cls(params, header['architecture'], header, source=path)
 
     @classmethod
     def untrained(cls, architecture: dict, seed: int = 0) -> GeneralistPolicy:
         """The same architecture at its initialisation (the issue's untrained comparison)."""
         model = Vin(**architecture)
         grid = jnp.zeros((1, 4, 4, 7), jnp.float32)
-        return cls(model.init(jax.random.PRNGKey(seed), grid)['params'], architecture)
+        params = model.init(jax.random.PRNGKey(seed), grid)['params']
+        return cls(params, architecture, source=f'the untrained network (seed {seed})')
+
+    @classmethod
+    def hand_set(
+        cls, architecture: dict, reward: ScenarioReward, kind: str = 'env'
+    ) -> GeneralistPolicy:
+        """The same architecture with the scenario's reward written into its weights
+        (``hand_set``: ``kind`` 'env', the environment's reward, or 'dark-steps', -1 a move and
+        -1e4 a lit one), nothing learned: the baseline a trained network must beat."""
+        params, architecture = hand_set_params(architecture, reward, kind)
+        source = f'the hand-set network ({kind} reward of {reward.scenario or "the scenario"})'
+        return cls(params, architecture, source=source)
+
+    def check_scenario(self, scenario) -> None:
+        """ValueError, one line naming these weights and the scenario, unless the network can
+        play it: it reads no phase and cannot wait, so it is for static lights only."""
+        if scenario.has_moving_lights:
+            raise LayoutError(
+                f'{self.source}: the policy was trained for static lights (layout '
+                f'{policy_file.policy_layout("full")!r}: no phase input, no wait), scenario '
+                f'{scenario.name!r} ({scenario.path}) has moving lights; a time-aware policy '
+                'is needed there'
+            )
 
     def cell_logits(self, grid) -> np.ndarray:
         """(R, C, 4) the logits of every cell of one grid (R, C, 7); Ctrl-C stops it at once,
@@ -67,6 +92,14 @@ class GeneralistPolicy:
     def act(self, grid) -> int:
         """The move (0 up, 1 down, 2 left, 3 right) at the robot's cell of one grid."""
         return int(np.argmax(self.cell_logits(grid)[robot_cell(grid)]))
+
+
+@functools.lru_cache(maxsize=8)
+def _compiled(architecture: tuple):
+    """The jitted logits of every cell for one architecture, shared by every policy of it (a
+    hand-set twin per scenario compiles once per grid shape, not once per policy)."""
+    model = Vin(**dict(architecture))
+    return jax.jit(lambda variables, grid: logits_of_cells(model, variables, grid))
 
 
 def robot_cell(grid) -> tuple[int, int]:
@@ -137,7 +170,10 @@ class Episode:
 
 def rollout(policy: GeneralistPolicy, scenario) -> Episode:
     """One greedy episode of ``policy`` on ``scenario`` in the JAX environment, and value
-    iteration's return and path length on the same scenario."""
+    iteration's return and path length on the same scenario (moving lights refused:
+    ``GeneralistPolicy.check_scenario``)."""
+    model = TaskArrays(scenario).model
+    policy.check_scenario(model.task.scenario)
     env, params = build([scenario], track='full', layout='grid')
     one = env.scenario(params, 0)
     obs, state = env.reset(jax.random.PRNGKey(0), one)
@@ -158,7 +194,6 @@ def rollout(policy: GeneralistPolicy, scenario) -> Episode:
     limit = int(one.step_limit)
     carry, _ = jax.lax.scan(body, (state, jnp.asarray(False), info0), None, length=limit)
     info = carry[2]
-    model = TaskArrays(scenario).model
     optimum = value_iteration(model)
     path = follow(model, lambda i: int(optimum.policy[i]))
     return Episode(
@@ -171,26 +206,6 @@ def rollout(policy: GeneralistPolicy, scenario) -> Episode:
     )
 
 
-def summary(episodes) -> dict:
-    """Undetected success rate, return relative to value iteration's, path length ratio."""
-    success = [e.outcome == 0 for e in episodes]
-    both = [e for e in episodes if e.outcome == 0]
-    return {
-        'scenarios': len(episodes),
-        'success_rate': float(np.mean(success)),
-        'detected': int(sum(e.outcome == 1 for e in episodes)),
-        'timeouts': int(sum(e.outcome == 2 for e in episodes)),
-        'return_ratio': float(
-            sum(e.episode_return for e in episodes) / sum(e.optimal_return for e in episodes)
-        )
-        if episodes
-        else float('nan'),
-        'path_length_ratio': float(np.mean([e.steps / e.optimal_steps for e in both]))
-        if both
-        else float('nan'),
-    }
-
-
 def unseen_scenarios(count: int, options: Options, directory: Path, offset: int = 0):
     """``count`` generated scenarios of the test seed range (a seed not proven is skipped)."""
     out = []
@@ -200,55 +215,3 @@ def unseen_scenarios(count: int, options: Options, directory: Path, offset: int 
         except GenerationError:
             continue
     return out
-
-
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(
-        prog='python -m stealth_learn.generalist',
-        description='Evaluate the lights-known generalist and the same network untrained on '
-        'generated test scenarios (test seed range), against value iteration.',
-    )
-    parser.add_argument(
-        '--policy', type=Path, default=DEFAULT_POLICY, help='the weights file (default: shipped)'
-    )
-    parser.add_argument('--test', type=int, default=30, help='generated test scenarios, >= 1 (30)')
-    parser.add_argument('--width', type=int, default=30, help='building width, m (30)')
-    parser.add_argument('--height', type=int, default=30, help='building height, m (30)')
-    parser.add_argument('--lights', type=int, default=4, help='searchlights per building (4)')
-    args = parser.parse_args(argv)
-    if args.test < 1:
-        parser.error(f'--test: expected a whole number >= 1, got {args.test}')
-    try:
-        try:
-            options = Options(width=args.width, height=args.height, lights=args.lights)
-            options.check()
-            policy = GeneralistPolicy.load(args.policy, policy_file.policy_layout('full'))
-        except (GenerationError, ValueError) as error:  # PolicyFileError, LayoutError
-            print(f'generalist: {error}', file=sys.stderr)
-            return 2
-        evaluate(policy, options, args.test)
-    except KeyboardInterrupt:
-        print('generalist: interrupted', file=sys.stderr)
-        return 130
-    return 0
-
-
-def evaluate(policy: GeneralistPolicy, options: Options, count: int) -> None:
-    """Print the trained and the untrained network's figures on ``count`` test scenarios."""
-    started = time.monotonic()
-    scenarios = unseen_scenarios(count, options, Path(tempfile.mkdtemp(prefix='test-')))
-    untrained = GeneralistPolicy.untrained(policy.header['architecture'])
-    for name, who in (('generalist', policy), ('untrained', untrained)):
-        episodes = [interruptible(lambda w=who, s=s: rollout(w, s)) for s in scenarios]
-        figures = summary(episodes)
-        print(
-            f'{name}: '
-            + ', '.join(
-                f'{k} {v:.3f}' if isinstance(v, float) else f'{k} {v}' for k, v in figures.items()
-            )
-        )
-    print(f'{time.monotonic() - started:.0f} s, load {os.getloadavg()[0]:.1f}')
-
-
-if __name__ == '__main__':
-    sys.exit(main())

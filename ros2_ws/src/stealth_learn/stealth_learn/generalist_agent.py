@@ -10,18 +10,17 @@ The grid is ``generalist_data.grid_of`` (the channels the network trained on: fr
 light on each node and along each move; robot and age 0, the decision being read at the robot's
 cell), with the light of what the agent knows:
 
-- Track 'full': the lights known. ``lights='cycle'`` (the default): at each node and move the
-  most light it gets over the lights' cycle (the bins of the robot's heading), so the map is
-  computed once per episode and a way it finds dark is dark whenever the robot passes; with
-  static lights this is simply the lights. ``lights='now'``: the lights as they stand now (the
-  layer of the robot's place: bin and heading), one map per layer: each decision on the lights
-  of that moment, a reactive use of a network trained on still lights.
+- Track 'full': the lights known, as they stand (the layer of the robot's place: its heading
+  where the scenario weighs exposure), one map per layer.
 - Track 'sensed': the Gym env's sensed observation, what was sensed so far (its last value),
   believed as ``belief.believed`` (the agent node's plugin does the same): a node never sensed
   (-1) enters as ``unknown``: 'dark' (0: the optimistic rule of ``replan (unknown dark)``) or
   'lit' (the detection threshold where a lamp could reach it, ``replanning.lamp_reach``, as
   ``replan (unknown lit)``), a move never sensed as the larger of its two ends. The value map
   is recomputed whenever the sensed light changes: the network replanning on its belief.
+
+The network reads no phase and cannot wait: a scenario with moving lights is refused
+(``GeneralistPolicy.check_scenario``, one line naming the weights and the scenario).
 
 The policy file is the full track's (layout ``stealth-grid-v1/full``): on the sensed track the
 same network reads the belief grid, so no other file is needed (nor accepted).
@@ -39,8 +38,7 @@ from stealth_learn.generalist import DEFAULT_POLICY, GeneralistPolicy, PlanCache
 from stealth_learn.generalist_data import grid_of
 
 UNKNOWN_RULES = ('dark', 'lit')
-LIGHT_RULES = ('cycle', 'now')
-_KEPT = 64  # plans kept per agent (moving lights' bins; the sensed track's latest)
+_KEPT = 64  # plans kept per agent (the layers of exposure's headings; the sensed track's latest)
 
 
 def load_policy(path=None, iterations: int | None = None) -> GeneralistPolicy:
@@ -58,20 +56,21 @@ def load_policy(path=None, iterations: int | None = None) -> GeneralistPolicy:
         )
     architecture = {**policy.header['architecture'], 'iterations': int(iterations)}
     params = policy.variables['params']
-    return GeneralistPolicy(params, architecture, {**policy.header, 'architecture': architecture})
+    header = {**policy.header, 'architecture': architecture}
+    return GeneralistPolicy(params, architecture, header, source=policy.source)
 
 
 class GeneralistAgent:
     """``act(observation) -> action`` on ``env`` (module docstring). ``env`` is read for its
     robot's place (``env.node``); its scenario and goal give the floor plan's grid."""
 
-    def __init__(self, policy: GeneralistPolicy, env, unknown: str = 'dark', lights='cycle'):
-        for name, value, rules in (('unknown', unknown, UNKNOWN_RULES),
-                                   ('lights', lights, LIGHT_RULES)):  # fmt: skip
-            if value not in rules:
-                raise ValueError(f'{name}: expected one of {", ".join(rules)}, got {value!r}')
-        self.policy, self.env, self.unknown, self.lights = policy, env, unknown, lights
-        self.bins = int(env.model.cycle_bins)
+    def __init__(self, policy: GeneralistPolicy, env, unknown: str = 'dark'):
+        if unknown not in UNKNOWN_RULES:
+            raise ValueError(
+                f'unknown: expected one of {", ".join(UNKNOWN_RULES)}, got {unknown!r}'
+            )
+        policy.check_scenario(env.scenario)
+        self.policy, self.env, self.unknown = policy, env, unknown
         arrays = TaskArrays(env.scenario, model=env.model)
         self.tables = arrays.tables()
         sensing = arrays.sensing
@@ -87,13 +86,7 @@ class GeneralistAgent:
     def grid(self, observation) -> np.ndarray:
         """(R, C, 7) the grid the network reads for this observation (module docstring)."""
         if self.env.track == 'full':
-            layer = int(self.env.node) // self.nodes
-            if self.lights == 'now':
-                return grid_of(self.tables, layer)
-            first = layer - layer % self.bins  # the robot's heading's first bin
-            cycle = slice(first, first + self.bins)
-            light = self.tables.node_light[cycle].max(axis=0)
-            return grid_of(self.tables, 0, light, self.tables.move_light[cycle].max(axis=0))
+            return grid_of(self.tables, int(self.env.node) // self.nodes)
         light, moves = believed(observation['light'], observation['moves'], self.assumed)
         return grid_of(self.tables, 0, light, moves)
 

@@ -5,7 +5,8 @@ optax are ~400 MB of wheels that ``make setup`` leaves out)."""
 from __future__ import annotations
 
 INSTALL_HINT = (
-    'make learn (or: .venv/bin/uv pip install -r requirements-learn.in -c requirements.lock)'
+    'make learn (or: .venv/bin/uv pip install -r requirements-learn.in -c requirements.lock '
+    '--override requirements-overrides.txt)'
 )
 
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from stealth_core.scenario import load_scenario
 
 from stealth_learn import policy_file
 from stealth_learn.belief import believed_grid
@@ -46,6 +47,12 @@ class CachedGeneralist:
         env_layout = policy_file.without_size(layout)
         if env_layout not in self.reads:
             check_layout(self.layout, env_layout, str(self.path))
+
+    def check_scenario(self, path: str) -> None:
+        """ValueError, one line naming the weights and the scenario at ``path``, unless the
+        network can play it (static lights: ``GeneralistPolicy.check_scenario``); `stealth
+        rollout --learner` asks before anything starts."""
+        self.policy.check_scenario(load_scenario(path))
 
     def plan(self, grid: np.ndarray) -> np.ndarray:
         """(R, C) int8: the move at every cell of ``grid`` (its robot channel ignored; light

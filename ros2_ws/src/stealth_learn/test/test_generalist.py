@@ -130,6 +130,14 @@ def test_act_is_the_rollouts_attention(still_sample):
         assert policy.act(grid) == int(logits[row, col].argmax())
 
 
+def test_a_moving_light_scenario_is_refused_naming_the_weights_and_the_scenario(generated):
+    policy = GeneralistPolicy.untrained(ARCH)
+    scenario = generated['moving']
+    with pytest.raises(LayoutError, match=r'the untrained network \(seed 0\): the policy was '
+                       r"trained for static lights .*, scenario 'gen-0000002' \("):  # fmt: skip
+        rollout(policy, scenario)
+
+
 @pytest.mark.skipif(not Path(DEFAULT_POLICY).is_file(), reason='no shipped weights')
 def test_shipped_weights_cross_unseen_test_buildings(tmp_path):
     """Four generated test-range buildings (30 x 30 m, 4 static lights; seeds 1,000,000 on),

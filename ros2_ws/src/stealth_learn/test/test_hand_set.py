@@ -1,0 +1,113 @@
+"""The generalist's hand-set twin: the environment's reward written into the same network is
+the reward value iteration's step pays (read on the grid's inputs), it plays value iteration's
+optimum, and it is a valid weights file of the architecture."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+from stealth_core.reward import detection_reward, step_reward, success_reward
+from stealth_learn import generalist_data as data
+from stealth_learn import policy_file
+from stealth_learn.env_tables import TaskArrays
+from stealth_learn.generalist import GeneralistPolicy, rollout
+from stealth_learn.hand_set import ScenarioReward, hand_set_params
+from stealth_learn.jax_deps import jnp
+from stealth_learn.obs_layout import layout_id
+from stealth_learn.vin import Vin, move_features
+
+SHIPPED = {'iterations': 240, 'hidden': 32, 'features': 8, 'threshold': 0.3}
+
+
+def _rewards(policy: GeneralistPolicy, grid) -> np.ndarray:
+    return np.asarray(policy.model.apply(policy.variables, grid[None], method=Vin.rewards))[0]
+
+
+@pytest.mark.parametrize('name', ['still', 'wider'])
+def test_the_written_reward_is_the_step_value_iteration_pays(generated, name):
+    """Every move from a node that is not lit: detected (less the most a place is worth: no
+    backup ends an episode) where value iteration's step is seen, the success reward (less the
+    goal value the backup adds) onto the goal, else the step reward, on the grid's move light
+    and the lattice's distance to the goal point."""
+    scenario = generated[name]
+    reward = ScenarioReward.of(scenario)
+    policy = GeneralistPolicy.hand_set(SHIPPED, reward)
+    arrays = TaskArrays(scenario)
+    model, tables = arrays.model, arrays.tables()
+    grid = data.grid_of(tables)
+    nodes = len(model.nodes)
+    rows, cols = arrays.sensing.grid_row, arrays.sensing.grid_col
+    light = np.asarray(move_features(jnp.asarray(grid)[None])[0])[0][rows, cols]
+    after = model.successors[:nodes]
+    distance, goal = model.distance[after], model.goal[after]
+    weights, radius = scenario.rewards, reward.goal_radius
+    lit = light >= scenario.detection_threshold
+    most = weights.goal_reward + weights.goal_distance_weight * radius
+    expected = np.where(
+        lit,
+        detection_reward(distance, weights) - most,
+        np.where(
+            goal,
+            success_reward(distance, radius, weights) - weights.goal_reward,
+            step_reward(light.astype(np.float64), distance, weights),
+        ),
+    )
+    moves = after != np.arange(nodes)[:, None]
+    dark_nodes = (model.visibility[:nodes] < scenario.detection_threshold)[:, None]
+    checked = moves & dark_nodes
+    assert lit[checked].any() and goal[checked].any() and (~lit & ~goal)[checked].any()
+    np.testing.assert_array_equal(lit[checked], model.step_seen[:nodes][checked])
+    written = _rewards(policy, grid)[rows, cols]
+    np.testing.assert_allclose(written[checked], expected[checked], rtol=0, atol=2e-3)
+    assert float(policy.variables['params']['goal_value']) == weights.goal_reward
+
+
+def test_the_hand_set_twin_plays_value_iterations_optimum(generated):
+    for name in ('still', 'wider'):
+        scenario = generated[name]
+        episode = rollout(
+            GeneralistPolicy.hand_set(SHIPPED, ScenarioReward.of(scenario)), scenario
+        )
+        assert episode.outcome == 0, episode
+        assert episode.steps == episode.optimal_steps, episode
+        assert episode.episode_return == pytest.approx(episode.optimal_return, rel=1e-5)
+        dark = GeneralistPolicy.hand_set(SHIPPED, ScenarioReward.of(scenario), 'dark-steps')
+        shortest = rollout(dark, scenario)
+        assert shortest.outcome == 0 and shortest.steps <= episode.steps, shortest
+
+
+def test_the_dark_steps_reward_is_minus_one_a_move_and_minus_1e4_a_lit_one(generated):
+    scenario = generated['still']
+    policy = GeneralistPolicy.hand_set(SHIPPED, ScenarioReward.of(scenario), 'dark-steps')
+    grid = data.grid_of(TaskArrays(scenario).tables())
+    lights, exists = (np.asarray(a)[0] for a in move_features(jnp.asarray(grid)[None]))
+    written = _rewards(policy, grid)[exists]
+    lit = lights[exists] >= scenario.detection_threshold
+    assert lit.any() and (~lit).any()
+    np.testing.assert_allclose(written, np.where(lit, -1e4, -1.0), rtol=1e-6)
+
+
+def test_hand_set_weights_are_a_weights_file_of_the_architecture(tmp_path, generated):
+    params, architecture = hand_set_params(SHIPPED, ScenarioReward.of(generated['still']))
+    assert architecture == SHIPPED  # the generated scenario's threshold is the shipped one's
+    path = policy_file.save(tmp_path / 'hand-set.npz', params, 'full', architecture)
+    loaded, _ = policy_file.load(path, layout_id('grid', 'full', 40, 40))
+    for module, values in params.items():
+        for key, value in values.items() if isinstance(values, dict) else [('', values)]:
+            stored = loaded[module][key] if key else loaded[module]
+            np.testing.assert_array_equal(stored, value, err_msg=f'{module}/{key}')
+
+
+def test_what_cannot_be_written_is_refused_in_one_line(generated):
+    reward = ScenarioReward.of(generated['still'])
+    with pytest.raises(
+        ValueError, match="hand-set reward: expected one of env, dark-steps, got 'x'"
+    ):
+        hand_set_params(SHIPPED, reward, 'x')
+    with pytest.raises(ValueError, match='needs a reward network of 8 hidden units or more, the '
+                       'architecture has 7'):  # fmt: skip
+        hand_set_params({**SHIPPED, 'hidden': 7}, reward)
+    hand_set_params({**SHIPPED, 'hidden': 1}, reward, 'dark-steps')
+    chance = dataclasses.replace(reward, detection_mode='probabilistic')
+    with pytest.raises(ValueError, match="has detection_mode 'probabilistic'; the weights are"):
+        hand_set_params(SHIPPED, chance)
