@@ -2,12 +2,15 @@
 it has taken, found by stochastic search under the light law's own form. No rclpy.
 
 The field is a sum of lights (``light_world``), each a static cone with six unknowns: the
-lamp's (x, y), direction, opening angle, ``beta`` and range. A *hypothesis* is a short list of
-such lights; it predicts every step's visibility exactly as the environment judges it
+lamp's (x, y), direction, opening angle, ``beta`` and range; where the world's lights move (it
+has phase bins), a light may also sweep or patrol, with five more (``hypothesis_light``), and the
+search may set it moving or stop it (``light_motion``). A *hypothesis* is a short list of such
+lights; it predicts every step's visibility exactly as the environment judges it
 (``LatticeSamples``). The evidence is what the steps said (``StepEvidence``: a value read off the
 reward, or a bound from a detection or a goal). A hypothesis' energy is
 
-    E = sum_k (sqrt(1 + z_k^2) - 1) + light_cost * lights,
+    E = sum_k (sqrt(1 + z_k^2) - 1) + light_cost * lights (+ still_cost with no moving light
+        where lights move),
 
 z_k the step's miss in units of its tolerance (``abs_tol + rel_tol * v``: the environment's
 rounding in-process, the pose noise through ROS), and the belief is ``particles`` hypotheses,
@@ -24,7 +27,8 @@ the moves (a trace costs tens of ms; the direct light is recomputed at every mov
 Where the evidence says nothing (rooms not yet seen) the particles hold no light: the plan is
 optimistic there, and the robot finds out. A step the best particle still misses by more than
 ``CONTRADICTION_Z`` tolerances after a fit is a *contradiction*: the law is not the one modelled
-(noise beyond the tolerance, soft edges, moving lights), reported by ``contradictions``.
+(noise beyond the tolerance, soft edges, a motion other than a sweep or a straight patrol) or the
+search has not found it yet, reported by ``contradictions``.
 """
 
 from __future__ import annotations
@@ -75,7 +79,7 @@ class BeliefSettings:
     particles: int = 8
     moves: int = 120  # Metropolis moves per particle per fit
     light_cost: float = 4.0  # energy of one more light (sparsity)
-    motion_cost: float = 0.0  # and of its moving (a motion's four more unknowns)
+    motion_cost: float = 0.0  # and of its moving (a motion's five more unknowns)
     # Of a hypothesis with no moving light where the world has phase bins, which a scenario
     # has only when a light moves.
     still_cost: float = 4.0
