@@ -150,10 +150,22 @@ def check_timing(
                 f'{cycle:g} s / phase_bins {cycle_bins}); expected a whole number: change the '
                 'speed, or choose phase_bins so that each bin divides every period'
             )
+    return timing_of(cycle, cycle_bins, step_seconds)
+
+
+def timing_of(cycle: float, cycle_bins: int, step_seconds: float | None) -> Timing:
+    """The Timing of a joint cycle (s) split into cycle_bins bins, each step taking
+    step_seconds (None: one bin); TimingError naming the field when the bins are not a whole
+    number >= 1 or a step is not a whole number of bins (a world that knows the cycle but not
+    the lights, ``world_file``, is checked here too)."""
+    if isinstance(cycle_bins, bool) or not isinstance(cycle_bins, int) or cycle_bins < 1:
+        raise TimingError(f"field 'phase_bins': expected an integer >= 1, got {cycle_bins!r}")
+    bin_seconds = cycle / cycle_bins
     if step_seconds is None:
         step_seconds = bin_seconds
-    steps = step_seconds / bin_seconds
-    if not (math.isfinite(step_seconds) and step_seconds > 0) or (
+    numeric = isinstance(step_seconds, int | float) and not isinstance(step_seconds, bool)
+    steps = step_seconds / bin_seconds if numeric else math.nan
+    if not (numeric and math.isfinite(step_seconds) and step_seconds > 0) or (
         abs(steps - round(steps)) > 1e-6 * max(steps, 1.0) or round(steps) < 1
     ):
         raise TimingError(

@@ -119,23 +119,29 @@ def cone_factor(angle_off_axis, fov: float, soft_edge: float = 0.0):
     return np.clip((half - off) / (half * soft_edge), 0.0, 1.0)
 
 
-def angle_off_axis(light: Searchlight, dx, dy):
-    """Angle (rad, in [-pi, pi]) between the beam axis and the lamp-to-point offset (dx, dy)."""
-    axis_x, axis_y = math.cos(light.direction), math.sin(light.direction)
+def angle_off_axis(light: Searchlight, dx, dy, direction=None):
+    """Angle (rad, in [-pi, pi]) between the beam axis and the lamp-to-point offset (dx, dy);
+    ``direction`` (rad, an array like dx) where each point sees the beam aimed its own way (a
+    moving light at many times), the light's own otherwise."""
+    if direction is None:
+        axis_x, axis_y = math.cos(light.direction), math.sin(light.direction)
+    else:
+        axis_x, axis_y = np.cos(direction), np.sin(direction)
     along = axis_x * dx + axis_y * dy
     across = axis_x * dy - axis_y * dx
     return np.arctan2(across, along)
 
 
-def light_intensity(light: Searchlight, dx, dy):
-    """Unoccluded intensity of a static light at offset (dx, dy) m from its lamp (arrays too).
+def light_intensity(light: Searchlight, dx, dy, direction=None):
+    """Unoccluded intensity of a static light at offset (dx, dy) m from its lamp (arrays too;
+    ``direction`` as ``angle_off_axis``'s).
 
     In range means d <= range, tested as d^2 <= range^2 so no square root is needed.
     """
     dx = np.asarray(dx, dtype=np.float64)
     dy = np.asarray(dy, dtype=np.float64)
     distance_squared = dx * dx + dy * dy
-    lit = cone_factor(angle_off_axis(light, dx, dy), light.fov, light.soft_edge)
+    lit = cone_factor(angle_off_axis(light, dx, dy, direction), light.fov, light.soft_edge)
     lit = lit * intensity_from_squared(distance_squared, light.beta)
     return np.where(distance_squared <= light.range * light.range, lit, 0.0)
 

@@ -20,7 +20,6 @@ from __future__ import annotations
 from collections import OrderedDict
 from collections.abc import Iterable, Sequence
 import copy
-import math
 import time
 
 import numpy as np
@@ -29,8 +28,6 @@ from stealth_core import exposure
 from stealth_core.bounce import Bounce, check_static, wall_emitters
 from stealth_core.lighting import (
     GridFrame,
-    cone_factor,
-    intensity_from_squared,
     light_intensity,
     lights_at,
 )
@@ -362,18 +359,11 @@ class PointVisibility:
         for light in self.lights:
             lamp_x, lamp_y, direction = poses_at(light, ts)
             dx, dy = xs - lamp_x, ys - lamp_y
-            squared = dx * dx + dy * dy
             value = np.zeros(xs.shape)
-            near = squared <= light.range * light.range
-            if light.is_moving:
-                axis_x, axis_y = np.cos(direction[near]), np.sin(direction[near])
-            else:  # the reference's own scalar cosine, to the last bit
-                axis_x, axis_y = math.cos(light.direction), math.sin(light.direction)
-            across = axis_x * dy[near] - axis_y * dx[near]
-            off = np.arctan2(across, axis_x * dx[near] + axis_y * dy[near])
-            value[near] = cone_factor(off, light.fov, light.soft_edge) * (
-                intensity_from_squared(squared[near], light.beta)
-            )
+            near = dx * dx + dy * dy <= light.range * light.range
+            # A static light keeps the reference's own scalar cosine, to the last bit.
+            aims = direction[near] if light.is_moving else None
+            value[near] = light_intensity(light, dx[near], dy[near], aims)
             lit = np.flatnonzero(value > 0.0)
             if lit.size:
                 lamp_cols = np.floor((lamp_x.ravel()[lit] - frame.origin_x) / frame.resolution)

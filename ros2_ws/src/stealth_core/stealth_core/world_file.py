@@ -21,7 +21,7 @@ from pathlib import Path
 
 import yaml
 
-from stealth_core.light_cycle import Timing
+from stealth_core.light_cycle import TimingError, timing_of
 from stealth_core.light_world import LightWorld, check_modelled
 from stealth_core.scenario import Scenario, ScenarioError, load_scenario, scenario_from_fields
 from stealth_core.yaml_fields import read_yaml_mapping
@@ -100,13 +100,8 @@ def _world_scenario(path: Path, fields: dict) -> Scenario:
         )
     if scenario.lights:
         return scenario  # load_world refuses it, naming the lights
-    if isinstance(bins, bool) or not isinstance(bins, int) or bins < 1:
-        raise ScenarioError(f"{path}: field 'phase_bins': expected an integer >= 1, got {bins!r}")
-    timing = Timing(float(cycle), bins, float(cycle) / bins if step is None else step)
-    steps = timing.step_seconds / timing.bin_seconds if isinstance(step, int | float) else 0.0
-    if isinstance(step, bool) or round(steps) < 1 or abs(steps - round(steps)) > 1e-6 * steps:
-        raise ScenarioError(
-            f"{path}: field 'step_seconds': expected a whole number (>= 1) of phase bins of "
-            f'{timing.bin_seconds:g} s, got {step!r}'
-        )
+    try:
+        timing = timing_of(float(cycle), bins, step)
+    except TimingError as error:
+        raise ScenarioError(f'{path}: {error}') from None
     return dataclasses.replace(scenario, timing=timing)
