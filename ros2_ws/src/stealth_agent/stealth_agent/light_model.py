@@ -24,6 +24,13 @@ exploration:
 - ``thompson``: one particle drawn by weight for each plan, planned on as if it were the truth;
 - ``cautious``: a step any particle of weight > 1 % lights is taken as a detection.
 
+Two exceptions keep training learning where the rule's plan would not (measured on validation
+buildings: docs, the light model): where that plan gives up on the goal (it would wait out the
+step limit, learning nothing) training follows the ``optimistic`` plan; and after an episode
+that reached the goal, the next one probes, following the ``optimistic`` plan, when that plan
+promises more than ``PROBE_MARGIN`` of the goal reward above the rule's: a shorter or darker
+route some weighed hypothesis lights, which the posterior's plan would never test.
+
 Steps the robot has taken are known exactly: their evidence overrides every particle.
 """
 
@@ -42,6 +49,7 @@ from .learners import LearnerConfig, TabularLearner, argmax_random, register_lea
 PLANNING_RULES = ('expected', 'optimistic', 'thompson', 'cautious')
 DEFAULT_RULE = 'expected'
 MIN_WEIGHT = 1e-3  # particles lighter than this are left out of a plan
+PROBE_MARGIN = 1e-3  # of the goal reward: what a probe episode must promise to gain
 SURPRISE_MOVES = 15  # Metropolis moves per particle after a surprising step, mid-episode
 
 
@@ -64,6 +72,10 @@ class LightModelLearner(TabularLearner):
         self.replans = 0
         self._visibility: np.ndarray | None = None  # (places, directions) the plan assumed
         self._explore: np.ndarray | None = None  # training's action values (the rule's plan)
+        self._gives_up: np.ndarray | None = None  # (places,) its plan never reaches the goal
+        self._probe: np.ndarray | None = None  # the optimistic plan (probing, giving up)
+        self._probing = False  # this training episode follows the optimistic plan
+        self._reached_goal = False  # the last episode ended at the goal
         self._loaded_evidence: np.ndarray | None = None
 
     def attach(
@@ -106,12 +118,21 @@ class LightModelLearner(TabularLearner):
     # --- acting (exploration is the plan's: no random moves) -----------------------------------
 
     def act(self, s: int, rng: np.random.Generator, *, greedy: bool = False) -> int:
-        """Training's action: the rule's plan (the table's, ``greedy``)."""
+        """Training's action: the rule's plan (the table's, ``greedy``); where that plan gives
+        up on the goal (it would wait out the episode: nothing learned), the optimistic plan's,
+        which tries the steps some heavy particle leaves dark."""
         s = self._check_row(s)
         self.ensure_rows(s + 1)
         if greedy or self._explore is None or s >= self._explore.shape[0]:
             return argmax_random(self._q[s], rng)
+        if self._probing or self._gives_up[s]:
+            return argmax_random(self._probe_values()[s], rng)
         return argmax_random(self._explore[s], rng)
+
+    def _probe_values(self) -> np.ndarray:
+        if self._probe is None:
+            self._probe = self._values('optimistic')[0]
+        return self._probe
 
     # --- learning ------------------------------------------------------------------------------
 
@@ -136,6 +157,8 @@ class LightModelLearner(TabularLearner):
                 return 0.0
             direction = int(found[0])
         evidence = evidence_of_step(belief.world, s, direction, r, bool(terminated))
+        if terminated:
+            self._reached_goal = math.isfinite(evidence.high)
         if evidence.exact and evidence.low >= belief.world.threshold:
             self.notes.append(
                 f'an undetected step read light {evidence.low:.3f}, at or above the detection '
@@ -159,6 +182,18 @@ class LightModelLearner(TabularLearner):
         self.belief.fit()
         self.notes.extend(self.belief.contradictions())
         self._plan()
+        self._probing = self._reached_goal and self._worth_probing()
+        self._reached_goal = False
+
+    def _worth_probing(self) -> bool:
+        """Whether the next training episode should test the optimistic plan's route: the
+        rule's plan reaches the goal, and the optimistic plan promises a return more than
+        PROBE_MARGIN of the goal reward above it (a shorter or darker route that some heavy
+        particle lights: the expected plan would never walk it, so nothing would tell)."""
+        world = self._attached().world
+        start = world.model.start
+        margin = PROBE_MARGIN * abs(world.scenario.rewards.goal_reward)
+        return bool(self._probe_values()[start].max() > self._explore[start].max() + margin)
 
     # --- planning ------------------------------------------------------------------------------
 
@@ -223,6 +258,8 @@ class LightModelLearner(TabularLearner):
         greedy, assumed = self._values('expected')
         self._q[: greedy.shape[0]] = greedy
         self._explore = greedy if self.rule == 'expected' else self._values(self.rule)[0]
+        self._gives_up = ~reaches_goal(self._attached().world.model, self._explore)
+        self._probe = None
         self._visibility = assumed
         self.replans += 1
 
@@ -285,3 +322,18 @@ class LightModelLearner(TabularLearner):
         if evidence.ndim != 2 or evidence.shape[1] != 4:
             raise ValueError(f'light-model evidence: expected (steps, 4), got {evidence.shape}')
         self._loaded_evidence = evidence
+
+
+def reaches_goal(model, q: np.ndarray) -> np.ndarray:
+    """(places,) bool: following ``q``'s best action (the first of ties) from each place, the
+    lattice's steps enter the goal within the step limit."""
+    places = np.arange(model.size)
+    after = model.successors[places, q[: model.size].argmax(axis=1)]
+    enters = model.goal[after]
+    reaches = enters.copy()
+    for _ in range(model.task.step_limit):
+        grown = enters | reaches[after]
+        if np.array_equal(grown, reaches):
+            break
+        reaches = grown
+    return reaches

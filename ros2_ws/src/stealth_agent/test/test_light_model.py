@@ -7,14 +7,16 @@ import math
 import numpy as np
 import pytest
 from stealth_agent.learners import LearnerConfig, make_learner
-from stealth_agent.light_model import LightModelError, LightModelLearner
+from stealth_agent.light_model import LightModelError, LightModelLearner, reaches_goal
 from stealth_agent.policy_store import load_policy, save_policy
 from stealth_agent.protocol import ProtocolAgent
 from stealth_agent.state_index import StateIndex
 from stealth_core.gym_env import StealthNavEnv
 from stealth_core.light_world import LightWorld, StepEvidence
+from stealth_core.planners import follow, value_iteration
 from stealth_core.reward import EpisodeOutcome
 from stealth_core.scenario import load_scenario
+from stealth_core.scenario_generator import Options, generate
 
 CONFIG = LearnerConfig.constant(gamma=1.0, epsilon=0.0)
 
@@ -146,3 +148,50 @@ def test_a_saved_light_model_loads_as_a_whole_policy_and_resumes(tmp_path):
     lights = np.load(path)['belief_lights']
     assert lights.shape[1] == 7 and np.all(np.isfinite(lights))
     assert not math.isnan(float(saved.learner.q.max()))
+
+
+def generated(seed, tmp_path):
+    """A validation building of the generator (30 x 30 m, 4 static lights) and its env."""
+    path = generate(seed, Options()).write(tmp_path)
+    return load_scenario(path), StealthNavEnv(str(path))
+
+
+def train(scenario, env, episodes):
+    """Train ``episodes`` episodes (seed 0), a greedy rollout after each: both outcome lists
+    and the last greedy rollout's steps."""
+    evaluator = StealthNavEnv(str(scenario.path))
+    learner, index = light_model(scenario)
+    agent = ProtocolAgent(learner, index, np.random.default_rng(0))
+    greedy = ProtocolAgent(learner, index, np.random.default_rng(1), learning=False)
+    trained, evaluated = [], []
+    for episode in range(episodes):
+        trained.append(play(env, agent, seed=episode)['outcome'])
+        info = play(evaluator, greedy, seed=episode)
+        evaluated.append(info['outcome'])
+    return learner, trained, evaluated, info['steps']
+
+
+def test_where_its_plan_gives_up_on_the_goal_training_probes_instead(tmp_path):
+    """Validation building 100000 + 9: the first detection, by a light just behind the start,
+    leaves hypotheses that block every way on (the plan would wait out the step limit: 3
+    timeouts in a row, nothing learned); training follows the optimistic plan there instead,
+    and the greedy plan reaches the goal."""
+    scenario, env = generated(100_009, tmp_path)
+    learner, trained, evaluated, _ = train(scenario, env, 4)
+    timeout = EpisodeOutcome.TIMEOUT.name
+    assert timeout not in trained, trained
+    assert evaluated[-1] == EpisodeOutcome.SUCCESS.name, evaluated
+    assert reaches_goal(learner.world.model, learner.q)[learner.world.model.start]
+
+
+def test_after_a_success_it_tests_the_shorter_route_some_hypothesis_lights(tmp_path):
+    """Validation building 100006: the posterior's plan reaches the goal by a route 1.2x the
+    optimum's, round a corridor some weighed hypothesis lights, and would never test it; a
+    probe episode after a success walks it, and the greedy route ends within 1.1x."""
+    scenario, env = generated(100_006, tmp_path)
+    _, _, evaluated, steps = train(scenario, env, 7)
+    model = LightWorld(scenario).model
+    optimum = value_iteration(StealthNavEnv(str(scenario.path)).model)
+    shortest = len(follow(model, lambda i: int(optimum.policy[i]))) - 1
+    assert evaluated[-1] == EpisodeOutcome.SUCCESS.name, evaluated
+    assert steps <= 1.1 * shortest, (steps, shortest)
