@@ -24,12 +24,12 @@ exploration:
 - ``thompson``: one particle drawn by weight for each plan, planned on as if it were the truth;
 - ``cautious``: a step any particle of weight > 1 % lights is taken as a detection.
 
-Two exceptions keep training learning where the rule's plan would not (measured on validation
-buildings: docs, the light model): where that plan gives up on the goal (it would wait out the
-step limit, learning nothing) training follows the ``optimistic`` plan; and after an episode
-that reached the goal, the next one probes, following the ``optimistic`` plan, when that plan
-promises more than ``PROBE_MARGIN`` of the goal reward above the rule's: a shorter or darker
-route some weighed hypothesis lights, which the posterior's plan would never test.
+Training episodes probe where the rule's plan would teach nothing (measured on validation
+buildings: docs, the light model): they follow the ``optimistic`` plan when the rule's plan,
+from the start, gives up on the goal (it would wait out the step limit), and after an episode
+that reached the goal when the ``optimistic`` plan promises more than ``PROBE_MARGIN`` of the
+goal reward above the rule's (a shorter or darker route some weighed hypothesis lights, which
+the posterior's plan would never test).
 
 Steps the robot has taken are known exactly: their evidence overrides every particle.
 """
@@ -72,8 +72,7 @@ class LightModelLearner(TabularLearner):
         self.replans = 0
         self._visibility: np.ndarray | None = None  # (places, directions) the plan assumed
         self._explore: np.ndarray | None = None  # training's action values (the rule's plan)
-        self._gives_up: np.ndarray | None = None  # (places,) its plan never reaches the goal
-        self._probe: np.ndarray | None = None  # the optimistic plan (probing, giving up)
+        self._probe: np.ndarray | None = None  # the optimistic plan, for probe episodes
         self._probing = False  # this training episode follows the optimistic plan
         self._reached_goal = False  # the last episode ended at the goal
         self._loaded_evidence: np.ndarray | None = None
@@ -125,7 +124,7 @@ class LightModelLearner(TabularLearner):
         self.ensure_rows(s + 1)
         if greedy or self._explore is None or s >= self._explore.shape[0]:
             return argmax_random(self._q[s], rng)
-        if self._probing or self._gives_up[s]:
+        if self._probing:
             return argmax_random(self._probe_values()[s], rng)
         return argmax_random(self._explore[s], rng)
 
@@ -182,12 +181,19 @@ class LightModelLearner(TabularLearner):
         self.belief.fit()
         self.notes.extend(self.belief.contradictions())
         self._plan()
-        self._probing = self._reached_goal and self._worth_probing()
+        self._probing = self._gives_up_from_start() or (
+            self._reached_goal and self._worth_probing()
+        )
         self._reached_goal = False
+
+    def _gives_up_from_start(self) -> bool:
+        """Whether the rule's plan, followed from the start, never enters the goal."""
+        model = self._attached().world.model
+        return not reaches_goal(model, self._explore)[model.start]
 
     def _worth_probing(self) -> bool:
         """Whether the next training episode should test the optimistic plan's route: the
-        rule's plan reaches the goal, and the optimistic plan promises a return more than
+        rule's plan reaches the goal, the optimistic plan promises a return more than
         PROBE_MARGIN of the goal reward above it (a shorter or darker route that some heavy
         particle lights: the expected plan would never walk it, so nothing would tell)."""
         world = self._attached().world
@@ -258,7 +264,6 @@ class LightModelLearner(TabularLearner):
         greedy, assumed = self._values('expected')
         self._q[: greedy.shape[0]] = greedy
         self._explore = greedy if self.rule == 'expected' else self._values(self.rule)[0]
-        self._gives_up = ~reaches_goal(self._attached().world.model, self._explore)
         self._probe = None
         self._visibility = assumed
         self.replans += 1

@@ -92,17 +92,21 @@ def test_it_never_reads_the_lights(name, episodes):
 
 def test_it_reaches_the_goal_unseen_after_a_detection_or_two():
     """simple-maze: the first route runs into a light; within three episodes the greedy plan
-    reaches the goal undetected, and so do the next three greedy rollouts."""
+    reaches the goal undetected, and so do the greedy rollouts after it. Training then probes
+    the corridors some hypothesis still lights, and stops once they are known: its last
+    episodes reach the goal too."""
     env, evaluator = StealthNavEnv('simple-maze'), StealthNavEnv('simple-maze')
     learner, index = light_model(env.task.scenario)
     agent = ProtocolAgent(learner, index, np.random.default_rng(0))
     greedy = ProtocolAgent(learner, index, np.random.default_rng(1), learning=False)
     outcomes, greedy_outcomes = [], []
-    for episode in range(5):
+    for episode in range(8):
         outcomes.append(play(env, agent, seed=episode)['outcome'])
         greedy_outcomes.append(play(evaluator, greedy, seed=episode)['outcome'])
-    assert outcomes.count(EpisodeOutcome.DETECTED.name) <= 2
-    assert greedy_outcomes[-3:] == [EpisodeOutcome.SUCCESS.name] * 3, greedy_outcomes
+    success = EpisodeOutcome.SUCCESS.name
+    assert outcomes.count(EpisodeOutcome.DETECTED.name) <= 3, outcomes
+    assert outcomes[-3:] == [success] * 3, outcomes
+    assert greedy_outcomes[2:] == [success] * 6, greedy_outcomes
 
 
 def test_a_used_index_and_an_unknown_rule_are_refused():
