@@ -45,6 +45,7 @@ class Sample:
     optimal: np.ndarray
     weight: np.ndarray
     optimal_return: float
+    advance: int = 0  # moving lights: the phase layers a step advances (``Vin.advance``)
 
 
 def seeds_of(range_name: str, count: int, offset: int = 0) -> list[int]:
@@ -95,7 +96,8 @@ def sample_of(seed: int, scenario) -> Sample:
     weight[:, rows, cols] = (values > 0) & ~model.goal[:n]
     if not moving:
         grid, optimal, weight = grid[0], optimal[0], weight[0]
-    return Sample(seed, scenario.name, grid, optimal, weight, optimum.optimal_return)
+    advance = model.task.timing.bins_per_step if moving else 0
+    return Sample(seed, scenario.name, grid, optimal, weight, optimum.optimal_return, advance)
 
 
 def phased_grid(tables, robot: tuple[int, int, int] | None = None) -> np.ndarray:
