@@ -26,6 +26,10 @@ static network given moving lights, or a time-aware one given static lights or a
 is refused (``GeneralistPolicy.check_scenario``, one line naming the weights and the scenario);
 so is a time-aware network on the sensed track (it reads the lights known).
 
+The cycle rule (``brightest``): a static network given moving lights reads the cycle's
+brightest light field instead (on each node and move, the most light over the cycle's phase
+layers) and never waits: the naive stand-in for time a time-aware network must beat.
+
 The policy file is the full track's (layout ``stealth-grid-v1/full``): on the sensed track the
 same network reads the belief grid, so no other file is needed (nor accepted).
 """
@@ -69,13 +73,22 @@ class GeneralistAgent:
     """``act(observation) -> action`` on ``env`` (module docstring). ``env`` is read for its
     robot's place (``env.node``); its scenario and goal give the floor plan's grid."""
 
-    def __init__(self, policy: GeneralistPolicy, env, unknown: str = 'dark'):
+    def __init__(
+        self, policy: GeneralistPolicy, env, unknown: str = 'dark', brightest: bool = False
+    ):
         if unknown not in UNKNOWN_RULES:
             raise ValueError(
                 f'unknown: expected one of {", ".join(UNKNOWN_RULES)}, got {unknown!r}'
             )
-        policy.check_scenario(env.scenario, env.model)
         self.phased = policy.model.phased
+        if brightest and (self.phased or env.track != 'full'):
+            raise ValueError(
+                f'{policy.source}: the cycle rule is a static network on the lights known '
+                f"(track 'full'), not a time-aware one or track {env.track!r}"
+            )
+        self.brightest = brightest
+        if not brightest:
+            policy.check_scenario(env.scenario, env.model)
         if self.phased and env.track != 'full':
             raise ValueError(
                 f'{policy.source}: the time-aware policy reads the lights known (track '
@@ -100,6 +113,9 @@ class GeneralistAgent:
         phased grid (L, R, C, 12) of a time-aware network."""
         if self.phased:
             return self._phased_grid
+        if self.brightest:
+            tables = self.tables
+            return grid_of(tables, 0, tables.node_light.max(0), tables.move_light.max(0))
         if self.env.track == 'full':
             return grid_of(self.tables, int(self.env.node) // self.nodes)
         light, moves = believed(observation['light'], observation['moves'], self.assumed)

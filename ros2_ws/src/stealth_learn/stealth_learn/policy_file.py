@@ -100,6 +100,7 @@ TRAINING_FIELDS = {
     'steps': Range(True, 1),
     'batch': Range(True, 1),
     'lr': Range(False, 0.0, above=True),
+    'lit_weight': Range(False, 1.0),  # the loss weight of cells with a lit step (--lit-weight)
     'seed': Range(True, 0),
     'train_scenarios': Range(True, 1),
     'selected_step': Range(True, 0),  # and <= steps

@@ -82,6 +82,13 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument('--features', type=int, default=8, help='convolution channels')
     parser.add_argument('--lr', type=float, default=5e-3, help='peak learning rate (cosine)')
     parser.add_argument('--every', type=int, default=50, help='validate every N steps')
+    parser.add_argument(
+        '--lit-weight',
+        type=float,
+        default=1.0,
+        help='the loss weight of a cell with a lit step among its own (where the choice '
+        'is to be seen or not), relative to 1 for the others',
+    )
     parser.add_argument('--seed', type=int, default=0, help='the initialisation and batches')
     args = parser.parse_args(argv)
     for name in (
@@ -108,6 +115,8 @@ def parse_args(argv=None) -> argparse.Namespace:
             parser.error(f'--{name.replace("_", "-")}: expected at most {highest}')
     if not (math.isfinite(args.lr) and args.lr > 0):
         parser.error('--lr: expected a finite number > 0')
+    if not (math.isfinite(args.lit_weight) and args.lit_weight >= 1):
+        parser.error('--lit-weight: expected a finite number >= 1')
     if args.seed < 0:
         parser.error('--seed: expected a whole number >= 0')
     if args.out is None:
@@ -137,6 +146,17 @@ def loss_fn(model, variables, grid, optimal, weight):
     log_p = jax.nn.log_softmax(logits, axis=-1)
     picked = jax.nn.logsumexp(jnp.where(optimal, log_p, -1e9), axis=-1)
     return -(picked * weight).sum() / jnp.maximum(weight.sum(), 1.0)
+
+
+def lit_weighted(model, grid, weight, factor: float):
+    """``weight`` times ``factor`` on the cells (and layers) with a lit step among their own
+    (``--lit-weight``): the decisions where being seen is at stake, rare among all cells."""
+    from stealth_learn.jax_deps import jnp
+
+    _, lights, exists = model.inputs(grid)
+    lit = (exists & (lights >= model.threshold)).any(axis=-1)
+    lit = lit if model.phased else lit[:, 0]
+    return weight * jnp.where(lit, factor, 1.0)
 
 
 def accuracy(model, variables, grid, optimal, weight) -> float:
@@ -184,13 +204,16 @@ def train(args, log=print, progress: bool = False) -> dict:
 
     @jax.jit
     def update(variables, state, grid, optimal, weight):
+        weight = lit_weighted(model, grid, weight, args.lit_weight)
         loss, grads = jax.value_and_grad(lambda v: loss_fn(model, v, grid, optimal, weight))(
             variables
         )
         updates, state = optimiser.update(grads, state, variables)
         return optax.apply_updates(variables, updates), state, loss
 
-    evaluate = jax.jit(lambda v, g, o, w: loss_fn(model, v, g, o, w))
+    evaluate = jax.jit(
+        lambda v, g, o, w: loss_fn(model, v, g, o, lit_weighted(model, g, w, args.lit_weight))
+    )
     curve = {'step': [], 'train_loss': [], 'validation_loss': [], 'validation_accuracy': []}
     best = (np.inf, None, -1)
     losses = []
@@ -312,6 +335,7 @@ def main(argv=None) -> int:
         'steps': args.steps,
         'batch': args.batch,
         'lr': args.lr,
+        'lit_weight': args.lit_weight,
         'seed': args.seed,
         'train_scenarios': record['train_scenarios'],
         'selected_step': record['selected_step'],
