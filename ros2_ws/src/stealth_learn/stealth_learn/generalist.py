@@ -86,25 +86,22 @@ class GeneralistPolicy:
         time-aware one reads the phased grid of its phase count and step, so it needs moving
         lights of the same cycle (``model``: the scenario's lattice model, built if None)."""
         where = f'scenario {scenario.name!r} ({scenario.path})'
-        if not Vin(**self.header['architecture']).phased:
-            if scenario.has_moving_lights:
-                raise LayoutError(
-                    f'{self.source}: the policy was trained for static lights (layout '
-                    f'{self.layout!r}: no phase input, no wait), {where} has moving lights; a '
-                    'time-aware policy is needed there'
-                )
+        phased = Vin(**self.header['architecture']).phased
+        if not phased and not scenario.has_moving_lights:
             return
+        if not phased:
+            raise LayoutError(
+                f'{self.source}: the policy was trained for static lights (layout '
+                f'{self.layout!r}: no phase input, no wait), {where} has moving lights; a '
+                f'time-aware policy is needed there (layout {_scenario_layout(scenario, model)!r})'
+            )
         if not scenario.has_moving_lights:
             raise LayoutError(
                 f'{self.source}: the policy is time-aware (layout {self.layout!r}), {where} has '
                 f'static lights (layout {policy_file.policy_layout("full")!r}); use a static '
                 'policy there'
             )
-        model = TaskArrays(scenario).model if model is None else model
-        timing = model.task.timing
-        advance = 0 if timing is None else timing.bins_per_step
-        scenario_layout = phased_layout_id('full', model.layers, advance)
-        check_layout(self.layout, scenario_layout, f'{self.source} ({where})')
+        check_layout(self.layout, _scenario_layout(scenario, model), f'{self.source} ({where})')
 
     def cell_logits(self, grid) -> np.ndarray:
         """(R, C, 4) the logits of every cell of one grid (R, C, 7), or (L, R, C, 5) of every
@@ -117,6 +114,14 @@ class GeneralistPolicy:
         """The move (0 up, 1 down, 2 left, 3 right; 4 wait: time-aware) at the robot's cell
         (and layer) of one grid."""
         return int(np.argmax(self.cell_logits(grid)[robot_cell(grid)]))
+
+
+def _scenario_layout(scenario, model=None) -> str:
+    """The phased grid layout of a scenario with moving lights: its lattice model's phase
+    layers and the layers a step advances (``model``: built if None)."""
+    model = TaskArrays(scenario).model if model is None else model
+    timing = model.task.timing
+    return phased_layout_id('full', model.layers, 0 if timing is None else timing.bins_per_step)
 
 
 @functools.lru_cache(maxsize=8)

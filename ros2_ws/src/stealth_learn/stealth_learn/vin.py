@@ -141,7 +141,13 @@ class Vin(nn.Module):
         arrived = jnp.roll(array, -self.advance, axis=1) if self.advance else array
         return arrived if action == WAIT else _shift(arrived, action, fill)
 
-    def rewards(self, grid, lights, exists):
+    def rewards(self, x):
+        """The learned reward of each move from each cell, (B, R, C, 4) of a static grid, or
+        of each step from each cell and layer, (B, L, R, C, A), of a phased one."""
+        rewards = self._rewards(*self.inputs(x))
+        return rewards if self.phased else rewards[:, 0]
+
+    def _rewards(self, grid, lights, exists):
         """(B, L, R, C, A) the learned reward of each step from each cell at each layer."""
         free, goal, light = grid[..., FREE], grid[..., GOAL], grid[..., LIGHT]
         node_light = jnp.where(free > 0.5, light, 0.0)
@@ -168,7 +174,7 @@ class Vin(nn.Module):
         """The action values after ``iterations`` backups, masked steps MASKED: (B, R, C, 4)
         of a static grid, (B, L, R, C, A) of a phased one."""
         grid, lights, exists = self.inputs(x)
-        rewards = self.rewards(grid, lights, exists)
+        rewards = self._rewards(grid, lights, exists)
         free, goal = grid[..., FREE] > 0.5, grid[..., GOAL] > 0.5
         goal_value = self.goal_value
 

@@ -151,6 +151,10 @@ def test_lights_of_another_kind_or_cycle_are_refused_naming_both(generated, tmp_
     assert "'stealth-grid-v1/full'" in str(error.value)
     assert f'scenario {moving.name!r}' in str(error.value)
     assert 'has moving lights' in str(error.value)
+    assert (
+        "a time-aware policy is needed there (layout 'stealth-phased-v1/full/8phases-1perstep')"
+        in str(error.value)
+    )
     with pytest.raises(LayoutError) as error:
         GeneralistAgent(timed, StealthNavEnv(still))
     message = str(error.value)
@@ -162,7 +166,7 @@ def test_lights_of_another_kind_or_cycle_are_refused_naming_both(generated, tmp_
     message = str(error.value)
     assert "'stealth-phased-v1/full/4phases-1perstep'" in message
     assert "'stealth-phased-v1/full/8phases-1perstep'" in message and '\n' not in message
-    with pytest.raises(ValueError, match="track 'full', not track 'sensed'"):
+    with pytest.raises(ValueError, match=r"\(track 'full'\), not track 'sensed'"):
         GeneralistAgent(timed, StealthNavEnv(moving, track='sensed'))
 
 
