@@ -179,6 +179,11 @@ def test_a_phased_weights_file_is_refused_at_load_for_another_cycle(tmp_path):
     assert header['layout'] == 'stealth-phased-v1/full/8phases-1perstep'
     assert header['architecture'] == TIMED
     assert policy_file.load(path, None)[1] == header
+    from stealth_learn import ros_policy
+
+    with pytest.raises(LayoutError, match="'stealth-grid-v1/full'") as error:
+        ros_policy.load(str(path))  # the environment node sends no phased grid (yet)
+    assert str(path) in str(error.value) and '8phases-1perstep' in str(error.value)
     for other in (phased_layout_id('full', 16, 1, 40, 40), layout_id('grid', 'full', 40, 40)):
         with pytest.raises(LayoutError) as error:
             policy_file.load(path, other)
