@@ -35,7 +35,7 @@ SKIP_PACKAGES := $(if $(SKIPPED_VENDORED),--packages-skip $(SKIPPED_VENDORED))
 LEARN_STAMP := $(STAMPS)/learn-$(call hash_files,requirements-learn.in requirements.lock requirements-overrides.txt)
 BUILD_STAMP := $(STAMPS)/build-$(shell (echo $(VENV_STAMP) $(UNDERLAY_VENDORED); printf '%s\n' $(WS_SOURCES); cat $(WS_SOURCES)) | sha256sum | cut -c1-16)
 
-.PHONY: help setup venv learn generalist build test test-packages test-system lint format clean distclean
+.PHONY: help setup venv learn generalist generalist-moving build test test-packages test-system lint format clean distclean
 
 help: ## List the targets
 	@grep -hE '^[a-zA-Z_-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  make %-14s %s\n", $$1, $$2}'
@@ -140,6 +140,9 @@ run: setup ## The main job: train the agent on the default scenario (runs/<name>
 
 generalist: setup $(LEARN_STAMP) ## Train the lights-known generalist from nothing (runs/generalist/; about 4 min on 2 cores)
 	@$(ROS_ENV) && python -m stealth_learn.train_generalist --out runs/generalist/generalist-full.npz
+
+generalist-moving: setup $(LEARN_STAMP) ## Train the time-aware generalist (moving lights) from nothing (runs/generalist/; about 25 min on 2 cores)
+	@$(ROS_ENV) && python -m stealth_learn.train_generalist --moving mixed --sizes 20x20x3,30x30x4 --steps 2400 --batch 4 --lit-weight 10 --out runs/generalist/generalist-moving.npz
 
 compare: setup ## Learners vs A*, Dark Path and value iteration on every scenario, on local Ray (runs/eval/)
 	@$(ROS_ENV) && python -m stealth_experiments.experiments --out runs/eval

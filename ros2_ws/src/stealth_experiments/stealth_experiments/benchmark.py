@@ -33,7 +33,7 @@ from pathlib import Path
 import sys
 import time
 
-from stealth_core.scenario_generator import FINAL_TEST_SEED, Options
+from stealth_core.scenario_generator import FINAL_TEST_SEED, MOVING, Options
 
 from stealth_experiments import sweep_stop
 from stealth_experiments.benchmark_cache import check_cache
@@ -84,8 +84,10 @@ DEFAULT_METHODS = tuple(m for m in METHODS if m != 'policy' and m not in GENERAL
 
 
 def default_methods() -> list[str]:
-    """DEFAULT_METHODS, and the generalist and its twins when the learning extra is installed."""
-    return [*DEFAULT_METHODS, *(GENERALISTS if learning_extra() else ())]
+    """DEFAULT_METHODS, and the generalist and its twins when the learning extra is installed
+    (not the cycle rule: on static lights it is the hand-set twin; `stealth generalist` has it)."""
+    twins = [m for m in GENERALISTS if m != 'generalist (cycle rule)']
+    return [*DEFAULT_METHODS, *(twins if learning_extra() else ())]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -194,7 +196,7 @@ def parser(preset: Preset = BENCHMARK) -> argparse.ArgumentParser:
         help=f'default: {preset.methods_help}: vi, astar, dark-path, replan-dark, replan-lit, '
         + ', '.join(LEARNERS)
         + ', policy, generalist, generalist-hand-set, generalist-dark-steps, '
-        'generalist-untrained',
+        'generalist-untrained, generalist-cycle-rule',
     )
     add_episodes_option(
         p, "the learners' training budget per scenario, in episodes (default: the harness's, "
@@ -238,6 +240,12 @@ def add_generated_options(p: argparse.ArgumentParser) -> None:
             help=f"generated buildings' {name} ({unit}; default: {getattr(defaults, name)})",
         )
     p.add_argument(
+        '--moving',
+        choices=MOVING,
+        help="generated buildings' moving lights (the generator's --moving; default: "
+        f'{defaults.moving})',
+    )
+    p.add_argument(
         '--final-test-range',
         action='store_true',
         help=f'evaluate the final test range (seeds {FINAL_TEST_SEED:,} and up): once, at the '
@@ -245,7 +253,7 @@ def add_generated_options(p: argparse.ArgumentParser) -> None:
     )
 
 
-GENERATED_OPTIONS = ('seeds', 'width', 'height', 'lights')
+GENERATED_OPTIONS = ('seeds', 'width', 'height', 'lights', 'moving')
 
 
 def generated_options(args, generated: bool) -> tuple[int, Options]:
@@ -421,7 +429,7 @@ def _methods(args, preset: Preset = BENCHMARK) -> list[str]:
         from stealth_learn import policy_file
 
         path = args.policy_file or policy_file.SHIPPED
-        policy_file.load(path, policy_file.policy_layout('full'))
+        policy_file.load(path, None)  # static or time-aware: the scenario checked in its row
     if 'policy' in names:
         if not args.policy:
             raise ValueError('--methods policy needs --policy FILE')

@@ -32,17 +32,20 @@ runs on which track (``METHODS``), and why:
 - ``generalist``: the lights-known generalist of ``stealth_learn`` (``--policy-file``, default
   the shipped ``generalist-full.npz``), trained on generated buildings, never on these; each
   decision from its parameters (``stealth_learn.generalist_agent``): on the full track the value
-  map of the most light each node and move gets over the lights' cycle (the lights themselves
-  where they stand still), on the sensed track of what was sensed so far (never sensed: dark,
-  as ``replan (unknown dark)``). It needs the learning extra (``make learn``);
-  without it its rows fail with the one line saying so, and the other methods run. A
-  scenario with moving lights is refused in its row, naming the weights and the scenario (the
-  network reads no phase and cannot wait).
+  map of the lights as they stand, on the sensed track of what was sensed so far (never sensed:
+  dark, as ``replan (unknown dark)``). It needs the learning extra (``make learn``);
+  without it its rows fail with the one line saying so, and the other methods run. Static
+  weights given moving lights, or time-aware weights (``generalist-moving.npz``: the phased
+  grid, the wait) given static lights, another cycle or the sensed track, are refused in the
+  row, naming the weights and the scenario.
 - its twins, the same network played the same way, nothing learned (``TWINS``): ``generalist
   (hand-set)``, the scenario's reward written into its weights
   (``GeneralistPolicy.hand_set``); ``generalist (dark steps)``, -1 a move and -1e4 a lit one
   written in instead; ``generalist (untrained)``, its initialisation. The baselines a trained
   generalist must beat: where it does not beat its hand-set twin, learning bought nothing.
+  ``generalist (cycle rule)`` (full track): the static network, hand-set, reading the cycle's
+  brightest light field and never waiting (``GeneralistAgent(brightest=True)``): the naive rule
+  a time-aware network must beat on moving lights (on static lights it is the hand-set twin).
 
 Every row is measured the same way: one episode (a planner's path walked through the task,
 ``planners.walk``, or an episode on the Gym env), its outcome, return (undiscounted, the
@@ -87,12 +90,14 @@ METHODS = {
     'generalist (hand-set)': EPISODE_TRACKS,
     'generalist (dark steps)': EPISODE_TRACKS,
     'generalist (untrained)': EPISODE_TRACKS,
+    'generalist (cycle rule)': ('full',),
 }
 # the generalist's twins: method -> GeneralistPolicy's weights ('env', 'dark-steps': hand-set)
 TWINS = {
     'generalist (hand-set)': 'env',
     'generalist (dark steps)': 'dark-steps',
     'generalist (untrained)': 'untrained',
+    'generalist (cycle rule)': 'cycle-rule',
 }
 GENERALISTS = ('generalist', *TWINS)  # the methods that need the learning extra
 LEARNERS = tuple(LEARNER_NAMES)
@@ -108,6 +113,7 @@ ALIASES = {
     'generalist-hand-set': 'generalist (hand-set)',
     'generalist-dark-steps': 'generalist (dark steps)',
     'generalist-untrained': 'generalist (untrained)',
+    'generalist-cycle-rule': 'generalist (cycle rule)',
 }
 COLUMNS = (
     'scenario', 'goal', 'track', 'method', 'status', 'success', 'detected', 'outcome',
@@ -272,7 +278,7 @@ def _play_generalist(trial: dict, track: str) -> dict:
     twin = TWINS.get(trial['method'])
     if twin is not None:
         policy = _twin(policy.header['architecture'], twin, env.scenario, env.model.task.goal.name)
-    agent = GeneralistAgent(policy, env)
+    agent = GeneralistAgent(policy, env, brightest=twin == 'cycle-rule')
     return play(env, agent.act, seed=trial['seed'])
 
 
@@ -287,12 +293,16 @@ def generalist_policy(path: str | None):
 
 def _twin(architecture: dict, kind: str, scenario, goal: str):
     """The twin ``kind`` ('env', 'dark-steps': hand-set for this scenario's reward and goal;
-    'untrained') of the weights of ``architecture``."""
+    'untrained'; 'cycle-rule': the static network of the same sizes, hand-set 'env') of the
+    weights of ``architecture``."""
     from stealth_learn.generalist import GeneralistPolicy
     from stealth_learn.hand_set import ScenarioReward
 
     if kind == 'untrained':
         return _untrained(tuple(sorted(architecture.items())))
+    if kind == 'cycle-rule':
+        kind = 'env'
+        architecture = {k: v for k, v in architecture.items() if k not in ('layers', 'advance')}
     return GeneralistPolicy.hand_set(architecture, ScenarioReward.of(scenario, goal), kind)
 
 

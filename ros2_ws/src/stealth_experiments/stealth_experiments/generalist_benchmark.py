@@ -6,7 +6,9 @@ set, the checks, the report and Ctrl-C are the benchmark's own:
 
 - methods ``METHODS``: value iteration (the oracle), the generalist, its hand-set twins (the
   environment's reward written into the same network; -1 a move and -1e4 a lit one) and its
-  untrained twin, and the replanners (``replan (unknown dark)``, ``replan (unknown lit)``);
+  untrained twin, the cycle rule (the static network, hand-set, on the cycle's brightest
+  light field: moving lights' naive baseline), and the replanners (``replan (unknown dark)``,
+  ``replan (unknown lit)``);
   each on the tracks it runs on (``benchmark_methods.METHODS``: the replanners on the sensed
   track only);
 - the set: generated test buildings only (``--set generated``), of the development part of the
@@ -31,6 +33,7 @@ METHODS = (
     'generalist (hand-set)',
     'generalist (dark steps)',
     'generalist (untrained)',
+    'generalist (cycle rule)',
     'replan (unknown dark)',
     'replan (unknown lit)',
 )
@@ -39,14 +42,15 @@ GENERALIST = Preset(
     'Evaluate the generalist (stealth_learn) on generated test buildings it never saw, every '
     "figure beside value iteration (the oracle), the same network with the environment's "
     'reward written in (hand-set; and -1 a move, -1e4 a lit one: dark steps), the same '
-    'network untrained, and the replanners (unknown dark, unknown lit), on the lights-known '
+    "network untrained, the cycle rule (the static network, hand-set, on the cycle's brightest "
+    'light, no wait), and the replanners (unknown dark, unknown lit), on the lights-known '
     '(full) and the lights-sensed track: undetected and success rates, regret against the '
     "oracle, mean return, path and exposure over the optimum's. It is stealth benchmark with "
     'these defaults (--set generated, these --methods, --out runs/generalist-eval); every '
     'benchmark option applies.',
     lambda: list(METHODS),
     'vi, generalist, generalist-hand-set, generalist-dark-steps, generalist-untrained, '
-    'replan-dark, replan-lit',
+    'generalist-cycle-rule, replan-dark, replan-lit',
     'generated',
     Path('runs/generalist-eval'),
     prints_summary=True,

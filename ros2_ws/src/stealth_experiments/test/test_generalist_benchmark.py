@@ -82,9 +82,12 @@ def test_every_generalist_figure_stands_beside_its_baselines_on_both_tracks(tmp_
     assert sorted((r['method'], r['track']) for r in rows) == sorted(
         [(m, t) for m in on_both for t in ('full', 'sensed')]
         + [('replan (unknown dark)', 'sensed'), ('replan (unknown lit)', 'sensed')]
+        + [('generalist (cycle rule)', 'full')]
     )
     full = {r['method']: r for r in rows if r['track'] == 'full'}
-    assert all(full[m]['success'] == 'True' for m in twins)
+    assert all(full[m]['success'] == 'True' for m in (*twins, 'generalist (cycle rule)'))
+    # static lights: the cycle's brightest field is the light itself, the rule the hand-set twin
+    assert full['generalist (cycle rule)']['return'] == full['generalist (hand-set)']['return']
     assert float(full['generalist (hand-set)']['regret']) == pytest.approx(0.0, abs=1e-6)
     header = '| method | undetected | success | criterion | regret | mean return |'
     assert printed.count(header) == 2 and '## Track: sensed' in printed
@@ -93,3 +96,29 @@ def test_every_generalist_figure_stands_beside_its_baselines_on_both_tracks(tmp_
     assert 'Generated: seeds 1,000,003 to 1,000,003, 20 x 20 m, 3 lights' in printed
     record = json.loads((out / 'scenarios' / 'gen-1000003.provenance.json').read_text())
     assert (record['options']['width'], record['options']['lights']) == (20, 3)
+
+
+def test_moving_lights_with_the_time_aware_weights_beside_the_cycle_rule(tmp_path, capsys):
+    """--moving: a generated building with moving lights; the time-aware weights (the shipped
+    generalist-moving.npz), their hand-set and untrained twins and the cycle rule play it on
+    the full track beside value iteration; the hand-set twin at the optimum."""
+    pytest.importorskip('jax')
+    from stealth_learn.train_generalist import MOVING_OUT
+
+    if not MOVING_OUT.is_file():
+        pytest.skip('no time-aware weights')
+    out = tmp_path / 'out'
+    argv = ['--seeds', str(TEST_SEED + 1), '--count', '1', '--width', '20', '--height', '20',
+            '--lights', '3', '--moving', 'sweeping', '--tracks', 'full', '--jobs', '1',
+            '--no-plots', '--policy-file', str(MOVING_OUT), '--out', str(out),
+            '--methods', 'vi', 'generalist', 'generalist-hand-set', 'generalist-untrained',
+            'generalist-cycle-rule']  # fmt: skip
+    assert generalist_benchmark.main(argv) == 0
+    with open(out / 'results.csv', encoding='utf-8') as stream:
+        rows = {r['method']: r for r in csv.DictReader(stream)}
+    assert {r['status'] for r in rows.values()} == {'ok'}, rows
+    assert len(rows) == 5 and {r['track'] for r in rows.values()} == {'full'}
+    assert float(rows['generalist (hand-set)']['regret']) == pytest.approx(0.0, abs=1e-6)
+    record = json.loads((out / 'scenarios' / 'gen-1000001.provenance.json').read_text())
+    assert record['options']['moving'] == 'sweeping'
+    assert 'moving: sweeping' in capsys.readouterr().out

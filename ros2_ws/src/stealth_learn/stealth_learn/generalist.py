@@ -6,9 +6,11 @@ environment's reward written in: ``hand_set``), and one greedy episode in the JA
     action = policy.act(observation.grid)                   # the grid of jax_env's 'grid' layout
     episode = rollout(policy, scenario)                     # against value iteration's optimum
 
-The light field is static on this track, so the value map depends only on the grid's static
+The lights are known on this track, so the value map depends only on the grid's static
 channels: ``rollout`` computes it once per episode and attends at the robot's cell each step,
-which is exactly what ``act`` gives step by step (``test_generalist`` checks they agree).
+which is exactly what ``act`` gives step by step (``test_generalist`` checks they agree). With
+moving lights the network is the time-aware one (``vin.Vin`` with phase layers: the phased
+grid in, the wait among the actions) and the attention is at the robot's layer and cell.
 The evaluation beside the baselines is `stealth generalist` (``stealth_experiments``: the
 benchmark's methods, which this package may not import).
 """
@@ -31,8 +33,8 @@ from stealth_learn.hand_set import ScenarioReward, hand_set_params
 from stealth_learn.interruptible import interruptible
 from stealth_learn.jax_deps import jax, jnp
 from stealth_learn.jax_env import build
-from stealth_learn.obs_layout import LayoutError
-from stealth_learn.vin import ROBOT, Vin, logits_of_cells
+from stealth_learn.obs_layout import CHANNELS, LayoutError, check_layout, phased_layout_id
+from stealth_learn.vin import PHASED_CHANNELS, ROBOT, Vin, logits_of_cells
 
 DEFAULT_POLICY = policy_file.SHIPPED
 
@@ -57,7 +59,8 @@ class GeneralistPolicy:
     def untrained(cls, architecture: dict, seed: int = 0) -> GeneralistPolicy:
         """The same architecture at its initialisation (the issue's untrained comparison)."""
         model = Vin(**architecture)
-        grid = jnp.zeros((1, 4, 4, 7), jnp.float32)
+        phased = (model.layers, 4, 4, len(PHASED_CHANNELS))
+        grid = jnp.zeros((1, *(phased if model.phased else (4, 4, len(CHANNELS)))), jnp.float32)
         params = model.init(jax.random.PRNGKey(seed), grid)['params']
         return cls(params, architecture, source=f'the untrained network (seed {seed})')
 
@@ -72,26 +75,53 @@ class GeneralistPolicy:
         source = f'the hand-set network ({kind} reward of {reward.scenario or "the scenario"})'
         return cls(params, architecture, source=source)
 
-    def check_scenario(self, scenario) -> None:
-        """ValueError, one line naming these weights and the scenario, unless the network can
-        play it: it reads no phase and cannot wait, so it is for static lights only."""
-        if scenario.has_moving_lights:
+    @property
+    def layout(self) -> str:
+        """The observation layout the network reads (``policy_file.policy_layout``)."""
+        return policy_file.policy_layout('full', self.header['architecture'])
+
+    def check_scenario(self, scenario, model=None) -> None:
+        """LayoutError, one line naming these weights and the scenario, unless the network can
+        play it: a static network reads no phase and cannot wait (static lights only); a
+        time-aware one reads the phased grid of its phase count and step, so it needs moving
+        lights of the same cycle (``model``: the scenario's lattice model, built if None)."""
+        where = f'scenario {scenario.name!r} ({scenario.path})'
+        phased = Vin(**self.header['architecture']).phased
+        if not phased and not scenario.has_moving_lights:
+            return
+        if not phased:
             raise LayoutError(
                 f'{self.source}: the policy was trained for static lights (layout '
-                f'{policy_file.policy_layout("full")!r}: no phase input, no wait), scenario '
-                f'{scenario.name!r} ({scenario.path}) has moving lights; a time-aware policy '
-                'is needed there'
+                f'{self.layout!r}: no phase input, no wait), {where} has moving lights; a '
+                f'time-aware policy is needed there (layout {_scenario_layout(scenario, model)!r})'
             )
+        if not scenario.has_moving_lights:
+            raise LayoutError(
+                f'{self.source}: the policy is time-aware (layout {self.layout!r}), {where} has '
+                f'static lights (layout {policy_file.policy_layout("full")!r}); use a static '
+                'policy there'
+            )
+        check_layout(self.layout, _scenario_layout(scenario, model), f'{self.source} ({where})')
 
     def cell_logits(self, grid) -> np.ndarray:
-        """(R, C, 4) the logits of every cell of one grid (R, C, 7); Ctrl-C stops it at once,
-        compile or run (``interruptible``)."""
+        """(R, C, 4) the logits of every cell of one grid (R, C, 7), or (L, R, C, 5) of every
+        cell and layer of a phased grid (L, R, C, 12); Ctrl-C stops it at once, compile or run
+        (``interruptible``)."""
         batch = jnp.asarray(grid)[None]
         return interruptible(lambda: np.asarray(self._logits(self.variables, batch)))[0]
 
     def act(self, grid) -> int:
-        """The move (0 up, 1 down, 2 left, 3 right) at the robot's cell of one grid."""
+        """The move (0 up, 1 down, 2 left, 3 right; 4 wait: time-aware) at the robot's cell
+        (and layer) of one grid."""
         return int(np.argmax(self.cell_logits(grid)[robot_cell(grid)]))
+
+
+def _scenario_layout(scenario, model=None) -> str:
+    """The phased grid layout of a scenario with moving lights: its lattice model's phase
+    layers and the layers a step advances (``model``: built if None)."""
+    model = TaskArrays(scenario).model if model is None else model
+    timing = model.task.timing
+    return phased_layout_id('full', model.layers, 0 if timing is None else timing.bins_per_step)
 
 
 @functools.lru_cache(maxsize=8)
@@ -102,11 +132,11 @@ def _compiled(architecture: tuple):
     return jax.jit(lambda variables, grid: logits_of_cells(model, variables, grid))
 
 
-def robot_cell(grid) -> tuple[int, int]:
-    """(row, col) of the robot in one grid (R, C, 7): its robot channel's maximum."""
+def robot_cell(grid) -> tuple[int, ...]:
+    """(row, col) of the robot in one grid (R, C, 7), (layer, row, col) in a phased grid: its
+    robot channel's maximum."""
     robot = np.asarray(grid)[..., ROBOT]
-    row, col = np.unravel_index(int(np.argmax(robot)), robot.shape)
-    return int(row), int(col)
+    return tuple(int(i) for i in np.unravel_index(int(np.argmax(robot)), robot.shape))
 
 
 class PlanCache:
@@ -131,7 +161,8 @@ class PlanCache:
         return len(self._plans)
 
     def moves(self, grid) -> np.ndarray:
-        """(R, C) int8: the move at every cell of ``grid`` (R, C, 7)."""
+        """(R, C) int8: the move at every cell of ``grid`` (R, C, 7); (L, R, C) of a phased
+        grid."""
         grid = np.asarray(grid)
         last = self._last
         if (
@@ -170,16 +201,20 @@ class Episode:
 
 def rollout(policy: GeneralistPolicy, scenario) -> Episode:
     """One greedy episode of ``policy`` on ``scenario`` in the JAX environment, and value
-    iteration's return and path length on the same scenario (moving lights refused:
-    ``GeneralistPolicy.check_scenario``)."""
-    model = TaskArrays(scenario).model
-    policy.check_scenario(model.task.scenario)
+    iteration's return and path length on the same scenario (a scenario the network cannot
+    play refused: ``GeneralistPolicy.check_scenario``)."""
+    arrays = TaskArrays(scenario)
+    model = arrays.model
+    policy.check_scenario(model.task.scenario, model)
     env, params = build([scenario], track='full', layout='grid')
     one = env.scenario(params, 0)
     obs, state = env.reset(jax.random.PRNGKey(0), one)
-    logits = policy.cell_logits(np.asarray(obs.grid))
-    actions = jnp.asarray(logits.argmax(-1).reshape(-1))  # per cell of the padded grid
-    cells = env.dims.cells
+    phased = policy.model.phased
+    grid = data.phased_grid(arrays.tables(env.dims)) if phased else np.asarray(obs.grid)
+    logits = policy.cell_logits(grid)
+    # per place of the padded grid (phased: layer * cells + cell, the env's place)
+    actions = jnp.asarray(logits.argmax(-1).reshape(-1))
+    cells = actions.shape[0]
 
     def body(carry, _):
         state, done, info = carry

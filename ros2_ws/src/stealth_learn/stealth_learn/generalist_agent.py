@@ -4,7 +4,7 @@ read at the robot's cell); no planner runs.
 
     policy = load_policy(path)                       # default: the shipped generalist-full.npz
     agent = GeneralistAgent(policy, env)             # env: a StealthNavEnv, track full or sensed
-    action = agent.act(observation)                  # 0-3, the moves (it never waits or turns)
+    action = agent.act(observation)                  # 0-3 the moves, 4 the wait (time-aware)
 
 The grid is ``generalist_data.grid_of`` (the channels the network trained on: free, goal, the
 light on each node and along each move; robot and age 0, the decision being read at the robot's
@@ -19,8 +19,16 @@ cell), with the light of what the agent knows:
   ``replan (unknown lit)``), a move never sensed as the larger of its two ends. The value map
   is recomputed whenever the sensed light changes: the network replanning on its belief.
 
-The network reads no phase and cannot wait: a scenario with moving lights is refused
-(``GeneralistPolicy.check_scenario``, one line naming the weights and the scenario).
+Moving lights (track 'full'): a time-aware network (``vin.Vin`` with phase layers) reads the
+phased grid (``generalist_data.phased_grid``: every layer's lights and each step's light, one
+value map a run) and decides at the robot's layer and cell, the wait among its actions. A
+static network given moving lights, or a time-aware one given static lights or another cycle,
+is refused (``GeneralistPolicy.check_scenario``, one line naming the weights and the scenario);
+so is a time-aware network on the sensed track (it reads the lights known).
+
+The cycle rule (``brightest``): a static network given moving lights reads the cycle's
+brightest light field instead (on each node and move, the most light over the cycle's phase
+layers) and never waits: the naive stand-in for time a time-aware network must beat.
 
 The policy file is the full track's (layout ``stealth-grid-v1/full``): on the sensed track the
 same network reads the belief grid, so no other file is needed (nor accepted).
@@ -35,18 +43,19 @@ from stealth_learn import policy_file
 from stealth_learn.belief import believed
 from stealth_learn.env_tables import TaskArrays
 from stealth_learn.generalist import DEFAULT_POLICY, GeneralistPolicy, PlanCache
-from stealth_learn.generalist_data import grid_of
+from stealth_learn.generalist_data import grid_of, phased_grid
 
 UNKNOWN_RULES = ('dark', 'lit')
 _KEPT = 64  # plans kept per agent (the layers of exposure's headings; the sensed track's latest)
 
 
 def load_policy(path=None, iterations: int | None = None) -> GeneralistPolicy:
-    """The lights-known generalist of ``path`` (default: the shipped weights), with its Bellman
-    backups at decision time set to ``iterations`` (default: the file's). PolicyFileError or
+    """The lights-known generalist of ``path`` (default: the shipped weights), static or
+    time-aware (the scenario's cycle checked when an agent is made), with its Bellman backups
+    at decision time set to ``iterations`` (default: the file's). PolicyFileError or
     LayoutError, one line naming the path."""
     path = DEFAULT_POLICY if path is None else path
-    policy = GeneralistPolicy.load(path, policy_file.policy_layout('full'))
+    policy = GeneralistPolicy.load(path, None)
     if iterations is None:
         return policy
     if not 1 <= iterations <= policy_file.MAX_ITERATIONS:
@@ -64,15 +73,31 @@ class GeneralistAgent:
     """``act(observation) -> action`` on ``env`` (module docstring). ``env`` is read for its
     robot's place (``env.node``); its scenario and goal give the floor plan's grid."""
 
-    def __init__(self, policy: GeneralistPolicy, env, unknown: str = 'dark'):
+    def __init__(
+        self, policy: GeneralistPolicy, env, unknown: str = 'dark', brightest: bool = False
+    ):
         if unknown not in UNKNOWN_RULES:
             raise ValueError(
                 f'unknown: expected one of {", ".join(UNKNOWN_RULES)}, got {unknown!r}'
             )
-        policy.check_scenario(env.scenario)
+        self.phased = policy.model.phased
+        if brightest and (self.phased or env.track != 'full'):
+            raise ValueError(
+                f'{policy.source}: the cycle rule is a static network on the lights known '
+                f"(track 'full'), not a time-aware one or track {env.track!r}"
+            )
+        self.brightest = brightest
+        if not brightest:
+            policy.check_scenario(env.scenario, env.model)
+        if self.phased and env.track != 'full':
+            raise ValueError(
+                f'{policy.source}: the time-aware policy reads the lights known (track '
+                f"'full'), not track {env.track!r}"
+            )
         self.policy, self.env, self.unknown = policy, env, unknown
         arrays = TaskArrays(env.scenario, model=env.model)
         self.tables = arrays.tables()
+        self._phased_grid = phased_grid(self.tables) if self.phased else None
         sensing = arrays.sensing
         self.nodes = sensing.n
         self.row, self.col = sensing.grid_row, sensing.grid_col
@@ -84,17 +109,25 @@ class GeneralistAgent:
         self.plans = PlanCache(policy, keep=_KEPT)
 
     def grid(self, observation) -> np.ndarray:
-        """(R, C, 7) the grid the network reads for this observation (module docstring)."""
+        """(R, C, 7) the grid the network reads for this observation (module docstring); the
+        phased grid (L, R, C, 12) of a time-aware network."""
+        if self.phased:
+            return self._phased_grid
+        if self.brightest:
+            tables = self.tables
+            return grid_of(tables, 0, tables.node_light.max(0), tables.move_light.max(0))
         if self.env.track == 'full':
             return grid_of(self.tables, int(self.env.node) // self.nodes)
         light, moves = believed(observation['light'], observation['moves'], self.assumed)
         return grid_of(self.tables, 0, light, moves)
 
     def act(self, observation) -> int:
-        """The move with the highest logit at the robot's cell (never a wait or a turn)."""
+        """The action with the highest logit at the robot's cell (and layer: time-aware; a
+        static network never waits or turns)."""
         moves = self.plans.moves(self.grid(observation))
-        node = int(self.env.node) % self.nodes
-        return int(moves[self.row[node], self.col[node]])
+        layer, node = divmod(int(self.env.node), self.nodes)
+        cell = (self.row[node], self.col[node])
+        return int(moves[(layer, *cell) if self.phased else cell])
 
     @property
     def value_maps(self) -> int:

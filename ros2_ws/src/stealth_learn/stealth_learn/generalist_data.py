@@ -1,6 +1,9 @@
 """The generalist's data: generated scenarios of one seed range, each as the grid the network
 reads and value iteration's optimal moves on every cell (dense imitation targets: one scenario
-teaches every valid cell at once, not one trajectory).
+teaches every valid cell at once, not one trajectory). With moving lights, the phased grid
+(``vin.PHASED_CHANNELS``: every phase layer's grid and the light of each step from there) and
+the layered value iteration's optimal actions (the four moves and the wait) at every cell of
+every layer.
 
 Plain numpy (no jax): ``stealth_core``'s generator, lattice model and ``value_iteration``;
 ``env_tables`` for the grid channels the JAX environment observes, so the network trains on
@@ -20,7 +23,7 @@ from stealth_core.scenario_generator import SEED_RANGES, GenerationError, Option
 
 from stealth_learn.env_tables import TaskArrays
 from stealth_learn.obs_layout import CHANNELS
-from stealth_learn.vin import NUM_MOVES
+from stealth_learn.vin import NO_MOVE, NUM_MOVES, WAIT
 
 TIE = 1e-3  # actions within this of the best q are all optimal (ties are common in the dark)
 
@@ -33,7 +36,8 @@ class DataError(ValueError):
 class Sample:
     """One scenario: ``grid`` (R, C, 7) float32 as ``jax_env`` observes it (robot channel 0),
     ``optimal`` (R, C, 4) bool value iteration's optimal moves, ``weight`` (R, C) float32: 1 on
-    cells the imitation loss reads (free, not goal, the goal reachable undetected)."""
+    cells the imitation loss reads (free, not goal, the goal reachable undetected). Moving
+    lights: a layer axis first, ``grid`` the phased grid (L, R, C, 12) and five actions."""
 
     seed: int
     name: str
@@ -41,6 +45,7 @@ class Sample:
     optimal: np.ndarray
     weight: np.ndarray
     optimal_return: float
+    advance: int = 0  # moving lights: the phase layers a step advances (``Vin.advance``)
 
 
 def seeds_of(range_name: str, count: int, offset: int = 0) -> list[int]:
@@ -62,28 +67,55 @@ def scenario_of(seed: int, options: Options, directory: Path):
 
 
 def sample_of(seed: int, scenario) -> Sample:
-    """The grid and value iteration's optimal moves of one scenario (static lights, no
-    exposure: one layer, four moves)."""
+    """The grid and value iteration's optimal actions of one scenario: static lights without
+    exposure (one layer, four moves), or moving lights without exposure (the phased grid, the
+    four moves and the wait)."""
     arrays = TaskArrays(scenario)
     model = arrays.model
-    if model.layers != 1 or model.num_actions != NUM_MOVES:
+    moving = model.task.scenario.has_moving_lights
+    actions = NUM_MOVES + int(moving)
+    if model.headings != 1 or model.num_actions != actions or (model.layers != 1) != moving:
         raise DataError(
-            f'scenario {scenario.name!r}: the lights-known generalist takes static lights '
-            f'without exposure (1 layer, 4 moves), this one has {model.layers} layers and '
-            f'{model.num_actions} actions'
+            f'scenario {scenario.name!r}: the lights-known generalist takes static or moving '
+            f'lights without exposure (1 layer and 4 moves, or phase layers and 5 actions), '
+            f'this one has {model.layers} layers and {model.num_actions} actions'
         )
     tables = arrays.tables()
-    grid = grid_of(tables)
+    grid = phased_grid(tables) if moving else grid_of(tables)[None]
     optimum = value_iteration(model)
-    q = optimum.q[: len(model.nodes)]
-    best = q.max(axis=1, keepdims=True)
+    n, layers = len(model.nodes), model.layers
+    q = optimum.q.reshape(layers, n, actions)
+    best = q.max(axis=-1, keepdims=True)
     rows, cols = arrays.sensing.grid_row, arrays.sensing.grid_col
-    optimal = np.zeros((*tables.free.shape, NUM_MOVES), bool)
-    optimal[rows, cols] = q >= best - TIE
-    weight = np.zeros(tables.free.shape, np.float32)
-    reachable = (optimum.values[: len(model.nodes)] > 0) & ~model.goal[: len(model.nodes)]
-    weight[rows, cols] = reachable
-    return Sample(seed, scenario.name, grid, optimal, weight, optimum.optimal_return)
+    optimal = np.zeros((layers, *tables.free.shape, actions), bool)
+    optimal[:, rows, cols] = q >= best - TIE
+    if moving:  # a blocked move only waits: the network masks it, the wait is its twin
+        optimal &= grid[..., len(CHANNELS) :] > NO_MOVE + 0.5
+    weight = np.zeros((layers, *tables.free.shape), np.float32)
+    values = optimum.values.reshape(layers, n)
+    weight[:, rows, cols] = (values > 0) & ~model.goal[:n]
+    if not moving:
+        grid, optimal, weight = grid[0], optimal[0], weight[0]
+    advance = model.task.timing.bins_per_step if moving else 0
+    return Sample(seed, scenario.name, grid, optimal, weight, optimum.optimal_return, advance)
+
+
+def phased_grid(tables, robot: tuple[int, int, int] | None = None) -> np.ndarray:
+    """(L, R, C, 12) the phased grid of one scenario's tables (``vin``: each layer's grid,
+    then the light each step from there is judged on, ``step_visibility`` exactly, -2 where the
+    step does not exist: no node, or a move blocked, which only waits); the robot channel 1 at
+    ``robot`` (layer, row, col) if given."""
+    layers = tables.node_light.shape[0]
+    rows, cols = tables.free.shape
+    grids = np.stack([grid_of(tables, layer) for layer in range(layers)])
+    if robot is not None:
+        grids[(*robot, CHANNELS.index('robot'))] = 1.0
+    shape = (layers, rows, cols, -1)
+    steps = tables.step_visibility.reshape(shape)[..., : WAIT + 1]
+    cell = np.arange(layers * rows * cols).reshape(shape[:-1]) % (rows * cols)
+    moved = tables.successors.reshape(shape)[..., :NUM_MOVES] % (rows * cols) != cell[..., None]
+    exists = np.concatenate([moved, np.broadcast_to(tables.free, cell.shape)[..., None]], -1)
+    return np.concatenate([grids, np.where(exists, steps, NO_MOVE)], -1).astype(np.float32)
 
 
 def grid_of(tables, layer: int = 0, light=None, moves=None) -> np.ndarray:
@@ -109,15 +141,21 @@ def load_samples(seeds, options: Options, directory: Path, log=None) -> list[Sam
 
 
 def batch(samples, dims: tuple[int, int] | None = None):
-    """(grid (B, R, C, 7), optimal (B, R, C, 4), weight (B, R, C)) padded up and right to
-    ``dims`` (default: the largest), walls there as ``env_tables`` pads."""
-    rows = max(s.grid.shape[0] for s in samples) if dims is None else dims[0]
-    cols = max(s.grid.shape[1] for s in samples) if dims is None else dims[1]
-    grid = np.zeros((len(samples), rows, cols, len(CHANNELS)), np.float32)
-    grid[..., 3:6] = -2.0  # obs_layout: no node, no move
-    optimal = np.zeros((len(samples), rows, cols, NUM_MOVES), bool)
-    weight = np.zeros((len(samples), rows, cols), np.float32)
+    """(grid (B, [L,] R, C, channels), optimal (B, [L,] R, C, A), weight (B, [L,] R, C)) padded
+    up and right to ``dims`` (default: the largest), walls there as ``env_tables`` pads (lights
+    and steps -2)."""
+    rows = max(s.grid.shape[-3] for s in samples) if dims is None else dims[0]
+    cols = max(s.grid.shape[-2] for s in samples) if dims is None else dims[1]
+    first = samples[0]
+    layers = first.grid.shape[:-3]  # () static, (L,) phased
+    grid = np.zeros((len(samples), *layers, rows, cols, first.grid.shape[-1]), np.float32)
+    grid[..., 3:6] = NO_MOVE  # obs_layout: no node, no move
+    grid[..., len(CHANNELS) :] = NO_MOVE  # no step
+    optimal = np.zeros((len(samples), *layers, rows, cols, first.optimal.shape[-1]), bool)
+    weight = np.zeros((len(samples), *layers, rows, cols), np.float32)
     for k, s in enumerate(samples):
-        r, c = s.grid.shape[:2]
-        grid[k, :r, :c], optimal[k, :r, :c], weight[k, :r, :c] = s.grid, s.optimal, s.weight
+        r, c = s.grid.shape[-3:-1]
+        grid[k, ..., :r, :c, :] = s.grid
+        optimal[k, ..., :r, :c, :] = s.optimal
+        weight[k, ..., :r, :c] = s.weight
     return grid, optimal, weight

@@ -20,6 +20,12 @@ Two layouts (``jax_env.StealthJaxEnv(layout=...)``):
 The layout id names layout, track and size, e.g. ``stealth-grid-v1/sensed/80x120``. The grid's
 channels, ids and full-track construction are ``stealth_core.grid_observation``'s (what the
 environment node sends through ROS).
+
+The time-aware generalist (moving lights, lights known) reads the phased grid
+(``vin.PHASED_CHANNELS``, ``generalist_data.phased_grid``): every phase layer's grid and the
+light of each step from there; its id names the phase layers and the layers a step advances,
+e.g. ``stealth-phased-v1/full/8phases-1perstep/60x60``, so a policy of another phase count is
+refused naming both.
 """
 
 from __future__ import annotations
@@ -56,3 +62,12 @@ def check_layout(policy_layout: str, env_layout: str, source: str) -> None:
             f'{source}: the policy was trained for observation layout {policy_layout!r}, '
             f'this environment gives {env_layout!r}; train one for it or pick the matching track'
         )
+
+
+PHASED_PREFIX = f'stealth-phased-{VERSION}/'  # every phased grid's id starts so
+
+
+def phased_layout_id(track: str, layers: int, advance: int, rows=None, cols=None) -> str:
+    """The phased grid's id (module docstring), without its size when ``rows`` is None."""
+    base = f'{PHASED_PREFIX}{track}/{layers}phases-{advance}perstep'
+    return base if rows is None else f'{base}/{rows}x{cols}'

@@ -15,7 +15,10 @@ refused in one line naming its path and what was expected (issue 30's and 40's b
   written by hand), floating point and finite.
 
 The layout is the grid layout without its size (``stealth-grid-v1/full``): the network is
-fully convolutional, so any scenario's grid fits.
+fully convolutional, so any scenario's grid fits. A time-aware network (moving lights: the
+architecture's ``layers`` > 1) reads the phased grid of its phase count and step
+(``obs_layout.phased_layout_id``, e.g. ``stealth-phased-v1/full/8phases-1perstep``): the
+header's layout must be its architecture's.
 """
 
 from __future__ import annotations
@@ -31,7 +34,13 @@ import numpy as np
 from stealth_core.gym_env import TRACKS
 from stealth_core.yaml_fields import FieldReader
 
-from stealth_learn.obs_layout import CHANNELS, check_layout, layout_id
+from stealth_learn.obs_layout import (
+    CHANNELS,
+    PHASED_PREFIX,
+    check_layout,
+    layout_id,
+    phased_layout_id,
+)
 
 FORMAT = 'stealth-generalist-v1'
 SHIPPED = Path(__file__).resolve().parent / 'policies' / 'generalist-full.npz'  # lights known
@@ -45,6 +54,7 @@ NPY_MAGIC = b'\x93NUMPY'
 MAX_ITERATIONS = 10_000
 MAX_HIDDEN = 1024  # the reward network's width (32 shipped)
 MAX_FEATURES = 256  # the 3x3 convolution's channels (8 shipped)
+MAX_LAYERS = 256  # phase layers of a time-aware network (the generated buildings' cycle: 8)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,17 +89,25 @@ ARCHITECTURE_RANGES = {
     'threshold': Range(False, 0.0, above=True),  # the detection threshold it was trained for
 }
 ARCHITECTURE = tuple(ARCHITECTURE_RANGES)
+# a time-aware network's (``vin.Vin``'s layers and advance), both or neither; neither: static
+PHASED_RANGES = {
+    'layers': Range(True, 2, MAX_LAYERS),
+    'advance': Range(True, 0, MAX_LAYERS - 1),  # and < layers
+}
 # the training record (optional, each field optional; read by no decision)
 TRAINING_FIELDS = {
     'train_iterations': Range(True, 1, MAX_ITERATIONS),
     'steps': Range(True, 1),
     'batch': Range(True, 1),
     'lr': Range(False, 0.0, above=True),
+    'lit_weight': Range(False, 1.0),  # the loss weight of cells with a lit step (--lit-weight)
     'seed': Range(True, 0),
     'train_scenarios': Range(True, 1),
     'selected_step': Range(True, 0),  # and <= steps
     'validation_loss': Range(False, 0.0),
     'seconds': Range(False, 0.0),
+    'train_seconds': Range(False, 0.0),  # the optimiser's loop (validation included)
+    'samples_per_second': Range(False, 0.0),  # scenarios (every cell of each) a second
 }
 SIZES = 'sizes'  # training: [[width m, height m, lights], ...], whole numbers >= 1
 # The largest network the ranges allow has ~1 MB of parameters: a bigger file is not one.
@@ -101,13 +119,18 @@ class PolicyFileError(ValueError):
     """A weights file that is missing, unreadable, corrupt or not a generalist's."""
 
 
-def policy_layout(track: str) -> str:
-    """The generalist's layout for a track: the grid layout of any size."""
+def policy_layout(track: str, architecture: dict | None = None) -> str:
+    """The generalist's layout for a track: the grid layout of any size, or the phased grid of
+    a time-aware ``architecture`` (its ``layers`` and ``advance``)."""
+    if architecture is not None and int(architecture.get('layers', 1)) > 1:
+        return phased_layout_id(track, architecture['layers'], architecture['advance'])
     return without_size(layout_id('grid', track, 0, 0))
 
 
 def without_size(layout: str) -> str:
     parts = layout.split('/')
+    if parts[0].startswith('stealth-phased-'):
+        return '/'.join(parts[:3])
     return '/'.join(parts[:2]) if parts[0].startswith('stealth-grid-') else layout
 
 
@@ -115,11 +138,12 @@ def save(path, params, track: str, architecture: dict, training: dict | None = N
     """Write ``params`` (a flax params tree) with the header; returns the path. The header is
     checked as ``load`` checks it, so no command writes a file ``load`` would refuse."""
     path = Path(path)
+    names = ARCHITECTURE + (tuple(PHASED_RANGES) if architecture.get('layers', 1) > 1 else ())
     header = {
         'format': FORMAT,
-        'layout': policy_layout(track),
+        'layout': policy_layout(track, architecture),
         'track': track,
-        'architecture': {name: architecture[name] for name in ARCHITECTURE},
+        'architecture': {name: architecture[name] for name in names},
         **({'training': training} if training is not None else {}),
     }
     check_header(path, header)
@@ -130,15 +154,19 @@ def save(path, params, track: str, architecture: dict, training: dict | None = N
     return path
 
 
-def load(path, env_layout: str) -> tuple[dict, dict]:
+def load(path, env_layout: str | None) -> tuple[dict, dict]:
     """(params tree, header) of the file at ``path`` for an environment giving ``env_layout``
-    (``obs_layout.layout_id``: any grid size), checked whole (module docstring).
-    PolicyFileError or ``obs_layout.LayoutError`` (another layout or track): one line naming
-    the path. Needs the learning extra (the shapes come from the network)."""
+    (``obs_layout.layout_id``: any grid size; None: any lights-known layout, static or phased,
+    the scenario's checked when it is known: ``GeneralistPolicy.check_scenario``), checked
+    whole (module docstring). PolicyFileError or ``obs_layout.LayoutError`` (another layout,
+    track or phase count): one line naming the path. Needs the learning extra (the shapes
+    come from the network)."""
     path = Path(path)
     _check_path(path)
     header, flat = _read(path)
     header = check_header(path, header)
+    if env_layout is None:
+        env_layout = header['layout'] if header['track'] == 'full' else policy_layout('full')
     check_layout(header['layout'], without_size(env_layout), str(path))
     _check_params(path, flat, header['architecture'])
     return _unflatten({name: value.astype(np.float32) for name, value in flat.items()}), header
@@ -268,13 +296,24 @@ def check_header(path, header) -> dict:
     if fields.string('format', f'{FORMAT!r} (a generalist policy file)') != FORMAT:
         fields.fail('format', f'{FORMAT!r} (a generalist policy file)', header['format'])
     layouts = [policy_layout(track) for track in TRACKS]
-    expected = f'one of {", ".join(layouts)}'
-    if fields.string('layout', expected) not in layouts:
-        fields.fail('layout', expected, header['layout'])
+    expected = f'one of {", ".join(layouts)} (or a phased grid: {PHASED_PREFIX}full/...)'
+    layout = fields.string('layout', expected)
+    if layout not in layouts and not layout.startswith(PHASED_PREFIX):
+        fields.fail('layout', expected, layout)
     track = fields.string('track', f'one of {", ".join(TRACKS)}')
-    if track not in TRACKS or policy_layout(track) != header['layout']:
-        fields.fail('track', f"the layout's track ({header['layout'].split('/')[-1]})", track)
-    _check_ranges(fields.mapping('architecture', 'a mapping'), ARCHITECTURE_RANGES, True)
+    if track not in TRACKS or layout.split('/')[1:2] != [track]:
+        fields.fail('track', f"the layout's track ({'/'.join(layout.split('/')[1:2])})", track)
+    architecture = fields.mapping('architecture', 'a mapping')
+    phased = any(architecture.has(name) for name in PHASED_RANGES)
+    ranges = {**ARCHITECTURE_RANGES, **(PHASED_RANGES if phased else {})}
+    _check_ranges(architecture, ranges, True)
+    if phased:
+        layers = architecture.values['layers']
+        architecture.integer('advance', f'an integer 0..{layers - 1} (< layers)',
+                             lambda v: v < layers)  # fmt: skip
+    if policy_layout(track, architecture.values) != layout:
+        fields.fail('layout', f"{policy_layout(track, architecture.values)!r} (the "
+                    "architecture's)", layout)  # fmt: skip
     if fields.has('training'):
         training = fields.mapping('training', 'a mapping of the training record')
         _check_ranges(training, TRAINING_FIELDS, False, extra=(SIZES,))
@@ -311,12 +350,16 @@ def _check_sizes(training: FieldReader) -> None:
 @functools.lru_cache(maxsize=16)
 def _shapes(architecture: tuple) -> dict[str, tuple[int, ...]]:
     from stealth_learn.jax_deps import jax, jnp
-    from stealth_learn.vin import Vin
+    from stealth_learn.vin import PHASED_CHANNELS, Vin
 
     # abstract key and grid: no backend starts (no XLA threads in a process that forks later)
     key = jax.ShapeDtypeStruct((2,), jnp.uint32)
-    grid = jax.ShapeDtypeStruct((1, 3, 3, len(CHANNELS)), jnp.float32)
-    tree = jax.eval_shape(Vin(**dict(architecture)).init, key, grid)['params']
+    model = Vin(**dict(architecture))
+    shape = (
+        (1, model.layers, 3, 3, len(PHASED_CHANNELS)) if model.phased else (1, 3, 3, len(CHANNELS))
+    )
+    grid = jax.ShapeDtypeStruct(shape, jnp.float32)
+    tree = jax.eval_shape(model.init, key, grid)['params']
     return {name: tuple(leaf.shape) for name, leaf in _flatten(tree).items()}
 
 

@@ -4,8 +4,12 @@ the checkpoint by validation seeds only, and write the weights and the training 
 
     python -m stealth_learn.train_generalist   # the shipped weights: ~4-7 min, 2 cores
     python -m stealth_learn.train_generalist --train 8 --steps 40 --out /tmp/g.npz  # a smoke run
+    python -m stealth_learn.train_generalist --moving mixed   # the time-aware weights
 
-Curriculum: the first half of the steps on the smallest buildings only, then all sizes.
+Curriculum: the first half of the steps on the smallest buildings only, then all sizes. With
+``--moving`` the buildings have sweeping and/or patrolling lights (the generator's ``moving``),
+the network is the time-aware one (``vin.Vin`` with the buildings' phase layers and step) and
+the targets are the layered value iteration's optimal actions at every cell of every layer.
 """
 
 from __future__ import annotations
@@ -19,12 +23,13 @@ import tempfile
 import time
 
 import numpy as np
-from stealth_core.scenario_generator import THRESHOLD, GenerationError, Options
+from stealth_core.scenario_generator import MOVING, THRESHOLD, GenerationError, Options
 
 from stealth_learn import generalist_data as data
 from stealth_learn import policy_file
 
 DEFAULT_OUT = Path(__file__).resolve().parent / 'policies' / 'generalist-full.npz'
+MOVING_OUT = DEFAULT_OUT.with_name('generalist-moving.npz')  # the time-aware weights
 SIZES = ((20, 20, 3), (30, 30, 4), (40, 40, 6))  # width, height (m), lights: the curriculum
 
 
@@ -35,8 +40,16 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument(
         '--out',
         type=Path,
-        default=DEFAULT_OUT,
-        help='the weights file (.npz); the curve beside it (.png)',
+        default=None,
+        help='the weights file (.npz; default policies/generalist-full.npz, with --moving '
+        'policies/generalist-moving.npz); the curve beside it (.png)',
+    )
+    parser.add_argument(
+        '--moving',
+        choices=MOVING,
+        default='none',
+        help="the lights of the buildings (the generator's --moving): not 'none' trains the "
+        'time-aware network',
     )
     parser.add_argument(
         '--train', type=int, default=48, help='training scenarios per size (training seeds)'
@@ -46,6 +59,13 @@ def parse_args(argv=None) -> argparse.Namespace:
         type=int,
         default=10,
         help='validation scenarios per size (validation seeds)',
+    )
+    parser.add_argument(
+        '--sizes',
+        type=_sizes,
+        default=SIZES,
+        help='the curriculum: WIDTHxHEIGHTxLIGHTS (m, m, lights), comma-separated, smallest '
+        'first (default 20x20x3,30x30x4,40x40x6)',
     )
     parser.add_argument('--steps', type=int, default=2000, help='optimiser steps')
     parser.add_argument('--batch', type=int, default=6, help='scenarios per step')
@@ -62,6 +82,13 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument('--features', type=int, default=8, help='convolution channels')
     parser.add_argument('--lr', type=float, default=5e-3, help='peak learning rate (cosine)')
     parser.add_argument('--every', type=int, default=50, help='validate every N steps')
+    parser.add_argument(
+        '--lit-weight',
+        type=float,
+        default=1.0,
+        help='the loss weight of a cell with a lit step among its own (where the choice '
+        'is to be seen or not), relative to 1 for the others',
+    )
     parser.add_argument('--seed', type=int, default=0, help='the initialisation and batches')
     args = parser.parse_args(argv)
     for name in (
@@ -88,9 +115,26 @@ def parse_args(argv=None) -> argparse.Namespace:
             parser.error(f'--{name.replace("_", "-")}: expected at most {highest}')
     if not (math.isfinite(args.lr) and args.lr > 0):
         parser.error('--lr: expected a finite number > 0')
+    if not (math.isfinite(args.lit_weight) and args.lit_weight >= 1):
+        parser.error('--lit-weight: expected a finite number >= 1')
     if args.seed < 0:
         parser.error('--seed: expected a whole number >= 0')
+    if args.out is None:
+        args.out = DEFAULT_OUT if args.moving == 'none' else MOVING_OUT
     return args
+
+
+def _sizes(text: str) -> tuple[tuple[int, int, int], ...]:
+    """``--sizes``' value: '20x20x3,30x30x4' -> ((20, 20, 3), (30, 30, 4))."""
+    try:
+        sizes = tuple(tuple(int(v) for v in item.split('x')) for item in text.split(','))
+    except ValueError:
+        sizes = ()
+    if not sizes or any(len(size) != 3 or min(size) < 1 for size in sizes):
+        raise argparse.ArgumentTypeError(
+            f'expected WIDTHxHEIGHTxLIGHTS, comma-separated (e.g. 20x20x3,30x30x4), got {text!r}'
+        )
+    return sizes
 
 
 def loss_fn(model, variables, grid, optimal, weight):
@@ -102,6 +146,17 @@ def loss_fn(model, variables, grid, optimal, weight):
     log_p = jax.nn.log_softmax(logits, axis=-1)
     picked = jax.nn.logsumexp(jnp.where(optimal, log_p, -1e9), axis=-1)
     return -(picked * weight).sum() / jnp.maximum(weight.sum(), 1.0)
+
+
+def lit_weighted(model, grid, weight, factor: float):
+    """``weight`` times ``factor`` on the cells (and layers) with a lit step among their own
+    (``--lit-weight``): the decisions where being seen is at stake, rare among all cells."""
+    from stealth_learn.jax_deps import jnp
+
+    _, lights, exists = model.inputs(grid)
+    lit = (exists & (lights >= model.threshold)).any(axis=-1)
+    lit = lit if model.phased else lit[:, 0]
+    return weight * jnp.where(lit, factor, 1.0)
 
 
 def accuracy(model, variables, grid, optimal, weight) -> float:
@@ -125,14 +180,16 @@ def train(args, log=print, progress: bool = False) -> dict:
     started = time.monotonic()
     directory = Path(tempfile.mkdtemp(prefix='generalist-'))
     sets = {'train': [], 'validation': []}
-    for index, (width, height, lights) in enumerate(SIZES):
-        options = Options(width=width, height=height, lights=lights)
+    for index, (width, height, lights) in enumerate(args.sizes):
+        options = Options(width=width, height=height, lights=lights, moving=args.moving)
         for name, count in (('train', args.train), ('validation', args.validation)):
             seeds = data.seeds_of(name, count, offset=index * 3_000)
-            sets[name].append(data.load_samples(seeds, options, directory, log))
+            sets[name].append(_of_lights(data.load_samples(seeds, options, directory, log),
+                                         args.moving, log))  # fmt: skip
             log(f'{name} {width}x{height} m: {len(sets[name][-1])} scenarios')
     generated = time.monotonic() - started
-    model = Vin(args.iterations, args.hidden, args.features, THRESHOLD)
+    layers, advance = _cycle(sum(sets['train'] + sets['validation'], []))
+    model = Vin(args.iterations, args.hidden, args.features, THRESHOLD, layers, advance)
     rng = np.random.default_rng(args.seed)
     small, every_size = sets['train'][0], sum(sets['train'], [])
     # one padded size per phase: a new batch shape would compile the step again
@@ -147,16 +204,20 @@ def train(args, log=print, progress: bool = False) -> dict:
 
     @jax.jit
     def update(variables, state, grid, optimal, weight):
+        weight = lit_weighted(model, grid, weight, args.lit_weight)
         loss, grads = jax.value_and_grad(lambda v: loss_fn(model, v, grid, optimal, weight))(
             variables
         )
         updates, state = optimiser.update(grads, state, variables)
         return optax.apply_updates(variables, updates), state, loss
 
-    evaluate = jax.jit(lambda v, g, o, w: loss_fn(model, v, g, o, w))
+    evaluate = jax.jit(
+        lambda v, g, o, w: loss_fn(model, v, g, o, lit_weighted(model, g, w, args.lit_weight))
+    )
     curve = {'step': [], 'train_loss': [], 'validation_loss': [], 'validation_accuracy': []}
     best = (np.inf, None, -1)
     losses = []
+    loop_started = time.monotonic()
     bar = tqdm(range(1, args.steps + 1), desc='training', unit='step', disable=not progress)
     for step in bar:
         phase = int(step > args.steps // 2)
@@ -179,6 +240,7 @@ def train(args, log=print, progress: bool = False) -> dict:
             )
             if v_loss < best[0]:
                 best = (v_loss, jax.tree_util.tree_map(np.asarray, variables['params']), step)
+    trained = time.monotonic() - loop_started
     return {
         'params': best[1],
         'selected_step': best[2],
@@ -187,11 +249,37 @@ def train(args, log=print, progress: bool = False) -> dict:
         'generate_seconds': generated,
         'seconds': time.monotonic() - started,
         'train_scenarios': len(every_size),
+        'layers': layers,
+        'advance': advance,
+        'samples_per_second': args.steps * args.batch / max(trained, 1e-9),
+        'train_seconds': trained,
     }
 
 
+def _of_lights(samples, moving: str, log) -> list:
+    """The samples whose lights are as asked: a building generated with moving lights may have
+    none that move (then it is static: skipped, and said)."""
+    kept = [s for s in samples if (s.grid.ndim == 4) == (moving != 'none')]
+    for s in samples:
+        if s not in kept:
+            log(f'seed {s.seed}: skipped (its lights are {"not " * (moving != "none")}moving)')
+    return kept
+
+
+def _cycle(samples) -> tuple[int, int]:
+    """(phase layers, layers a step advances) every sample shares ((1, 0): static);
+    DataError if they differ (one network reads one cycle)."""
+    cycles = {(s.grid.shape[0] if s.grid.ndim == 4 else 1, s.advance) for s in samples}
+    if len(cycles) != 1:
+        raise data.DataError(
+            f'the buildings have {len(cycles)} different light cycles (phase layers, step): '
+            f'{sorted(cycles)}; one time-aware network reads one'
+        )
+    return cycles.pop()
+
+
 def _shape(samples) -> tuple[int, int]:
-    return max(s.grid.shape[0] for s in samples), max(s.grid.shape[1] for s in samples)
+    return max(s.grid.shape[-3] for s in samples), max(s.grid.shape[-2] for s in samples)
 
 
 def plot_curve(curve: dict, path: Path) -> Path:
@@ -239,18 +327,23 @@ def main(argv=None) -> int:
         'hidden': args.hidden,
         'features': args.features,
         'threshold': THRESHOLD,
-    }
+        **({'layers': record['layers'], 'advance': record['advance']} if record['layers'] > 1
+           else {}),
+    }  # fmt: skip
     training = {
         'train_iterations': args.iterations,
         'steps': args.steps,
         'batch': args.batch,
         'lr': args.lr,
+        'lit_weight': args.lit_weight,
         'seed': args.seed,
         'train_scenarios': record['train_scenarios'],
         'selected_step': record['selected_step'],
         'validation_loss': record['validation_loss'],
         'seconds': round(record['seconds'], 1),
-        'sizes': [list(s) for s in SIZES],
+        'train_seconds': round(record['train_seconds'], 1),
+        'samples_per_second': round(record['samples_per_second'], 3),
+        'sizes': [list(s) for s in args.sizes],
     }
     try:
         path = policy_file.save(args.out, record['params'], 'full', architecture, training)

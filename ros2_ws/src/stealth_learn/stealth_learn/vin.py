@@ -24,16 +24,33 @@ decision is the attention on the robot's cell (its Q values are the logits).
   free cells. ``iterations`` must cover the longest covert path (60-120 steps on 30 x 30 m
   buildings); the weights are tied, so it can change at decision time.
 - **Decision**: logits = scale * Q(robot's cell) (scale learned), masked moves at -1e9.
+
+**Moving lights** (``layers`` > 1): the same network over the lattice model's time
+expansion (``stealth_core.lattice_model``): the value map is (phase layer, row, col), a step
+from layer t (a move or the wait, blocked or not) arrives at layer (t + ``advance``) mod
+``layers`` (``advance``: the timing's ``bins_per_step``), and the fifth action waits in place.
+Its input is the phased grid, (B, layers, R, C, 12): at each layer the grid of that layer's
+lights (``CHANNELS``; the robot channel 1 only at the robot's layer and cell: the phase is read
+there) and ``STEP_CHANNELS``, the light each step from there is judged on (the lattice model's
+``step_visibility``, exactly, -2 where the step does not exist: a wall or a blocked move, which
+only waits). The reward MLP reads, per layer and action, that step light, whether it is lit,
+the node light of the layer it arrives at, the goal and distance entered and the layer's
+context, with the same weights as above: one layer (so no wait) is exactly the static
+network (its step light the grid's move channels), so the static weights are these weights.
 """
 
 from __future__ import annotations
 
 from stealth_learn.jax_deps import jax, jnp, nn
+from stealth_learn.obs_layout import CHANNELS
 
 NUM_MOVES = 4  # up, down, left, right: static lights without exposure have no wait or turns
+WAIT = 4  # the fifth action where lights move (``stealth_core.task.WAIT``)
 NO_MOVE = -2.0  # obs_layout: the light where no node or move is
 MASKED = -1e9
 FREE, ROBOT, GOAL, LIGHT, MOVE_UP, MOVE_RIGHT = range(6)
+STEP_CHANNELS = ('step_up', 'step_down', 'step_left', 'step_right', 'step_wait')
+PHASED_CHANNELS = (*CHANNELS, *STEP_CHANNELS)  # the phased grid's channels
 
 
 def _shift(array, action: int, fill):
@@ -72,12 +89,25 @@ def goal_distance(goal):
 class Vin(nn.Module):
     """See the module docstring. ``iterations``: Bellman backups; ``hidden``: the reward MLP's
     width; ``features``: the 3x3 convolution's channels; ``threshold``: the detection threshold
-    of the scenarios it is for (the generator's ``THRESHOLD``), a fixed input feature."""
+    of the scenarios it is for (the generator's ``THRESHOLD``), a fixed input feature;
+    ``layers``, ``advance``: the phase layers of moving lights and the layers a step advances
+    (1, 0: static lights, the static grid as input; more layers add the wait action)."""
 
     iterations: int = 200
     hidden: int = 32
     features: int = 8
     threshold: float = 0.3
+    layers: int = 1
+    advance: int = 0
+
+    @property
+    def num_actions(self) -> int:
+        return NUM_MOVES + int(self.phased)
+
+    @property
+    def phased(self) -> bool:
+        """Whether the input is the phased grid (moving lights) rather than the static grid."""
+        return self.layers > 1
 
     def setup(self):
         self.context = nn.Conv(self.features, (3, 3), padding='SAME', name='context')
@@ -86,41 +116,71 @@ class Vin(nn.Module):
         self.goal_value = self.param('goal_value', nn.initializers.normal(1.0), ())
         self.scale = self.param('scale', nn.initializers.ones, ())
 
-    def rewards(self, grid):
-        """(B, R, C, 4) the learned reward of each move from each cell."""
+    def inputs(self, x):
+        """(grid (B, L, R, C, 7), step light (B, L, R, C, A), the step exists (same)) of the
+        static grid (B, R, C, 7) or the phased grid (B, L, R, C, 12); ValueError for a shape
+        this network does not read."""
+        x = jnp.asarray(x, jnp.float32)
+        if not self.phased:
+            if x.ndim != 4 or x.shape[-1] != len(CHANNELS):
+                raise ValueError(f'static network: expected a grid (B, R, C, 7), got {x.shape}')
+            lights, exists = move_features(x)
+            return x[:, None], lights[:, None], exists[:, None]
+        channels = len(CHANNELS) + self.num_actions
+        if x.ndim != 5 or x.shape[1] != self.layers or x.shape[-1] != channels:
+            raise ValueError(
+                f'time-aware network ({self.layers} phase layers): expected a phased grid '
+                f'(B, {self.layers}, R, C, {channels}), got {x.shape}'
+            )
+        lights = x[..., len(CHANNELS) :]
+        return x[..., : len(CHANNELS)], lights, lights > NO_MOVE + 0.5
+
+    def _after(self, array, action: int, fill):
+        """``array`` (B, L, R, C) as each step arrives in it: the layer ``advance`` on, the
+        neighbour the move goes to (the wait: the cell itself)."""
+        arrived = jnp.roll(array, -self.advance, axis=1) if self.advance else array
+        return arrived if action == WAIT else _shift(arrived, action, fill)
+
+    def rewards(self, x):
+        """The learned reward of each move from each cell, (B, R, C, 4) of a static grid, or
+        of each step from each cell and layer, (B, L, R, C, A), of a phased one."""
+        rewards = self._rewards(*self.inputs(x))
+        return rewards if self.phased else rewards[:, 0]
+
+    def _rewards(self, grid, lights, exists):
+        """(B, L, R, C, A) the learned reward of each step from each cell at each layer."""
         free, goal, light = grid[..., FREE], grid[..., GOAL], grid[..., LIGHT]
         node_light = jnp.where(free > 0.5, light, 0.0)
         context = nn.relu(self.context(jnp.stack([free, goal, node_light], axis=-1)))
-        lights, exists = move_features(grid)
         distance = goal_distance(goal)
-        per_move = []
-        for action in range(NUM_MOVES):
+        per_action = []
+        for action in range(self.num_actions):
             entered = jnp.stack(
                 [
                     jnp.where(exists[..., action], lights[..., action], 0.0),
                     (lights[..., action] >= self.threshold).astype(jnp.float32),
-                    _shift(node_light, action, 0.0),
-                    _shift(goal, action, 0.0),
-                    _shift(distance, action, 0.0),
+                    self._after(node_light, action, 0.0),
+                    self._after(goal, action, 0.0),
+                    self._after(distance, action, 0.0),
                 ],
                 axis=-1,
             )
-            per_move.append(jnp.concatenate([entered, context], axis=-1))
-        stacked = jnp.stack(per_move, axis=-2)  # (B, R, C, 4, 3 + features)
+            per_action.append(jnp.concatenate([entered, context], axis=-1))
+        stacked = jnp.stack(per_action, axis=-2)  # (B, L, R, C, A, 5 + features)
         hidden = nn.relu(self.reward_hidden(stacked))
         return self.reward_out(hidden)[..., 0]
 
-    def q_map(self, grid):
-        """(B, R, C, 4) the action values after ``iterations`` backups; masked moves MASKED."""
-        grid = jnp.asarray(grid, jnp.float32)
-        rewards = self.rewards(grid)
-        _, exists = move_features(grid)
+    def q_map(self, x):
+        """The action values after ``iterations`` backups, masked steps MASKED: (B, R, C, 4)
+        of a static grid, (B, L, R, C, A) of a phased one."""
+        grid, lights, exists = self.inputs(x)
+        rewards = self._rewards(grid, lights, exists)
         free, goal = grid[..., FREE] > 0.5, grid[..., GOAL] > 0.5
         goal_value = self.goal_value
 
         def backup(values):
-            after = jnp.stack([_shift(values, a, 0.0) for a in range(NUM_MOVES)], axis=-1)
-            return jnp.where(exists, rewards + after, MASKED)
+            after = [self._after(values, a, 0.0) for a in range(self.num_actions)]
+            return jnp.where(exists, rewards + jnp.stack(after, axis=-1), MASKED)
 
         def iterate(values, _):
             best = backup(values).max(axis=-1)
@@ -129,18 +189,20 @@ class Vin(nn.Module):
 
         values = jnp.where(goal, goal_value, 0.0)
         values, _ = jax.lax.scan(iterate, values, None, length=self.iterations)
-        return backup(values)
+        q = backup(values)
+        return q if self.phased else q[:, 0]
 
-    def __call__(self, grid):
-        """(B, 4) logits of the robot's cell (the grid's robot channel)."""
-        q = self.q_map(grid)
-        robot = jnp.asarray(grid, jnp.float32)[..., ROBOT]
-        at_robot = jnp.einsum('brc,brca->ba', robot, q)
+    def __call__(self, x):
+        """(B, A) logits at the robot's cell (and layer: the robot channel)."""
+        q = self.q_map(x)
+        robot = jnp.asarray(x, jnp.float32)[..., ROBOT]
+        # phased: the robot channel is 1 at its layer and cell only, so the sum reads both
+        at_robot = jnp.einsum('blrc,blrca->ba' if self.phased else 'brc,brca->ba', robot, q)
         return jnp.where(at_robot <= MASKED / 2, MASKED, self.scale * at_robot)
 
 
 def logits_of_cells(model: Vin, variables, grid):
-    """(B, R, C, 4) every cell's logits at once (the attention at every cell: what the
-    imitation loss reads)."""
+    """Every cell's logits at once, (B, R, C, 4) or phased (B, L, R, C, A) (the attention at
+    every cell and layer: what the imitation loss reads)."""
     q = model.apply(variables, grid, method=Vin.q_map)
     return jnp.where(q <= MASKED / 2, MASKED, variables['params']['scale'] * q)
