@@ -5,9 +5,10 @@ teaches every valid cell at once, not one trajectory). With moving lights, the p
 the layered value iteration's optimal actions (the four moves and the wait) at every cell of
 every layer.
 
-Plain numpy (no jax): ``stealth_core``'s generator, lattice model and ``value_iteration``;
+Computed in numpy: ``stealth_core``'s generator, lattice model and ``value_iteration``;
 ``env_tables`` for the grid channels the JAX environment observes, so the network trains on
-exactly what it sees when it acts.
+exactly what it sees when it acts. Its action numbering comes from ``vin``, so importing it
+needs the learning extra (jax).
 """
 
 from __future__ import annotations
