@@ -41,7 +41,7 @@ import math
 import numpy as np
 from stealth_core.light_belief import BeliefSettings, LightBelief
 from stealth_core.light_world import LightWorld, StepEvidence, evidence_of_step
-from stealth_core.planners import value_iteration
+from stealth_core.planners import follow, value_iteration
 from stealth_core.reward import detection_reward, step_reward, success_reward
 
 from .learners import LearnerConfig, TabularLearner, argmax_random, register_learner
@@ -117,9 +117,8 @@ class LightModelLearner(TabularLearner):
     # --- acting (exploration is the plan's: no random moves) -----------------------------------
 
     def act(self, s: int, rng: np.random.Generator, *, greedy: bool = False) -> int:
-        """Training's action: the rule's plan (the table's, ``greedy``); where that plan gives
-        up on the goal (it would wait out the episode: nothing learned), the optimistic plan's,
-        which tries the steps some heavy particle leaves dark."""
+        """Training's action: the rule's plan (the table's, ``greedy``), or the optimistic
+        plan's in a probe episode (module docstring)."""
         s = self._check_row(s)
         self.ensure_rows(s + 1)
         if greedy or self._explore is None or s >= self._explore.shape[0]:
@@ -187,9 +186,11 @@ class LightModelLearner(TabularLearner):
         self._reached_goal = False
 
     def _gives_up_from_start(self) -> bool:
-        """Whether the rule's plan, followed from the start, never enters the goal."""
+        """Whether the rule's plan, followed from the start (the first of tied actions), never
+        enters the goal within the step limit."""
         model = self._attached().world.model
-        return not reaches_goal(model, self._explore)[model.start]
+        path = follow(model, lambda place: int(np.argmax(self._explore[place])))
+        return not model.goal[path[-1]]
 
     def _worth_probing(self) -> bool:
         """Whether the next training episode should test the optimistic plan's route: the
@@ -327,18 +328,3 @@ class LightModelLearner(TabularLearner):
         if evidence.ndim != 2 or evidence.shape[1] != 4:
             raise ValueError(f'light-model evidence: expected (steps, 4), got {evidence.shape}')
         self._loaded_evidence = evidence
-
-
-def reaches_goal(model, q: np.ndarray) -> np.ndarray:
-    """(places,) bool: following ``q``'s best action (the first of ties) from each place, the
-    lattice's steps enter the goal within the step limit."""
-    places = np.arange(model.size)
-    after = model.successors[places, q[: model.size].argmax(axis=1)]
-    enters = model.goal[after]
-    reaches = enters.copy()
-    for _ in range(model.task.step_limit):
-        grown = enters | reaches[after]
-        if np.array_equal(grown, reaches):
-            break
-        reaches = grown
-    return reaches

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 from stealth_agent.learners import LearnerConfig, make_learner
-from stealth_agent.light_model import LightModelError, LightModelLearner, reaches_goal
+from stealth_agent.light_model import LightModelError, LightModelLearner
 from stealth_agent.policy_store import load_policy, save_policy
 from stealth_agent.protocol import ProtocolAgent
 from stealth_agent.state_index import StateIndex
@@ -185,7 +185,8 @@ def test_where_its_plan_gives_up_on_the_goal_training_probes_instead(tmp_path):
     timeout = EpisodeOutcome.TIMEOUT.name
     assert timeout not in trained, trained
     assert evaluated[-1] == EpisodeOutcome.SUCCESS.name, evaluated
-    assert reaches_goal(learner.world.model, learner.q)[learner.world.model.start]
+    model = learner.world.model
+    assert model.goal[follow(model, lambda place: int(np.argmax(learner.q[place])))[-1]]
 
 
 def test_after_a_success_it_tests_the_shorter_route_some_hypothesis_lights(tmp_path):
