@@ -33,8 +33,8 @@ from stealth_learn.hand_set import ScenarioReward, hand_set_params
 from stealth_learn.interruptible import interruptible
 from stealth_learn.jax_deps import jax, jnp
 from stealth_learn.jax_env import build
-from stealth_learn.obs_layout import CHANNELS, LayoutError, check_layout, phased_layout_id
-from stealth_learn.vin import PHASED_CHANNELS, ROBOT, Vin, logits_of_cells
+from stealth_learn.obs_layout import LayoutError, check_layout, phased_layout_id
+from stealth_learn.vin import ROBOT, Vin, logits_of_cells
 
 DEFAULT_POLICY = policy_file.SHIPPED
 
@@ -59,8 +59,7 @@ class GeneralistPolicy:
     def untrained(cls, architecture: dict, seed: int = 0) -> GeneralistPolicy:
         """The same architecture at its initialisation (the issue's untrained comparison)."""
         model = Vin(**architecture)
-        phased = (model.layers, 4, 4, len(PHASED_CHANNELS))
-        grid = jnp.zeros((1, *(phased if model.phased else (4, 4, len(CHANNELS)))), jnp.float32)
+        grid = jnp.zeros((1, *model.grid_shape(4, 4)), jnp.float32)
         params = model.init(jax.random.PRNGKey(seed), grid)['params']
         return cls(params, architecture, source=f'the untrained network (seed {seed})')
 
@@ -86,7 +85,7 @@ class GeneralistPolicy:
         time-aware one reads the phased grid of its phase count and step, so it needs moving
         lights of the same cycle (``model``: the scenario's lattice model, built if None)."""
         where = f'scenario {scenario.name!r} ({scenario.path})'
-        phased = Vin(**self.header['architecture']).phased
+        phased = self.model.phased
         if not phased and not scenario.has_moving_lights:
             return
         if not phased:

@@ -35,7 +35,6 @@ from stealth_core.gym_env import TRACKS
 from stealth_core.yaml_fields import FieldReader
 
 from stealth_learn.obs_layout import (
-    CHANNELS,
     PHASED_PREFIX,
     check_layout,
     layout_id,
@@ -350,15 +349,12 @@ def _check_sizes(training: FieldReader) -> None:
 @functools.lru_cache(maxsize=16)
 def _shapes(architecture: tuple) -> dict[str, tuple[int, ...]]:
     from stealth_learn.jax_deps import jax, jnp
-    from stealth_learn.vin import PHASED_CHANNELS, Vin
+    from stealth_learn.vin import Vin
 
     # abstract key and grid: no backend starts (no XLA threads in a process that forks later)
     key = jax.ShapeDtypeStruct((2,), jnp.uint32)
     model = Vin(**dict(architecture))
-    shape = (
-        (1, model.layers, 3, 3, len(PHASED_CHANNELS)) if model.phased else (1, 3, 3, len(CHANNELS))
-    )
-    grid = jax.ShapeDtypeStruct(shape, jnp.float32)
+    grid = jax.ShapeDtypeStruct((1, *model.grid_shape(3, 3)), jnp.float32)
     tree = jax.eval_shape(model.init, key, grid)['params']
     return {name: tuple(leaf.shape) for name, leaf in _flatten(tree).items()}
 

@@ -259,10 +259,12 @@ def train(args, log=print, progress: bool = False) -> dict:
 def _of_lights(samples, moving: str, log) -> list:
     """The samples whose lights are as asked: a building generated with moving lights may have
     none that move (then it is static: skipped, and said)."""
-    kept = [s for s in samples if (s.grid.ndim == 4) == (moving != 'none')]
+    wanted, kept = moving != 'none', []
     for s in samples:
-        if s not in kept:
-            log(f'seed {s.seed}: skipped (its lights are {"not " * (moving != "none")}moving)')
+        if (s.grid.ndim == 4) == wanted:
+            kept.append(s)
+        else:
+            log(f'seed {s.seed}: skipped (its lights are {"not " * wanted}moving)')
     return kept
 
 

@@ -109,6 +109,13 @@ class Vin(nn.Module):
         """Whether the input is the phased grid (moving lights) rather than the static grid."""
         return self.layers > 1
 
+    def grid_shape(self, rows: int, cols: int) -> tuple[int, ...]:
+        """The shape of one grid this network reads (no batch axis): (R, C, 7), or the phased
+        grid's (L, R, C, 12)."""
+        if self.phased:
+            return (self.layers, rows, cols, len(PHASED_CHANNELS))
+        return (rows, cols, len(CHANNELS))
+
     def setup(self):
         self.context = nn.Conv(self.features, (3, 3), padding='SAME', name='context')
         self.reward_hidden = nn.Dense(self.hidden, name='reward_hidden')
