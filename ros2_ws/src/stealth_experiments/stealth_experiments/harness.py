@@ -218,6 +218,16 @@ class RunSpec:
     # learning cost is then known, and the rest of the budget would only add to the wall time.
     stop_at_streak: bool = False
 
+    def __post_init__(self):
+        # The command lines check these; a script that builds a RunSpec gets the same line.
+        if self.episodes < 1 or self.eval_every < 1:
+            raise ValueError(
+                f'RunSpec: episodes and eval_every must be >= 1, got episodes {self.episodes}, '
+                f'eval_every {self.eval_every}'
+            )
+        if not 0.0 <= self.slip <= 1.0:
+            raise ValueError(f'RunSpec: slip must be a probability in [0, 1], got {self.slip}')
+
     @property
     def criterion(self) -> Criterion:
         """What a greedy evaluation must meet: the defaults, or the options in params

@@ -286,3 +286,11 @@ def test_with_slip_an_evaluation_is_judged_on_the_mean_of_its_rollouts():
     result = run(RunSpec(SCENARIO, 'dyna', 0, episodes=20, eval_every=10, slip=0.1))
     assert result.eval_met.tolist() == [False, False]
     assert result.episodes_to_criterion is None
+
+
+@pytest.mark.parametrize(
+    ('field', 'value'), [('episodes', 0), ('eval_every', 0), ('slip', 1.5), ('slip', -0.1)]
+)
+def test_a_run_spec_out_of_range_is_refused_naming_its_field(field, value):
+    with pytest.raises(ValueError, match=f'RunSpec: .*{field}'):
+        RunSpec('simple-maze', 'qlearning', 0, **{field: value})
