@@ -121,7 +121,7 @@ def plugin_source(args):
     run in one line (naming what to install, the path, or the weights and the scenario)."""
     if args.scenario is None:
         raise RunConfigError(
-            f'--learner {args.learner}: give --scenario (any, with static lights)'
+            f'--learner {args.learner}: give --scenario (any its weights can play)'
         )
     scenario = load_run_scenario(args.scenario)
     goal = check_goal(scenario, args.goal, None)
