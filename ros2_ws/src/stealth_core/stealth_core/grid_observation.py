@@ -168,24 +168,31 @@ class FullTrackGrid:
 
 def observed_grid(task, track: str, layout: str, model=None) -> FullTrackGrid | None:
     """The grids the environment node sends for parameters ``track`` and ``observation_layout``
-    (None: 'off'); ValueError, one line, where it has none to send. Track 'full': the static
-    grid, or the phased grid where lights move; exposure (headings) is in no grid. Track
-    'sensed': the belief, static lights without exposure only."""
+    (None: 'off'); ValueError, one line, where it has none to send (``check_grid``)."""
     if layout == 'off':
         return None
     if layout != 'grid':
         raise ValueError(f"expected 'off' or 'grid', got {layout!r}")
-    if track not in ('full', 'sensed'):
-        raise ValueError(f"'grid' is sent on track 'full' or 'sensed', not {track!r}")
+    check_grid(task, track)
     if model is None:
         from stealth_core.lattice_model import LatticeModel
 
         model = LatticeModel.build(task)
+    return FullTrackGrid(model, track=track)
+
+
+def check_grid(task, track: str) -> None:
+    """ValueError, one line, unless there is a grid to send for ``task`` (a
+    ``task.StealthTask``) on ``track``: track 'full', the static grid, or the phased grid where
+    lights move; track 'sensed', the belief, static lights only; exposure (headings) in none.
+    Read from the task alone (no lattice model), so a run checks it before anything starts."""
+    if track not in ('full', 'sensed'):
+        raise ValueError(f"'grid' is sent on track 'full' or 'sensed', not {track!r}")
     name = task.scenario.name
-    if model.headings != 1:
+    if task.headings != 1:
         raise ValueError(
             f"'grid' is for lights without exposure; scenario {name!r} weighs exposure by "
-            f'heading ({model.layers} layers): no grid carries the heading'
+            'heading: no grid carries the heading'
         )
     moving = task.scenario.has_moving_lights
     if moving and track == 'sensed':
@@ -194,9 +201,8 @@ def observed_grid(task, track: str, layout: str, model=None) -> FullTrackGrid | 
             'lights, which no network reads sensed (the time-aware generalist reads them on '
             "track 'full')"
         )
-    if model.layers != 1 and not moving:
+    if task.cycle_bins != 1 and not moving:
         raise ValueError(
-            f"'grid' is for static or moving lights; scenario {name!r} has {model.layers} "
-            'layers and no moving lights'
+            f"'grid' is for static or moving lights; scenario {name!r} has {task.cycle_bins} "
+            'phase bins and no moving lights'
         )
-    return FullTrackGrid(model, track=track)
