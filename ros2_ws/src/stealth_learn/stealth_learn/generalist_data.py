@@ -2,9 +2,8 @@
 reads and value iteration's optimal moves on every cell (dense imitation targets: one scenario
 teaches every valid cell at once, not one trajectory). With moving lights, the phased grid
 (``stealth_core.grid_observation``'s, what the environment node sends: every phase layer's
-grid and the light of each step from there) and
-the layered value iteration's optimal actions (the four moves and the wait) at every cell of
-every layer.
+grid and the light of each step from there) and the layered value iteration's optimal actions
+(the four moves and the wait) at every cell of every layer.
 
 Computed in numpy: ``stealth_core``'s generator, lattice model and ``value_iteration``;
 ``env_tables`` for the grid channels the JAX environment observes, so the network trains on
