@@ -3,8 +3,10 @@ generalist` on a shipped scenario it was never trained on (it was trained on gen
 buildings only) starts simulator, environment (observation_layout grid), agent (agent:
 generalist, the stealth_learn plugin) and recorder, and every episode reaches the goal
 undetected; the grid observation is recorded once, with the run. On the sensed track the
-belief grid goes out whenever what was sensed changes, and the robot crosses undetected too.
-Needs the learning extra (make learn; make test-system installs it)."""
+belief grid goes out whenever what was sensed changes, and the robot crosses undetected too. With
+moving lights and the time-aware weights, the phased grid goes out once and the robot crosses
+with the benchmark's agent's actions, waits included. Needs the learning extra (make learn; make
+test-system installs it)."""
 
 import json
 
@@ -17,7 +19,10 @@ try:
 except ImportError:
     pytest.skip('the generalist needs jax: make learn', allow_module_level=True)
 
+from stealth_learn.policy_file import SHIPPED  # noqa: E402
 from test_system import read_bag, system  # noqa: E402, F401 - the fixture
+
+MOVING_WEIGHTS = SHIPPED.with_name('generalist-moving.npz')  # the time-aware network
 
 
 def test_the_generalist_crosses_a_shipped_scenario_undetected(system, tmp_path):  # noqa: F811
@@ -80,3 +85,49 @@ def test_the_generalist_crosses_on_the_sensed_track_undetected(system):  # noqa:
     assert 1 < len(numbers) <= len(steps) + 1
     agent_log = (run / 'logs' / 'agent.log').read_text()
     assert 'grid observations planned on' in agent_log
+
+
+def test_the_time_aware_generalist_crosses_moving_lights_as_in_process(system):  # noqa: F811
+    """Moving lights: the environment sends the phased grid once (8 layers, 12 channels), the
+    agent decides at the state's (phase, cell), and the episode is the benchmark agent's
+    (``GeneralistAgent`` in the Gym env): the same actions, waits included, undetected at the
+    goal. The sensed track with moving lights is refused before anything starts."""
+    from stealth_core.gym_env import StealthNavEnv
+    from stealth_learn.generalist_agent import GeneralistAgent, load_policy
+
+    result = system.run(
+        'rollout', '--learner', 'generalist', '--policy', str(MOVING_WEIGHTS),
+        '--scenario', 'simple-maze-moving', '--episodes', '1', '--runs-dir', str(system.runs),
+        '--name', 'moving', timeout=120,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr + result.stdout
+    run = system.runs / 'moving'
+    summary = json.loads((run / 'summary.json').read_text())
+    assert summary['episodes'] == 1 and summary['outcomes']['SUCCESS'] == 1, summary['outcomes']
+
+    _, messages, _ = read_bag(run / 'recording.mcap')
+    (grid,) = messages['/rl_env/observation']  # sent once: the phased grid
+    assert grid.layout.startswith('stealth-phased-v1/full/8phases-1perstep/')
+    assert (grid.layers, grid.channels) == (8, 12) and grid.channel_names[-1] == 'step_wait'
+    assert len(grid.data) == grid.layers * grid.rows * grid.cols * grid.channels
+    steps = [step for step in messages['/rl_env/step_info'] if step.episode == 0]
+    assert steps[-1].terminal and not any(step.detected for step in steps)
+
+    env = StealthNavEnv('simple-maze-moving')
+    agent = GeneralistAgent(load_policy(MOVING_WEIGHTS), env)
+    observation, _ = env.reset(seed=0)
+    actions, done = [], False
+    while not done:
+        actions.append(agent.act(observation))
+        observation, _, terminated, truncated, _ = env.step(actions[-1])
+        done = terminated or truncated
+    assert [step.action for step in steps] == actions and 4 in actions  # the wait
+
+    refused = system.run(
+        'rollout', '--learner', 'generalist', '--policy', str(MOVING_WEIGHTS),
+        '--scenario', 'simple-maze-moving', '--set', 'environment.track=sensed',
+        '--runs-dir', str(system.runs), '--name', 'sensed-moving', timeout=120,
+    )  # fmt: skip
+    assert refused.returncode == 1 and len(refused.stderr.strip().splitlines()) == 1
+    assert "'grid' on track 'sensed' is for static lights" in refused.stderr
+    assert not (system.runs / 'sensed-moving').exists()

@@ -84,17 +84,23 @@ def keyed_description(description: EnvDescription, features: int) -> EnvDescript
 
 
 def grid_from_msg(msg) -> ObservedGrid:
-    """A GridObservation as numpy; BadInputError naming the field that does not fit."""
+    """A GridObservation as numpy: (rows, cols, channels), or (layers, rows, cols, channels)
+    for a phased grid (layers > 1); BadInputError naming the field that does not fit."""
+    layers = int(msg.layers)
     shape = (int(msg.rows), int(msg.cols), int(msg.channels))
+    if layers < 1:
+        raise BadInputError(f'GridObservation: layers {layers}, expected >= 1 (1: no phases)')
     data = np.frombuffer(msg.data, dtype=np.float32) if len(msg.data) else np.zeros(0, np.float32)
-    if 0 in shape or data.size != shape[0] * shape[1] * shape[2]:
+    if 0 in shape or data.size != layers * shape[0] * shape[1] * shape[2]:
         raise BadInputError(
-            f'GridObservation: data has {data.size} values, rows x cols x channels = '
-            f'{shape[0]} x {shape[1]} x {shape[2]} expected'
+            f'GridObservation: data has {data.size} values, layers x rows x cols x channels = '
+            f'{layers} x {shape[0]} x {shape[1]} x {shape[2]} expected'
         )
     geometry = (float(msg.resolution), float(msg.origin.x), float(msg.origin.y))
     if not (geometry[0] > 0 and all(np.isfinite(geometry))):
         raise BadInputError(f'GridObservation: resolution {geometry[0]} must be > 0 (m)')
+    if layers > 1:
+        shape = (layers, *shape)
     return ObservedGrid(str(msg.layout), data.reshape(shape).copy(), geometry)
 
 

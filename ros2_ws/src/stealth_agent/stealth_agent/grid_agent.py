@@ -11,11 +11,17 @@ on only with the grid it matches (``serves``): a state that comes before its gri
 robot's (x, y) in the map frame (the lattice node it stands on, the full track's state); the
 core sets that cell of the robot channel and asks the policy, which caches its plan per distinct
 grid (planned on as the grid arrives), so a decision is a lookup.
+
+With moving lights (track full) the grid is phased (layout ``stealth-phased-v1/...``,
+GridObservation layers > 1: one grid per bin of the lights' cycle, and each step's light): the
+robot is at the layer of the state's phase, its third feature (``stealth_core.task``: x, y,
+phase), as the in-process agent reads its place's layer (``stealth_learn.generalist_agent``).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 from stealth_core.grid_cells import cell_of
@@ -33,8 +39,13 @@ class ObservedGrid:
     the geometry (resolution, origin x, origin y; m, map frame)."""
 
     layout: str
-    grid: np.ndarray
+    grid: np.ndarray  # (layers, rows, cols, channels) for a phased grid
     geometry: tuple[float, float, float]
+
+    @property
+    def layers(self) -> int:
+        """Phase layers: 1, or the phased grid's (one per bin of the lights' cycle)."""
+        return self.grid.shape[0] if self.grid.ndim == 4 else 1
 
     @property
     def sensed(self) -> bool:
@@ -48,7 +59,7 @@ class ObservedGrid:
     def cell_of(self, x: float, y: float) -> tuple[int, int]:
         """(row, col) of map point (x, y); BadInputError outside the grid."""
         row, col = cell_of(self.geometry, x, y)
-        rows, cols = self.grid.shape[:2]
+        rows, cols = self.grid.shape[-3:-1]
         if not (0 <= row < rows and 0 <= col < cols):
             resolution, x0, y0 = self.geometry
             raise BadInputError(
@@ -56,6 +67,22 @@ class ObservedGrid:
                 f'cells of {resolution:g} m from ({x0:g}, {y0:g}))'
             )
         return row, col
+
+    def robot_at(self, vector) -> tuple[int, ...]:
+        """The index of the robot's cell for a state: (row, col) of its (x, y), and on a phased
+        grid (layer, row, col), the layer its phase (third feature); BadInputError for a state
+        outside the grid or without a phase the grid has."""
+        cell = self.cell_of(float(vector[0]), float(vector[1]))
+        layers = self.layers
+        if self.grid.ndim != 4:
+            return cell
+        phase = float(vector[2]) if len(vector) > 2 else math.nan
+        if not (math.isfinite(phase) and phase == int(phase) and 0 <= phase < layers):
+            raise BadInputError(
+                f'state {[float(v) for v in vector]}: expected its phase (third feature) an '
+                f'integer 0..{layers - 1}, the layers of the phased grid {self.layout}'
+            )
+        return (int(phase), *cell)
 
 
 @dataclasses.dataclass
@@ -114,10 +141,10 @@ class GridPolicyAgent(ProtocolAgent):
     def _greedy(self, row: int, vector: np.ndarray) -> int:
         if self.observed is None:
             raise BadInputError('no grid observation (rl_env/observation) yet')
-        r, c = self.observed.cell_of(float(vector[0]), float(vector[1]))
+        robot = (*self.observed.robot_at(vector), ROBOT)
         work = self._work
-        work[r, c, ROBOT] = 1.0
+        work[robot] = 1.0
         try:
             return int(self.policy(work))
         finally:
-            work[r, c, ROBOT] = 0.0
+            work[robot] = 0.0

@@ -16,11 +16,14 @@ and the agent parameter ``agent`` then takes its name (``agent: generalist``). T
   ``policy.check(layout)``: ValueError, one line naming both, unless it reads the environment's
   layout (GridObservation.layout, e.g. ``stealth-grid-v1/full/40x60``).
 - ``policy.check_scenario(path)`` (optional): ValueError, one line naming the weights and the
-  scenario file, for a scenario the policy cannot play (the generalist: moving lights); `stealth
-  rollout --learner` asks it before anything starts.
+  scenario file, for a scenario the policy cannot play (the generalist: static weights given
+  moving lights, time-aware ones given static lights or another cycle); `stealth rollout
+  --learner` asks it before anything starts.
 - ``policy(observation) -> int``: the action for one observation, a float32 (rows, cols,
-  channels) array in GridObservation's layout with the robot's cell set. A policy that
-  depends on the static channels only through a plan caches it (the agent's decision time).
+  channels) array in GridObservation's layout with the robot's cell set, or (layers, rows,
+  cols, channels) for a phased grid with the robot's cell set at its phase's layer. A policy
+  that depends on the static channels only through a plan caches it (the agent's decision
+  time).
 
 Plain Python (importlib.metadata); no rclpy.
 """

@@ -34,7 +34,7 @@ class RecordingPolicy:
 
     def __call__(self, grid):
         self.grids.append(grid.copy())
-        row, col = np.unravel_index(int(np.argmax(grid[..., 1])), grid.shape[:2])
+        *_, col = np.unravel_index(int(np.argmax(grid[..., 1])), grid.shape[:-1])
         return int(col) % 4
 
 
@@ -97,6 +97,54 @@ def test_the_grid_message_is_read_and_checked():
         observed.cell_of(10.0, 2.0)
     with pytest.raises(BadInputError, match='data has 5 values'):
         grid_from_msg(grid_msg(data=[0.0] * 5))
+
+
+def phased_grid_msg(layers=3, data=None):
+    """A phased grid (moving lights): ``layers`` layers of 12 channels."""
+    message = grid_msg(layout=f'test-grid/full/{layers}phases-1perstep/{ROWS}x{COLS}')
+    message.layers, message.channels = layers, 12
+    grid = np.zeros((layers, ROWS, COLS, 12), np.float32)
+    grid[..., 0] = 1.0
+    message.data = grid.ravel().tolist() if data is None else data
+    return message
+
+
+def test_a_phased_grid_is_read_with_its_layers():
+    observed = grid_from_msg(phased_grid_msg())
+    assert observed.grid.shape == (3, ROWS, COLS, 12) and observed.layers == 3
+    assert observed.robot_at([0.25, 2.25, 2.0]) == (2, 0, 2)
+    assert grid_from_msg(grid_msg()).robot_at([0.25, 2.25, 2.0]) == (0, 2)  # no layers
+    for phase in (3.0, -1.0, 1.5, float('nan')):
+        with pytest.raises(BadInputError, match=r'phase \(third feature\) an integer 0\.\.2'):
+            observed.robot_at([0.25, 2.25, phase])
+    with pytest.raises(BadInputError, match='phase'):
+        observed.robot_at([0.25, 2.25])
+    with pytest.raises(BadInputError, match=r'data has 144 values, .* = 2 x 3 x 4 x 12'):
+        grid_from_msg(phased_grid_msg(layers=2, data=[0.0] * 144))
+    message = grid_msg()
+    message.layers = 0
+    with pytest.raises(BadInputError, match='GridObservation: layers 0, expected >= 1'):
+        grid_from_msg(message)
+
+
+def test_on_a_phased_grid_the_robot_is_at_its_states_phase(plugins):
+    """Moving lights: the state is (x, y, phase) and the robot channel is set at the phase's
+    layer and the cell of (x, y); one grid serves every state."""
+    node = FakeNode(agent='recording')
+    loop = AgentLoop(node)
+    loop.on_description(RLEnvDescription(
+        num_actions=5, min_state_range=[-1.0, 2.0, 0.0], max_state_range=[1.0, 3.5, 2.0],
+        title='t',
+    ))  # fmt: skip
+    loop.on_observation(phased_grid_msg())
+    loop.on_state(RLStateReward(state=[0.25, 2.25, 2.0]), 1)
+    loop.on_state(RLStateReward(state=[-0.75, 3.25, 0.0], reward=-1.0), 2)
+    assert node.actions == [2, 0]
+    _, first, second = loop.core.policy.grids  # the plan on arrival, then each decision
+    assert first.shape == (3, ROWS, COLS, 12)
+    assert first[2, 0, 2, 1] == 1.0 and first[..., 1].sum() == 1.0
+    assert second[0, 2, 0, 1] == 1.0 and second[..., 1].sum() == 1.0
+    assert len(loop.plan_seconds) == 1
 
 
 def state(x, y, reward=0.0, terminal=False):

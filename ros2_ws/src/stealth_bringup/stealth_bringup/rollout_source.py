@@ -121,7 +121,7 @@ def plugin_source(args):
     run in one line (naming what to install, the path, or the weights and the scenario)."""
     if args.scenario is None:
         raise RunConfigError(
-            f'--learner {args.learner}: give --scenario (any, with static lights)'
+            f'--learner {args.learner}: give --scenario (any its weights can play)'
         )
     scenario = load_run_scenario(args.scenario)
     goal = check_goal(scenario, args.goal, None)
@@ -145,3 +145,16 @@ def plugin_source(args):
         lines = done.stderr.strip().splitlines() or [f'exit code {done.returncode}']
         raise RunConfigError(f'--learner {args.learner}: {lines[-1]}')
     return scenario, goal, Path(done.stdout.strip().splitlines()[-1]), args.params_dir, []
+
+
+def check_plugin_grid(scenario, goal: str, learner: str, track: str) -> None:
+    """RunConfigError, one line, where the environment would have no grid to send the plugin
+    on ``track`` (``grid_observation.check_grid``: the sensed track with moving lights, or
+    exposure), before anything starts rather than at the environment's startup."""
+    from stealth_core.grid_observation import check_grid
+    from stealth_core.task import StealthTask
+
+    try:
+        check_grid(StealthTask(scenario, goal), track)
+    except ValueError as error:
+        raise RunConfigError(f'--learner {learner}: environment.track {track}: {error}') from None

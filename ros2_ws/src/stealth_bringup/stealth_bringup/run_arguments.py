@@ -306,9 +306,10 @@ def rollout_parser() -> argparse.ArgumentParser:
         '--learner',
         metavar='NAME',
         help='a policy plugin instead of a saved table (stealth_agent.policy_plugins: '
-        'generalist, the lights-known generalist, needs make learn) on any --scenario with '
-        'static lights; its weights --policy (default: the ones it ships); the environment '
-        'sends it the grid observation (observation_layout grid)',
+        'generalist, the lights-known generalist, needs make learn) on any --scenario its '
+        'weights can play: static lights with the shipped ones, moving lights with the '
+        'time-aware generalist-moving.npz; its weights --policy (default: the static ones it '
+        'ships); the environment sends it the grid observation (observation_layout grid)',
     )
     parser.add_argument(
         '--scenario',

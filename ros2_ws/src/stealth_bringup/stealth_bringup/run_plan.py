@@ -23,7 +23,7 @@ from stealth_tools.bag_files import next_recording_file
 from stealth_bringup.episode_budget import STATE_ACTIONS_PER_EPISODE, default_episode_budget
 from stealth_bringup.parameter_checks import check_parameters
 from stealth_bringup.prior_policy import write_prior_policy
-from stealth_bringup.rollout_source import rollout_source
+from stealth_bringup.rollout_source import check_plugin_grid, rollout_source
 from stealth_bringup.run_arguments import (
     COMMAND_OF_MODE,
     DEFAULT_EPISODES,
@@ -364,6 +364,7 @@ def make_plan(args, mode: str, argv: Sequence[str]) -> RunPlan:
         policy_path = source_policy
         learner = getattr(args, 'learner', None)
         if learner is not None:  # a policy plugin: the environment sends it the grid
+            check_plugin_grid(scenario, goal, learner, parameters['environment'].values['track'])
             parameters['agent'].values['agent'] = learner
             parameters['environment'].values['observation_layout'] = 'grid'
         agent = {

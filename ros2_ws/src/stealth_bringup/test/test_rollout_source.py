@@ -134,6 +134,45 @@ def test_a_plugin_refuses_a_scenario_it_cannot_play_naming_both(tmp_path):
     assert '\n' not in message and not list(tmp_path.iterdir())
 
 
+def test_time_aware_weights_play_moving_lights_of_their_cycle_on_the_full_track(tmp_path):
+    """The time-aware weights run on moving lights (the environment sends the phased grid);
+    they are refused before anything starts, in one line, on static lights and for another
+    cycle (naming both layouts), and on the sensed track (no phased belief)."""
+    pytest.importorskip('jax', reason='the generalist plugin needs the learning extra')
+    from stealth_learn.generalist import GeneralistPolicy
+    from stealth_learn.policy_file import SHIPPED, save
+
+    moving = str(SHIPPED.with_name('generalist-moving.npz'))
+    plan = plugin_plan(tmp_path / 'ok', '--learner', 'generalist', '--policy', moving,
+                       '--scenario', 'simple-maze-moving')  # fmt: skip
+    assert plan.parameters['agent'].values['policy_file'] == moving
+    assert plan.parameters['environment'].values['observation_layout'] == 'grid'
+    refused = tmp_path / 'refused'
+    with pytest.raises(RunConfigError) as error:
+        plugin_plan(refused, '--learner', 'generalist', '--policy', moving,
+                    '--scenario', 'simple-maze')  # fmt: skip
+    message = str(error.value)
+    assert "the policy is time-aware (layout 'stealth-phased-v1/full/8phases-1perstep')" in message
+    assert "has static lights (layout 'stealth-grid-v1/full')" in message
+    architecture = {'iterations': 20, 'hidden': 4, 'features': 2, 'threshold': 0.3}
+    architecture.update(layers=4, advance=1)
+    other = save(tmp_path / 'four.npz', GeneralistPolicy.untrained(architecture).variables[
+        'params'], 'full', architecture)  # fmt: skip
+    with pytest.raises(RunConfigError) as cycle:
+        plugin_plan(refused, '--learner', 'generalist', '--policy', str(other),
+                    '--scenario', 'simple-maze-moving')  # fmt: skip
+    assert "'stealth-phased-v1/full/4phases-1perstep'" in str(cycle.value)
+    assert "'stealth-phased-v1/full/8phases-1perstep'" in str(cycle.value)
+    with pytest.raises(RunConfigError) as sensed:
+        plugin_plan(refused, '--learner', 'generalist', '--policy', moving, '--scenario',
+                    'simple-maze-moving', '--set', 'environment.track=sensed')  # fmt: skip
+    assert str(sensed.value).startswith('--learner generalist: environment.track sensed: ')
+    assert "scenario 'simple-maze-moving' has moving lights" in str(sensed.value)
+    for each in (error, cycle, sensed):
+        assert '\n' not in str(each.value)
+    assert not refused.exists()
+
+
 def test_a_plugin_needs_a_scenario_and_must_exist(tmp_path):
     with pytest.raises(RunConfigError, match='give --scenario'):
         plugin_plan(tmp_path, '--learner', 'generalist')

@@ -21,6 +21,17 @@ On the lights-sensed track (``track: sensed``) the environment sends the belief 
 (``FullTrackGrid.belief``, layout ``stealth-grid-v1/sensed/RxC``): the same free and goal, light
 and moves as last sensed (the Gym env's sensed observation: -1 never sensed, -2 no node or
 move), age 0; whenever what was sensed changes.
+
+With moving lights (track 'full', no exposure) it is the phased grid (``FullTrackGrid.phased``,
+layout ``stealth-phased-v1/full/<L>phases-<a>perstep/RxC``: L the cycle's bins, a the bins a
+step advances), a float32 (L, rows, cols, 12) array, channels ``PHASED_CHANNELS``: at each
+layer (bin) the grid above with that bin's lights, then ``STEP_CHANNELS``, the light each step
+from there is judged on (the lattice model's ``step_visibility`` exactly: the four moves and the
+wait), -2 where the step does not exist (no node, or a move the map blocks, which only waits).
+Why not the grid's own move channels: they are the most light of a move either way at the bin's
+start, and a wait's light (the node over the step's time) is in none. Every channel but the
+robot's depends only on the scenario and the goal, so one phased grid serves a whole run; the
+time-aware generalist (``stealth_learn``) trains on it and reads it at the robot's (layer, cell).
 """
 
 from __future__ import annotations
@@ -28,16 +39,27 @@ from __future__ import annotations
 import numpy as np
 
 from stealth_core.grid_cells import cell_of
-from stealth_core.sensing import Sensing
+from stealth_core.sensing import NO_PLACE, Sensing
+from stealth_core.task import WAIT
 
 VERSION = 'v1'
 CHANNELS = ('free', 'robot', 'goal', 'light', 'move_up', 'move_right', 'age')
 FREE, ROBOT, GOAL, LIGHT, MOVE_UP, MOVE_RIGHT, AGE = range(len(CHANNELS))
+STEP_CHANNELS = ('step_up', 'step_down', 'step_left', 'step_right', 'step_wait')
+PHASED_CHANNELS = (*CHANNELS, *STEP_CHANNELS)  # the phased grid's (moving lights)
+PHASED_PREFIX = f'stealth-phased-{VERSION}/'  # every phased grid's id starts so
 
 
 def layout_id(track: str, rows: int, cols: int) -> str:
     """The grid layout's id for a track and a lattice size, e.g. ``stealth-grid-v1/full/40x60``."""
     return f'stealth-grid-{VERSION}/{track}/{rows}x{cols}'
+
+
+def phased_layout_id(track: str, layers: int, advance: int, rows=None, cols=None) -> str:
+    """The phased grid's id for a track, its phase layers and the layers a step advances, e.g.
+    ``stealth-phased-v1/full/8phases-1perstep/40x60``; without its size when ``rows`` is None."""
+    base = f'{PHASED_PREFIX}{track}/{layers}phases-{advance}perstep'
+    return base if rows is None else f'{base}/{rows}x{cols}'
 
 
 def stack(free, goal, light, moves, robot=None, age=None) -> np.ndarray:
@@ -77,7 +99,8 @@ def lattice_geometry(task) -> tuple[float, float, float]:
 
 class FullTrackGrid:
     """The grids of one lattice model (``lattice_model.LatticeModel``): the lights-known grid
-    (``static``) and, for ``track`` 'sensed', the belief (``belief``)."""
+    (``static``), the phased grid where lights move (``phased``) and, for ``track`` 'sensed',
+    the belief (``belief``)."""
 
     def __init__(self, model, sensing: Sensing | None = None, track: str = 'full'):
         self.model = model
@@ -91,14 +114,47 @@ class FullTrackGrid:
         self.goal = np.zeros(self.shape, bool)
         self.goal[rows, cols] = model.goal[:n]
         self.geometry = lattice_geometry(model.task)
+        # What the environment sends on the full track: the phased grid where lights move.
+        self.timed = track == 'full' and model.task.scenario.has_moving_lights
 
     def layout(self) -> str:
+        if self.timed:
+            timing = self.model.task.timing
+            return phased_layout_id(
+                self.track, self.model.layers, timing.bins_per_step, *self.shape
+            )
         return layout_id(self.track, *self.shape)
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        """The channel names of the grid ``full`` gives (GridObservation.channel_names)."""
+        return PHASED_CHANNELS if self.timed else CHANNELS
+
+    def full(self) -> np.ndarray:
+        """The lights-known grid sent once a run: the phased grid where lights move, else the
+        static one."""
+        return self.phased() if self.timed else self.static()
 
     def static(self, layer: int = 0) -> np.ndarray:
         """(R, C, 7) the grid at ``layer`` (bin and heading) with the robot channel 0."""
         light, moves = light_grids(self.sensing, layer * self.sensing.n)
         return stack(self.free, self.goal, light, moves)
+
+    def phased(self) -> np.ndarray:
+        """(L, R, C, 12) the phased grid (module docstring) with the robot channel 0: each
+        layer's ``static`` grid, then the light of each step from there (-2 where the step does
+        not exist)."""
+        model, sensing = self.model, self.sensing
+        layers, n = model.layers, sensing.n
+        grids = np.stack([self.static(layer) for layer in range(layers)])
+        actions = WAIT + 1
+        after = model.node_of(model.successors[:, :WAIT]).reshape(layers, n, WAIT)
+        moved = after != np.arange(n)[:, None]
+        exists = np.concatenate([moved, np.ones((layers, n, 1), bool)], -1)
+        light = model.step_visibility[:, :actions].astype(np.float32).reshape(layers, n, actions)
+        steps = np.full((layers, *self.shape, actions), NO_PLACE, np.float32)
+        steps[:, sensing.grid_row, sensing.grid_col] = np.where(exists, light, NO_PLACE)
+        return np.concatenate([grids, steps], -1)
 
     def belief(self, light, moves) -> np.ndarray:
         """(R, C, 7) the sensed track's grid of (R, C) node light and (2, R, C) move light as
@@ -112,21 +168,41 @@ class FullTrackGrid:
 
 def observed_grid(task, track: str, layout: str, model=None) -> FullTrackGrid | None:
     """The grids the environment node sends for parameters ``track`` and ``observation_layout``
-    (None: 'off'); ValueError, one line, where it has none to send: static lights without
-    exposure (one layer) only, the lights-known grid on track 'full', the belief on 'sensed'."""
+    (None: 'off'); ValueError, one line, where it has none to send (``check_grid``)."""
     if layout == 'off':
         return None
     if layout != 'grid':
         raise ValueError(f"expected 'off' or 'grid', got {layout!r}")
-    if track not in ('full', 'sensed'):
-        raise ValueError(f"'grid' is sent on track 'full' or 'sensed', not {track!r}")
+    check_grid(task, track)
     if model is None:
         from stealth_core.lattice_model import LatticeModel
 
         model = LatticeModel.build(task)
-    if model.layers != 1:
-        raise ValueError(
-            f"'grid' is for static lights without exposure (1 layer); scenario "
-            f'{task.scenario.name!r} has {model.layers} layers (moving lights or exposure)'
-        )
     return FullTrackGrid(model, track=track)
+
+
+def check_grid(task, track: str) -> None:
+    """ValueError, one line, unless there is a grid to send for ``task`` (a
+    ``task.StealthTask``) on ``track``: track 'full', the static grid, or the phased grid where
+    lights move; track 'sensed', the belief, static lights only; exposure (headings) in none.
+    Read from the task alone (no lattice model), so a run checks it before anything starts."""
+    if track not in ('full', 'sensed'):
+        raise ValueError(f"'grid' is sent on track 'full' or 'sensed', not {track!r}")
+    name = task.scenario.name
+    if task.headings != 1:
+        raise ValueError(
+            f"'grid' is for lights without exposure; scenario {name!r} weighs exposure by "
+            'heading: no grid carries the heading'
+        )
+    moving = task.scenario.has_moving_lights
+    if moving and track == 'sensed':
+        raise ValueError(
+            f"'grid' on track 'sensed' is for static lights; scenario {name!r} has moving "
+            'lights, which no network reads sensed (the time-aware generalist reads them on '
+            "track 'full')"
+        )
+    if task.cycle_bins != 1 and not moving:
+        raise ValueError(
+            f"'grid' is for static or moving lights; scenario {name!r} has {task.cycle_bins} "
+            'phase bins and no moving lights'
+        )

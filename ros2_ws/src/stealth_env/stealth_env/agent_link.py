@@ -6,13 +6,14 @@ track (a ``sensed_track.SensedTrack``) the description and every RLStateReward c
 robot sensed (its layout: ``stealth_env.sensed_track``); StepInfo keeps the full track's state.
 With a ``grid_observation.FullTrackGrid`` (parameter observation_layout grid) the grid goes out
 on ``rl_env/observation``, latched as the description is. Track 'full': with the description,
-once: with static lights every channel but the robot's is fixed, so once is enough and a
-recording stays small (the robot's cell is each state's x, y); sent per step it would be ~100 KB
-a step. Track 'sensed': the belief grid, with the description (nothing sensed yet: the agent
-plans on it, compiling, before it takes states) and whenever what was sensed changes (each
-episode's first state, then a step that sensed something new), just before that state, numbered
-with its episode and step; the state carries the same sensed light, which is how the agent
-matches them.
+once: every channel but the robot's is fixed, so once is enough and a recording stays small
+(the robot's cell is each state's x, y); sent per step it would be ~100 KB a step. With moving
+lights it is the phased grid (``FullTrackGrid.phased``: every bin's lights and each step's
+light; the robot's layer is each state's phase). Track 'sensed': the belief grid, with the
+description (nothing sensed yet: the agent plans on it, compiling, before it takes states)
+and whenever what was sensed changes (each episode's first state, then a step that sensed
+something new), just before that state, numbered with its episode and step; the state carries
+the same sensed light, which is how the agent matches them.
 """
 
 from __future__ import annotations
@@ -148,13 +149,13 @@ class AgentLink:
         if self.grid is not None:  # sensed: nothing sensed yet (the agent plans on it, ready)
             sensed, full = self.sensed, self.grid.track == 'full'
             belief = None if full else self.grid.belief(sensed.light, sensed.moves)
-            self._publish_grid(self.grid.static() if full else belief)
+            self._publish_grid(self.grid.full() if full else belief)
 
     def _publish_grid(self, grid, episode: int = 0, step: int = 0) -> None:
         t = self.node.get_clock().now().nanoseconds * 1e-9
-        layout, geometry = self.grid.layout(), self.grid.geometry
+        layout, geometry, names = self.grid.layout(), self.grid.geometry, self.grid.channels
         self._observation_pub.publish(
-            grid_observation_msg(grid, layout, geometry, t, episode, step)
+            grid_observation_msg(grid, layout, geometry, t, episode, step, names)
         )
 
     def _publish_belief(self, episode: int) -> None:

@@ -103,17 +103,25 @@ def state_reward_msg(state, reward: float = 0.0, terminal: bool = False) -> RLSt
 
 
 def grid_observation_msg(
-    grid: np.ndarray, layout: str, geometry, t: float, episode: int = 0, step: int = 0
+    grid: np.ndarray,
+    layout: str,
+    geometry,
+    t: float,
+    episode: int = 0,
+    step: int = 0,
+    channel_names=CHANNELS,
 ) -> GridObservation:
-    """GridObservation of a (rows, cols, channels) float32 grid (``grid_observation``), its
-    layout id and (resolution, origin x, origin y) (``grid_observation.lattice_geometry``), for
-    the state of ``episode`` and ``step`` (the sensed track's; 0 on the full track's)."""
+    """GridObservation of a (rows, cols, channels) float32 grid, or a phased grid (layers, rows,
+    cols, channels) (``grid_observation``), its layout id, channel names and (resolution,
+    origin x, origin y) (``grid_observation.lattice_geometry``), for the state of ``episode``
+    and ``step`` (the sensed track's; 0 on the full track's)."""
     grid = np.ascontiguousarray(grid, dtype=np.float32)
-    rows, cols, channels = grid.shape
+    layers, rows, cols, channels = grid.shape if grid.ndim == 4 else (1, *grid.shape)
     message = GridObservation(layout=layout, rows=rows, cols=cols, channels=channels)
+    message.layers = layers
     message.episode, message.step = int(episode), int(step)
     message.header.stamp, message.header.frame_id = time_msg(t), MAP_FRAME
-    message.channel_names = list(CHANNELS)
+    message.channel_names = list(channel_names)
     resolution, x, y = geometry
     message.resolution = float(resolution)
     message.origin = Point(x=float(x), y=float(y), z=0.0)

@@ -35,10 +35,11 @@ PARAMETERS = {
         'the sensed field also on sensed_light).', read_only=True,
     ),
     'observation_layout': Param(
-        'off', "Also send the agent an observation on rl_env/observation: 'grid' (static lights: "
-        'stealth_core.grid_observation as GridObservation, latched; track full: once; track '
-        'sensed: the belief whenever what was sensed changes; what the generalist reads) or '
-        "'off' (nothing: recordings stay small).", read_only=True,
+        'off', "Also send the agent an observation on rl_env/observation: 'grid' "
+        '(stealth_core.grid_observation as GridObservation, latched; track full: once, the '
+        'phased grid where lights move; track sensed, static lights: the belief whenever what '
+        "was sensed changes; what the generalist reads) or 'off' (nothing: recordings stay "
+        'small).', read_only=True,
     ),
     'judge_on': Param(
         'true',

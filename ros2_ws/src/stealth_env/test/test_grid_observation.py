@@ -1,11 +1,13 @@
 """The lights-known grid observation (grid_observation): its channels against the lattice model
-and the sensing geometry it is laid on, the cell of a node's point, and the scenarios it is
-refused for (one line each). stealth_learn's equality with it: stealth_learn/test."""
+and the sensing geometry it is laid on, the cell of a node's point, the phased grid of moving
+lights, and the scenarios it is refused for (one line each). stealth_learn's equality with it:
+stealth_learn/test."""
 
 import numpy as np
 import pytest
 from stealth_core.grid_observation import (
     CHANNELS,
+    PHASED_CHANNELS,
     FullTrackGrid,
     cell_of,
     layout_id,
@@ -73,9 +75,45 @@ def test_observed_grid_only_where_one_grid_serves_a_run(maze):
     with pytest.raises(ValueError, match="expected 'off' or 'grid', got 'pixels'"):
         observed_grid(task, 'full', 'pixels', model)
     moving = StealthTask(load_scenario('simple-maze-moving'))
-    for track in ('full', 'sensed'):  # static lights only
-        with pytest.raises(ValueError, match=r"'simple-maze-moving' has \d+ layers"):
-            observed_grid(moving, track, 'grid')
+    phased = observed_grid(moving, 'full', 'grid')
+    assert phased.layout().startswith('stealth-phased-v1/full/8phases-1perstep/')
+    assert phased.channels == PHASED_CHANNELS
+    with pytest.raises(
+        ValueError, match=r"on track 'sensed' is for static lights; scenario 'simple-maze-moving'"
+    ):
+        observed_grid(moving, 'sensed', 'grid')
+    exposure = StealthTask(load_scenario('simple-maze-exposure'))
+    for track in ('full', 'sensed'):  # no grid carries the heading
+        with pytest.raises(ValueError, match=r"'simple-maze-exposure' weighs exposure"):
+            observed_grid(exposure, track, 'grid')
+
+
+def test_the_phased_grid_is_every_bins_grid_and_each_steps_light():
+    """With moving lights the full track's grid is phased: layer k is the static grid of bin k,
+    then the light the lattice model judges each step from there on (-2 where the step does not
+    exist: a move the map blocks only waits); the message carries every layer."""
+    task = StealthTask(load_scenario('simple-maze-moving'))
+    model = LatticeModel.build(task)
+    grid = observed_grid(task, 'full', 'grid', model)
+    phased = grid.full()
+    sensing, n = grid.sensing, grid.sensing.n
+    rows, cols = sensing.grid_row, sensing.grid_col
+    assert phased.shape == (8, *sensing.shape, 12) and phased.dtype == np.float32
+    for layer in range(8):
+        np.testing.assert_array_equal(phased[layer, ..., :7], grid.static(layer))
+        places = slice(layer * n, (layer + 1) * n)
+        steps = phased[layer, rows, cols, 7:]
+        moved = model.successors[places, :4] % n != np.arange(n)[:, None]
+        exists = np.concatenate([moved, np.ones((n, 1), bool)], 1)
+        truth = model.step_visibility[places].astype(np.float32)
+        np.testing.assert_array_equal(steps[exists], truth[exists])
+        assert (steps[~exists] == NO_PLACE).all() and (~exists).any()
+    assert (phased[:, ~grid.free, 7:] == NO_PLACE).all()
+    message = grid_observation_msg(phased, grid.layout(), grid.geometry, 1.0, 0, 0, grid.channels)
+    assert (message.layers, message.rows, message.cols, message.channels) == phased.shape
+    assert list(message.channel_names) == list(PHASED_CHANNELS)
+    back = np.frombuffer(message.data, dtype=np.float32).reshape(phased.shape)
+    np.testing.assert_array_equal(back, phased)
 
 
 def test_the_message_carries_the_grid_row_major(maze):
@@ -84,6 +122,7 @@ def test_the_message_carries_the_grid_row_major(maze):
     message = grid_observation_msg(static, grid.layout(), grid.geometry, 12.5)
     assert message.header.frame_id == 'map' and message.header.stamp.sec == 12
     assert (message.rows, message.cols, message.channels) == static.shape
+    assert message.layers == 1
     assert list(message.channel_names) == list(CHANNELS)
     assert message.layout == grid.layout()
     assert (message.resolution, message.origin.x, message.origin.y) == pytest.approx(grid.geometry)

@@ -209,7 +209,7 @@ def rollout(policy: GeneralistPolicy, scenario) -> Episode:
     one = env.scenario(params, 0)
     obs, state = env.reset(jax.random.PRNGKey(0), one)
     phased = policy.model.phased
-    grid = data.phased_grid(arrays.tables(env.dims)) if phased else np.asarray(obs.grid)
+    grid = data.phased_grid(arrays) if phased else np.asarray(obs.grid)
     logits = policy.cell_logits(grid)
     # per place of the padded grid (phased: layer * cells + cell, the env's place)
     actions = jnp.asarray(logits.argmax(-1).reshape(-1))

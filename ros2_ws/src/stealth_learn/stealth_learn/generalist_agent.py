@@ -97,7 +97,7 @@ class GeneralistAgent:
         self.policy, self.env, self.unknown = policy, env, unknown
         arrays = TaskArrays(env.scenario, model=env.model)
         self.tables = arrays.tables()
-        self._phased_grid = phased_grid(self.tables) if self.phased else None
+        self._phased_grid = phased_grid(arrays) if self.phased else None
         sensing = arrays.sensing
         self.nodes = sensing.n
         self.row, self.col = sensing.grid_row, sensing.grid_col

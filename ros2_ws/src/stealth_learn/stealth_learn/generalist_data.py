@@ -1,9 +1,9 @@
 """The generalist's data: generated scenarios of one seed range, each as the grid the network
 reads and value iteration's optimal moves on every cell (dense imitation targets: one scenario
 teaches every valid cell at once, not one trajectory). With moving lights, the phased grid
-(``vin.PHASED_CHANNELS``: every phase layer's grid and the light of each step from there) and
-the layered value iteration's optimal actions (the four moves and the wait) at every cell of
-every layer.
+(``stealth_core.grid_observation``'s, what the environment node sends: every phase layer's
+grid and the light of each step from there) and the layered value iteration's optimal actions
+(the four moves and the wait) at every cell of every layer.
 
 Computed in numpy: ``stealth_core``'s generator, lattice model and ``value_iteration``;
 ``env_tables`` for the grid channels the JAX environment observes, so the network trains on
@@ -17,14 +17,14 @@ import dataclasses
 from pathlib import Path
 
 import numpy as np
-from stealth_core.grid_observation import stack
+from stealth_core.grid_observation import FullTrackGrid, stack
 from stealth_core.planners import value_iteration
 from stealth_core.scenario import load_scenario
 from stealth_core.scenario_generator import SEED_RANGES, GenerationError, Options, generate
 
 from stealth_learn.env_tables import TaskArrays
 from stealth_learn.obs_layout import CHANNELS
-from stealth_learn.vin import NO_MOVE, NUM_MOVES, WAIT
+from stealth_learn.vin import NO_MOVE, NUM_MOVES
 
 TIE = 1e-3  # actions within this of the best q are all optimal (ties are common in the dark)
 
@@ -82,7 +82,7 @@ def sample_of(seed: int, scenario) -> Sample:
             f'this one has {model.layers} layers and {model.num_actions} actions'
         )
     tables = arrays.tables()
-    grid = phased_grid(tables) if moving else grid_of(tables)[None]
+    grid = phased_grid(arrays) if moving else grid_of(tables)[None]
     optimum = value_iteration(model)
     n, layers = len(model.nodes), model.layers
     q = optimum.q.reshape(layers, n, actions)
@@ -101,22 +101,12 @@ def sample_of(seed: int, scenario) -> Sample:
     return Sample(seed, scenario.name, grid, optimal, weight, optimum.optimal_return, advance)
 
 
-def phased_grid(tables, robot: tuple[int, int, int] | None = None) -> np.ndarray:
-    """(L, R, C, 12) the phased grid of one scenario's tables (``vin``: each layer's grid,
-    then the light each step from there is judged on, ``step_visibility`` exactly, -2 where the
-    step does not exist: no node, or a move blocked, which only waits); the robot channel 1 at
-    ``robot`` (layer, row, col) if given."""
-    layers = tables.node_light.shape[0]
-    rows, cols = tables.free.shape
-    grids = np.stack([grid_of(tables, layer) for layer in range(layers)])
-    if robot is not None:
-        grids[(*robot, CHANNELS.index('robot'))] = 1.0
-    shape = (layers, rows, cols, -1)
-    steps = tables.step_visibility.reshape(shape)[..., : WAIT + 1]
-    cell = np.arange(layers * rows * cols).reshape(shape[:-1]) % (rows * cols)
-    moved = tables.successors.reshape(shape)[..., :NUM_MOVES] % (rows * cols) != cell[..., None]
-    exists = np.concatenate([moved, np.broadcast_to(tables.free, cell.shape)[..., None]], -1)
-    return np.concatenate([grids, np.where(exists, steps, NO_MOVE)], -1).astype(np.float32)
+def phased_grid(arrays: TaskArrays) -> np.ndarray:
+    """(L, R, C, 12) the phased grid of one scenario (robot channel 0), the environment node's:
+    ``stealth_core.grid_observation.FullTrackGrid.phased`` on its lattice model (each layer's
+    grid, then the light each step from there is judged on, -2 where the step does not
+    exist)."""
+    return FullTrackGrid(arrays.model, arrays.sensing).phased()
 
 
 def grid_of(tables, layer: int = 0, light=None, moves=None) -> np.ndarray:

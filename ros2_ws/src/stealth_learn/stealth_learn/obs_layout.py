@@ -22,17 +22,20 @@ channels, ids and full-track construction are ``stealth_core.grid_observation``'
 environment node sends through ROS).
 
 The time-aware generalist (moving lights, lights known) reads the phased grid
-(``vin.PHASED_CHANNELS``, ``generalist_data.phased_grid``): every phase layer's grid and the
-light of each step from there; its id names the phase layers and the layers a step advances,
-e.g. ``stealth-phased-v1/full/8phases-1perstep/60x60``, so a policy of another phase count is
-refused naming both.
+(``stealth_core.grid_observation.FullTrackGrid.phased``, what the environment node sends):
+every phase layer's grid and the light of each step from there; its id names the phase layers
+and the layers a step advances, e.g. ``stealth-phased-v1/full/8phases-1perstep/60x60``, so a
+policy of another phase count is refused naming both.
 """
 
 from __future__ import annotations
 
 from stealth_core import grid_observation
 from stealth_core.grid_observation import CHANNELS as CHANNELS  # re-exported
+from stealth_core.grid_observation import PHASED_CHANNELS as PHASED_CHANNELS
+from stealth_core.grid_observation import PHASED_PREFIX as PHASED_PREFIX
 from stealth_core.grid_observation import VERSION
+from stealth_core.grid_observation import phased_layout_id as phased_layout_id
 
 LAYOUTS = ('vector', 'grid')
 VECTOR = ('x', 'y', 'phase', 'heading', 'lit', 'time_used', 'goal_dx', 'goal_dy')
@@ -62,12 +65,3 @@ def check_layout(policy_layout: str, env_layout: str, source: str) -> None:
             f'{source}: the policy was trained for observation layout {policy_layout!r}, '
             f'this environment gives {env_layout!r}; train one for it or pick the matching track'
         )
-
-
-PHASED_PREFIX = f'stealth-phased-{VERSION}/'  # every phased grid's id starts so
-
-
-def phased_layout_id(track: str, layers: int, advance: int, rows=None, cols=None) -> str:
-    """The phased grid's id (module docstring), without its size when ``rows`` is None."""
-    base = f'{PHASED_PREFIX}{track}/{layers}phases-{advance}perstep'
-    return base if rows is None else f'{base}/{rows}x{cols}'

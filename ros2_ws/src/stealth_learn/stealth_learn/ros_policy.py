@@ -12,6 +12,12 @@ On the lights-sensed track (layout ``stealth-grid-v1/sensed/RxC``: the light las
 never) the same full-track weights read the belief grid (``belief.believed_grid``: the
 benchmark's ``GeneralistAgent`` rule, one function for both), planned once per belief the
 environment sends (it sends one whenever what was sensed changes).
+
+Time-aware weights (``generalist-moving.npz``: layout ``stealth-phased-v1/full/8phases-1perstep``)
+read the phased grid the environment sends once where lights move (``stealth_core.
+grid_observation.FullTrackGrid.phased``, the grid ``GeneralistAgent`` reads in-process): one
+plan of every (layer, cell), the decision at the robot's (layer, cell), the wait among the
+actions. Weights of another kind or cycle than the grid are refused naming both layouts.
 """
 
 from __future__ import annotations
@@ -32,40 +38,55 @@ KEEP_PLANS = 8  # distinct grids kept (one per building, or the latest beliefs: 
 class CachedGeneralist:
     """``policy(grid) -> action`` over GridObservation grids, the plan cached per grid."""
 
-    layout = policy_file.policy_layout('full')
-    reads = (layout, policy_file.policy_layout('sensed'))  # the sensed: the belief grid
-
     def __init__(self, policy: GeneralistPolicy, path: Path):
         self.policy = policy
         self.path = path
-        self.plans = PlanCache(policy, keep=KEEP_PLANS, prepare=believed_grid)
+        self.layout = policy.layout  # the full track's grid, or a time-aware network's phased
+        phased = policy.model.phased
+        # the static network also reads the sensed track's belief grid; the time-aware one not
+        self.reads = (
+            (self.layout,) if phased else (self.layout, policy_file.policy_layout('sensed'))
+        )
+        self.plans = PlanCache(policy, keep=KEEP_PLANS, prepare=None if phased else believed_grid)
 
     def check(self, layout: str) -> None:
         """ValueError (obs_layout.LayoutError), one line naming both, unless this policy reads
         the environment's layout (any grid size): the full track's, or the sensed track's
-        belief."""
+        belief, for the static network; its phased grid (phase layers and step) for the
+        time-aware one."""
         env_layout = policy_file.without_size(layout)
         if env_layout not in self.reads:
             check_layout(self.layout, env_layout, str(self.path))
 
     def check_scenario(self, path: str) -> None:
         """ValueError, one line naming the weights and the scenario at ``path``, unless the
-        network can play it (static lights: ``GeneralistPolicy.check_scenario``); `stealth
-        rollout --learner` asks before anything starts."""
+        network can play it (``GeneralistPolicy.check_scenario``: static weights static
+        lights, time-aware ones moving lights of their cycle); `stealth rollout --learner` asks
+        before anything starts."""
         self.policy.check_scenario(load_scenario(path))
 
     def plan(self, grid: np.ndarray) -> np.ndarray:
         """(R, C) int8: the move at every cell of ``grid`` (its robot channel ignored; light
-        never sensed, -1, believed: ``belief.believed_grid``, the identity on a full grid)."""
+        never sensed, -1, believed: ``belief.believed_grid``, the identity on a full grid);
+        (L, R, C) the action at every layer and cell of a phased grid. ValueError, one line, for
+        a grid of another shape than the network reads (the layout's layers, the channels)."""
+        expected = self.policy.model.grid_shape(*grid.shape[-3:-1])
+        if grid.shape != expected:
+            raise ValueError(
+                f'{self.path}: a grid of shape {grid.shape}, expected {expected} for the '
+                f"policy's layout {self.layout!r} (layers, rows, cols, channels)"
+            )
         return self.plans.moves(grid)
 
     def __call__(self, grid: np.ndarray) -> int:
-        """The move at the robot's cell (the robot channel's maximum)."""
+        """The action at the robot's cell (the robot channel's maximum; its layer and cell on a
+        phased grid)."""
         return int(self.plan(grid)[robot_cell(grid)])
 
 
 def load(path: str = '') -> CachedGeneralist:
-    """The plugin's ``load``: the weights at ``path`` ('' the shipped ones); a missing, corrupt
-    or other-layout file refused in one line naming the path (``policy_file.load``)."""
+    """The plugin's ``load``: the weights at ``path`` ('' the shipped ones), static or
+    time-aware; a missing, corrupt or other-track file refused in one line naming the path
+    (``policy_file.load``)."""
     path = Path(path) if path else DEFAULT_POLICY
-    return CachedGeneralist(GeneralistPolicy.load(path, policy_file.policy_layout('full')), path)
+    return CachedGeneralist(GeneralistPolicy.load(path, None), path)

@@ -31,26 +31,25 @@ from layer t (a move or the wait, blocked or not) arrives at layer (t + ``advanc
 ``layers`` (``advance``: the timing's ``bins_per_step``), and the fifth action waits in place.
 Its input is the phased grid, (B, layers, R, C, 12): at each layer the grid of that layer's
 lights (``CHANNELS``; the robot channel 1 only at the robot's layer and cell: the phase is read
-there) and ``STEP_CHANNELS``, the light each step from there is judged on (the lattice model's
-``step_visibility``, exactly, -2 where the step does not exist: a wall or a blocked move, which
-only waits). The reward MLP reads, per layer and action, that step light, whether it is lit,
-the node light of the layer it arrives at, the goal and distance entered and the layer's
-context, with the same weights as above: one layer (so no wait) is exactly the static
-network (its step light the grid's move channels), so the static weights are these weights.
+there) and the step channels (``stealth_core.grid_observation.STEP_CHANNELS``), the light each
+step from there is judged on (the lattice model's ``step_visibility``, exactly, -2 where the
+step does not exist: a wall or a blocked move, which only waits). The reward MLP reads, per
+layer and action, that step light, whether it is lit, the node light of the layer it arrives
+at, the goal and distance entered and the layer's context, with the same weights as above:
+one layer (so no wait) is exactly the static network (its step light the grid's move
+channels), so the static weights are these weights.
 """
 
 from __future__ import annotations
 
 from stealth_learn.jax_deps import jax, jnp, nn
-from stealth_learn.obs_layout import CHANNELS
+from stealth_learn.obs_layout import CHANNELS, PHASED_CHANNELS
 
 NUM_MOVES = 4  # up, down, left, right: static lights without exposure have no wait or turns
 WAIT = 4  # the fifth action where lights move (``stealth_core.task.WAIT``)
 NO_MOVE = -2.0  # obs_layout: the light where no node or move is
 MASKED = -1e9
 FREE, ROBOT, GOAL, LIGHT, MOVE_UP, MOVE_RIGHT = range(6)
-STEP_CHANNELS = ('step_up', 'step_down', 'step_left', 'step_right', 'step_wait')
-PHASED_CHANNELS = (*CHANNELS, *STEP_CHANNELS)  # the phased grid's channels
 
 
 def _shift(array, action: int, fill):

@@ -1,16 +1,22 @@
 """The generalist through ROS: the grid stealth_learn trains on is the one the environment node
 sends (stealth_core.grid_observation), the agent's policy plugin is registered and found, and
-its cached plan gives GeneralistPolicy.act's move at every cell."""
+its cached plan gives GeneralistPolicy.act's move at every cell; with moving lights, the
+time-aware weights on the phased grid decide as the benchmark's agent does."""
 
 from importlib import metadata
+from pathlib import Path
 
 import numpy as np
 import pytest
-from stealth_core.grid_observation import ROBOT, FullTrackGrid
+from stealth_core.grid_observation import ROBOT, FullTrackGrid, observed_grid
+from stealth_core.gym_env import StealthNavEnv
+from stealth_core.scenario import load_scenario
+from stealth_core.task import WAIT
 from stealth_learn import generalist_data as data
 from stealth_learn import ros_policy
 from stealth_learn.env_tables import TaskArrays
 from stealth_learn.generalist import DEFAULT_POLICY
+from stealth_learn.generalist_agent import GeneralistAgent
 from stealth_learn.obs_layout import LayoutError
 
 
@@ -74,3 +80,68 @@ def test_refusals_name_the_path_or_both_layouts(tmp_path):
     empty.write_bytes(b'')
     with pytest.raises(ValueError, match=rf'{empty}: empty file \(0 bytes\)'):
         ros_policy.load(str(empty))
+
+
+MOVING_WEIGHTS = Path(DEFAULT_POLICY).with_name('generalist-moving.npz')
+
+
+def test_the_time_aware_plugin_decides_as_the_benchmarks_agent():
+    """Moving lights: on the phased grid the environment node sends (``observed_grid``: layout
+    and data), the plugin's action with the robot at (the state's phase, the cell of its x, y)
+    is ``GeneralistAgent``'s at that place (phase and node), waits included, along a greedy
+    episode and at every 7th place of every layer; one plan for all."""
+    policy = ros_policy.load(str(MOVING_WEIGHTS))
+    env = StealthNavEnv(load_scenario('simple-maze-moving'))
+    agent = GeneralistAgent(policy.policy, env)
+    sent = observed_grid(env.task, 'full', 'grid', env.model)
+    policy.check(sent.layout())
+    grid = sent.full()
+
+    def plugin_action(state) -> int:
+        phase, cell = int(state[2]), sent.cell_of(float(state[0]), float(state[1]))
+        grid[(phase, *cell, ROBOT)] = 1.0
+        try:
+            return policy(grid)
+        finally:
+            grid[(phase, *cell, ROBOT)] = 0.0
+
+    observation, _ = env.reset(seed=0)
+    actions, done = [], False
+    while not done:
+        action = agent.act(observation)
+        assert plugin_action(observation) == action, observation
+        actions.append(action)
+        observation, _, terminated, truncated, info = env.step(action)
+        done = terminated or truncated
+    assert info['outcome'] == 'SUCCESS' and WAIT in actions
+    phases = set()
+    for place in range(0, env.model.size, 7):
+        env._node = place  # the agent reads the robot's place there
+        state = env.model.states[place]
+        assert plugin_action(state) == agent.act(state), state
+        phases.add(int(state[2]))
+    assert phases == set(range(8)) and len(policy.plans) == 1
+
+
+def test_time_aware_and_static_weights_refuse_each_others_grids():
+    """The static weights refuse the phased grid, the time-aware ones the static and the
+    belief grid and another cycle, each in one line naming both layouts; a phased grid whose
+    data has other layers than its layout is refused too."""
+    static, timed = ros_policy.load(''), ros_policy.load(str(MOVING_WEIGHTS))
+    with pytest.raises(LayoutError) as refused:
+        static.check('stealth-phased-v1/full/8phases-1perstep/30x30')
+    assert "'stealth-grid-v1/full'" in str(refused.value)
+    assert "'stealth-phased-v1/full/8phases-1perstep'" in str(refused.value)
+    timed.check('stealth-phased-v1/full/8phases-1perstep/12x30')
+    for layout in (
+        'stealth-grid-v1/full/30x30',
+        'stealth-grid-v1/sensed/30x30',
+        'stealth-phased-v1/full/4phases-1perstep/30x30',
+    ):
+        with pytest.raises(LayoutError) as refused:
+            timed.check(layout)
+        message = str(refused.value)
+        assert "'stealth-phased-v1/full/8phases-1perstep'" in message and '\n' not in message
+        assert repr(layout.rsplit('/', 1)[0]) in message and str(MOVING_WEIGHTS) in message
+    with pytest.raises(ValueError, match=r'shape \(4, 5, 6, 12\), expected \(8, 5, 6, 12\)'):
+        timed.plan(np.zeros((4, 5, 6, 12), np.float32))

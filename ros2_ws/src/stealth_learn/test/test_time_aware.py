@@ -73,7 +73,7 @@ def test_the_hand_set_values_are_the_layered_value_iterations(tmp_path, moving):
     optimum = value_iteration(model)
     architecture = {**TIMED, 'iterations': int(model.task.step_limit)}
     policy = GeneralistPolicy.hand_set(architecture, ScenarioReward.of(scenario))
-    phased = data.phased_grid(arrays.tables())
+    phased = data.phased_grid(arrays)
     q = np.asarray(policy.model.apply(policy.variables, phased[None], method=Vin.q_map))[0]
     n = len(model.nodes)
     rows, cols = arrays.sensing.grid_row, arrays.sensing.grid_col
@@ -100,7 +100,7 @@ def test_the_phased_grid_is_the_lattices_steps(generated):
     model judges that step on, where the step moves (or waits); -2 where it is blocked."""
     arrays = TaskArrays(generated['moving'])
     model, tables = arrays.model, arrays.tables()
-    phased = data.phased_grid(tables)
+    phased = data.phased_grid(arrays)
     assert phased.shape == (model.layers, *tables.free.shape, len(CHANNELS) + 5)
     n = len(model.nodes)
     rows, cols = arrays.sensing.grid_row, arrays.sensing.grid_col
@@ -181,9 +181,20 @@ def test_a_phased_weights_file_is_refused_at_load_for_another_cycle(tmp_path):
     assert policy_file.load(path, None)[1] == header
     from stealth_learn import ros_policy
 
-    with pytest.raises(LayoutError, match="'stealth-grid-v1/full'") as error:
-        ros_policy.load(str(path))  # the environment node sends no phased grid (yet)
-    assert str(path) in str(error.value) and '8phases-1perstep' in str(error.value)
+    plugin = ros_policy.load(str(path))  # the agent node's: it reads the phased grid sent
+    assert plugin.layout == 'stealth-phased-v1/full/8phases-1perstep'
+    plugin.check(phased_layout_id('full', 8, 1, 30, 30))  # any size
+    for other in (
+        phased_layout_id('full', 16, 1, 30, 30),
+        phased_layout_id('full', 8, 2, 30, 30),
+        layout_id('grid', 'full', 30, 30),
+        layout_id('grid', 'sensed', 30, 30),
+    ):
+        with pytest.raises(LayoutError) as error:
+            plugin.check(other)
+        message = str(error.value)
+        assert str(path) in message and "'stealth-phased-v1/full/8phases-1perstep'" in message
+        assert repr(policy_file.without_size(other)) in message and '\n' not in message
     for other in (phased_layout_id('full', 16, 1, 40, 40), layout_id('grid', 'full', 40, 40)):
         with pytest.raises(LayoutError) as error:
             policy_file.load(path, other)
