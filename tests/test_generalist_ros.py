@@ -25,17 +25,23 @@ from test_system import read_bag, system  # noqa: E402, F401 - the fixture
 MOVING_WEIGHTS = SHIPPED.with_name('generalist-moving.npz')  # the time-aware network
 
 
-def test_the_generalist_crosses_a_shipped_scenario_undetected(system, tmp_path):  # noqa: F811
+def _rollout(system, name: str, episodes: int, *arguments):  # noqa: F811
+    """`stealth rollout --learner generalist ARGUMENTS` into run ``name``: its directory, after
+    checking that every one of its ``episodes`` succeeded."""
     result = system.run(
-        'rollout', '--learner', 'generalist', '--scenario', 'simple-maze', '--goal', 'easy',
-        '--episodes', '2', '--runs-dir', str(system.runs), '--name', 'generalist',
-        timeout=120,
+        'rollout', '--learner', 'generalist', *arguments, '--episodes', str(episodes),
+        '--runs-dir', str(system.runs), '--name', name, timeout=120,
     )  # fmt: skip
     assert result.returncode == 0, result.stderr + result.stdout
-    run = system.runs / 'generalist'
+    run = system.runs / name
     summary = json.loads((run / 'summary.json').read_text())
-    assert summary['episodes'] == 2
-    assert summary['outcomes']['SUCCESS'] == 2, summary['outcomes']
+    assert summary['episodes'] == episodes, summary
+    assert summary['outcomes']['SUCCESS'] == episodes, summary['outcomes']
+    return run
+
+
+def test_the_generalist_crosses_a_shipped_scenario_undetected(system, tmp_path):  # noqa: F811
+    run = _rollout(system, 'generalist', 2, '--scenario', 'simple-maze', '--goal', 'easy')
     params = {}
     for node in ('agent', 'environment'):
         text = (run / 'params' / f'{node}.yaml').read_text()
@@ -61,15 +67,10 @@ def test_the_generalist_crosses_a_shipped_scenario_undetected(system, tmp_path):
 def test_the_generalist_crosses_on_the_sensed_track_undetected(system):  # noqa: F811
     """Track sensed: the environment sends the belief (what was sensed, -1 never) whenever it
     changes, the same full-track weights read it, and the robot reaches the goal undetected."""
-    result = system.run(
-        'rollout', '--learner', 'generalist', '--scenario', 'simple-maze', '--goal', 'easy',
-        '--episodes', '1', '--set', 'environment.track=sensed', '--runs-dir', str(system.runs),
-        '--name', 'sensed', timeout=120,
+    run = _rollout(
+        system, 'sensed', 1, '--scenario', 'simple-maze', '--goal', 'easy',
+        '--set', 'environment.track=sensed',
     )  # fmt: skip
-    assert result.returncode == 0, result.stderr + result.stdout
-    run = system.runs / 'sensed'
-    summary = json.loads((run / 'summary.json').read_text())
-    assert summary['episodes'] == 1 and summary['outcomes']['SUCCESS'] == 1, summary['outcomes']
 
     _, messages, _ = read_bag(run / 'recording.mcap')
     grids = [g for g in messages['/rl_env/observation'] if g.episode == 0]
@@ -95,15 +96,9 @@ def test_the_time_aware_generalist_crosses_moving_lights_as_in_process(system): 
     from stealth_core.gym_env import StealthNavEnv
     from stealth_learn.generalist_agent import GeneralistAgent, load_policy
 
-    result = system.run(
-        'rollout', '--learner', 'generalist', '--policy', str(MOVING_WEIGHTS),
-        '--scenario', 'simple-maze-moving', '--episodes', '1', '--runs-dir', str(system.runs),
-        '--name', 'moving', timeout=120,
-    )  # fmt: skip
-    assert result.returncode == 0, result.stderr + result.stdout
-    run = system.runs / 'moving'
-    summary = json.loads((run / 'summary.json').read_text())
-    assert summary['episodes'] == 1 and summary['outcomes']['SUCCESS'] == 1, summary['outcomes']
+    run = _rollout(
+        system, 'moving', 1, '--policy', str(MOVING_WEIGHTS), '--scenario', 'simple-maze-moving'
+    )
 
     _, messages, _ = read_bag(run / 'recording.mcap')
     (grid,) = messages['/rl_env/observation']  # sent once: the phased grid
