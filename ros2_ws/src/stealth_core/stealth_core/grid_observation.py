@@ -80,6 +80,23 @@ def stack(free, goal, light, moves, robot=None, age=None) -> np.ndarray:
     )
 
 
+def step_grids(moves: np.ndarray, free: np.ndarray, wait=None) -> np.ndarray:
+    """(R, C, 5) the step channels (``STEP_CHANNELS``) of a layer's (2, R, C) move light (up
+    and right from each node): up and right the node's own moves, down the move up from the
+    node below, left the move right from the node to the left (-2 beyond the grid); the wait
+    ``wait`` (R, C), -1 (unknown) if None, -2 off the ``free`` nodes."""
+    up, right = np.asarray(moves, np.float32)
+    down = np.full_like(up, NO_PLACE)
+    left = np.full_like(right, NO_PLACE)
+    down[1:] = up[:-1]
+    left[:, 1:] = right[:, :-1]
+    if wait is None:
+        wait = np.full_like(up, -1.0)
+    wait = np.where(free, wait, NO_PLACE)
+    down, left = (np.where(free, channel, NO_PLACE) for channel in (down, left))
+    return np.stack([up, down, left, right, wait], -1).astype(np.float32)
+
+
 def light_grids(sensing: Sensing, place: int) -> tuple[np.ndarray, np.ndarray]:
     """((R, C) node light, (2, R, C) move light) at the layer of model place ``place``, -2
     where no node or move is."""
@@ -155,6 +172,24 @@ class FullTrackGrid:
         steps = np.full((layers, *self.shape, actions), NO_PLACE, np.float32)
         steps[:, sensing.grid_row, sensing.grid_col] = np.where(exists, light, NO_PLACE)
         return np.concatenate([grids, steps], -1)
+
+    def phased_sensed(self, memory) -> np.ndarray:
+        """(L, R, C, 12) the phased grid of what was sensed (``sensing.PhasedMemory``): at each
+        layer its node and move light as last sensed there (-1 never, -2 none), the four step
+        channels the move's value at that layer (what was sensed of the segment, either way, at
+        the layer's start: the same -1 and -2), the wait -1 (a wait is never sensed as such;
+        -2 where no node is). Robot 0. The phased belief (``stealth_learn.belief``) fills the
+        unknowns."""
+        sensing = self.sensing
+        layers = []
+        for node_light, move_light in zip(memory.node_light, memory.move_light, strict=True):
+            light, moves = sensing.grid(node_light), sensing.move_grid(move_light)
+            layers.append(
+                np.concatenate(
+                    [stack(self.free, self.goal, light, moves), step_grids(moves, self.free)], -1
+                )
+            )
+        return np.stack(layers)
 
     def belief(self, light, moves) -> np.ndarray:
         """(R, C, 7) the sensed track's grid of (R, C) node light and (2, R, C) move light as

@@ -21,14 +21,19 @@ move lattice (``lattice_model.LatticeModel``), so a sensed value is exactly a va
 ``Sensing`` says what is in sight from each node (traced on first use, then cached per node:
 a robot revisits the same few hundred nodes). ``SensedMemory`` keeps, for every node and move,
 the **last value sensed and the step it was sensed at** (-1 and -1 before it is ever sensed):
-lights move, so an old value may be stale, and its age says how stale. ``Sensor`` holds both
-for one episode::
+lights move, so an old value may be stale, and its age says how stale. ``PhasedMemory`` keeps
+the last value sensed **at each phase layer** (the layer of the robot's place when it sensed:
+the cycle's bin, and heading where exposure is weighed): the lights' motion repeats with the
+cycle, so a value sensed at a layer stays true at that layer, never stale (with static lights
+it has one layer and equals ``SensedMemory``'s values). ``Sensor`` holds all three for one
+episode::
 
     sensor = Sensor(model)                       # model: lattice_model.LatticeModel of the task
     sensor.reset()                               # at each episode's start
     nodes, moves = sensor.sense(place, step)     # place: the Gym env's node, or
     place = sensor.place_of(x, y, t, yaw)        # from a pose (the ROS environment node)
     sensor.memory.node_light, sensor.memory.node_step  # what is remembered, and since when
+    sensor.phased.node_light[layer]              # what is remembered of a phase layer
 
 Plain Python + numpy.
 """
@@ -200,17 +205,44 @@ class SensedMemory:
         return self.move_step >= 0
 
 
+@dataclasses.dataclass
+class PhasedMemory:
+    """Per phase layer (row), the last value sensed of every node and move while the robot's
+    place was at that layer (-1: never); see the module docstring."""
+
+    node_light: np.ndarray  # (layers, nodes)
+    move_light: np.ndarray  # (layers, moves)
+
+    @classmethod
+    def empty(cls, sensing: Sensing) -> PhasedMemory:
+        layers = sensing.model.layers
+        return cls(
+            np.full((layers, sensing.n), UNKNOWN), np.full((layers, sensing.moves), UNKNOWN)
+        )
+
+    def update(self, layer: int, nodes, node_values, moves, move_values) -> None:
+        """Remember what was sensed at ``layer``."""
+        self.node_light[layer, nodes] = node_values
+        self.move_light[layer, moves] = move_values
+
+    @property
+    def layers(self) -> int:
+        return self.node_light.shape[0]
+
+
 class Sensor:
-    """A ``Sensing`` and its ``SensedMemory`` over one episode: ``reset`` then ``sense`` at
-    every step. The memory is public; ``sense`` returns what was in sight."""
+    """A ``Sensing`` and its memories (``SensedMemory``, ``PhasedMemory``) over one episode:
+    ``reset`` then ``sense`` at every step. The memories are public; ``sense`` returns what
+    was in sight."""
 
     def __init__(self, model, sensing_range: float | None = None):
         self.sensing = Sensing(model, sensing_range)
-        self.memory = SensedMemory.empty(self.sensing)
+        self.reset()
         self._index: dict | None = None  # node (i, j) -> its index
 
     def reset(self) -> None:
         self.memory = SensedMemory.empty(self.sensing)
+        self.phased = PhasedMemory.empty(self.sensing)
 
     def place_of(self, x: float, y: float, t: float = 0.0, yaw: float = 0.0) -> int:
         """The model place of a pose (x, y, yaw) at time t (s): the nearest valid node, the
@@ -235,6 +267,8 @@ class Sensor:
         nodes, moves = sensing.visible(sensing.model.node_of(place))
         node_values, move_values = sensing.truth(place, nodes, moves)
         self.memory.update(nodes, node_values, moves, move_values, step)
+        layer = int(place) // sensing.n
+        self.phased.update(layer, nodes, node_values, moves, move_values)
         return nodes, moves
 
 

@@ -129,6 +129,27 @@ def test_memory_takes_the_new_value_of_a_moving_light():
         assert np.all(sensor.memory.node_step[nodes] == layer)
 
 
+def test_the_phased_memory_keeps_each_layers_value_apart():
+    model = lattice_model('map1-moving')
+    sensor = Sensor(model)
+    n = sensor.sensing.n
+    node = 150
+    nodes, moves = sensor.sense(2 * n + node, 0)  # at bin 2
+    phased = sensor.phased
+    assert phased.layers == model.layers == model.cycle_bins
+    truth_nodes, truth_moves = sensor.sensing.truth(2 * n + node, nodes, moves)
+    assert np.array_equal(phased.node_light[2, nodes], truth_nodes)
+    assert np.array_equal(phased.move_light[2, moves], truth_moves)
+    others = np.delete(np.arange(model.layers), 2)
+    assert np.all(phased.node_light[others] == UNKNOWN)
+    assert np.all(phased.move_light[others] == UNKNOWN)
+    sensor.sense(5 * n + node, 1)  # the same place at bin 5: bin 2's values are kept
+    assert np.array_equal(phased.node_light[2, nodes], truth_nodes)
+    assert np.array_equal(phased.node_light[5, nodes], model.visibility[5 * n + nodes])
+    sensor.reset()
+    assert np.all(sensor.phased.node_light == UNKNOWN)
+
+
 # --- the Gym observation ------------------------------------------------------------------------
 
 

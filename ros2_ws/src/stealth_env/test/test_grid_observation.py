@@ -15,7 +15,7 @@ from stealth_core.grid_observation import (
 )
 from stealth_core.lattice_model import LatticeModel
 from stealth_core.scenario import load_scenario
-from stealth_core.sensing import NO_PLACE
+from stealth_core.sensing import NO_PLACE, UNKNOWN, PhasedMemory
 from stealth_core.task import StealthTask
 from stealth_env.env_messages import grid_observation_msg
 from stealth_env.sensed_track import SensedTrack
@@ -114,6 +114,45 @@ def test_the_phased_grid_is_every_bins_grid_and_each_steps_light():
     assert list(message.channel_names) == list(PHASED_CHANNELS)
     back = np.frombuffer(message.data, dtype=np.float32).reshape(phased.shape)
     np.testing.assert_array_equal(back, phased)
+
+
+def test_the_phased_sensed_grid_is_what_was_sensed_at_each_layer():
+    """Sensed everywhere at every layer, the phased sensed grid is the phased grid but for the
+    steps: a move's step is the segment's light either way (at least the step's own light, the
+    most of both directions exactly) and a wait is unknown (-1); never sensed, -1."""
+    task = StealthTask(load_scenario('simple-maze-moving'))
+    model = LatticeModel.build(task)
+    grid = FullTrackGrid(model)
+    sensing, n = grid.sensing, grid.sensing.n
+    rows, cols = sensing.grid_row, sensing.grid_col
+    memory = PhasedMemory.empty(sensing)
+    empty = grid.phased_sensed(memory)
+    assert (empty[:, rows, cols][..., [3, 4, 5, 7, 8, 9, 10, 11]] <= UNKNOWN).all()
+    for layer in range(model.layers):
+        everything = np.arange(n), np.arange(sensing.moves)
+        node_values, move_values = sensing.truth(layer * n)
+        memory.update(layer, everything[0], node_values, everything[1], move_values)
+    sensed, truth = grid.phased_sensed(memory), grid.phased()
+    assert sensed.shape == truth.shape and sensed.dtype == np.float32
+    np.testing.assert_array_equal(sensed[..., :7], truth[..., :7])
+    steps, true_steps = sensed[..., 7:11], truth[..., 7:11]
+    np.testing.assert_array_equal(steps == NO_PLACE, true_steps == NO_PLACE)
+    exists = true_steps != NO_PLACE
+    assert (steps[exists] >= true_steps[exists]).all()
+    opposite = {0: 1, 1: 0, 2: 3, 3: 2}
+    shift = {0: (1, 0), 1: (-1, 0), 2: (0, -1), 3: (0, 1)}
+    for layer in range(0, model.layers, 3):
+        for k in range(0, n, 5):
+            r, c = rows[k], cols[k]
+            for action in range(4):
+                if true_steps[layer, r, c, action] == NO_PLACE:
+                    continue
+                dr, dc = shift[action]
+                back = true_steps[layer, r + dr, c + dc, opposite[action]]
+                expected = max(true_steps[layer, r, c, action], back)
+                assert steps[layer, r, c, action] == expected
+    assert (sensed[:, rows, cols, 11] == UNKNOWN).all()
+    assert (sensed[:, ~grid.free, 7:] == NO_PLACE).all()
 
 
 def test_the_message_carries_the_grid_row_major(maze):

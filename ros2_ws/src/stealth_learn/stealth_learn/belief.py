@@ -9,12 +9,17 @@ lights-known grid, reads the belief: a node never sensed as ``assumed`` (0, dark
 optimistic rule of ``replan (unknown dark)``; or any per-node estimate), a move never sensed as
 the larger of its two ends' (believed) light. On a lights-known grid (no -1) it is the grid
 itself.
+
+With moving lights the time-aware network reads the phased belief (``believed_phased``): the
+phased grid of what was sensed at each phase layer (``FullTrackGrid.phased_sensed``), each
+layer believed as above, its four step channels the believed moves' light and its wait (never
+sensed as such) the more light of the node at this layer and at the layer the wait arrives at.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from stealth_core.grid_observation import LIGHT, MOVE_RIGHT, MOVE_UP
+from stealth_core.grid_observation import CHANNELS, LIGHT, MOVE_RIGHT, MOVE_UP, step_grids
 
 UNKNOWN = -1.0  # never sensed (the Gym env's sensed observation, GridObservation's sensed layout)
 
@@ -29,14 +34,39 @@ def believed(light, moves, assumed=0.0) -> tuple[np.ndarray, np.ndarray]:
     return light, np.where(moves == UNKNOWN, ends, moves)
 
 
-def believed_grid(grid) -> np.ndarray:
+def believed_grid(grid, assumed=0.0) -> np.ndarray:
     """A (R, C, 7) grid (``stealth_core.grid_observation``) with its light channels believed
-    (``believed``, unknown nodes dark); a new array, the other channels as they are."""
+    (``believed``; unknown nodes ``assumed``, default dark); a new array, the other channels as
+    they are."""
     grid = np.array(grid, dtype=np.float32)
-    light, moves = believed(grid[..., LIGHT], np.moveaxis(grid[..., [MOVE_UP, MOVE_RIGHT]], -1, 0))
+    moves = np.moveaxis(grid[..., [MOVE_UP, MOVE_RIGHT]], -1, 0)
+    light, moves = believed(grid[..., LIGHT], moves, assumed)
     grid[..., LIGHT] = light
     grid[..., MOVE_UP], grid[..., MOVE_RIGHT] = moves
     return grid
+
+
+def believed_phased(grid, advance: int, assumed=0.0) -> np.ndarray:
+    """A phased grid (L, R, C, 12) of what was sensed with every unknown believed (module
+    docstring); ``advance``: the layers a step advances; ``assumed`` as ``believed``'s. A new
+    array; on a fully known grid the light and move channels are as they are."""
+    grid = np.array(grid, dtype=np.float32)
+    for channel in (LIGHT, MOVE_UP, MOVE_RIGHT):
+        values = grid[..., channel]
+        brightest = values.max(axis=0)  # over the layers: -1 never sensed at any
+        values[:] = np.where(values == UNKNOWN, brightest, values)
+    layers = np.stack([believed_grid(layer, assumed) for layer in grid[..., : len(CHANNELS)]])
+    light = layers[..., LIGHT]
+    free = grid[0, ..., 0] > 0
+    steps = [
+        step_grids(
+            np.moveaxis(layer[..., [MOVE_UP, MOVE_RIGHT]], -1, 0),
+            free,
+            np.maximum(light[index], light[(index + advance) % len(layers)]),
+        )
+        for index, layer in enumerate(layers)
+    ]
+    return np.concatenate([layers, np.stack(steps)], -1)
 
 
 def _shifted(light: np.ndarray) -> np.ndarray:

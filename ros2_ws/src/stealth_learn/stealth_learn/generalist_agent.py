@@ -19,12 +19,18 @@ cell), with the light of what the agent knows:
   ``replan (unknown lit)``), a move never sensed as the larger of its two ends. The value map
   is recomputed whenever the sensed light changes: the network replanning on its belief.
 
-Moving lights (track 'full'): a time-aware network (``vin.Vin`` with phase layers) reads the
-phased grid (``generalist_data.phased_grid``: every layer's lights and each step's light, one
-value map a run) and decides at the robot's layer and cell, the wait among its actions. A
-static network given moving lights, or a time-aware one given static lights or another cycle,
-is refused (``GeneralistPolicy.check_scenario``, one line naming the weights and the scenario);
-so is a time-aware network on the sensed track (it reads the lights known).
+Moving lights: a time-aware network (``vin.Vin`` with phase layers) reads a phased grid and
+decides at the robot's layer and cell, the wait among its actions:
+
+- track 'full': the phased grid of the lights (``generalist_data.phased_grid``: every layer's
+  lights and each step's light, one value map a run);
+- track 'sensed': the phased belief (``belief.believed_phased``) of what the robot sensed at
+  each phase layer (the env's ``sensor.phased``, ``stealth_core.sensing.PhasedMemory``: the
+  robot's own memory, as ``env.node`` is its own place), unknown as ``unknown`` says; the
+  value map recomputed whenever that memory changes.
+
+A static network given moving lights, or a time-aware one given static lights or another cycle,
+is refused (``GeneralistPolicy.check_scenario``, one line naming the weights and the scenario).
 
 The cycle rule (``brightest``): a static network given moving lights reads the cycle's
 brightest light field instead (on each node and move, the most light over the cycle's phase
@@ -37,10 +43,11 @@ same network reads the belief grid, so no other file is needed (nor accepted).
 from __future__ import annotations
 
 import numpy as np
+from stealth_core.grid_observation import FullTrackGrid
 from stealth_core.replanning import lamp_reach
 
 from stealth_learn import policy_file
-from stealth_learn.belief import believed
+from stealth_learn.belief import believed, believed_phased
 from stealth_learn.env_tables import TaskArrays
 from stealth_learn.generalist import DEFAULT_POLICY, GeneralistPolicy, PlanCache
 from stealth_learn.generalist_data import grid_of, phased_grid
@@ -89,16 +96,16 @@ class GeneralistAgent:
         self.brightest = brightest
         if not brightest:
             policy.check_scenario(env.scenario, env.model)
-        if self.phased and env.track != 'full':
-            raise ValueError(
-                f'{policy.source}: the time-aware policy reads the lights known (track '
-                f"'full'), not track {env.track!r}"
-            )
         self.policy, self.env, self.unknown = policy, env, unknown
         arrays = TaskArrays(env.scenario, model=env.model)
         self.tables = arrays.tables()
-        self._phased_grid = phased_grid(arrays) if self.phased else None
         sensing = arrays.sensing
+        self._phased_grid = None
+        if self.phased and env.track == 'full':
+            self._phased_grid = phased_grid(arrays)
+        elif self.phased:
+            self._sensed = FullTrackGrid(env.model, sensing, track='sensed')
+            self._advance = env.model.task.timing.bins_per_step
         self.nodes = sensing.n
         self.row, self.col = sensing.grid_row, sensing.grid_col
         self.assumed = np.zeros(self.tables.free.shape, np.float32)
@@ -111,8 +118,11 @@ class GeneralistAgent:
     def grid(self, observation) -> np.ndarray:
         """(R, C, 7) the grid the network reads for this observation (module docstring); the
         phased grid (L, R, C, 12) of a time-aware network."""
-        if self.phased:
+        if self._phased_grid is not None:
             return self._phased_grid
+        if self.phased:
+            sensed = self._sensed.phased_sensed(self.env.sensor.phased)
+            return believed_phased(sensed, self._advance, self.assumed)
         if self.brightest:
             tables = self.tables
             return grid_of(tables, 0, tables.node_light.max(0), tables.move_light.max(0))

@@ -4,10 +4,17 @@ the environment node's sensed GridObservation): unknown nodes dark, an unknown m
 larger light, and both give the same grid and the same move along an episode."""
 
 import numpy as np
-from stealth_core.grid_observation import LIGHT, MOVE_RIGHT, MOVE_UP, ROBOT, FullTrackGrid
+from stealth_core.grid_observation import (
+    LIGHT,
+    MOVE_RIGHT,
+    MOVE_UP,
+    ROBOT,
+    FullTrackGrid,
+    step_grids,
+)
 from stealth_core.gym_env import StealthNavEnv
 from stealth_learn import ros_policy
-from stealth_learn.belief import believed, believed_grid
+from stealth_learn.belief import believed, believed_grid, believed_phased
 from stealth_learn.generalist_agent import GeneralistAgent
 
 LIGHTS = slice(LIGHT, MOVE_RIGHT + 1)
@@ -31,6 +38,34 @@ def test_unknown_nodes_enter_dark_and_unknown_moves_as_their_larger_end():
     np.testing.assert_array_equal(read[..., LIGHT], node)
     np.testing.assert_array_equal(np.moveaxis(read[..., MOVE_UP : MOVE_RIGHT + 1], -1, 0), moves)
     assert (grid[..., LIGHT] == light).all()  # a new array: the one sent stays as it was
+
+
+def test_a_layer_never_sensed_reads_the_brightest_known_else_dark():
+    """Phased: a node unknown at a layer but sensed at others reads the most light sensed there
+    (a beam seen once may be back), unknown everywhere reads dark; steps are the believed moves,
+    the wait the more light of this layer's node and the next's."""
+    free = np.ones((2, 2), bool)
+    grid = np.zeros((3, 2, 2, 12), np.float32)
+    grid[..., 0] = 1.0
+    grid[..., LIGHT] = -1.0
+    grid[..., MOVE_UP] = [[-1.0, -1.0], [-2.0, -2.0]]
+    grid[..., MOVE_RIGHT] = [[-1.0, -2.0], [-1.0, -2.0]]
+    grid[0, 0, 0, LIGHT] = 0.5  # node (0, 0) lit at layer 0
+    grid[1, 0, 0, LIGHT] = 0.1  # and dim at layer 1
+    grid[2, 0, 1, LIGHT] = 0.2  # node (0, 1) known at layer 2 only
+    grid[1, 0, 0, MOVE_RIGHT] = 0.05  # the move right from (0, 0), sensed at layer 1
+    grid[..., 7:] = step_grids(np.stack([grid[0, ..., MOVE_UP], grid[0, ..., MOVE_RIGHT]]), free)
+    read = believed_phased(grid, advance=1)
+    np.testing.assert_array_equal(read[:, 0, 0, LIGHT], np.float32([0.5, 0.1, 0.5]))
+    np.testing.assert_array_equal(read[:, 0, 1, LIGHT], np.float32([0.2, 0.2, 0.2]))
+    assert (read[:, 1, :, LIGHT] == 0.0).all()  # never sensed anywhere: dark
+    np.testing.assert_array_equal(read[:, 0, 0, MOVE_RIGHT], np.float32([0.05, 0.05, 0.05]))
+    np.testing.assert_array_equal(read[:, 0, 0, 7 + 3], read[:, 0, 0, MOVE_RIGHT])  # step right
+    np.testing.assert_array_equal(read[:, 0, 1, 7 + 2], read[:, 0, 0, MOVE_RIGHT])  # step left
+    np.testing.assert_array_equal(read[:, 0, 0, 7], np.float32([0.5, 0.1, 0.5]))  # up: ends
+    assert (read[:, 1, :, 7] == -2).all() and (read[:, 0, :, 8] == -2).all()  # off the grid
+    np.testing.assert_array_equal(read[:, 0, 0, 11], np.float32([0.5, 0.5, 0.5]))  # wait
+    assert (grid[1, 0, 1, LIGHT] == -1).all()  # a new array
 
 
 def test_the_plugin_on_the_sent_belief_is_the_benchmarks_agent(generated):

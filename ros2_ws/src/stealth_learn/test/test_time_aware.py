@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from stealth_core.grid_observation import LIGHT
 from stealth_core.gym_env import StealthNavEnv
 from stealth_core.planners import value_iteration
 from stealth_core.scenario_generator import Options
@@ -166,8 +167,32 @@ def test_lights_of_another_kind_or_cycle_are_refused_naming_both(generated, tmp_
     message = str(error.value)
     assert "'stealth-phased-v1/full/4phases-1perstep'" in message
     assert "'stealth-phased-v1/full/8phases-1perstep'" in message and '\n' not in message
-    with pytest.raises(ValueError, match=r"\(track 'full'\), not track 'sensed'"):
-        GeneralistAgent(timed, StealthNavEnv(moving, track='sensed'))
+
+
+def test_on_the_sensed_track_it_reads_only_what_was_sensed_at_each_layer(tmp_path):
+    """Sensed, the time-aware agent reads the phased belief of the robot's phased memory: at
+    the start only bin 0 is known, so every layer reads bin 0's values (the brightest known
+    elsewhere stands in for a layer never sensed), not the lights' other bins; the memory of
+    each bin grows as the robot goes, and it reaches the goal undetected."""
+    scenario = _moving(tmp_path, 'sweeping', 1)[0]
+    policy = GeneralistPolicy.hand_set(TIMED, ScenarioReward.of(scenario))
+    env = StealthNavEnv(scenario, track='sensed')
+    agent = GeneralistAgent(policy, env)
+    observation, _ = env.reset(seed=0)
+    truth = data.phased_grid(TaskArrays(scenario, model=env.model))
+    first = agent.grid(observation)
+    assert first.shape == truth.shape
+    light = first[..., LIGHT]
+    assert all(np.array_equal(light[0], layer) for layer in light[1:])
+    assert not all(np.array_equal(truth[0, ..., LIGHT], layer) for layer in truth[1:, ..., LIGHT])
+    while True:
+        observation, _, terminated, truncated, info = env.step(agent.act(observation))
+        if terminated or truncated:
+            break
+    assert info['outcome'] == 'SUCCESS'
+    sensed_layers = (env.sensor.phased.node_light >= 0).any(axis=1)
+    assert sensed_layers.all()  # it saw every bin of the cycle on its way
+    assert agent.value_maps > 1
 
 
 def test_a_phased_weights_file_is_refused_at_load_for_another_cycle(tmp_path):
