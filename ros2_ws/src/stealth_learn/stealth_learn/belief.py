@@ -13,13 +13,15 @@ itself.
 With moving lights the time-aware network reads the phased belief (``believed_phased``): the
 phased grid of what was sensed at each phase layer (``FullTrackGrid.phased_sensed``), each
 layer believed as above, its four step channels the believed moves' light and its wait (never
-sensed as such) the more light of the node at this layer and at the layer the wait arrives at.
+sensed as such) the more light of the node at this layer and at the layer the wait arrives at;
+its age channel is 1 on a node never sensed at that layer (what a network trained for the
+sensed track reads: ``vin.Vin``'s ``uncertain``), else 0.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from stealth_core.grid_observation import CHANNELS, LIGHT, MOVE_RIGHT, MOVE_UP, step_grids
+from stealth_core.grid_observation import AGE, CHANNELS, LIGHT, MOVE_RIGHT, MOVE_UP, step_grids
 
 UNKNOWN = -1.0  # never sensed (the Gym env's sensed observation, GridObservation's sensed layout)
 
@@ -51,6 +53,7 @@ def believed_phased(grid, advance: int, assumed=0.0) -> np.ndarray:
     docstring); ``advance``: the layers a step advances; ``assumed`` as ``believed``'s. A new
     array; on a fully known grid the light and move channels are as they are."""
     grid = np.array(grid, dtype=np.float32)
+    grid[..., AGE] = grid[..., LIGHT] == UNKNOWN  # the never-sensed input (vin's uncertain)
     for channel in (LIGHT, MOVE_UP, MOVE_RIGHT):
         values = grid[..., channel]
         brightest = values.max(axis=0)  # over the layers: -1 never sensed at any

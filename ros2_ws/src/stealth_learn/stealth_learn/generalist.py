@@ -75,9 +75,15 @@ class GeneralistPolicy:
         return cls(params, architecture, source=source)
 
     @property
+    def track(self) -> str:
+        """The track the weights were trained for: 'full', or 'sensed' (a network reading the
+        never-sensed input, ``vin.Vin``'s ``uncertain``)."""
+        return self.header.get('track', 'full')
+
+    @property
     def layout(self) -> str:
         """The observation layout the network reads (``policy_file.policy_layout``)."""
-        return policy_file.policy_layout('full', self.header['architecture'])
+        return policy_file.policy_layout(self.track, self.header['architecture'])
 
     def check_scenario(self, scenario, model=None) -> None:
         """LayoutError, one line naming these weights and the scenario, unless the network can
@@ -100,7 +106,9 @@ class GeneralistPolicy:
                 f'static lights (layout {policy_file.policy_layout("full")!r}); use a static '
                 'policy there'
             )
-        check_layout(self.layout, _scenario_layout(scenario, model), f'{self.source} ({where})')
+        check_layout(
+            self.layout, _scenario_layout(scenario, model, self.track), f'{self.source} ({where})'
+        )
 
     def cell_logits(self, grid) -> np.ndarray:
         """(R, C, 4) the logits of every cell of one grid (R, C, 7), or (L, R, C, 5) of every
@@ -115,12 +123,12 @@ class GeneralistPolicy:
         return int(np.argmax(self.cell_logits(grid)[robot_cell(grid)]))
 
 
-def _scenario_layout(scenario, model=None) -> str:
-    """The phased grid layout of a scenario with moving lights: its lattice model's phase
-    layers and the layers a step advances (``model``: built if None)."""
+def _scenario_layout(scenario, model=None, track: str = 'full') -> str:
+    """The phased grid layout of a scenario with moving lights on ``track``: its lattice
+    model's phase layers and the layers a step advances (``model``: built if None)."""
     model = TaskArrays(scenario).model if model is None else model
     timing = model.task.timing
-    return phased_layout_id('full', model.layers, 0 if timing is None else timing.bins_per_step)
+    return phased_layout_id(track, model.layers, 0 if timing is None else timing.bins_per_step)
 
 
 @functools.lru_cache(maxsize=8)

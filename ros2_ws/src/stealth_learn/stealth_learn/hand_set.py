@@ -24,7 +24,8 @@ is 0, for 0 <= x < GATE), so the output is exactly that reward (to float32), ``g
 move also pays the most any place can be worth (``goal_reward + goal_distance_weight *
 radius``): it is worth at most the detection's reward, never more than a way that is not seen,
 as in value iteration. The distance is the grid's, to the goal cells' centre, not to the goal
-point (within a fraction of a step). The convolution is zero: the context adds nothing.
+point (within a fraction of a step). The convolution is zero: the context adds nothing; so is
+the never-sensed input of a network that reads one (``uncertain``): the belief read as known.
 
 ``REWARDS``: 'env' (the above; it needs 8 hidden units), and 'dark-steps', the review's second
 variant (issue 42): -1 a move, -1e4 a lit one, goal value 0: the shortest way that is not seen.
@@ -92,7 +93,8 @@ def hand_set_params(architecture: dict, reward: ScenarioReward, kind: str = 'env
             f'hand-set reward: scenario {reward.scenario!r} has detection_mode '
             f"{reward.detection_mode!r}; the weights are written for 'threshold' only"
         )
-    hidden_kernel = np.zeros((INPUTS + features, hidden), np.float64)
+    uncertain = int(architecture.get('uncertain', 0))  # its never-sensed input: weight 0
+    hidden_kernel = np.zeros((INPUTS + features + uncertain, hidden), np.float64)
     hidden_bias = np.zeros(hidden, np.float64)
     out = np.zeros(hidden, np.float64)
     if kind == 'dark-steps':

@@ -18,7 +18,9 @@ The layout is the grid layout without its size (``stealth-grid-v1/full``): the n
 fully convolutional, so any scenario's grid fits. A time-aware network (moving lights: the
 architecture's ``layers`` > 1) reads the phased grid of its phase count and step
 (``obs_layout.phased_layout_id``, e.g. ``stealth-phased-v1/full/8phases-1perstep``): the
-header's layout must be its architecture's.
+header's layout must be its architecture's. A network trained for the sensed track has
+``uncertain`` 1 in its architecture (optional, 0 or 1: it reads the never-sensed input) and
+track 'sensed'.
 """
 
 from __future__ import annotations
@@ -93,6 +95,8 @@ PHASED_RANGES = {
     'layers': Range(True, 2, MAX_LAYERS),
     'advance': Range(True, 0, MAX_LAYERS - 1),  # and < layers
 }
+# optional: 1 for a network of the sensed track reading the never-sensed input (``vin.Vin``)
+UNCERTAIN_RANGES = {'uncertain': Range(True, 0, 1)}
 # the training record (optional, each field optional; read by no decision)
 TRAINING_FIELDS = {
     'train_iterations': Range(True, 1, MAX_ITERATIONS),
@@ -138,6 +142,7 @@ def save(path, params, track: str, architecture: dict, training: dict | None = N
     checked as ``load`` checks it, so no command writes a file ``load`` would refuse."""
     path = Path(path)
     names = ARCHITECTURE + (tuple(PHASED_RANGES) if architecture.get('layers', 1) > 1 else ())
+    names += tuple(UNCERTAIN_RANGES) if architecture.get('uncertain', 0) else ()
     header = {
         'format': FORMAT,
         'layout': policy_layout(track, architecture),
@@ -156,7 +161,8 @@ def save(path, params, track: str, architecture: dict, training: dict | None = N
 def load(path, env_layout: str | None) -> tuple[dict, dict]:
     """(params tree, header) of the file at ``path`` for an environment giving ``env_layout``
     (``obs_layout.layout_id``: any grid size; None: any lights-known layout, static or phased,
-    the scenario's checked when it is known: ``GeneralistPolicy.check_scenario``), checked
+    or the phased sensed one of a network trained for that track, the scenario's checked
+    when it is known: ``GeneralistPolicy.check_scenario``), checked
     whole (module docstring). PolicyFileError or ``obs_layout.LayoutError`` (another layout,
     track or phase count): one line naming the path. Needs the learning extra (the shapes
     come from the network)."""
@@ -165,7 +171,8 @@ def load(path, env_layout: str | None) -> tuple[dict, dict]:
     header, flat = _read(path)
     header = check_header(path, header)
     if env_layout is None:
-        env_layout = header['layout'] if header['track'] == 'full' else policy_layout('full')
+        known = header['track'] == 'full' or header['layout'].startswith(PHASED_PREFIX)
+        env_layout = header['layout'] if known else policy_layout('full')
     check_layout(header['layout'], without_size(env_layout), str(path))
     _check_params(path, flat, header['architecture'])
     return _unflatten({name: value.astype(np.float32) for name, value in flat.items()}), header
@@ -305,6 +312,7 @@ def check_header(path, header) -> dict:
     architecture = fields.mapping('architecture', 'a mapping')
     phased = any(architecture.has(name) for name in PHASED_RANGES)
     ranges = {**ARCHITECTURE_RANGES, **(PHASED_RANGES if phased else {})}
+    ranges.update(UNCERTAIN_RANGES if architecture.has('uncertain') else {})
     _check_ranges(architecture, ranges, True)
     if phased:
         layers = architecture.values['layers']

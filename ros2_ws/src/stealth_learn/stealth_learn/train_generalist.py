@@ -15,6 +15,7 @@ the targets are the layered value iteration's optimal actions at every cell of e
 from __future__ import annotations
 
 import argparse
+import functools
 import math
 import os
 from pathlib import Path
@@ -26,10 +27,11 @@ import numpy as np
 from stealth_core.scenario_generator import MOVING, THRESHOLD, GenerationError, Options
 
 from stealth_learn import generalist_data as data
-from stealth_learn import policy_file
+from stealth_learn import policy_file, sensed_data
 
 DEFAULT_OUT = Path(__file__).resolve().parent / 'policies' / 'generalist-full.npz'
 MOVING_OUT = DEFAULT_OUT.with_name('generalist-moving.npz')  # the time-aware weights
+SENSED_OUT = DEFAULT_OUT.with_name('generalist-sensed.npz')  # time-aware, lights sensed
 SIZES = ((20, 20, 3), (30, 30, 4), (40, 40, 6))  # width, height (m), lights: the curriculum
 
 
@@ -90,6 +92,31 @@ def parse_args(argv=None) -> argparse.Namespace:
         'is to be seen or not), relative to 1 for the others',
     )
     parser.add_argument('--seed', type=int, default=0, help='the initialisation and batches')
+    sensed = parser.add_argument_group(
+        'the sensed track (moving lights): DAgger on belief snapshots (stealth_learn.sensed_data)'
+    )
+    sensed.add_argument(
+        '--sensed',
+        action='store_true',
+        help='train the time-aware network for the lights-sensed track (needs --moving): it '
+        'reads the phased belief and whether each layer was sensed',
+    )
+    sensed.add_argument(
+        '--rounds', type=int, default=2, help="DAgger rounds: the first's episodes played by "
+        "the hand-set twin, each next one's by the network being trained"
+    )  # fmt: skip
+    sensed.add_argument(
+        '--snapshot-every', type=int, default=8, help='steps between two snapshots of an episode'
+    )
+    sensed.add_argument(
+        '--robot-weight', type=float, default=20.0,
+        help="the loss weight added at the robot's own layer and cell (1 + this)",
+    )  # fmt: skip
+    sensed.add_argument(
+        '--init', type=Path, default=MOVING_OUT,
+        help='the weights to start from (time-aware, lights known; default the shipped '
+        'generalist-moving.npz), the never-sensed input at 0',
+    )  # fmt: skip
     args = parser.parse_args(argv)
     for name in (
         'train',
@@ -101,6 +128,8 @@ def parse_args(argv=None) -> argparse.Namespace:
         'hidden',
         'features',
         'every',
+        'rounds',
+        'snapshot_every',
     ):
         if getattr(args, name) < 1:
             parser.error(f'--{name.replace("_", "-")}: expected a positive whole number')
@@ -119,8 +148,13 @@ def parse_args(argv=None) -> argparse.Namespace:
         parser.error('--lit-weight: expected a finite number >= 1')
     if args.seed < 0:
         parser.error('--seed: expected a whole number >= 0')
+    if args.sensed and args.moving == 'none':
+        parser.error("--sensed: expected --moving (the sensed track's network is time-aware)")
+    if not (math.isfinite(args.robot_weight) and args.robot_weight >= 0):
+        parser.error('--robot-weight: expected a finite number >= 0')
     if args.out is None:
         args.out = DEFAULT_OUT if args.moving == 'none' else MOVING_OUT
+        args.out = SENSED_OUT if args.sensed else args.out
     return args
 
 
@@ -174,28 +208,46 @@ def train(args, log=print, progress: bool = False) -> dict:
     import optax
     from tqdm import tqdm
 
+    from stealth_learn.generalist import GeneralistPolicy
     from stealth_learn.jax_deps import jax, jnp
     from stealth_learn.vin import Vin
 
     started = time.monotonic()
     directory = Path(tempfile.mkdtemp(prefix='generalist-'))
     sets = {'train': [], 'validation': []}
+    buildings = {'train': [], 'validation': []}  # --sensed: [(scenario, Sample)] per size
     for index, (width, height, lights) in enumerate(args.sizes):
         options = Options(width=width, height=height, lights=lights, moving=args.moving)
         for name, count in (('train', args.train), ('validation', args.validation)):
             seeds = data.seeds_of(name, count, offset=index * 3_000)
-            sets[name].append(_of_lights(data.load_samples(seeds, options, directory, log),
-                                         args.moving, log))  # fmt: skip
+            if args.sensed:
+                buildings[name].append(sensed_data.load_buildings(seeds, options, directory, log))
+                sets[name].append([sample for _, sample in buildings[name][-1]])
+            else:
+                sets[name].append(_of_lights(data.load_samples(seeds, options, directory, log),
+                                             args.moving, log))  # fmt: skip
             log(f'{name} {width}x{height} m: {len(sets[name][-1])} scenarios')
-    generated = time.monotonic() - started
     layers, advance = _cycle(sum(sets['train'] + sets['validation'], []))
-    model = Vin(args.iterations, args.hidden, args.features, THRESHOLD, layers, advance)
+    model = Vin(
+        args.iterations, args.hidden, args.features, THRESHOLD, layers, advance, int(args.sensed)
+    )
+    architecture = _architecture(args, layers, advance)
+    if args.sensed:  # the first round: the hand-set twin's episodes
+        twin = functools.partial(_hand_set_twin, architecture)
+        for name in sets:
+            sets[name] = _snapshots(buildings[name], twin, args, f'{name}: round 1', progress)
+        unknown = sensed_data.unknown_share(sum(sets['train'], []))
+        log(f'round 1: {sum(map(len, sets["train"]))} training snapshots, {unknown:.0%} unknown')
+    generated = time.monotonic() - started
     rng = np.random.default_rng(args.seed)
     small, every_size = sets['train'][0], sum(sets['train'], [])
     # one padded size per phase: a new batch shape would compile the step again
     shapes = [_shape(small), _shape(every_size)]
     validation = [data.batch(samples) for samples in sets['validation']]
     variables = model.init(jax.random.PRNGKey(args.seed), jnp.asarray(validation[0][0][:1]))
+    if args.sensed and args.init is not None:
+        variables = {'params': _initial(args.init, variables['params'])}
+    round_starts = {1 + r * args.steps // args.rounds: r + 1 for r in range(1, args.rounds)}
     optimiser = optax.chain(
         optax.clip_by_global_norm(1.0),
         optax.adam(optax.cosine_decay_schedule(args.lr, args.steps, alpha=0.1)),
@@ -220,6 +272,14 @@ def train(args, log=print, progress: bool = False) -> dict:
     loop_started = time.monotonic()
     bar = tqdm(range(1, args.steps + 1), desc='training', unit='step', disable=not progress)
     for step in bar:
+        if args.sensed and step in round_starts:  # DAgger: the network's own episodes join
+            learned = GeneralistPolicy(variables['params'], architecture, source='training')
+            label = f'train: round {round_starts[step]}'
+            more = _snapshots(buildings['train'], lambda _, p=learned: p, args, label, progress)
+            sets['train'] = [old + new for old, new in zip(sets['train'], more, strict=True)]
+            small, every_size = sets['train'][0], sum(sets['train'], [])
+            elapsed = time.monotonic() - started
+            log(f'{label}: {sum(map(len, more))} snapshots more ({elapsed:.0f} s)')
         phase = int(step > args.steps // 2)
         pool = (small, every_size)[phase]
         picked = [pool[i] for i in rng.choice(len(pool), min(args.batch, len(pool)), False)]
@@ -254,6 +314,59 @@ def train(args, log=print, progress: bool = False) -> dict:
         'samples_per_second': args.steps * args.batch / max(trained, 1e-9),
         'train_seconds': trained,
     }
+
+
+def _architecture(args, layers: int, advance: int) -> dict:
+    """The weights file's architecture (decision-time backups)."""
+    return {
+        'iterations': args.eval_iterations,
+        'hidden': args.hidden,
+        'features': args.features,
+        'threshold': THRESHOLD,
+        **({'layers': layers, 'advance': advance} if layers > 1 else {}),
+        **({'uncertain': 1} if args.sensed else {}),
+    }
+
+
+def _hand_set_twin(architecture: dict, scenario):
+    from stealth_learn.generalist import GeneralistPolicy
+    from stealth_learn.hand_set import ScenarioReward
+
+    return GeneralistPolicy.hand_set(architecture, ScenarioReward.of(scenario))
+
+
+def _snapshots(groups, policy_of, args, label: str, progress: bool) -> list:
+    """Per size, the belief snapshots of its buildings' episodes (``sensed_data``)."""
+    from tqdm import tqdm
+
+    with tqdm(
+        total=sum(map(len, groups)), desc=label, unit='episode', disable=not progress
+    ) as bar:
+        return [
+            sensed_data.snapshots(group, policy_of, args.snapshot_every, args.robot_weight, bar)
+            for group in groups
+        ]
+
+
+def _initial(path: Path, params) -> dict:
+    """``params`` (the network's, initialised) replaced by the time-aware weights at ``path``,
+    the never-sensed input's weights 0; PolicyFileError naming the path if they do not fit."""
+    loaded, _ = policy_file.load(path, None)
+    out = jax_tree_map_numpy(loaded)
+    kernel = out['reward_hidden']['kernel']
+    wanted = np.asarray(params['reward_hidden']['kernel']).shape
+    out['reward_hidden']['kernel'] = np.concatenate([kernel, np.zeros((1, kernel.shape[1]))])
+    if out['reward_hidden']['kernel'].shape != wanted:
+        raise policy_file.PolicyFileError(
+            f'{path}: --init: its reward network is {kernel.shape}, expected {wanted[0] - 1} '
+            f'inputs and {wanted[1]} hidden units (--hidden, --features)'
+        )
+    return out
+
+
+def jax_tree_map_numpy(params) -> dict:
+    return {key: (jax_tree_map_numpy(v) if isinstance(v, dict) else np.asarray(v, np.float32))
+            for key, v in params.items()}  # fmt: skip
 
 
 def _of_lights(samples, moving: str, log) -> list:
@@ -324,14 +437,7 @@ def main(argv=None) -> int:
     except (GenerationError, data.DataError) as error:
         print(f'train_generalist: {error}', file=sys.stderr)
         return 2
-    architecture = {
-        'iterations': args.eval_iterations,
-        'hidden': args.hidden,
-        'features': args.features,
-        'threshold': THRESHOLD,
-        **({'layers': record['layers'], 'advance': record['advance']} if record['layers'] > 1
-           else {}),
-    }  # fmt: skip
+    architecture = _architecture(args, record['layers'], record['advance'])
     training = {
         'train_iterations': args.iterations,
         'steps': args.steps,
@@ -348,7 +454,8 @@ def main(argv=None) -> int:
         'sizes': [list(s) for s in args.sizes],
     }
     try:
-        path = policy_file.save(args.out, record['params'], 'full', architecture, training)
+        track = 'sensed' if args.sensed else 'full'
+        path = policy_file.save(args.out, record['params'], track, architecture, training)
     except (OSError, policy_file.PolicyFileError) as error:  # e.g. a diverged (NaN) loss
         print(f'train_generalist: {args.out}: not written ({error})', file=sys.stderr)
         return 2

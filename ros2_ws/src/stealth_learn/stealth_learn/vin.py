@@ -38,6 +38,12 @@ layer and action, that step light, whether it is lit, the node light of the laye
 at, the goal and distance entered and the layer's context, with the same weights as above:
 one layer (so no wait) is exactly the static network (its step light the grid's move
 channels), so the static weights are these weights.
+
+**Lights sensed** (``uncertain``): the reward MLP reads one more input per step, last, after
+the context: whether the light of the node it enters, at the layer it arrives at, was never
+sensed (the grid's age channel, 1 there: ``belief.believed_phased`` marks it; on a lights-known
+grid it is 0 everywhere). With that input's weights at 0 it is the network above, so the
+hand-set twin is unchanged; a trained network can price what it has not seen.
 """
 
 from __future__ import annotations
@@ -49,7 +55,7 @@ NUM_MOVES = 4  # up, down, left, right: static lights without exposure have no w
 WAIT = 4  # the fifth action where lights move (``stealth_core.task.WAIT``)
 NO_MOVE = -2.0  # obs_layout: the light where no node or move is
 MASKED = -1e9
-FREE, ROBOT, GOAL, LIGHT, MOVE_UP, MOVE_RIGHT = range(6)
+FREE, ROBOT, GOAL, LIGHT, MOVE_UP, MOVE_RIGHT, AGE = range(7)
 
 
 def _shift(array, action: int, fill):
@@ -90,7 +96,8 @@ class Vin(nn.Module):
     width; ``features``: the 3x3 convolution's channels; ``threshold``: the detection threshold
     of the scenarios it is for (the generator's ``THRESHOLD``), a fixed input feature;
     ``layers``, ``advance``: the phase layers of moving lights and the layers a step advances
-    (1, 0: static lights, the static grid as input; more layers add the wait action)."""
+    (1, 0: static lights, the static grid as input; more layers add the wait action);
+    ``uncertain``: 1 to read the never-sensed input of the sensed track."""
 
     iterations: int = 200
     hidden: int = 32
@@ -98,6 +105,7 @@ class Vin(nn.Module):
     threshold: float = 0.3
     layers: int = 1
     advance: int = 0
+    uncertain: int = 0  # 1: the never-sensed input (module docstring)
 
     @property
     def num_actions(self) -> int:
@@ -171,8 +179,12 @@ class Vin(nn.Module):
                 ],
                 axis=-1,
             )
-            per_action.append(jnp.concatenate([entered, context], axis=-1))
-        stacked = jnp.stack(per_action, axis=-2)  # (B, L, R, C, A, 5 + features)
+            parts = [entered, context]
+            if self.uncertain:
+                unknown = (grid[..., AGE] > 0.5).astype(jnp.float32)
+                parts.append(self._after(unknown, action, 0.0)[..., None])
+            per_action.append(jnp.concatenate(parts, axis=-1))
+        stacked = jnp.stack(per_action, axis=-2)  # (B, L, R, C, A, 5 + features [+ 1])
         hidden = nn.relu(self.reward_hidden(stacked))
         return self.reward_out(hidden)[..., 0]
 

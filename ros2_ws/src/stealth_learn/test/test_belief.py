@@ -5,6 +5,7 @@ larger light, and both give the same grid and the same move along an episode."""
 
 import numpy as np
 from stealth_core.grid_observation import (
+    AGE,
     LIGHT,
     MOVE_RIGHT,
     MOVE_UP,
@@ -65,6 +66,8 @@ def test_a_layer_never_sensed_reads_the_brightest_known_else_dark():
     np.testing.assert_array_equal(read[:, 0, 0, 7], np.float32([0.5, 0.1, 0.5]))  # up: ends
     assert (read[:, 1, :, 7] == -2).all() and (read[:, 0, :, 8] == -2).all()  # off the grid
     np.testing.assert_array_equal(read[:, 0, 0, 11], np.float32([0.5, 0.5, 0.5]))  # wait
+    np.testing.assert_array_equal(read[:, 0, 0, AGE], np.float32([0, 0, 1]))  # never sensed
+    np.testing.assert_array_equal(read[:, 0, 1, AGE], np.float32([1, 1, 0]))
     assert (grid[1, 0, 1, LIGHT] == -1).all()  # a new array
 
 
