@@ -80,18 +80,16 @@ def stack(free, goal, light, moves, robot=None, age=None) -> np.ndarray:
     )
 
 
-def step_grids(moves: np.ndarray, free: np.ndarray, wait=None) -> np.ndarray:
+def step_grids(moves: np.ndarray, free: np.ndarray, wait: np.ndarray) -> np.ndarray:
     """(R, C, 5) the step channels (``STEP_CHANNELS``) of a layer's (2, R, C) move light (up
     and right from each node): up and right the node's own moves, down the move up from the
     node below, left the move right from the node to the left (-2 beyond the grid); the wait
-    ``wait`` (R, C), -1 (unknown) if None, -2 off the ``free`` nodes."""
+    ``wait`` (R, C), -2 off the ``free`` nodes."""
     up, right = np.asarray(moves, np.float32)
     down = np.full_like(up, NO_PLACE)
     left = np.full_like(right, NO_PLACE)
     down[1:] = up[:-1]
     left[:, 1:] = right[:, :-1]
-    if wait is None:
-        wait = np.full_like(up, -1.0)
     wait = np.where(free, wait, NO_PLACE)
     down, left = (np.where(free, channel, NO_PLACE) for channel in (down, left))
     return np.stack([up, down, left, right, wait], -1).astype(np.float32)
@@ -177,18 +175,17 @@ class FullTrackGrid:
         """(L, R, C, 12) the phased grid of what was sensed (``sensing.PhasedMemory``): at each
         layer its node and move light as last sensed there (-1 never, -2 none), the four step
         channels the move's value at that layer (what was sensed of the segment, either way, at
-        the layer's start: the same -1 and -2), the wait -1 (a wait is never sensed as such;
-        -2 where no node is). Robot 0. The phased belief (``stealth_learn.belief``) fills the
+        the layer's start: the same -1 and -2), the wait's as sensed (the node watched over the
+        step: ``sensing``). Robot 0. The phased belief (``stealth_learn.belief``) fills the
         unknowns."""
         sensing = self.sensing
         layers = []
-        for node_light, move_light in zip(memory.node_light, memory.move_light, strict=True):
+        for node_light, move_light, wait_light in zip(
+            memory.node_light, memory.move_light, memory.wait_light, strict=True
+        ):
             light, moves = sensing.grid(node_light), sensing.move_grid(move_light)
-            layers.append(
-                np.concatenate(
-                    [stack(self.free, self.goal, light, moves), step_grids(moves, self.free)], -1
-                )
-            )
+            steps = step_grids(moves, self.free, sensing.grid(wait_light))
+            layers.append(np.concatenate([stack(self.free, self.goal, light, moves), steps], -1))
         return np.stack(layers)
 
     def belief(self, light, moves) -> np.ndarray:

@@ -16,7 +16,11 @@ move lattice (``lattice_model.LatticeModel``), so a sensed value is exactly a va
   (the segment then is) and every cell of its samples is in sight. A move's value is what
   ``StealthTask.step_visibility`` would judge a step started now on: with moving lights it
   includes the light's motion during that one step (the model's own step), a small look ahead
-  documented as such.
+  documented as such;
+- a **wait**'s light, where the lights move (the scenario has the wait): the node's light over
+  one step's time from the current bin (``model.step_visibility``'s wait), sensed with the node:
+  a robot watching a place sees a beam cross it between two bins, which neither bin's value
+  shows. Kept in the phased memory only (the sensed observation has no channel for it).
 
 ``Sensing`` says what is in sight from each node (traced on first use, then cached per node:
 a robot revisits the same few hundred nodes). ``SensedMemory`` keeps, for every node and move,
@@ -45,6 +49,7 @@ import dataclasses
 import numpy as np
 
 from stealth_core.lighting import GridFrame
+from stealth_core.task import WAIT
 from stealth_core.visibility import _occluded, corner_maps
 
 UNKNOWN = -1.0  # a value never sensed
@@ -154,6 +159,16 @@ class Sensing:
         back = step[layer + self.move_to[moves], self._back[moves]]
         return node_values, np.maximum(forward, back)
 
+    def wait_truth(self, place: int, nodes=slice(None)) -> np.ndarray:
+        """The light of a wait on the nodes (indices; default all) from the layer of
+        ``place`` (module docstring); without a wait action (still lights: the light does not
+        change over a step), the nodes' light."""
+        model = self.model
+        layer = place - model.node_of(place)
+        if model.num_actions <= WAIT:
+            return model.visibility[layer : layer + self.n][nodes]
+        return model.step_visibility[layer : layer + self.n, WAIT][nodes]
+
     def grid(self, node_values: np.ndarray, fill: float = NO_PLACE) -> np.ndarray:
         """(rows, cols) float32: node values laid on the lattice, [j - j_min, i - i_min] (row 0
         the southernmost), ``fill`` where no valid node is."""
@@ -212,18 +227,22 @@ class PhasedMemory:
 
     node_light: np.ndarray  # (layers, nodes)
     move_light: np.ndarray  # (layers, moves)
+    wait_light: np.ndarray  # (layers, nodes): a wait from each node at each layer
 
     @classmethod
     def empty(cls, sensing: Sensing) -> PhasedMemory:
-        layers = sensing.model.layers
+        layers, n = sensing.model.layers, sensing.n
         return cls(
-            np.full((layers, sensing.n), UNKNOWN), np.full((layers, sensing.moves), UNKNOWN)
+            np.full((layers, n), UNKNOWN),
+            np.full((layers, sensing.moves), UNKNOWN),
+            np.full((layers, n), UNKNOWN),
         )
 
-    def update(self, layer: int, nodes, node_values, moves, move_values) -> None:
+    def update(self, layer: int, nodes, node_values, moves, move_values, wait_values) -> None:
         """Remember what was sensed at ``layer``."""
         self.node_light[layer, nodes] = node_values
         self.move_light[layer, moves] = move_values
+        self.wait_light[layer, nodes] = wait_values
 
     @property
     def layers(self) -> int:
@@ -268,7 +287,8 @@ class Sensor:
         node_values, move_values = sensing.truth(place, nodes, moves)
         self.memory.update(nodes, node_values, moves, move_values, step)
         layer = int(place) // sensing.n
-        self.phased.update(layer, nodes, node_values, moves, move_values)
+        waits = sensing.wait_truth(place, nodes)
+        self.phased.update(layer, nodes, node_values, moves, move_values, waits)
         return nodes, moves
 
 

@@ -140,6 +140,10 @@ def test_the_phased_memory_keeps_each_layers_value_apart():
     truth_nodes, truth_moves = sensor.sensing.truth(2 * n + node, nodes, moves)
     assert np.array_equal(phased.node_light[2, nodes], truth_nodes)
     assert np.array_equal(phased.move_light[2, moves], truth_moves)
+    # a wait from each node in sight: its light over the step (the beam may cross between bins)
+    wait = model.step_visibility[2 * n + nodes, 4]
+    assert np.array_equal(phased.wait_light[2, nodes], wait)
+    assert (wait >= np.maximum(truth_nodes, model.visibility[3 * n + nodes]) - 1e-12).all()
     others = np.delete(np.arange(model.layers), 2)
     assert np.all(phased.node_light[others] == UNKNOWN)
     assert np.all(phased.move_light[others] == UNKNOWN)
@@ -148,6 +152,7 @@ def test_the_phased_memory_keeps_each_layers_value_apart():
     assert np.array_equal(phased.node_light[5, nodes], model.visibility[5 * n + nodes])
     sensor.reset()
     assert np.all(sensor.phased.node_light == UNKNOWN)
+    assert np.all(sensor.phased.wait_light == UNKNOWN)
 
 
 # --- the Gym observation ------------------------------------------------------------------------

@@ -118,8 +118,8 @@ def test_the_phased_grid_is_every_bins_grid_and_each_steps_light():
 
 def test_the_phased_sensed_grid_is_what_was_sensed_at_each_layer():
     """Sensed everywhere at every layer, the phased sensed grid is the phased grid but for the
-    steps: a move's step is the segment's light either way (at least the step's own light, the
-    most of both directions exactly) and a wait is unknown (-1); never sensed, -1."""
+    moves' steps: a move's step is the segment's light either way (at least the step's own
+    light, the most of both directions exactly); the wait is the lattice's; never sensed, -1."""
     task = StealthTask(load_scenario('simple-maze-moving'))
     model = LatticeModel.build(task)
     grid = FullTrackGrid(model)
@@ -131,7 +131,8 @@ def test_the_phased_sensed_grid_is_what_was_sensed_at_each_layer():
     for layer in range(model.layers):
         everything = np.arange(n), np.arange(sensing.moves)
         node_values, move_values = sensing.truth(layer * n)
-        memory.update(layer, everything[0], node_values, everything[1], move_values)
+        waits = sensing.wait_truth(layer * n)
+        memory.update(layer, everything[0], node_values, everything[1], move_values, waits)
     sensed, truth = grid.phased_sensed(memory), grid.phased()
     assert sensed.shape == truth.shape and sensed.dtype == np.float32
     np.testing.assert_array_equal(sensed[..., :7], truth[..., :7])
@@ -151,7 +152,7 @@ def test_the_phased_sensed_grid_is_what_was_sensed_at_each_layer():
                 back = true_steps[layer, r + dr, c + dc, opposite[action]]
                 expected = max(true_steps[layer, r, c, action], back)
                 assert steps[layer, r, c, action] == expected
-    assert (sensed[:, rows, cols, 11] == UNKNOWN).all()
+    np.testing.assert_array_equal(sensed[..., 11], truth[..., 11])  # the wait, as judged
     assert (sensed[:, ~grid.free, 7:] == NO_PLACE).all()
 
 

@@ -34,10 +34,11 @@ runs on which track (``METHODS``), and why:
   decision from its parameters (``stealth_learn.generalist_agent``): on the full track the value
   map of the lights as they stand, on the sensed track of what was sensed so far (never sensed:
   dark, as ``replan (unknown dark)``). It needs the learning extra (``make learn``);
-  without it its rows fail with the one line saying so, and the other methods run. Static
-  weights given moving lights, or time-aware weights (``generalist-moving.npz``: the phased
-  grid, the wait) given static lights, another cycle or the sensed track, are refused in the
-  row, naming the weights and the scenario.
+  without it its rows fail with the one line saying so, and the other methods run. Moving
+  lights need time-aware weights (``generalist-moving.npz``, or ``generalist-sensed.npz``
+  trained for the sensed track: the phased grid, the wait; sensed, the phased belief of what
+  was sensed at each phase); static weights given moving lights, or time-aware weights given
+  static lights or another cycle, are refused in the row, naming the weights and the scenario.
 - its twins, the same network played the same way, nothing learned (``TWINS``): ``generalist
   (hand-set)``, the scenario's reward written into its weights
   (``GeneralistPolicy.hand_set``); ``generalist (dark steps)``, -1 a move and -1e4 a lit one

@@ -11,18 +11,28 @@ the larger of its two ends' (believed) light. On a lights-known grid (no -1) it 
 itself.
 
 With moving lights the time-aware network reads the phased belief (``believed_phased``): the
-phased grid of what was sensed at each phase layer (``FullTrackGrid.phased_sensed``), each
-layer believed as above, its four step channels the believed moves' light and its wait (never
-sensed as such) the more light of the node at this layer and at the layer the wait arrives at;
-its age channel is 1 on a node never sensed at that layer (what a network trained for the
-sensed track reads: ``vin.Vin``'s ``uncertain``), else 0.
+phased grid of what was sensed at each phase layer (``FullTrackGrid.phased_sensed``). A node,
+move or wait never sensed at a layer but sensed at others reads the most light sensed there (a
+beam seen once may be back then); never sensed at any, each layer is believed as above, and a
+wait as the more light of the node at this layer and at the layer it arrives at. The four step
+channels are the believed moves' light. The age channel is 1 on a node never sensed at that
+layer (what a network trained for the sensed track reads: ``vin.Vin``'s ``uncertain``), else 0.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from stealth_core.grid_observation import AGE, CHANNELS, LIGHT, MOVE_RIGHT, MOVE_UP, step_grids
+from stealth_core.grid_observation import (
+    AGE,
+    CHANNELS,
+    LIGHT,
+    MOVE_RIGHT,
+    MOVE_UP,
+    STEP_CHANNELS,
+    step_grids,
+)
 
+WAIT_CHANNEL = len(CHANNELS) + len(STEP_CHANNELS) - 1  # the phased grid's wait
 UNKNOWN = -1.0  # never sensed (the Gym env's sensed observation, GridObservation's sensed layout)
 
 
@@ -51,24 +61,22 @@ def believed_grid(grid, assumed=0.0) -> np.ndarray:
 def believed_phased(grid, advance: int, assumed=0.0) -> np.ndarray:
     """A phased grid (L, R, C, 12) of what was sensed with every unknown believed (module
     docstring); ``advance``: the layers a step advances; ``assumed`` as ``believed``'s. A new
-    array; on a fully known grid the light and move channels are as they are."""
+    array; on a fully known grid the light, move and wait channels are as they are."""
     grid = np.array(grid, dtype=np.float32)
     grid[..., AGE] = grid[..., LIGHT] == UNKNOWN  # the never-sensed input (vin's uncertain)
-    for channel in (LIGHT, MOVE_UP, MOVE_RIGHT):
+    for channel in (LIGHT, MOVE_UP, MOVE_RIGHT, WAIT_CHANNEL):
         values = grid[..., channel]
         brightest = values.max(axis=0)  # over the layers: -1 never sensed at any
         values[:] = np.where(values == UNKNOWN, brightest, values)
     layers = np.stack([believed_grid(layer, assumed) for layer in grid[..., : len(CHANNELS)]])
     light = layers[..., LIGHT]
     free = grid[0, ..., 0] > 0
-    steps = [
-        step_grids(
-            np.moveaxis(layer[..., [MOVE_UP, MOVE_RIGHT]], -1, 0),
-            free,
-            np.maximum(light[index], light[(index + advance) % len(layers)]),
-        )
-        for index, layer in enumerate(layers)
-    ]
+    steps = []
+    for index, layer in enumerate(layers):
+        ends = np.maximum(light[index], light[(index + advance) % len(layers)])
+        wait = grid[index, ..., WAIT_CHANNEL]
+        moves = np.moveaxis(layer[..., [MOVE_UP, MOVE_RIGHT]], -1, 0)
+        steps.append(step_grids(moves, free, np.where(wait == UNKNOWN, ends, wait)))
     return np.concatenate([layers, np.stack(steps)], -1)
 
 

@@ -42,9 +42,9 @@ def test_unknown_nodes_enter_dark_and_unknown_moves_as_their_larger_end():
 
 
 def test_a_layer_never_sensed_reads_the_brightest_known_else_dark():
-    """Phased: a node unknown at a layer but sensed at others reads the most light sensed there
-    (a beam seen once may be back), unknown everywhere reads dark; steps are the believed moves,
-    the wait the more light of this layer's node and the next's."""
+    """Phased: a node (move, wait) unknown at a layer but sensed at others reads the most light
+    sensed there (a beam seen once may be back), unknown everywhere reads dark; steps are the
+    believed moves, a wait never sensed the more light of this layer's node and the next's."""
     free = np.ones((2, 2), bool)
     grid = np.zeros((3, 2, 2, 12), np.float32)
     grid[..., 0] = 1.0
@@ -55,7 +55,9 @@ def test_a_layer_never_sensed_reads_the_brightest_known_else_dark():
     grid[1, 0, 0, LIGHT] = 0.1  # and dim at layer 1
     grid[2, 0, 1, LIGHT] = 0.2  # node (0, 1) known at layer 2 only
     grid[1, 0, 0, MOVE_RIGHT] = 0.05  # the move right from (0, 0), sensed at layer 1
-    grid[..., 7:] = step_grids(np.stack([grid[0, ..., MOVE_UP], grid[0, ..., MOVE_RIGHT]]), free)
+    moves = np.stack([grid[0, ..., MOVE_UP], grid[0, ..., MOVE_RIGHT]])
+    grid[..., 7:] = step_grids(moves, free, np.full((2, 2), -1.0, np.float32))
+    grid[2, 1, 1, 11] = 0.4  # a wait from (1, 1) sensed at layer 2 only
     read = believed_phased(grid, advance=1)
     np.testing.assert_array_equal(read[:, 0, 0, LIGHT], np.float32([0.5, 0.1, 0.5]))
     np.testing.assert_array_equal(read[:, 0, 1, LIGHT], np.float32([0.2, 0.2, 0.2]))
@@ -65,7 +67,8 @@ def test_a_layer_never_sensed_reads_the_brightest_known_else_dark():
     np.testing.assert_array_equal(read[:, 0, 1, 7 + 2], read[:, 0, 0, MOVE_RIGHT])  # step left
     np.testing.assert_array_equal(read[:, 0, 0, 7], np.float32([0.5, 0.1, 0.5]))  # up: ends
     assert (read[:, 1, :, 7] == -2).all() and (read[:, 0, :, 8] == -2).all()  # off the grid
-    np.testing.assert_array_equal(read[:, 0, 0, 11], np.float32([0.5, 0.5, 0.5]))  # wait
+    np.testing.assert_array_equal(read[:, 0, 0, 11], np.float32([0.5, 0.5, 0.5]))  # wait: ends
+    np.testing.assert_array_equal(read[:, 1, 1, 11], np.float32([0.4, 0.4, 0.4]))  # as sensed
     np.testing.assert_array_equal(read[:, 0, 0, AGE], np.float32([0, 0, 1]))  # never sensed
     np.testing.assert_array_equal(read[:, 0, 1, AGE], np.float32([1, 1, 0]))
     assert (grid[1, 0, 1, LIGHT] == -1).all()  # a new array
