@@ -72,8 +72,10 @@ class AgentLink:
         self.grid = grid
         self._observation_pub = None
         if grid is not None:
+            streamed = grid.track == 'sensed' and grid.timed  # a grid before every state
+            qos = rl_contract.OBSERVATION_STREAM_QOS if streamed else rl_contract.DESCRIPTION_QOS
             self._observation_pub = node.create_publisher(
-                GridObservation, TOPICS['observation'], rl_contract.DESCRIPTION_QOS
+                GridObservation, TOPICS['observation'], qos
             )
         self._last_state: list | None = None  # the last sensed state sent (an abort repeats it)
         self._description_pub = node.create_publisher(
