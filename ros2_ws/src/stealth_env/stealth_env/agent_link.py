@@ -168,7 +168,7 @@ class AgentLink:
             grid_observation_msg(grid, layout, geometry, t, episode, step, names)
         )
 
-    def _publish_belief(self, state, episode: int, terminal: bool = False) -> None:
+    def _publish_sensed_grid(self, state, episode: int, terminal: bool = False) -> None:
         """The sensed track's grid, before the state it goes with: the belief when it changed;
         the phased grid of what was sensed (moving lights) before every state decided on, the
         robot marked at the state's (layer, cell)."""
@@ -190,7 +190,7 @@ class AgentLink:
         if self.sensed is not None:
             if start is not None:
                 self._last_state = self.sensed.first_state(state, start)
-                self._publish_belief(self._last_state, episode, terminal)
+                self._publish_sensed_grid(self._last_state, episode, terminal)
             state = self._last_state
         self._state_pub.publish(state_reward_msg(state, reward, terminal))
 
@@ -206,7 +206,7 @@ class AgentLink:
             sent = self._last_state = self.sensed.step_state(
                 state, report.judged, t, report.step, visibility
             )
-            self._publish_belief(sent, report.episode, report.terminal)
+            self._publish_sensed_grid(sent, report.episode, report.terminal)
         self._state_pub.publish(state_reward_msg(sent, reward, report.terminal))
         if self._step_pub.get_subscription_count():
             self._step_pub.publish(step_info_msg(report, state, reward, stamp, truth_known))

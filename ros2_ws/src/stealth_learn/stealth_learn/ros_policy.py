@@ -69,8 +69,8 @@ class CachedGeneralist:
     def check(self, layout: str) -> None:
         """ValueError (obs_layout.LayoutError), one line naming both, unless this policy reads
         the environment's layout (any grid size): the full track's, or the sensed track's
-        belief, for the static network; its phased grid (phase layers and step) for the
-        time-aware one."""
+        belief, for the static network; its phased grid (phase layers and step), lights known
+        or sensed, for the time-aware one."""
         env_layout = policy_file.without_size(layout)
         if env_layout not in self.reads:
             check_layout(self.layout, env_layout, str(self.path))
@@ -85,7 +85,8 @@ class CachedGeneralist:
     def plan(self, grid: np.ndarray) -> np.ndarray:
         """(R, C) int8: the move at every cell of ``grid`` (its robot channel ignored; light
         never sensed, -1, believed: ``belief.believed_grid``, the identity on a full grid);
-        (L, R, C) the action at every layer and cell of a phased grid. ValueError, one line, for
+        (L, R, C) the action at every layer and cell of a phased grid (sensed: believed with
+        ``belief.believed_phased``). ValueError, one line, for
         a grid of another shape than the network reads (the layout's layers, the channels)."""
         expected = self.policy.model.grid_shape(*grid.shape[-3:-1])
         if grid.shape != expected:
