@@ -21,7 +21,7 @@ Decisions:
   phased grid of what was sensed (moving lights, track sensed) goes out before every state,
   0.35-1.5 MB each: its writer keeps OBSERVATION_STREAM_HISTORY of them (still latched), so a
   recorder that falls a few grids behind gets every one instead of only the latest (with depth 1
-  it lost 31 of floorplan-moving's 144); the agent reads the one marked at its state.
+  it lost 31 grids of a floorplan-moving run); the agent reads the one marked at its state.
 - **Reports** (step info, episode summaries, the agent's episode info) are transient local and
   keep their latest messages, so a reader that (re)joins late, as a respawned recorder,
   monitor or agent does, gets what was published while it was away. Their readers keep all
