@@ -5,8 +5,10 @@ generalist, the stealth_learn plugin) and recorder, and every episode reaches th
 undetected; the grid observation is recorded once, with the run. On the sensed track the
 belief grid goes out whenever what was sensed changes, and the robot crosses undetected too. With
 moving lights and the time-aware weights, the phased grid goes out once and the robot crosses
-with the benchmark's agent's actions, waits included. Needs the learning extra (make learn; make
-test-system installs it)."""
+with the benchmark's agent's actions, waits included; on the sensed track the phased grid of what
+was sensed goes out before every state, and the robot crosses with the benchmark's agent's
+actions on the sensed Gym env. Needs the learning extra (make learn; make test-system installs
+it)."""
 
 import json
 
@@ -88,14 +90,28 @@ def test_the_generalist_crosses_on_the_sensed_track_undetected(system):  # noqa:
     assert 'grid observations planned on' in agent_log
 
 
+def _in_process_actions(scenario: str, track: str) -> list[int]:
+    """The actions of the benchmark's agent (``GeneralistAgent``, the time-aware weights) in
+    one episode of the Gym env on ``track``."""
+    from stealth_core.gym_env import StealthNavEnv
+    from stealth_learn.generalist_agent import GeneralistAgent, load_policy
+
+    env = StealthNavEnv(scenario, track=track)
+    agent = GeneralistAgent(load_policy(MOVING_WEIGHTS), env)
+    observation, _ = env.reset(seed=0)
+    actions, done = [], False
+    while not done:
+        actions.append(agent.act(observation))
+        observation, _, terminated, truncated, _ = env.step(actions[-1])
+        done = terminated or truncated
+    return actions
+
+
 def test_the_time_aware_generalist_crosses_moving_lights_as_in_process(system):  # noqa: F811
     """Moving lights: the environment sends the phased grid once (8 layers, 12 channels), the
     agent decides at the state's (phase, cell), and the episode is the benchmark agent's
     (``GeneralistAgent`` in the Gym env): the same actions, waits included, undetected at the
-    goal. The sensed track with moving lights is refused before anything starts."""
-    from stealth_core.gym_env import StealthNavEnv
-    from stealth_learn.generalist_agent import GeneralistAgent, load_policy
-
+    goal."""
     run = _rollout(
         system, 'moving', 1, '--policy', str(MOVING_WEIGHTS), '--scenario', 'simple-maze-moving'
     )
@@ -107,22 +123,35 @@ def test_the_time_aware_generalist_crosses_moving_lights_as_in_process(system): 
     assert len(grid.data) == grid.layers * grid.rows * grid.cols * grid.channels
     steps = [step for step in messages['/rl_env/step_info'] if step.episode == 0]
     assert steps[-1].terminal and not any(step.detected for step in steps)
-
-    env = StealthNavEnv('simple-maze-moving')
-    agent = GeneralistAgent(load_policy(MOVING_WEIGHTS), env)
-    observation, _ = env.reset(seed=0)
-    actions, done = [], False
-    while not done:
-        actions.append(agent.act(observation))
-        observation, _, terminated, truncated, _ = env.step(actions[-1])
-        done = terminated or truncated
+    actions = _in_process_actions('simple-maze-moving', 'full')
     assert [step.action for step in steps] == actions and 4 in actions  # the wait
 
-    refused = system.run(
-        'rollout', '--learner', 'generalist', '--policy', str(MOVING_WEIGHTS),
+
+def test_the_time_aware_generalist_crosses_moving_lights_sensed_as_in_process(system):  # noqa: F811
+    """Moving lights, track sensed: before every state the environment sends the phased grid of
+    what was sensed at each layer (-1 never), marked at that state's (phase, cell); the agent
+    decides on the grid marking its state, and the episode is the benchmark agent's on the
+    sensed Gym env (the robot's phased memory believed): the same actions, undetected."""
+    run = _rollout(
+        system, 'moving-sensed', 1, '--policy', str(MOVING_WEIGHTS),
         '--scenario', 'simple-maze-moving', '--set', 'environment.track=sensed',
-        '--runs-dir', str(system.runs), '--name', 'sensed-moving', timeout=120,
     )  # fmt: skip
-    assert refused.returncode == 1 and len(refused.stderr.strip().splitlines()) == 1
-    assert "'grid' on track 'sensed' is for static lights" in refused.stderr
-    assert not (system.runs / 'sensed-moving').exists()
+
+    _, messages, _ = read_bag(run / 'recording.mcap')
+    steps = [step for step in messages['/rl_env/step_info'] if step.episode == 0]
+    assert steps[-1].terminal and not any(step.detected for step in steps)
+    grids = [g for g in messages['/rl_env/observation'] if g.episode == 0]
+    assert all(g.layout.startswith('stealth-phased-v1/sensed/8phases-1perstep/') for g in grids)
+    # With the description (nothing sensed, no mark), then one before each state decided on.
+    marked = []
+    for g in grids:
+        grid = np.asarray(g.data, np.float32).reshape(g.layers, g.rows, g.cols, g.channels)
+        assert (grid[..., 3] == -1).any() and (grid[..., 11][grid[..., 0] > 0] == -1).all()
+        marked.append(int(grid[..., 1].sum()))
+    numbers = [g.step for g, mark in zip(grids, marked, strict=True) if mark == 1]
+    assert set(marked) <= {0, 1} and numbers == sorted(set(numbers))
+    assert set(numbers) <= set(range(len(steps)))  # none before the terminal state
+    recorder_log = (run / 'logs' / 'recorder.log').read_text()
+    if "'/rl_env/observation': DDS lost" not in recorder_log:  # (a depth-1 topic: it may)
+        assert numbers == list(range(len(steps)))
+    assert [step.action for step in steps] == _in_process_actions('simple-maze-moving', 'sensed')

@@ -101,7 +101,7 @@ def grid_from_msg(msg) -> ObservedGrid:
         raise BadInputError(f'GridObservation: resolution {geometry[0]} must be > 0 (m)')
     if layers > 1:
         shape = (layers, *shape)
-    return ObservedGrid(str(msg.layout), data.reshape(shape).copy(), geometry)
+    return ObservedGrid(str(msg.layout), data.reshape(shape).copy(), geometry, int(msg.step))
 
 
 def keyed_state(state, features: int):

@@ -16,6 +16,15 @@ With moving lights (track full) the grid is phased (layout ``stealth-phased-v1/.
 GridObservation layers > 1: one grid per bin of the lights' cycle, and each step's light): the
 robot is at the layer of the state's phase, its third feature (``stealth_core.task``: x, y,
 phase), as the in-process agent reads its place's layer (``stealth_learn.generalist_agent``).
+
+With moving lights on track sensed (layout ``stealth-phased-v1/sensed/...``) the environment
+sends the phased grid of what was sensed before every state it wants decided, its robot channel
+1 at that state's (layer, cell): the state's sensed part (the light last sensed at any layer)
+does not say which phased grid it goes with, the mark does. Consecutive states differ in layer
+(a step advances the phase), so a state is decided only with the grid marked at its place; an
+episode's first state also only with a grid of step 0 (every episode's first grid is the same:
+what the scenario's start senses at layer 0), so the last grid of the episode before never
+serves it.
 """
 
 from __future__ import annotations
@@ -41,6 +50,7 @@ class ObservedGrid:
     layout: str
     grid: np.ndarray  # (layers, rows, cols, channels) for a phased grid
     geometry: tuple[float, float, float]
+    step: int = 0  # track sensed: the step of the state it goes with (GridObservation.step)
 
     @property
     def layers(self) -> int:
@@ -51,6 +61,18 @@ class ObservedGrid:
     def sensed(self) -> bool:
         """Whether it is the sensed track's belief (layout ``stealth-grid-v1/sensed/RxC``)."""
         return self.layout.split('/')[1:2] == ['sensed']
+
+    @property
+    def marked(self) -> bool:
+        """Whether it is the phased grid of what was sensed, sent per state with the robot
+        marked at that state's (layer, cell) (layout ``stealth-phased-v1/sensed/...``)."""
+        return self.sensed and self.grid.ndim == 4
+
+    def mark(self) -> tuple[int, ...] | None:
+        """The (layer, row, col) the robot channel marks (None: no mark)."""
+        robot = self.grid[..., ROBOT]
+        index = np.unravel_index(int(np.argmax(robot)), robot.shape)
+        return tuple(int(i) for i in index) if robot[index] > 0 else None
 
     def sensed_part(self) -> np.ndarray:
         """The light and moves as a sensed state carries them: (3 x rows x cols,) float32."""
@@ -105,6 +127,7 @@ class GridPolicyAgent(ProtocolAgent):
         self.observed: ObservedGrid | None = None
         self._work: np.ndarray | None = None  # the grid, the robot's cell set per decision
         self._sensed: np.ndarray | None = None  # a sensed grid's light and moves (serves)
+        self._mark: tuple[int, ...] | None = None  # a marked grid's robot (layer, row, col)
 
     @property
     def ready(self) -> bool:
@@ -119,14 +142,26 @@ class GridPolicyAgent(ProtocolAgent):
         work[..., ROBOT] = 0.0
         self.policy(work)  # the plan of this grid, cached by the policy
         self.observed, self._work = observed, work
-        self._sensed = observed.sensed_part() if observed.sensed else None
+        marked = observed.marked
+        self._sensed = observed.sensed_part() if observed.sensed and not marked else None
+        self._mark = observed.mark() if marked else None
 
     def serves(self, state) -> bool:
         """Whether the grid is the one to decide on ``state`` (the full, unkeyed state): any
         state with a full-track grid; on the sensed track the state whose light and moves (its
-        tail) are the grid's."""
-        if self.observed is None:
+        tail) are the grid's; with moving lights there, the state at the (layer, cell) the grid
+        marks (an episode's first state: a grid of step 0)."""
+        observed = self.observed
+        if observed is None:
             return False
+        if observed.marked:
+            if not self.in_episode and observed.step != 0:
+                return False
+            try:
+                place = observed.robot_at(np.asarray(state, dtype=np.float32))
+            except BadInputError:
+                return True  # deciding on it says what is wrong with the state
+            return place == self._mark
         expected = self._sensed
         if expected is None:
             return True

@@ -237,3 +237,53 @@ def test_an_unusable_plugin_leaves_the_agent_idle(plugins):
     )
     assert loop.core is None
     assert node.told('error', 'missing.npz: no such policy file')
+
+
+def phased_sensed_grid_msg(mark=None, step=0, layers=3):
+    """The phased grid of what was sensed (moving lights, track sensed): never sensed but the
+    robot's channel, 1 at ``mark`` (layer, row, col) (None: no mark, as sent with the
+    description); ``step``: the step of the state it goes with."""
+    grid = np.zeros((layers, ROWS, COLS, 12), np.float32)
+    grid[..., 0], grid[..., 3:6], grid[..., 7:] = 1.0, -1.0, -1.0
+    if mark is not None:
+        grid[(*mark, 1)] = 1.0
+    message = phased_grid_msg(layers, grid.ravel().tolist())
+    message.layout = f'test-grid/sensed/{layers}phases-1perstep/{ROWS}x{COLS}'
+    message.step = step
+    return message
+
+
+def phased_sensed_state(x, y, phase, terminal=False):
+    """A sensed-track state with moving lights: x, y, phase, lit, light and moves unknown."""
+    return RLStateReward(state=[x, y, phase, 0.0, *[-1.0] * (3 * ROWS * COLS)], terminal=terminal)
+
+
+def test_with_moving_lights_a_sensed_state_waits_for_the_grid_marked_at_its_place(plugins):
+    """Moving lights, track sensed: the state's sensed part cannot tell the phased grids apart,
+    so a state is decided only with the grid marked at its (phase, cell); an episode's first
+    state only with a grid of step 0, never the last grid of the episode before."""
+    node = FakeNode(agent='recording', state_features=3)
+    loop = AgentLoop(node)
+    length = 4 + 3 * ROWS * COLS
+    loop.on_description(RLEnvDescription(
+        num_actions=5, min_state_range=[-1.0, 2.0, 0.0] + [-2.0] * (length - 3),
+        max_state_range=[1.0, 3.5, 2.0] + [9.0] * (length - 3), title='t',
+    ))  # fmt: skip
+    loop.on_observation(phased_sensed_grid_msg())  # with the description: marks no state
+    loop.on_state(phased_sensed_state(0.25, 2.25, 0.0), 1)  # (layer 0, row 0, col 2)
+    assert node.actions == []
+    loop.on_observation(phased_sensed_grid_msg((0, 0, 2)))
+    assert node.actions == [2]
+    loop.on_state(phased_sensed_state(-0.75, 3.25, 1.0), 2)  # its grid not yet: held
+    assert node.actions == [2]
+    loop.on_observation(phased_sensed_grid_msg((1, 2, 0), step=1))
+    assert node.actions == [2, 0]
+    assert loop.core.policy.grids[-1][1, 2, 0, 1] == 1.0
+    loop.on_state(phased_sensed_state(-0.75, 3.25, 2.0, terminal=True), 3)  # no grid, no wait
+    assert len(node.reports) == 1
+    # The next episode starts at a place the last grid marks: it waits for a grid of step 0.
+    loop.on_observation(phased_sensed_grid_msg((0, 0, 2), step=5))
+    loop.on_state(phased_sensed_state(0.25, 2.25, 0.0), 4)
+    assert node.actions == [2, 0]
+    loop.on_observation(phased_sensed_grid_msg((0, 0, 2)))
+    assert node.actions == [2, 0, 2]

@@ -134,10 +134,11 @@ def test_a_plugin_refuses_a_scenario_it_cannot_play_naming_both(tmp_path):
     assert '\n' not in message and not list(tmp_path.iterdir())
 
 
-def test_time_aware_weights_play_moving_lights_of_their_cycle_on_the_full_track(tmp_path):
-    """The time-aware weights run on moving lights (the environment sends the phased grid);
-    they are refused before anything starts, in one line, on static lights and for another
-    cycle (naming both layouts), and on the sensed track (no phased belief)."""
+def test_time_aware_weights_play_moving_lights_of_their_cycle_on_both_tracks(tmp_path):
+    """The time-aware weights run on moving lights, lights known or sensed (the environment
+    sends the phased grid, or the phased grid of what was sensed); they are refused before
+    anything starts, in one line, on static lights and for another cycle (naming both layouts).
+    Exposure is refused on either track (no grid carries the heading)."""
     pytest.importorskip('jax', reason='the generalist plugin needs the learning extra')
     from stealth_learn.generalist import GeneralistPolicy
     from stealth_learn.policy_file import SHIPPED, save
@@ -147,6 +148,19 @@ def test_time_aware_weights_play_moving_lights_of_their_cycle_on_the_full_track(
                        '--scenario', 'simple-maze-moving')  # fmt: skip
     assert plan.parameters['agent'].values['policy_file'] == moving
     assert plan.parameters['environment'].values['observation_layout'] == 'grid'
+    sensed = plugin_plan(
+        tmp_path / 'sensed',
+        '--learner',
+        'generalist',
+        '--policy',
+        moving,
+        '--scenario',
+        'simple-maze-moving',
+        '--set',
+        'environment.track=sensed',
+    )
+    assert sensed.parameters['environment'].values['track'] == 'sensed'
+    assert sensed.parameters['environment'].values['observation_layout'] == 'grid'
     refused = tmp_path / 'refused'
     with pytest.raises(RunConfigError) as error:
         plugin_plan(refused, '--learner', 'generalist', '--policy', moving,
@@ -163,12 +177,12 @@ def test_time_aware_weights_play_moving_lights_of_their_cycle_on_the_full_track(
                     '--scenario', 'simple-maze-moving')  # fmt: skip
     assert "'stealth-phased-v1/full/4phases-1perstep'" in str(cycle.value)
     assert "'stealth-phased-v1/full/8phases-1perstep'" in str(cycle.value)
-    with pytest.raises(RunConfigError) as sensed:
-        plugin_plan(refused, '--learner', 'generalist', '--policy', moving, '--scenario',
-                    'simple-maze-moving', '--set', 'environment.track=sensed')  # fmt: skip
-    assert str(sensed.value).startswith('--learner generalist: environment.track sensed: ')
-    assert "scenario 'simple-maze-moving' has moving lights" in str(sensed.value)
-    for each in (error, cycle, sensed):
+    with pytest.raises(RunConfigError) as exposure:
+        plugin_plan(refused, '--learner', 'generalist', '--scenario', 'simple-maze-exposure',
+                    '--set', 'environment.track=sensed')  # fmt: skip
+    assert str(exposure.value).startswith('--learner generalist: environment.track sensed: ')
+    assert "scenario 'simple-maze-exposure' weighs exposure" in str(exposure.value)
+    for each in (error, cycle, exposure):
         assert '\n' not in str(each.value)
     assert not refused.exists()
 

@@ -32,6 +32,14 @@ Why not the grid's own move channels: they are the most light of a move either w
 start, and a wait's light (the node over the step's time) is in none. Every channel but the
 robot's depends only on the scenario and the goal, so one phased grid serves a whole run; the
 time-aware generalist (``stealth_learn``) trains on it and reads it at the robot's (layer, cell).
+
+With moving lights on track 'sensed' it is the phased grid of what was sensed
+(``FullTrackGrid.phased_sensed``, layout ``stealth-phased-v1/sensed/<L>phases-<a>perstep/RxC``):
+the same channels, each layer's light and moves as last sensed at that layer (-1 never), the
+wait -1. It changes at nearly every step (a step reaches a (layer, place) not seen before), and
+the state does not say whether it did (its sensed part is the light last sensed at any layer),
+so the environment sends it before every state the agent decides on with the robot channel 1 at
+that state's (layer, cell) (``with_robot``): the mark is how the agent matches the two.
 """
 
 from __future__ import annotations
@@ -129,8 +137,9 @@ class FullTrackGrid:
         self.goal = np.zeros(self.shape, bool)
         self.goal[rows, cols] = model.goal[:n]
         self.geometry = lattice_geometry(model.task)
-        # What the environment sends on the full track: the phased grid where lights move.
-        self.timed = track == 'full' and model.task.scenario.has_moving_lights
+        # Where lights move the environment sends a phased grid: the lights' (track 'full') or
+        # what was sensed at each layer (track 'sensed').
+        self.timed = model.task.scenario.has_moving_lights
 
     def layout(self) -> str:
         if self.timed:
@@ -142,7 +151,7 @@ class FullTrackGrid:
 
     @property
     def channels(self) -> tuple[str, ...]:
-        """The channel names of the grid ``full`` gives (GridObservation.channel_names)."""
+        """The channel names of the grids sent (GridObservation.channel_names)."""
         return PHASED_CHANNELS if self.timed else CHANNELS
 
     def full(self) -> np.ndarray:
@@ -188,6 +197,20 @@ class FullTrackGrid:
             layers.append(np.concatenate([stack(self.free, self.goal, light, moves), steps], -1))
         return np.stack(layers)
 
+    def with_robot(self, grid: np.ndarray, state) -> np.ndarray:
+        """``grid`` (the phased sensed grid of a state) with the robot channel 1 at the state's
+        (layer, cell): its phase (third feature) and the cell of its (x, y), as the agent reads
+        them (a new array; no mark where the state lies outside the grid or has no phase layer
+        the grid has)."""
+        grid = np.array(grid, dtype=np.float32)
+        grid[..., ROBOT] = 0.0
+        row, col = self.cell_of(float(state[0]), float(state[1]))
+        layer = float(state[2]) if len(state) > 2 else -1.0
+        rows, cols = self.shape
+        if 0 <= row < rows and 0 <= col < cols and layer == int(layer) and 0 <= layer < len(grid):
+            grid[int(layer), row, col, ROBOT] = 1.0
+        return grid
+
     def belief(self, light, moves) -> np.ndarray:
         """(R, C, 7) the sensed track's grid of (R, C) node light and (2, R, C) move light as
         last sensed (-1 never, -2 none: ``sensing.Sensing.grid``, ``move_grid``), robot 0."""
@@ -216,8 +239,9 @@ def observed_grid(task, track: str, layout: str, model=None) -> FullTrackGrid | 
 def check_grid(task, track: str) -> None:
     """ValueError, one line, unless there is a grid to send for ``task`` (a
     ``task.StealthTask``) on ``track``: track 'full', the static grid, or the phased grid where
-    lights move; track 'sensed', the belief, static lights only; exposure (headings) in none.
-    Read from the task alone (no lattice model), so a run checks it before anything starts."""
+    lights move; track 'sensed', the belief, or the phased grid of what was sensed where lights
+    move; exposure (headings) in none. Read from the task alone (no lattice model), so a run
+    checks it before anything starts."""
     if track not in ('full', 'sensed'):
         raise ValueError(f"'grid' is sent on track 'full' or 'sensed', not {track!r}")
     name = task.scenario.name
@@ -227,12 +251,6 @@ def check_grid(task, track: str) -> None:
             'heading: no grid carries the heading'
         )
     moving = task.scenario.has_moving_lights
-    if moving and track == 'sensed':
-        raise ValueError(
-            f"'grid' on track 'sensed' is for static lights; scenario {name!r} has moving "
-            'lights, which no network reads sensed (the time-aware generalist reads them on '
-            "track 'full')"
-        )
     if task.cycle_bins != 1 and not moving:
         raise ValueError(
             f"'grid' is for static or moving lights; scenario {name!r} has {task.cycle_bins} "

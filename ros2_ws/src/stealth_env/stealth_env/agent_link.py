@@ -13,7 +13,11 @@ light; the robot's layer is each state's phase). Track 'sensed': the belief grid
 description (nothing sensed yet: the agent plans on it, compiling, before it takes states)
 and whenever what was sensed changes (each episode's first state, then a step that sensed
 something new), just before that state, numbered with its episode and step; the state carries
-the same sensed light, which is how the agent matches them.
+the same sensed light, which is how the agent matches them. Track 'sensed' with moving lights:
+the phased grid of what was sensed at each layer (``FullTrackGrid.phased_sensed``), with the
+description (nothing sensed) and then before every state but a terminal one, the robot channel
+marking that state's (layer, cell) (``FullTrackGrid.with_robot``): it changes at nearly every
+step and the state cannot tell when it did not, so it is sent each time and matched by the mark.
 """
 
 from __future__ import annotations
@@ -68,8 +72,10 @@ class AgentLink:
         self.grid = grid
         self._observation_pub = None
         if grid is not None:
+            streamed = grid.track == 'sensed' and grid.timed  # a grid before every state
+            qos = rl_contract.OBSERVATION_STREAM_QOS if streamed else rl_contract.DESCRIPTION_QOS
             self._observation_pub = node.create_publisher(
-                GridObservation, TOPICS['observation'], rl_contract.DESCRIPTION_QOS
+                GridObservation, TOPICS['observation'], qos
             )
         self._last_state: list | None = None  # the last sensed state sent (an abort repeats it)
         self._description_pub = node.create_publisher(
@@ -146,10 +152,14 @@ class AgentLink:
         if self.sensed is not None:
             fields = self.sensed.description(fields)
         self._description_pub.publish(description_msg(fields))
-        if self.grid is not None:  # sensed: nothing sensed yet (the agent plans on it, ready)
-            sensed, full = self.sensed, self.grid.track == 'full'
-            belief = None if full else self.grid.belief(sensed.light, sensed.moves)
-            self._publish_grid(self.grid.full() if full else belief)
+        if self.grid is None:
+            return
+        if self.grid.track == 'full':
+            self._publish_grid(self.grid.full())
+        elif self.grid.timed:  # sensed: nothing sensed yet (the agent plans on it, ready)
+            self._publish_grid(self.grid.phased_sensed(self.sensed.sensor.phased))
+        else:
+            self._publish_grid(self.grid.belief(self.sensed.light, self.sensed.moves))
 
     def _publish_grid(self, grid, episode: int = 0, step: int = 0) -> None:
         t = self.node.get_clock().now().nanoseconds * 1e-9
@@ -158,11 +168,19 @@ class AgentLink:
             grid_observation_msg(grid, layout, geometry, t, episode, step, names)
         )
 
-    def _publish_belief(self, episode: int) -> None:
-        """The sensed track's belief grid, before the state it goes with, when it changed."""
-        sensed = self.sensed
-        if self.grid is not None and self.grid.track == 'sensed' and sensed.changed:
-            self._publish_grid(self.grid.belief(sensed.light, sensed.moves), episode, sensed.step)
+    def _publish_sensed_grid(self, state, episode: int, terminal: bool = False) -> None:
+        """The sensed track's grid, before the state it goes with: the belief when it changed;
+        the phased grid of what was sensed (moving lights) before every state decided on, the
+        robot marked at the state's (layer, cell)."""
+        sensed, grid = self.sensed, self.grid
+        if grid is None or grid.track != 'sensed':
+            return
+        if grid.timed:
+            if not terminal:
+                phased = grid.with_robot(grid.phased_sensed(sensed.sensor.phased), state)
+                self._publish_grid(phased, episode, sensed.step)
+        elif sensed.changed:
+            self._publish_grid(grid.belief(sensed.light, sensed.moves), episode, sensed.step)
 
     def publish_state(
         self, state, reward: float = 0.0, terminal: bool = False, start=None, episode: int = 0
@@ -172,7 +190,7 @@ class AgentLink:
         if self.sensed is not None:
             if start is not None:
                 self._last_state = self.sensed.first_state(state, start)
-                self._publish_belief(episode)
+                self._publish_sensed_grid(self._last_state, episode, terminal)
             state = self._last_state
         self._state_pub.publish(state_reward_msg(state, reward, terminal))
 
@@ -188,7 +206,7 @@ class AgentLink:
             sent = self._last_state = self.sensed.step_state(
                 state, report.judged, t, report.step, visibility
             )
-            self._publish_belief(report.episode)
+            self._publish_sensed_grid(sent, report.episode, report.terminal)
         self._state_pub.publish(state_reward_msg(sent, reward, report.terminal))
         if self._step_pub.get_subscription_count():
             self._step_pub.publish(step_info_msg(report, state, reward, stamp, truth_known))

@@ -78,10 +78,9 @@ def test_observed_grid_only_where_one_grid_serves_a_run(maze):
     phased = observed_grid(moving, 'full', 'grid')
     assert phased.layout().startswith('stealth-phased-v1/full/8phases-1perstep/')
     assert phased.channels == PHASED_CHANNELS
-    with pytest.raises(
-        ValueError, match=r"on track 'sensed' is for static lights; scenario 'simple-maze-moving'"
-    ):
-        observed_grid(moving, 'sensed', 'grid')
+    sensed = observed_grid(moving, 'sensed', 'grid')  # what was sensed at each layer
+    assert sensed.layout().startswith('stealth-phased-v1/sensed/8phases-1perstep/')
+    assert sensed.channels == PHASED_CHANNELS
     exposure = StealthTask(load_scenario('simple-maze-exposure'))
     for track in ('full', 'sensed'):  # no grid carries the heading
         with pytest.raises(ValueError, match=r"'simple-maze-exposure' weighs exposure"):
@@ -168,3 +167,23 @@ def test_the_message_carries_the_grid_row_major(maze):
     assert (message.resolution, message.origin.x, message.origin.y) == pytest.approx(grid.geometry)
     back = np.frombuffer(message.data, dtype=np.float32).reshape(static.shape)
     np.testing.assert_array_equal(back, static)
+
+
+def test_the_phased_sensed_grid_sent_marks_its_states_layer_and_cell():
+    """Sent before each state, the phased sensed grid marks the robot at the state's (phase,
+    cell) only, as the agent reads the state; a state off the grid or without a phase the grid
+    has marks nothing (the agent then says what is wrong with the state)."""
+    task = StealthTask(load_scenario('simple-maze-moving'))
+    model = LatticeModel.build(task)
+    grid = observed_grid(task, 'sensed', 'grid', model)
+    sensing = grid.sensing
+    memory = PhasedMemory.empty(sensing)
+    node = sensing.n // 2
+    x, y = sensing.points[node]
+    marked = grid.with_robot(grid.phased_sensed(memory), [x, y, 3.0])
+    assert marked[..., 1].sum() == 1.0
+    assert marked[3, sensing.grid_row[node], sensing.grid_col[node], 1] == 1.0
+    np.testing.assert_array_equal(marked[..., [0, *range(2, 12)]],
+                                  grid.phased_sensed(memory)[..., [0, *range(2, 12)]])  # fmt: skip
+    for state in ([x, y, 8.0], [x, y, 1.5], [x, y], [x - 1e3, y, 0.0]):
+        assert not grid.with_robot(marked, state)[..., 1].any()

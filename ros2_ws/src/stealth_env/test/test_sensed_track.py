@@ -3,7 +3,15 @@ observation, flattened, for the same moves; its description and its sensed_light
 
 import numpy as np
 import pytest
-from stealth_core.grid_observation import AGE, FREE, LIGHT, MOVE_RIGHT, MOVE_UP, observed_grid
+from stealth_core.grid_observation import (
+    AGE,
+    FREE,
+    LIGHT,
+    MOVE_RIGHT,
+    MOVE_UP,
+    ROBOT,
+    observed_grid,
+)
 from stealth_core.gym_env import StealthNavEnv
 from stealth_core.sensing import NO_PLACE, flat_observation
 from stealth_env.sensed_track import SensedTrack
@@ -11,14 +19,17 @@ from stealth_env.sensed_track import SensedTrack
 ACTIONS = [3, 3, 0, 0, 3, 1, 2, 0]
 
 
-def poses_and_states(scenario: str):
+def poses_and_states(scenario: str, each=None):
     """(Gym env, its flat observations, the node's states) along ACTIONS, the node judging the
-    Gym env's poses at its times (a robot that reaches every node exactly)."""
+    Gym env's poses at its times (a robot that reaches every node exactly); ``each(env, track,
+    state)`` after every state, if given."""
     env = StealthNavEnv(scenario, track='sensed')
     track = SensedTrack(env.task, env.model)
     observation, _ = env.reset(seed=0)
     expected = [flat_observation(observation)]
     sent = [track.first_state(env.model.states[env.node], env.scenario.start)]
+    if each is not None:
+        each(env, track, sent[-1])
     yaw = env.scenario.start[2]
     for step, action in enumerate(ACTIONS, start=1):
         if action < 4:  # the heading a move leaves the robot with (exposure scenarios)
@@ -28,6 +39,8 @@ def poses_and_states(scenario: str):
         state = env.model.states[env.node]
         t = step * env.step_seconds
         sent.append(track.step_state(state, (*info['pose'], yaw), t, step, info['visibility']))
+        if each is not None:
+            each(env, track, sent[-1])
         if terminated or truncated:
             break
     return env, track, expected, sent
@@ -74,6 +87,31 @@ def test_the_belief_grid_is_the_states_sensed_part_sent_when_it_changed():
         changes.append(track.changed)
         before = now
     assert any(changes)
+
+
+def test_with_moving_lights_the_phased_grid_sent_is_the_gym_envs_marked_at_its_place():
+    """Moving lights: the phased grid of what was sensed the node sends before each state (as
+    agent_link builds it) is the one of the Gym env's own phased memory, the robot marked at
+    the Gym env's (layer, cell) only."""
+    grid = None
+    compared = []
+
+    def compare(env, track, state):
+        nonlocal grid
+        grid = grid or observed_grid(env.task, 'sensed', 'grid', env.model)
+        sent = grid.with_robot(grid.phased_sensed(track.sensor.phased), state)
+        gym = grid.phased_sensed(env.sensor.phased)
+        np.testing.assert_array_equal(sent[..., 2:], gym[..., 2:])
+        np.testing.assert_array_equal(sent[..., FREE], gym[..., FREE])
+        sensing = grid.sensing
+        layer, node = divmod(int(env.node), sensing.n)
+        assert sent[layer, sensing.grid_row[node], sensing.grid_col[node], ROBOT] == 1.0
+        assert sent[..., ROBOT].sum() == 1.0
+        compared.append((sent[..., LIGHT] >= 0).sum())
+
+    poses_and_states('map1-moving', compare)
+    assert grid.layout().startswith('stealth-phased-v1/sensed/8phases-1perstep/')
+    assert len(compared) == len(ACTIONS) + 1 and compared[-1] > compared[0]  # it grew
 
 
 def test_the_description_gives_every_feature_a_range():

@@ -154,7 +154,8 @@ class PlanCache:
     common case, about 10x cheaper than hashing a copy), another looked up by the hash of its
     static channels; the ``keep`` latest distinct plans are kept. ``prepare``: the grid the
     network reads for a grid (e.g. ``belief.believed_grid``; default the grid itself), applied
-    once per plan computed."""
+    once per grid that is not the last; plans are keyed on the grid read, so grids that differ
+    only in what their belief fills in share one."""
 
     def __init__(self, policy: GeneralistPolicy, keep: int = 64, prepare=None):
         self.policy = policy
@@ -181,12 +182,12 @@ class PlanCache:
             return last[1]
         static = np.array(grid, dtype=np.float32)
         static[..., ROBOT] = 0.0
-        key = hashlib.blake2b(static.tobytes(), digest_size=16).digest() + bytes(
-            str(static.shape), 'ascii'
+        read = static if self.prepare is None else self.prepare(static)
+        key = hashlib.blake2b(read.tobytes(), digest_size=16).digest() + bytes(
+            str(read.shape), 'ascii'
         )
         moves = self._plans.get(key)
         if moves is None:
-            read = static if self.prepare is None else self.prepare(static)
             moves = self.policy.cell_logits(read).argmax(axis=-1).astype(np.int8)
             self.computed += 1
             if len(self._plans) >= self.keep:

@@ -17,7 +17,14 @@ Time-aware weights (``generalist-moving.npz``: layout ``stealth-phased-v1/full/8
 read the phased grid the environment sends once where lights move (``stealth_core.
 grid_observation.FullTrackGrid.phased``, the grid ``GeneralistAgent`` reads in-process): one
 plan of every (layer, cell), the decision at the robot's (layer, cell), the wait among the
-actions. Weights of another kind or cycle than the grid are refused naming both layouts.
+actions. On the lights-sensed track they read the phased grid of what was sensed at each layer
+(layout ``stealth-phased-v1/sensed/8phases-1perstep/RxC``, sent before every state) as
+``GeneralistAgent`` does: believed with ``belief.believed_phased`` (a layer never sensed reads
+the brightest known at the others, else dark), the plan cached per distinct belief. The two
+phased grids tell themselves apart: the sensed one's wait is never sensed (-1), the lights-known
+one's is the wait's light. Weights of another kind or cycle than the grid are refused naming
+both layouts (static weights and a phased grid, time-aware ones and the static sensed belief
+included).
 """
 
 from __future__ import annotations
@@ -25,14 +32,16 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from stealth_core.grid_observation import PHASED_CHANNELS
 from stealth_core.scenario import load_scenario
 
 from stealth_learn import policy_file
-from stealth_learn.belief import believed_grid
+from stealth_learn.belief import UNKNOWN, believed_grid, believed_phased
 from stealth_learn.generalist import DEFAULT_POLICY, GeneralistPolicy, PlanCache, robot_cell
 from stealth_learn.obs_layout import check_layout
 
 KEEP_PLANS = 8  # distinct grids kept (one per building, or the latest beliefs: sensed)
+STEP_WAIT = PHASED_CHANNELS.index('step_wait')
 
 
 class CachedGeneralist:
@@ -42,18 +51,26 @@ class CachedGeneralist:
         self.policy = policy
         self.path = path
         self.layout = policy.layout  # the full track's grid, or a time-aware network's phased
-        phased = policy.model.phased
-        # the static network also reads the sensed track's belief grid; the time-aware one not
-        self.reads = (
-            (self.layout,) if phased else (self.layout, policy_file.policy_layout('sensed'))
-        )
-        self.plans = PlanCache(policy, keep=KEEP_PLANS, prepare=None if phased else believed_grid)
+        model = policy.model
+        # either network also reads the sensed track's grid: the belief, or the phased one
+        architecture = policy.header['architecture'] if model.phased else None
+        self.reads = (self.layout, policy_file.policy_layout('sensed', architecture))
+        self.advance = model.advance
+        prepare = self._believed_phased if model.phased else believed_grid
+        self.plans = PlanCache(policy, keep=KEEP_PLANS, prepare=prepare)
+
+    def _believed_phased(self, grid: np.ndarray) -> np.ndarray:
+        """A phased sensed grid (its wait never sensed, -1) believed as ``GeneralistAgent``
+        believes it (unknown dark); the lights-known phased grid as it is."""
+        if (grid[..., STEP_WAIT] == UNKNOWN).any():
+            return believed_phased(grid, self.advance, 0.0)
+        return grid
 
     def check(self, layout: str) -> None:
         """ValueError (obs_layout.LayoutError), one line naming both, unless this policy reads
         the environment's layout (any grid size): the full track's, or the sensed track's
-        belief, for the static network; its phased grid (phase layers and step) for the
-        time-aware one."""
+        belief, for the static network; its phased grid (phase layers and step), lights known
+        or sensed, for the time-aware one."""
         env_layout = policy_file.without_size(layout)
         if env_layout not in self.reads:
             check_layout(self.layout, env_layout, str(self.path))
@@ -68,7 +85,8 @@ class CachedGeneralist:
     def plan(self, grid: np.ndarray) -> np.ndarray:
         """(R, C) int8: the move at every cell of ``grid`` (its robot channel ignored; light
         never sensed, -1, believed: ``belief.believed_grid``, the identity on a full grid);
-        (L, R, C) the action at every layer and cell of a phased grid. ValueError, one line, for
+        (L, R, C) the action at every layer and cell of a phased grid (sensed: believed with
+        ``belief.believed_phased``). ValueError, one line, for
         a grid of another shape than the network reads (the layout's layers, the channels)."""
         expected = self.policy.model.grid_shape(*grid.shape[-3:-1])
         if grid.shape != expected:

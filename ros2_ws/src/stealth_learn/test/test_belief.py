@@ -4,6 +4,7 @@ the environment node's sensed GridObservation): unknown nodes dark, an unknown m
 larger light, and both give the same grid and the same move along an episode."""
 
 import numpy as np
+import pytest
 from stealth_core.grid_observation import (
     AGE,
     LIGHT,
@@ -14,9 +15,11 @@ from stealth_core.grid_observation import (
     step_grids,
 )
 from stealth_core.gym_env import StealthNavEnv
-from stealth_learn import ros_policy
+from stealth_learn import policy_file, ros_policy
 from stealth_learn.belief import believed, believed_grid, believed_phased
+from stealth_learn.generalist import robot_cell
 from stealth_learn.generalist_agent import GeneralistAgent
+from stealth_learn.policy_file import SHIPPED
 
 LIGHTS = slice(LIGHT, MOVE_RIGHT + 1)
 
@@ -82,7 +85,7 @@ def test_the_plugin_on_the_sent_belief_is_the_benchmarks_agent(generated):
     plugin.check(sent.layout())
     assert sent.layout().startswith('stealth-grid-v1/sensed/')
     observation, _ = gym.reset(seed=0)
-    beliefs = set()
+    sent_beliefs, beliefs = set(), set()
     for _ in range(40):
         grid = sent.belief(observation['light'], observation['moves'])
         assert (grid[..., LIGHT] == -1).any()  # what it never sensed goes out as such
@@ -92,8 +95,64 @@ def test_the_plugin_on_the_sent_belief_is_the_benchmarks_agent(generated):
         grid[agent.row[node], agent.col[node], ROBOT] = 1.0
         action = agent.act(observation)
         assert plugin(grid) == action
-        beliefs.add(grid[..., LIGHTS].tobytes())
+        sent_beliefs.add(grid[..., LIGHTS].tobytes())
+        beliefs.add(ours[..., LIGHTS].tobytes())
         observation, _, terminated, truncated, _ = gym.step(action)
         if terminated or truncated:
             break
-    assert plugin.plans.computed == len(beliefs) > 1  # one plan per belief sent
+    # One plan per belief read, fewer than the grids sent (a dark node sensed reads as before).
+    assert plugin.plans.computed == agent.value_maps == len(beliefs) > 1
+    assert len(beliefs) < len(sent_beliefs)
+
+
+def test_the_plugin_on_the_sent_phased_sensed_grid_is_the_benchmarks_agent(generated):
+    """Moving lights, sensed: the shipped time-aware weights read the phased grid of what was
+    sensed, as the environment sends it before each state (robot marked at the state's layer and
+    cell), and decide as GeneralistAgent does on the sensed Gym env at every step of an
+    episode, waits included; a plan per distinct belief, not per grid sent."""
+    gym = StealthNavEnv(generated['moving'], track='sensed')
+    plugin = ros_policy.load(str(SHIPPED.with_name('generalist-moving.npz')))
+    agent = GeneralistAgent(plugin.policy, gym)
+    sent = FullTrackGrid(gym.model, track='sensed')
+    layout = sent.layout()
+    assert layout.startswith('stealth-phased-v1/sensed/8phases-1perstep/')
+    plugin.check(layout)
+    observation, _ = gym.reset(seed=0)
+    actions, beliefs, sent_grids = [], set(), 0
+    while True:
+        grid = sent.with_robot(sent.phased_sensed(gym.sensor.phased), observation['state'])
+        sent_grids += 1
+        assert (grid[..., LIGHT] == -1).any()  # what it never sensed goes out as such
+        layer, node = divmod(int(gym.node), agent.nodes)
+        assert robot_cell(grid) == (layer, agent.row[node], agent.col[node])
+        ours = agent.grid(observation)
+        read = believed_phased(grid, 1)
+        read[..., ROBOT] = 0.0
+        np.testing.assert_array_equal(read, ours)
+        actions.append(agent.act(observation))
+        assert plugin(grid) == actions[-1]
+        beliefs.add(ours.tobytes())
+        observation, _, terminated, truncated, _ = gym.step(actions[-1])
+        if terminated or truncated:
+            break
+    assert len(actions) > 10 and 4 in actions  # a whole episode, the wait among its actions
+    assert plugin.plans.computed == len(beliefs) < sent_grids
+
+
+def test_weights_and_a_sensed_grid_of_the_other_kind_are_refused_naming_both():
+    """Static weights given the phased sensed grid, time-aware weights given the static sensed
+    belief: refused, one line naming both layouts."""
+    static = ros_policy.load('')
+    timed = ros_policy.load(str(SHIPPED.with_name('generalist-moving.npz')))
+    static.check('stealth-grid-v1/sensed/30x30')
+    timed.check('stealth-phased-v1/sensed/8phases-1perstep/30x30')
+    for plugin, layout in (
+        (static, 'stealth-phased-v1/sensed/8phases-1perstep/30x30'),
+        (timed, 'stealth-grid-v1/sensed/30x30'),
+        (timed, 'stealth-phased-v1/sensed/4phases-1perstep/30x30'),
+    ):
+        with pytest.raises(ValueError) as refused:
+            plugin.check(layout)
+        message = str(refused.value)
+        assert repr(plugin.layout) in message and '\n' not in message
+        assert repr(policy_file.without_size(layout)) in message

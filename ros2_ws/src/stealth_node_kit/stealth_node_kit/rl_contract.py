@@ -17,7 +17,11 @@ Decisions:
   environment KEEP_ALL, the agent KEEP_LAST 1000); history is not part of QoS matching, and
   the same runs give the same messages either way (the determinism test).
 - **The description** is latched (transient local, depth 1): a late agent still gets it; so is
-  the grid observation (``OBSERVATION``, sent once: with static lights it never changes).
+  the grid observation (``OBSERVATION``, sent once: with static lights it never changes). The
+  phased grid of what was sensed (moving lights, track sensed) goes out before every state,
+  0.35-1.5 MB each: its writer keeps OBSERVATION_STREAM_HISTORY of them (still latched), so a
+  recorder that falls a few grids behind gets every one instead of only the latest (with depth 1
+  it lost 31 grids of a floorplan-moving run); the agent reads the one marked at its state.
 - **Reports** (step info, episode summaries, the agent's episode info) are transient local and
   keep their latest messages, so a reader that (re)joins late, as a respawned recorder,
   monitor or agent does, gets what was published while it was away. Their readers keep all
@@ -52,12 +56,16 @@ SUMMARY_HISTORY = 2000
 # run without its recorder goes faster). 2000 held 5 s of a chaos run, and its recorder took 6.
 STEP_HISTORY = 20_000
 AGENT_REPORT_HISTORY = 1000  # the agent's episode info
+# The sensed phased grids (<= 1.5 MB each on the shipped scenarios): a recorder's lag of a few
+# steps, bounded so the writer holds at most ~25 MB.
+OBSERVATION_STREAM_HISTORY = 16
 
 # --- profiles ------------------------------------------------------------------------------
 # (history depth or None for KEEP_ALL, transient local): every profile is reliable.
 PROFILES = {
     'LOCKSTEP_QOS': (LOCKSTEP_DEPTH, False),
     'DESCRIPTION_QOS': (1, True),
+    'OBSERVATION_STREAM_QOS': (OBSERVATION_STREAM_HISTORY, True),
     'SUMMARY_QOS': (SUMMARY_HISTORY, True),
     'STEP_INFO_QOS': (STEP_HISTORY, True),
     'AGENT_EPISODE_INFO_QOS': (AGENT_REPORT_HISTORY, True),

@@ -25,6 +25,7 @@ def test_lockstep_topics_are_reliable_volatile_and_bounded():
     ('writer', 'depth'),
     [
         ('DESCRIPTION_QOS', 1),
+        ('OBSERVATION_STREAM_QOS', rl_contract.OBSERVATION_STREAM_HISTORY),
         ('SUMMARY_QOS', rl_contract.SUMMARY_HISTORY),
         ('STEP_INFO_QOS', rl_contract.STEP_HISTORY),
         ('AGENT_EPISODE_INFO_QOS', rl_contract.AGENT_REPORT_HISTORY),
@@ -63,3 +64,12 @@ def test_the_names_import_without_rclpy():
         'assert "rclpy" in sys.modules\n'
     )
     subprocess.run([sys.executable, '-c', code], check=True)
+
+
+def test_the_agents_latched_reader_matches_the_streamed_grids_writer():
+    """The agent reads every grid observation as it reads the description (latched, depth 1);
+    the sensed phased grids' deeper writer history must still match it."""
+    compatibility, reason = qos_check_compatible(
+        rl_contract.OBSERVATION_STREAM_QOS, rl_contract.DESCRIPTION_QOS
+    )
+    assert compatibility != QoSCompatibility.ERROR, reason
