@@ -90,7 +90,7 @@ def test_the_training_command_trains_the_sensed_network(tmp_path, capsys):
     from stealth_learn import train_generalist
 
     out = tmp_path / 's.npz'
-    argv = ['--moving', 'mixed', '--sensed', '--sizes', '20x20x3', '--train', '2']
+    argv = ['--moving', 'mixed', '--sensed', '--sizes', '20x20x3', '--train', '1']
     argv += ['--validation', '1', '--steps', '4', '--every', '2', '--iterations', '30']
     argv += ['--rounds', '2', '--snapshot-every', '20', '--out', str(out)]
     assert train_generalist.main(argv) == 0
