@@ -21,10 +21,10 @@ actions. On the lights-sensed track they read the phased grid of what was sensed
 (layout ``stealth-phased-v1/sensed/8phases-1perstep/RxC``, sent before every state) as
 ``GeneralistAgent`` does: believed with ``belief.believed_phased`` (a layer never sensed reads
 the brightest known at the others, else dark), the plan cached per distinct belief. The two
-phased grids tell themselves apart: the sensed one's wait is never sensed (-1), the lights-known
-one's is the wait's light. Weights of another kind or cycle than the grid are refused naming
-both layouts (static weights and a phased grid, time-aware ones and the static sensed belief
-included).
+phased grids tell themselves apart: the sensed one has light never sensed (-1), the
+lights-known one none (a sensed grid with nothing unknown left is its own belief). Weights of
+another kind or cycle than the grid are refused naming both layouts (static weights and a
+phased grid, time-aware ones and the static sensed belief included).
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ from stealth_learn.generalist import DEFAULT_POLICY, GeneralistPolicy, PlanCache
 from stealth_learn.obs_layout import check_layout
 
 KEEP_PLANS = 8  # distinct grids kept (one per building, or the latest beliefs: sensed)
-STEP_WAIT = PHASED_CHANNELS.index('step_wait')
+LIGHT = PHASED_CHANNELS.index('light')  # then the moves, the age (0 as sent) and the steps
 
 
 class CachedGeneralist:
@@ -60,9 +60,10 @@ class CachedGeneralist:
         self.plans = PlanCache(policy, keep=KEEP_PLANS, prepare=prepare)
 
     def _believed_phased(self, grid: np.ndarray) -> np.ndarray:
-        """A phased sensed grid (its wait never sensed, -1) believed as ``GeneralistAgent``
-        believes it (unknown dark); the lights-known phased grid as it is."""
-        if (grid[..., STEP_WAIT] == UNKNOWN).any():
+        """A phased sensed grid (light never sensed, -1, in a light, move or step channel)
+        believed as ``GeneralistAgent`` believes it (unknown dark); the lights-known phased grid
+        as it is."""
+        if (grid[..., LIGHT:] == UNKNOWN).any():
             return believed_phased(grid, self.advance, 0.0)
         return grid
 
