@@ -397,8 +397,9 @@ def _shape(samples) -> tuple[int, int]:
     return max(s.grid.shape[-3] for s in samples), max(s.grid.shape[-2] for s in samples)
 
 
-def plot_curve(curve: dict, path: Path) -> Path:
-    """The training curve (losses and validation accuracy) as a PNG."""
+def plot_curve(curve: dict, path: Path, sensed: bool = False) -> Path:
+    """The training curve (losses and validation accuracy) as a PNG (``sensed``: the sensed
+    track's network, its imitation on belief snapshots)."""
     import matplotlib
 
     matplotlib.use('Agg')
@@ -411,7 +412,8 @@ def plot_curve(curve: dict, path: Path) -> Path:
     left.legend()
     right.plot(curve['step'], curve['validation_accuracy'], color='C2')
     right.set(xlabel='optimiser step', ylabel='validation: optimal-move accuracy', ylim=(0, 1))
-    figure.suptitle('Generalist (VIN), lights known: imitation of value iteration')
+    track = 'lights sensed: DAgger on belief snapshots' if sensed else 'lights known'
+    figure.suptitle(f'Generalist (VIN), {track}: imitation of value iteration')
     figure.tight_layout()
     figure.savefig(path, dpi=90)
     plt.close(figure)
@@ -459,7 +461,7 @@ def main(argv=None) -> int:
     except (OSError, policy_file.PolicyFileError) as error:  # e.g. a diverged (NaN) loss
         print(f'train_generalist: {args.out}: not written ({error})', file=sys.stderr)
         return 2
-    picture = plot_curve(record['curve'], args.out.with_suffix('.png'))
+    picture = plot_curve(record['curve'], args.out.with_suffix('.png'), args.sensed)
     print(
         f'wrote {path} (selected step {record["selected_step"]}) and {picture}; '
         f'{record["seconds"]:.0f} s ({record["generate_seconds"]:.0f} s generating), '
