@@ -28,6 +28,7 @@ from stealth_core.scenario_generator import MOVING, THRESHOLD, GenerationError, 
 
 from stealth_learn import generalist_data as data
 from stealth_learn import policy_file, sensed_data
+from stealth_learn.obs_layout import LayoutError
 
 DEFAULT_OUT = Path(__file__).resolve().parent / 'policies' / 'generalist-full.npz'
 MOVING_OUT = DEFAULT_OUT.with_name('generalist-moving.npz')  # the time-aware weights
@@ -213,6 +214,8 @@ def train(args, log=print, progress: bool = False) -> dict:
     from stealth_learn.vin import Vin
 
     started = time.monotonic()
+    # --init is read first: a file that cannot be one stops the run before any work
+    initial = policy_file.load(args.init, None)[0] if args.sensed and args.init else None
     directory = Path(tempfile.mkdtemp(prefix='generalist-'))
     sets = {'train': [], 'validation': []}
     buildings = {'train': [], 'validation': []}  # --sensed: [(scenario, Sample)] per size
@@ -245,8 +248,8 @@ def train(args, log=print, progress: bool = False) -> dict:
     shapes = [_shape(small), _shape(every_size)]
     validation = [data.batch(samples) for samples in sets['validation']]
     variables = model.init(jax.random.PRNGKey(args.seed), jnp.asarray(validation[0][0][:1]))
-    if args.sensed and args.init is not None:
-        variables = {'params': _initial(args.init, variables['params'])}
+    if initial is not None:
+        variables = {'params': _initial(initial, variables['params'], args.init)}
     round_starts = {1 + r * args.steps // args.rounds: r + 1 for r in range(1, args.rounds)}
     optimiser = optax.chain(
         optax.clip_by_global_norm(1.0),
@@ -348,25 +351,23 @@ def _snapshots(groups, policy_of, args, label: str, progress: bool) -> list:
         ]
 
 
-def _initial(path: Path, params) -> dict:
-    """``params`` (the network's, initialised) replaced by the time-aware weights at ``path``,
-    the never-sensed input's weights 0; PolicyFileError naming the path if they do not fit."""
-    loaded, _ = policy_file.load(path, None)
-    out = jax_tree_map_numpy(loaded)
-    kernel = out['reward_hidden']['kernel']
-    wanted = np.asarray(params['reward_hidden']['kernel']).shape
-    out['reward_hidden']['kernel'] = np.concatenate([kernel, np.zeros((1, kernel.shape[1]))])
-    if out['reward_hidden']['kernel'].shape != wanted:
+def _initial(loaded: dict, params, path: Path) -> dict:
+    """``params`` (the network's, initialised) replaced by the time-aware weights ``loaded``
+    from ``path`` (--init), the never-sensed input's weights 0 where they have none;
+    PolicyFileError naming the path if they do not fit the network."""
+    kernel = loaded['reward_hidden']['kernel']
+    if kernel.shape[0] == np.shape(params['reward_hidden']['kernel'])[0] - 1:
+        loaded['reward_hidden']['kernel'] = np.concatenate([kernel, np.zeros_like(kernel[:1])])
+    if _shapes(loaded) != _shapes(params):
         raise policy_file.PolicyFileError(
-            f'{path}: --init: its reward network is {kernel.shape}, expected {wanted[0] - 1} '
-            f'inputs and {wanted[1]} hidden units (--hidden, --features)'
+            f'{path}: --init: its parameters are {_shapes(loaded)}, the network being trained '
+            f'has {_shapes(params)} (--hidden, --features)'
         )
-    return out
+    return loaded
 
 
-def jax_tree_map_numpy(params) -> dict:
-    return {key: (jax_tree_map_numpy(v) if isinstance(v, dict) else np.asarray(v, np.float32))
-            for key, v in params.items()}  # fmt: skip
+def _shapes(tree) -> dict:
+    return {key: _shapes(v) if isinstance(v, dict) else np.shape(v) for key, v in tree.items()}
 
 
 def _of_lights(samples, moving: str, log) -> list:
@@ -436,7 +437,7 @@ def main(argv=None) -> int:
     )
     try:
         record = train(args, log=_write_above_bar, progress=True)
-    except (GenerationError, data.DataError) as error:
+    except (GenerationError, data.DataError, policy_file.PolicyFileError, LayoutError) as error:
         print(f'train_generalist: {error}', file=sys.stderr)
         return 2
     architecture = _architecture(args, record['layers'], record['advance'])

@@ -100,3 +100,20 @@ def test_the_training_command_trains_the_sensed_network(tmp_path, capsys):
     with pytest.raises(SystemExit):
         train_generalist.parse_args(['--sensed'])  # static lights: nothing to be time-aware of
     assert '--sensed: expected --moving' in capsys.readouterr().err
+
+
+def test_an_init_file_that_cannot_start_the_network_is_refused_first(tmp_path, capsys):
+    """--init is read before any building is generated: a missing file or weights of another
+    size stop the run in one line naming the path."""
+    from stealth_learn import train_generalist
+
+    missing = tmp_path / 'none.npz'
+    argv = ['--moving', 'mixed', '--sensed', '--sizes', '20x20x3', '--train', '1']
+    argv += ['--validation', '1', '--steps', '2', '--out', str(tmp_path / 's.npz')]
+    assert train_generalist.main([*argv, '--init', str(missing)]) == 2
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    assert str(missing) in error and 'no such policy file' in error
+    assert train_generalist.main([*argv, '--hidden', '16', '--iterations', '10']) == 2
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    assert '--init' in error and str(train_generalist.MOVING_OUT) in error
+    assert not (tmp_path / 's.npz').exists()
