@@ -35,8 +35,8 @@ time-aware generalist (``stealth_learn``) trains on it and reads it at the robot
 
 With moving lights on track 'sensed' it is the phased grid of what was sensed
 (``FullTrackGrid.phased_sensed``, layout ``stealth-phased-v1/sensed/<L>phases-<a>perstep/RxC``):
-the same channels, each layer's light and moves as last sensed at that layer (-1 never), the
-wait -1. It changes at nearly every step (a step reaches a (layer, place) not seen before), and
+the same channels, each layer's light, moves and wait as last sensed at that layer (-1 never).
+It changes at nearly every step (a step reaches a (layer, place) not seen before), and
 the state does not say whether it did (its sensed part is the light last sensed at any layer),
 so the environment sends it before every state the agent decides on with the robot channel 1 at
 that state's (layer, cell) (``with_robot``): the mark is how the agent matches the two.

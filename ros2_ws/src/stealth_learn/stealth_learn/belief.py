@@ -28,11 +28,11 @@ from stealth_core.grid_observation import (
     LIGHT,
     MOVE_RIGHT,
     MOVE_UP,
-    STEP_CHANNELS,
+    PHASED_CHANNELS,
     step_grids,
 )
 
-WAIT_CHANNEL = len(CHANNELS) + len(STEP_CHANNELS) - 1  # the phased grid's wait
+WAIT_CHANNEL = PHASED_CHANNELS.index('step_wait')
 UNKNOWN = -1.0  # never sensed (the Gym env's sensed observation, GridObservation's sensed layout)
 
 

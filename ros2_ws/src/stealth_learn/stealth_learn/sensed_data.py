@@ -22,6 +22,7 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
+from stealth_core.grid_observation import AGE, FREE
 from stealth_core.gym_env import StealthNavEnv
 from stealth_core.scenario_generator import GenerationError, Options
 
@@ -82,6 +83,6 @@ def snapshots(buildings, policy_of, every: int = 8, robot_weight: float = 20.0, 
 def unknown_share(samples) -> float:
     """The share of free (layer, cell)s never sensed in the snapshots (how much the network
     reads from its prior rather than from what it saw)."""
-    free = sum(float((s.grid[..., 0] > 0.5).sum()) for s in samples)
-    unknown = sum(float((s.grid[..., 6] > 0.5).sum()) for s in samples)
+    free = sum(float((s.grid[..., FREE] > 0.5).sum()) for s in samples)
+    unknown = sum(float((s.grid[..., AGE] > 0.5).sum()) for s in samples)
     return unknown / max(free, 1.0)
