@@ -119,7 +119,9 @@ def hand_set_params(architecture: dict, reward: ScenarioReward, kind: str = 'env
         'goal_value': np.array(goal_value, np.float32),
         'scale': np.array(1.0, np.float32),
     }
-    return params, {**architecture, 'threshold': reward.threshold}
+    # the distance read uncapped: the environment's distance term is exact only so
+    written = {k: v for k, v in architecture.items() if k != 'distance_cap'}
+    return params, {**written, 'threshold': reward.threshold}
 
 
 def _env_reward(kernel, bias, out, reward: ScenarioReward) -> tuple[float, float]:

@@ -20,7 +20,8 @@ architecture's ``layers`` > 1) reads the phased grid of its phase count and step
 (``obs_layout.phased_layout_id``, e.g. ``stealth-phased-v1/full/8phases-1perstep``): the
 header's layout must be its architecture's. A network trained for the sensed track has
 ``uncertain`` 1 in its architecture (optional, 0 or 1: it reads the never-sensed input) and
-track 'sensed'.
+track 'sensed'. One with a distance cap has ``distance_cap`` (optional, > 0: the most goal
+distance its reward reads, ``vin.Vin``).
 """
 
 from __future__ import annotations
@@ -97,6 +98,8 @@ PHASED_RANGES = {
 }
 # optional: 1 for a network of the sensed track reading the never-sensed input (``vin.Vin``)
 UNCERTAIN_RANGES = {'uncertain': Range(True, 0, 1)}
+# optional: the most goal distance the reward reads, tens of lattice steps (``vin.Vin``)
+CAP_RANGES = {'distance_cap': Range(False, 0.0, above=True)}
 # the training record (optional, each field optional; read by no decision)
 TRAINING_FIELDS = {
     'train_iterations': Range(True, 1, MAX_ITERATIONS),
@@ -143,6 +146,7 @@ def save(path, params, track: str, architecture: dict, training: dict | None = N
     path = Path(path)
     names = ARCHITECTURE + (tuple(PHASED_RANGES) if architecture.get('layers', 1) > 1 else ())
     names += tuple(UNCERTAIN_RANGES) if architecture.get('uncertain', 0) else ()
+    names += tuple(CAP_RANGES) if architecture.get('distance_cap', 0) else ()
     header = {
         'format': FORMAT,
         'layout': policy_layout(track, architecture),
@@ -313,6 +317,7 @@ def check_header(path, header) -> dict:
     phased = any(architecture.has(name) for name in PHASED_RANGES)
     ranges = {**ARCHITECTURE_RANGES, **(PHASED_RANGES if phased else {})}
     ranges.update(UNCERTAIN_RANGES if architecture.has('uncertain') else {})
+    ranges.update(CAP_RANGES if architecture.has('distance_cap') else {})
     _check_ranges(architecture, ranges, True)
     if phased:
         layers = architecture.values['layers']

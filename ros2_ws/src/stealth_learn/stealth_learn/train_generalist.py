@@ -92,6 +92,13 @@ def parse_args(argv=None) -> argparse.Namespace:
         help='the loss weight of a cell with a lit step among its own (where the choice '
         'is to be seen or not), relative to 1 for the others',
     )
+    parser.add_argument(
+        '--distance-cap',
+        type=float,
+        default=0.0,
+        help="the most goal distance the reward reads, tens of lattice steps (vin.Vin's "
+        'distance_cap; default 0: uncapped), stored in the weights file',
+    )
     parser.add_argument('--seed', type=int, default=0, help='the initialisation and batches')
     sensed = parser.add_argument_group(
         'the sensed track (moving lights): DAgger on belief snapshots (stealth_learn.sensed_data)'
@@ -145,6 +152,8 @@ def parse_args(argv=None) -> argparse.Namespace:
             parser.error(f'--{name.replace("_", "-")}: expected at most {highest}')
     if not (math.isfinite(args.lr) and args.lr > 0):
         parser.error('--lr: expected a finite number > 0')
+    if not (math.isfinite(args.distance_cap) and args.distance_cap >= 0):
+        parser.error('--distance-cap: expected a finite number >= 0 (0: uncapped)')
     if not (math.isfinite(args.lit_weight) and args.lit_weight >= 1):
         parser.error('--lit-weight: expected a finite number >= 1')
     if args.seed < 0:
@@ -232,8 +241,9 @@ def train(args, log=print, progress: bool = False) -> dict:
             log(f'{name} {width}x{height} m: {len(sets[name][-1])} scenarios')
     layers, advance = _cycle(sum(sets['train'] + sets['validation'], []))
     model = Vin(
-        args.iterations, args.hidden, args.features, THRESHOLD, layers, advance, int(args.sensed)
-    )
+        args.iterations, args.hidden, args.features, THRESHOLD, layers, advance, int(args.sensed),
+        args.distance_cap,
+    )  # fmt: skip
     architecture = _architecture(args, layers, advance)
     if args.sensed:  # the first round: the hand-set twin's episodes
         twin = functools.partial(_hand_set_twin, architecture)
@@ -328,6 +338,7 @@ def _architecture(args, layers: int, advance: int) -> dict:
         'threshold': THRESHOLD,
         **({'layers': layers, 'advance': advance} if layers > 1 else {}),
         **({'uncertain': 1} if args.sensed else {}),
+        **({'distance_cap': args.distance_cap} if args.distance_cap else {}),
     }
 
 

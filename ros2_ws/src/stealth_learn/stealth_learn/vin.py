@@ -44,6 +44,12 @@ the context: whether the light of the node it enters, at the layer it arrives at
 sensed (the grid's age channel, 1 there: ``belief.believed_phased`` marks it; on a lights-known
 grid it is 0 everywhere). With that input's weights at 0 it is the network above, so the
 hand-set twin is unchanged; a trained network can price what it has not seen.
+
+**Distance cap** (``distance_cap`` C > 0, tens of lattice steps): the distance input is read as
+at most C. A reward learned on 20-30 m buildings makes a dark step's cost grow with its goal
+distance while a lit step's stays put, so far from the goal on larger buildings a lit step
+became cheap (docs/generalist.md); capped, no cell is farther than training showed. 0: as is
+(the hand-set twin reads it uncapped: the environment's distance term is exact only so).
 """
 
 from __future__ import annotations
@@ -97,7 +103,8 @@ class Vin(nn.Module):
     of the scenarios it is for (the generator's ``THRESHOLD``), a fixed input feature;
     ``layers``, ``advance``: the phase layers of moving lights and the layers a step advances
     (1, 0: static lights, the static grid as input; more layers add the wait action);
-    ``uncertain``: 1 to read the never-sensed input of the sensed track."""
+    ``uncertain``: 1 to read the never-sensed input of the sensed track; ``distance_cap``:
+    the most distance the reward reads, tens of lattice steps (0: uncapped)."""
 
     iterations: int = 200
     hidden: int = 32
@@ -106,6 +113,7 @@ class Vin(nn.Module):
     layers: int = 1
     advance: int = 0
     uncertain: int = 0  # 1: the never-sensed input (module docstring)
+    distance_cap: float = 0.0  # tens of lattice steps; 0: uncapped (module docstring)
 
     @property
     def num_actions(self) -> int:
@@ -167,6 +175,8 @@ class Vin(nn.Module):
         node_light = jnp.where(free > 0.5, light, 0.0)
         context = nn.relu(self.context(jnp.stack([free, goal, node_light], axis=-1)))
         distance = goal_distance(goal)
+        if self.distance_cap > 0:
+            distance = jnp.minimum(distance, self.distance_cap)
         per_action = []
         for action in range(self.num_actions):
             entered = jnp.stack(
