@@ -95,9 +95,10 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument(
         '--distance-cap',
         type=float,
-        default=0.0,
+        default=None,
         help="the most goal distance the reward reads, tens of lattice steps (vin.Vin's "
-        'distance_cap; default 0: uncapped), stored in the weights file',
+        'distance_cap; 0: uncapped; default: uncapped, with --sensed that of the --init '
+        'weights), stored in the weights file',
     )
     parser.add_argument('--seed', type=int, default=0, help='the initialisation and batches')
     sensed = parser.add_argument_group(
@@ -152,7 +153,9 @@ def parse_args(argv=None) -> argparse.Namespace:
             parser.error(f'--{name.replace("_", "-")}: expected at most {highest}')
     if not (math.isfinite(args.lr) and args.lr > 0):
         parser.error('--lr: expected a finite number > 0')
-    if not (math.isfinite(args.distance_cap) and args.distance_cap >= 0):
+    if args.distance_cap is not None and not (
+        math.isfinite(args.distance_cap) and args.distance_cap >= 0
+    ):
         parser.error('--distance-cap: expected a finite number >= 0 (0: uncapped)')
     if not (math.isfinite(args.lit_weight) and args.lit_weight >= 1):
         parser.error('--lit-weight: expected a finite number >= 1')
@@ -224,7 +227,10 @@ def train(args, log=print, progress: bool = False) -> dict:
 
     started = time.monotonic()
     # --init is read first: a file that cannot be one stops the run before any work
-    initial = policy_file.load(args.init, None)[0] if args.sensed and args.init else None
+    initial, header = (None, {})
+    if args.sensed and args.init:
+        initial, header = policy_file.load(args.init, None)
+    args.distance_cap = _distance_cap(args, header)
     directory = Path(tempfile.mkdtemp(prefix='generalist-'))
     sets = {'train': [], 'validation': []}
     buildings = {'train': [], 'validation': []}  # --sensed: [(scenario, Sample)] per size
@@ -360,6 +366,20 @@ def _snapshots(groups, policy_of, args, label: str, progress: bool) -> list:
             sensed_data.snapshots(group, policy_of, args.snapshot_every, args.robot_weight, bar)
             for group in groups
         ]
+
+
+def _distance_cap(args, init_header: dict) -> float:
+    """The cap to train with: --distance-cap, else the --init weights' own (0: uncapped);
+    PolicyFileError naming the file if the two differ (the weights learned another input)."""
+    own = float(init_header.get('architecture', {}).get('distance_cap', 0.0))
+    if args.distance_cap is None:
+        return own
+    if init_header and float(args.distance_cap) != own:
+        raise policy_file.PolicyFileError(
+            f'{args.init}: --init: its weights read the goal distance with distance_cap {own:g} '
+            f'(0: uncapped), --distance-cap is {args.distance_cap:g}; give --distance-cap {own:g}'
+        )
+    return float(args.distance_cap)
 
 
 def _initial(loaded: dict, params, path: Path) -> dict:

@@ -83,3 +83,16 @@ def test_the_training_command_stores_the_cap(tmp_path, capsys):
         with pytest.raises(SystemExit):
             train_generalist.parse_args(['--distance-cap', bad])
         assert '--distance-cap: expected a finite number >= 0' in capsys.readouterr().err
+
+
+def test_a_sensed_training_keeps_the_cap_of_its_init_weights(tmp_path, capsys):
+    """--sensed starts from --init's weights: their cap is taken, and another one refused in one
+    line naming the file (those weights learned the distance with their own cap)."""
+    from stealth_learn import train_generalist
+
+    argv = ['--moving', 'mixed', '--sensed', '--sizes', '20x20x3', '--train', '1']
+    argv += ['--validation', '1', '--steps', '2', '--out', str(tmp_path / 's.npz')]
+    assert train_generalist.main([*argv, '--distance-cap', '2']) == 2
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    assert str(train_generalist.MOVING_OUT) in error and 'give --distance-cap 4' in error
+    assert not (tmp_path / 's.npz').exists()

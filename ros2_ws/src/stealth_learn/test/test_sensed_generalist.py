@@ -97,6 +97,7 @@ def test_the_training_command_trains_the_sensed_network(tmp_path, capsys):
     assert 'round 2' in capsys.readouterr().err
     policy = GeneralistPolicy.load(out, None)
     assert policy.track == 'sensed' and policy.model.uncertain == 1
+    assert policy.model.distance_cap == 4.0  # the --init weights' (the shipped ones)
     with pytest.raises(SystemExit):
         train_generalist.parse_args(['--sensed'])  # static lights: nothing to be time-aware of
     assert '--sensed: expected --moving' in capsys.readouterr().err
