@@ -2,6 +2,7 @@
 
 import pathlib
 import sys
+import time
 
 import pytest
 
@@ -53,6 +54,24 @@ def node_processes(ros_domain, tmp_path):
     alive = [p.args for p in processes.processes if p.poll() is None]
     assert not alive, f'processes still running after the test: {alive}'
     if processes.any_killed:
-        remove_orphaned_shm(before)  # a SIGKILLed node cannot clean up; the test does
-    leaked = leaked_shm_segments(before)
+        leaked = _orphans_removed(before)  # a SIGKILLed node cannot clean up; the test does
+    else:
+        leaked = leaked_shm_segments(before)
     assert not leaked, f'Fast DDS shared memory left in /dev/shm: {sorted(leaked)}'
+
+
+def _orphans_removed(before: set[str], settle: float = 5.0) -> set[str]:
+    """Remove what a SIGKILLed node left, looking again for up to `settle` s; what is still
+    left unmapped then.
+
+    One removal is not enough: a segment the killed node shared with a peer is still mapped
+    while that peer exits, and unmapped a moment later (seen once in CI: a port segment and
+    its mutex left after a clean peer's exit).
+    """
+    deadline = time.monotonic() + settle
+    while True:
+        remove_orphaned_shm(before)
+        leaked = leaked_shm_segments(before)
+        if not leaked or time.monotonic() > deadline:
+            return leaked
+        time.sleep(0.5)
