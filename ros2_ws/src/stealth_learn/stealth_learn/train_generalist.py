@@ -230,7 +230,7 @@ def train(args, log=print, progress: bool = False) -> dict:
     initial, header = (None, {})
     if args.sensed and args.init:
         initial, header = policy_file.load(args.init, None)
-    args.distance_cap = _distance_cap(args, header)
+    distance_cap = _distance_cap(args, header)
     directory = Path(tempfile.mkdtemp(prefix='generalist-'))
     sets = {'train': [], 'validation': []}
     buildings = {'train': [], 'validation': []}  # --sensed: [(scenario, Sample)] per size
@@ -248,9 +248,9 @@ def train(args, log=print, progress: bool = False) -> dict:
     layers, advance = _cycle(sum(sets['train'] + sets['validation'], []))
     model = Vin(
         args.iterations, args.hidden, args.features, THRESHOLD, layers, advance, int(args.sensed),
-        args.distance_cap,
+        distance_cap,
     )  # fmt: skip
-    architecture = _architecture(args, layers, advance)
+    architecture = _architecture(args, layers, advance, distance_cap)
     if args.sensed:  # the first round: the hand-set twin's episodes
         twin = functools.partial(_hand_set_twin, architecture)
         for name in sets:
@@ -328,15 +328,15 @@ def train(args, log=print, progress: bool = False) -> dict:
         'generate_seconds': generated,
         'seconds': time.monotonic() - started,
         'train_scenarios': len(every_size),
-        'layers': layers,
-        'advance': advance,
+        'architecture': architecture,
         'samples_per_second': args.steps * args.batch / max(trained, 1e-9),
         'train_seconds': trained,
     }
 
 
-def _architecture(args, layers: int, advance: int) -> dict:
-    """The weights file's architecture (decision-time backups)."""
+def _architecture(args, layers: int, advance: int, distance_cap: float) -> dict:
+    """The weights file's architecture (decision-time backups; the goal distance capped at
+    ``distance_cap``, 0 uncapped)."""
     return {
         'iterations': args.eval_iterations,
         'hidden': args.hidden,
@@ -344,7 +344,7 @@ def _architecture(args, layers: int, advance: int) -> dict:
         'threshold': THRESHOLD,
         **({'layers': layers, 'advance': advance} if layers > 1 else {}),
         **({'uncertain': 1} if args.sensed else {}),
-        **({'distance_cap': args.distance_cap} if args.distance_cap else {}),
+        **({'distance_cap': distance_cap} if distance_cap else {}),
     }
 
 
@@ -471,7 +471,7 @@ def main(argv=None) -> int:
     except (GenerationError, data.DataError, policy_file.PolicyFileError, LayoutError) as error:
         print(f'train_generalist: {error}', file=sys.stderr)
         return 2
-    architecture = _architecture(args, record['layers'], record['advance'])
+    architecture = record['architecture']
     training = {
         'train_iterations': args.iterations,
         'steps': args.steps,
