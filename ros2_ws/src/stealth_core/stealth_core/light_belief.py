@@ -411,6 +411,10 @@ class LightBelief:
         unexplained steps within 4 m of it (each by its arrival and missing light; where
         exposure weighs the lights, divided by the share of the robot the lamp would see)."""
         samples = self.world.samples
+        # Where exposure weighs the lights, column 0 is the move's first sample, not its arrival,
+        # and the share is the drive's, not the brightest sample's: fixing both made the learner
+        # worse (it was cautious by this), so it stays until caution is built in (docs: the
+        # light model, "why the fix is not in").
         arrival = samples.width - 1 if not samples.weighs_heading else 0
         others = candidates[np.isfinite(self._high[candidates]) & (candidates != k)]
         rows = self._rows[np.append(k, others)]
