@@ -34,7 +34,7 @@ from stealth_learn.interruptible import interruptible
 from stealth_learn.jax_deps import jax, jnp
 from stealth_learn.jax_env import build
 from stealth_learn.obs_layout import LayoutError, check_layout, phased_layout_id
-from stealth_learn.vin import ROBOT, Vin, logits_of_cells
+from stealth_learn.vin import MASKED, ROBOT, Vin
 
 DEFAULT_POLICY = policy_file.SHIPPED
 
@@ -48,6 +48,7 @@ class GeneralistPolicy:
         self.variables = {'params': jax.tree_util.tree_map(jnp.asarray, params)}
         self.header = header or {'architecture': dict(architecture)}
         self.source = str(source) or 'the generalist'
+        self.backups = 0  # the last plan's Bellman backups (``cell_logits``)
         self._logits = _compiled(tuple(sorted(architecture.items())))
 
     @classmethod
@@ -112,10 +113,14 @@ class GeneralistPolicy:
 
     def cell_logits(self, grid) -> np.ndarray:
         """(R, C, 4) the logits of every cell of one grid (R, C, 7), or (L, R, C, 5) of every
-        cell and layer of a phased grid (L, R, C, 12); Ctrl-C stops it at once, compile or run
-        (``interruptible``)."""
+        cell and layer of a phased grid (L, R, C, 12), from values backed up until they are
+        a fixed point (``vin.Vin.q_and_backups``; ``backups`` says how many that took); Ctrl-C
+        stops it at once, compile or run (``interruptible``)."""
         batch = jnp.asarray(grid)[None]
-        return interruptible(lambda: np.asarray(self._logits(self.variables, batch)))[0]
+        plan = lambda: jax.device_get(self._logits(self.variables, batch))  # noqa: E731
+        logits, backups = interruptible(plan)
+        self.backups = int(backups)
+        return np.asarray(logits)[0]
 
     def act(self, grid) -> int:
         """The move (0 up, 1 down, 2 left, 3 right; 4 wait: time-aware) at the robot's cell
@@ -133,10 +138,16 @@ def _scenario_layout(scenario, model=None, track: str = 'full') -> str:
 
 @functools.lru_cache(maxsize=8)
 def _compiled(architecture: tuple):
-    """The jitted logits of every cell for one architecture, shared by every policy of it (a
-    hand-set twin per scenario compiles once per grid shape, not once per policy)."""
+    """The jitted (logits of every cell, backups made) of the decision for one architecture,
+    shared by every policy of it (a hand-set twin per scenario compiles once per grid shape,
+    not once per policy)."""
     model = Vin(**dict(architecture))
-    return jax.jit(lambda variables, grid: logits_of_cells(model, variables, grid))
+
+    def decide(variables, grid):
+        q, backups = model.apply(variables, grid, True, method=Vin.q_and_backups)
+        return jnp.where(q <= MASKED / 2, MASKED, variables['params']['scale'] * q), backups
+
+    return jax.jit(decide)
 
 
 def robot_cell(grid) -> tuple[int, ...]:

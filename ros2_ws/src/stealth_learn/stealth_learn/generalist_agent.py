@@ -58,9 +58,10 @@ _KEPT = 64  # plans kept per agent (the layers of exposure's headings; the sense
 
 def load_policy(path=None, iterations: int | None = None) -> GeneralistPolicy:
     """The lights-known generalist of ``path`` (default: the shipped weights), static or
-    time-aware (the scenario's cycle checked when an agent is made), with its Bellman backups
-    at decision time set to ``iterations`` (default: the file's). PolicyFileError or
-    LayoutError, one line naming the path."""
+    time-aware (the scenario's cycle checked when an agent is made), its Bellman backups at
+    decision time at least ``iterations`` (default: the file's), then on to the values' fixed
+    point (``vin.Vin.q_and_backups``). PolicyFileError or LayoutError, one line naming the
+    path."""
     path = DEFAULT_POLICY if path is None else path
     policy = GeneralistPolicy.load(path, None)
     if iterations is None:

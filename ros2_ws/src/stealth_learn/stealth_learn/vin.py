@@ -198,9 +198,21 @@ class Vin(nn.Module):
         hidden = nn.relu(self.reward_hidden(stacked))
         return self.reward_out(hidden)[..., 0]
 
-    def q_map(self, x):
+    def q_map(self, x, until_fixed: bool = False):
         """The action values after ``iterations`` backups, masked steps MASKED: (B, R, C, 4)
-        of a static grid, (B, L, R, C, A) of a phased one."""
+        of a static grid, (B, L, R, C, A) of a phased one. ``until_fixed`` (decision time):
+        then on until the values are a fixed point (``fixed_point``)."""
+        return self.q_and_backups(x, until_fixed)[0]
+
+    def q_and_backups(self, x, until_fixed: bool = False):
+        """(``q_map``'s values, the backups made: () int32). Value iteration's own stopping
+        rule at decision time: after the ``iterations`` backups (the floor: the horizon the
+        weights were evaluated with), go on while any value still changes, at most as many
+        more as the time-expanded lattice has free nodes (layers x free cells: Bellman-Ford's
+        bound, reached only if the learned reward pays for a cycle). A building whose longest
+        covert path is longer than ``iterations`` gets the backups it needs and no more; a
+        fixed point more backups cannot change. Training keeps the fixed count (``lax.scan``:
+        differentiable)."""
         grid, lights, exists = self.inputs(x)
         rewards = self._rewards(grid, lights, exists)
         free, goal = grid[..., FREE] > 0.5, grid[..., GOAL] > 0.5
@@ -210,15 +222,17 @@ class Vin(nn.Module):
             after = [self._after(values, a, 0.0) for a in range(self.num_actions)]
             return jnp.where(exists, rewards + jnp.stack(after, axis=-1), MASKED)
 
-        def iterate(values, _):
+        def iterate(values, _=None):
             best = backup(values).max(axis=-1)
-            values = jnp.where(goal, goal_value, jnp.where(free, best, 0.0))
-            return values, None
+            return jnp.where(goal, goal_value, jnp.where(free, best, 0.0)), None
 
         values = jnp.where(goal, goal_value, 0.0)
         values, _ = jax.lax.scan(iterate, values, None, length=self.iterations)
+        backups = jnp.asarray(self.iterations, jnp.int32)
+        if until_fixed:
+            values, backups = fixed_point(lambda v: iterate(v)[0], values, backups, free)
         q = backup(values)
-        return q if self.phased else q[:, 0]
+        return (q if self.phased else q[:, 0]), backups
 
     def __call__(self, x):
         """(B, A) logits at the robot's cell (and layer: the robot channel)."""
@@ -229,8 +243,28 @@ class Vin(nn.Module):
         return jnp.where(at_robot <= MASKED / 2, MASKED, self.scale * at_robot)
 
 
-def logits_of_cells(model: Vin, variables, grid):
+def fixed_point(iterate, values, backups, free):
+    """(values, backups) after applying ``iterate`` until the values no longer change, at
+    most ``free.sum()`` more times (``Vin.q_and_backups``)."""
+    bound = backups + free.sum().astype(jnp.int32)
+
+    def changing(carry):
+        _, count, changed = carry
+        return changed & (count < bound)
+
+    def step(carry):
+        values, count, _ = carry
+        after = iterate(values)
+        return after, count + 1, jnp.any(after != values)
+
+    start = (values, backups, jnp.asarray(True))
+    values, backups, _ = jax.lax.while_loop(changing, step, start)
+    return values, backups
+
+
+def logits_of_cells(model: Vin, variables, grid, until_fixed: bool = False):
     """Every cell's logits at once, (B, R, C, 4) or phased (B, L, R, C, A) (the attention at
-    every cell and layer: what the imitation loss reads)."""
-    q = model.apply(variables, grid, method=Vin.q_map)
+    every cell and layer: what the imitation loss reads); ``until_fixed``: the decision's
+    values (``Vin.q_and_backups``)."""
+    q = model.apply(variables, grid, until_fixed, method=Vin.q_map)
     return jnp.where(q <= MASKED / 2, MASKED, variables['params']['scale'] * q)

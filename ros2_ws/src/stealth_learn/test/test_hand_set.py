@@ -14,7 +14,7 @@ from stealth_learn.generalist import GeneralistPolicy, rollout
 from stealth_learn.hand_set import ScenarioReward, hand_set_params
 from stealth_learn.jax_deps import jnp
 from stealth_learn.obs_layout import layout_id
-from stealth_learn.vin import Vin, move_features
+from stealth_learn.vin import FREE, Vin, move_features
 
 SHIPPED = {'iterations': 240, 'hidden': 32, 'features': 8, 'threshold': 0.3}
 
@@ -111,3 +111,21 @@ def test_what_cannot_be_written_is_refused_in_one_line(generated):
     chance = dataclasses.replace(reward, detection_mode='probabilistic')
     with pytest.raises(ValueError, match="has detection_mode 'probabilistic'; the weights are"):
         hand_set_params(SHIPPED, chance)
+
+
+def test_a_decision_backs_up_to_the_fixed_point_past_the_files_iterations(generated):
+    """A horizon (10 backups) shorter than the building's covert path does not shorten the
+    decision: its values are backed up until they stop changing (``Vin.q_and_backups``), so
+    the twin still plays value iteration's optimum, and more backups change no value."""
+    scenario = generated['still']
+    short = {**SHIPPED, 'iterations': 10}
+    policy = GeneralistPolicy.hand_set(short, ScenarioReward.of(scenario))
+    episode = rollout(policy, scenario)
+    assert episode.outcome == 0 and episode.steps == episode.optimal_steps > 10, episode
+    grid = data.grid_of(TaskArrays(scenario).tables())[None]
+    q, backups = policy.model.apply(policy.variables, grid, True, method=Vin.q_and_backups)
+    assert 10 < int(backups) == policy.backups <= 10 + int(grid[..., FREE].sum())
+    longer = Vin(**{**short, 'iterations': int(backups) + 50})
+    np.testing.assert_array_equal(q, longer.apply(policy.variables, grid, method=Vin.q_map))
+    ten = policy.model.apply(policy.variables, grid, method=Vin.q_map)  # the fixed count
+    assert not np.array_equal(ten, q)

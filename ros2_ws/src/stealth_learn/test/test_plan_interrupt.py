@@ -73,7 +73,7 @@ print('planned', flush=True)
 def _compiled(process) -> bool:
     """Whether the plan is under way: it said so, and JAX logged the network's compile."""
     assert process.stdout.readline().strip() == 'planning'
-    compiled = 'Finished XLA compilation of jit(<lambda>)'
+    compiled = 'Finished XLA compilation of jit(decide)'
     return any(compiled in line for line in iter(process.stderr.readline, ''))
 
 
