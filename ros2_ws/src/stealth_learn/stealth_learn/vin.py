@@ -207,12 +207,13 @@ class Vin(nn.Module):
     def q_and_backups(self, x, until_fixed: bool = False):
         """(``q_map``'s values, the backups made: () int32). Value iteration's own stopping
         rule at decision time: after the ``iterations`` backups (the floor: the horizon the
-        weights were evaluated with), go on while any value still changes, at most as many
-        more as the time-expanded lattice has free nodes (layers x free cells: Bellman-Ford's
-        bound, reached only if the learned reward pays for a cycle). A building whose longest
-        covert path is longer than ``iterations`` gets the backups it needs and no more; a
-        fixed point more backups cannot change. Training keeps the fixed count (``lax.scan``:
-        differentiable)."""
+        weights were evaluated with), go on while any value of a node the goal can be reached
+        from still changes (a closed room's falls by its step cost forever and decides
+        nothing), at most as many more as the time-expanded lattice has free nodes (layers x
+        free cells: Bellman-Ford's bound, reached only if the learned reward pays for a
+        cycle). A building whose covert path is longer than ``iterations`` gets the backups it
+        needs; more backups cannot change a fixed point. Training keeps the fixed count
+        (``lax.scan``: differentiable)."""
         grid, lights, exists = self.inputs(x)
         rewards = self._rewards(grid, lights, exists)
         free, goal = grid[..., FREE] > 0.5, grid[..., GOAL] > 0.5
@@ -230,7 +231,16 @@ class Vin(nn.Module):
         values, _ = jax.lax.scan(iterate, values, None, length=self.iterations)
         backups = jnp.asarray(self.iterations, jnp.int32)
         if until_fixed:
-            values, backups = fixed_point(lambda v: iterate(v)[0], values, backups, free)
+
+            def leads_on(mask):
+                after = [self._after(mask, a, False) for a in range(self.num_actions)]
+                return (jnp.stack(after, axis=-1) & exists).any(axis=-1)
+
+            compared = reachable(goal, free, leads_on)
+            bound = backups + free.sum().astype(jnp.int32)
+            values, backups = fixed_point(
+                lambda v: iterate(v)[0], values, backups, compared, bound
+            )
         q = backup(values)
         return (q if self.phased else q[:, 0]), backups
 
@@ -243,10 +253,21 @@ class Vin(nn.Module):
         return jnp.where(at_robot <= MASKED / 2, MASKED, self.scale * at_robot)
 
 
-def fixed_point(iterate, values, backups, free):
-    """(values, backups) after applying ``iterate`` until the values no longer change, at
-    most ``free.sum()`` more times (``Vin.q_and_backups``)."""
-    bound = backups + free.sum().astype(jnp.int32)
+def reachable(start, free, leads_on):
+    """(B, L, R, C) bool: ``start`` and every free node with a path of steps into it
+    (``leads_on(mask)``: the nodes with a step into ``mask``)."""
+
+    def grow(carry):
+        mask, _ = carry
+        grown = mask | (free & leads_on(mask))
+        return grown, jnp.any(grown != mask)
+
+    return jax.lax.while_loop(lambda carry: carry[1], grow, (start, jnp.asarray(True)))[0]
+
+
+def fixed_point(iterate, values, backups, compared, bound):
+    """(values, backups) after applying ``iterate`` until no value on ``compared`` changes, at
+    most ``bound`` backups in all (``Vin.q_and_backups``)."""
 
     def changing(carry):
         _, count, changed = carry
@@ -255,7 +276,7 @@ def fixed_point(iterate, values, backups, free):
     def step(carry):
         values, count, _ = carry
         after = iterate(values)
-        return after, count + 1, jnp.any(after != values)
+        return after, count + 1, jnp.any((after != values) & compared)
 
     start = (values, backups, jnp.asarray(True))
     values, backups, _ = jax.lax.while_loop(changing, step, start)

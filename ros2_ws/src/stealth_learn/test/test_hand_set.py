@@ -14,7 +14,7 @@ from stealth_learn.generalist import GeneralistPolicy, rollout
 from stealth_learn.hand_set import ScenarioReward, hand_set_params
 from stealth_learn.jax_deps import jnp
 from stealth_learn.obs_layout import layout_id
-from stealth_learn.vin import FREE, Vin, move_features
+from stealth_learn.vin import FREE, GOAL, MOVE_RIGHT, MOVE_UP, Vin, move_features
 
 SHIPPED = {'iterations': 240, 'hidden': 32, 'features': 8, 'threshold': 0.3}
 
@@ -129,3 +129,26 @@ def test_a_decision_backs_up_to_the_fixed_point_past_the_files_iterations(genera
     np.testing.assert_array_equal(q, longer.apply(policy.variables, grid, method=Vin.q_map))
     ten = policy.model.apply(policy.variables, grid, method=Vin.q_map)  # the fixed count
     assert not np.array_equal(ten, q)
+
+
+def test_a_closed_room_does_not_hold_the_fixed_point_back(generated):
+    """A closed room's values fall by a step cost each backup forever; the fixed point is
+    judged on the nodes the goal can be reached from, so the plan stops with those (22 steps
+    from the far corner) instead of running to Bellman-Ford's bound."""
+    grid = np.zeros((12, 12, 7), np.float32)
+    grid[..., FREE] = 1.0
+    grid[0, 0, GOAL] = 1.0
+    grid[-1, :, MOVE_UP] = grid[:, -1, MOVE_RIGHT] = -2.0  # the edges
+    grid[8, 8:10, MOVE_UP] = grid[7, 8:10, MOVE_UP] = -2.0  # the room (8, 8)-(8, 9): its
+    grid[8, 7, MOVE_RIGHT] = grid[8, 9, MOVE_RIGHT] = -2.0  # walls, one move inside
+    reward = ScenarioReward.of(generated['still'])
+    policy = GeneralistPolicy.hand_set({**SHIPPED, 'iterations': 5}, reward, 'dark-steps')
+    policy.cell_logits(grid)
+    assert 22 < policy.backups < 30, policy.backups
+    q = np.asarray(policy.model.apply(policy.variables, grid[None], True, method=Vin.q_map))[0]
+    longer = Vin(**{**policy.header['architecture'], 'iterations': policy.backups + 20})
+    more = np.asarray(longer.apply(policy.variables, grid[None], method=Vin.q_map))[0]
+    room = np.zeros((12, 12), bool)
+    room[8, 8:10] = True
+    np.testing.assert_array_equal(q[~room], more[~room])
+    assert more[8, 8, 3] < q[8, 8, 3]  # the move inside the room: still falling
