@@ -21,8 +21,9 @@ decision is the attention on the robot's cell (its Q values are the logits).
   -2 on it: a wall) is masked out. The four shifts are VIN's transition kernels, fixed to the
   lattice rather than learned, so the recurrence stays exact over hundreds of iterations.
 - **Value**: V_0 = 0; V_{k+1} = G on goal cells (G learned), max_a (R_a + V_k(after a)) on
-  free cells. ``iterations`` must cover the longest covert path (60-120 steps on 30 x 30 m
-  buildings); the weights are tied, so it can change at decision time.
+  free cells, ``iterations`` times in training (the weights are tied, so the count is free);
+  at decision time (``q_and_backups``) at least as many and then on to the fixed point, so a
+  covert path longer than training's horizon is still found.
 - **Decision**: logits = scale * Q(robot's cell) (scale learned), masked moves at -1e9.
 
 **Moving lights** (``layers`` > 1): the same network over the lattice model's time
