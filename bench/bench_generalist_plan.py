@@ -22,7 +22,7 @@ from stealth_learn import policy_file
 from stealth_learn.env_tables import TaskArrays
 from stealth_learn.generalist import GeneralistPolicy
 from stealth_learn.jax_deps import jax, jnp
-from stealth_learn.vin import Vin
+from stealth_learn.vin import Vin, logits_of_cells
 
 REPEATS = 5
 STATIC = ('simple-maze', 'map1', 'lgfloor', 'floorplan')
@@ -43,7 +43,7 @@ def _median_seconds(work) -> float:
 def _fixed_count(policy: GeneralistPolicy):
     """The plan of the rule before: the file's ``iterations`` backups, no more."""
     model = Vin(**policy.header['architecture'])
-    apply = jax.jit(lambda variables, grid: model.apply(variables, grid, method=Vin.q_map))
+    apply = jax.jit(lambda variables, grid: logits_of_cells(model, variables, grid))
     return lambda grid: jax.device_get(apply(policy.variables, jnp.asarray(grid)[None]))
 
 

@@ -34,7 +34,7 @@ from stealth_learn.interruptible import interruptible
 from stealth_learn.jax_deps import jax, jnp
 from stealth_learn.jax_env import build
 from stealth_learn.obs_layout import LayoutError, check_layout, phased_layout_id
-from stealth_learn.vin import MASKED, ROBOT, Vin
+from stealth_learn.vin import ROBOT, Vin, logits_of_values
 
 DEFAULT_POLICY = policy_file.SHIPPED
 
@@ -145,7 +145,7 @@ def _compiled(architecture: tuple):
 
     def decide(variables, grid):
         q, backups = model.apply(variables, grid, True, method=Vin.q_and_backups)
-        return jnp.where(q <= MASKED / 2, MASKED, variables['params']['scale'] * q), backups
+        return logits_of_values(variables, q), backups
 
     return jax.jit(decide)
 

@@ -284,9 +284,13 @@ def fixed_point(iterate, values, backups, compared, bound):
     return values, backups
 
 
-def logits_of_cells(model: Vin, variables, grid, until_fixed: bool = False):
+def logits_of_cells(model: Vin, variables, grid):
     """Every cell's logits at once, (B, R, C, 4) or phased (B, L, R, C, A) (the attention at
-    every cell and layer: what the imitation loss reads); ``until_fixed``: the decision's
-    values (``Vin.q_and_backups``)."""
-    q = model.apply(variables, grid, until_fixed, method=Vin.q_map)
+    every cell and layer: what the imitation loss reads), after the fixed count of backups."""
+    return logits_of_values(variables, model.apply(variables, grid, method=Vin.q_map))
+
+
+def logits_of_values(variables, q):
+    """The logits of action values ``q``: scale * q, masked steps MASKED (``Vin.__call__``'s
+    rule at every cell)."""
     return jnp.where(q <= MASKED / 2, MASKED, variables['params']['scale'] * q)
