@@ -173,3 +173,23 @@ class SpinningNode:
 
     def spin_for(self, seconds: float) -> None:
         self.spin_until(lambda: False, seconds)
+
+    def handshake(self, client, request, timeout: float, resend: float = 1.0):
+        """The answer to `request` (which must change nothing), sent again every `resend` s
+        until one comes; None after `timeout` s. ``service_is_ready`` only says this side has
+        matched the server: Fast DDS's server waits 100 ms for its side to match this client's
+        answer reader and otherwise drops the answer ('failed to send response (timeout)' in
+        its log). An answer proves both sides matched, and matches last."""
+        deadline = time.monotonic() + timeout
+        future = None
+        while time.monotonic() < deadline:
+            if not self.spin_until(client.service_is_ready, deadline - time.monotonic()):
+                break
+            if future is not None:
+                client.remove_pending_request(future)
+            future = client.call_async(request)
+            if self.spin_until(future.done, min(resend, max(0.0, deadline - time.monotonic()))):
+                return future.result()
+        if future is not None and not future.done():
+            client.remove_pending_request(future)
+        return None

@@ -55,13 +55,22 @@ def _use_sim_time(probe: SpinningNode, nodes: tuple[str, ...], run) -> dict[str,
             lambda: run.poll() is not None or all(c.service_is_ready() for c in clients.values()),
             60.0,
         )
+        # Unanswered requests go again every second (SpinningNode.handshake says why).
         request = GetParameters.Request(names=['use_sim_time'])
-        futures = {
-            node: client.call_async(request)
-            for node, client in clients.items()
-            if client.service_is_ready()
-        }
-        probe.spin_until(lambda: all(f.done() for f in futures.values()), 20.0)
+        futures = {}
+        deadline = time.monotonic() + 20.0
+        while time.monotonic() < deadline and run.poll() is None:
+            for node, client in clients.items():
+                future = futures.get(node)
+                if future is not None and future.done() or not client.service_is_ready():
+                    continue
+                if future is not None:
+                    client.remove_pending_request(future)
+                futures[node] = client.call_async(request)
+            if probe.spin_until(lambda: all(f.done() for f in futures.values()), 1.0) and len(
+                futures
+            ) == len(nodes):
+                break
         return {
             node: futures[node].result().values[0].bool_value
             if node in futures and futures[node].done()
