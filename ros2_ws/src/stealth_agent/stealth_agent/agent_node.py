@@ -330,7 +330,7 @@ class AgentNode(StartupNode):
         self._summary_timer.cancel()
 
     def exit_logger(self):
-        """After Ctrl-C the context is already shut down and /rosout cannot take the message."""
+        """A context shut down (not by a signal: the node stops with it up) cannot take /rosout."""
         return self.get_logger() if self.context.ok() else rclpy.logging.get_logger('agent.exit')
 
     # --- exit --------------------------------------------------------------------------------

@@ -475,7 +475,7 @@ class EnvironmentNode(StartupNode):
         return self.flow.episode_time(t)
 
     def log_totals(self) -> None:
-        """The counts that show nothing was lost (after Ctrl-C /rosout is gone: plain logger)."""
+        """The counts that show nothing was lost (a plain logger once the context is down)."""
         ok = self.context.ok()
         logger = self.get_logger() if ok else rclpy.logging.get_logger(f'{NODE_NAME}.exit')
         note = ''

@@ -5,22 +5,62 @@ ros2/demos does. A node that cannot start (bad ``--ros-args``, a parameter out o
 missing scenario) logs one fatal line saying why and the process exits with 2, never with a
 traceback; the orchestrator reports that line. A node whose file cannot be written because the
 disk is full (full_disk.DiskFullError) logs that line and exits with EXIT_DISK_FULL (4).
+
+SIGINT and SIGTERM are handled here, not by rclpy (whose handler shuts the context down at
+once, from another thread): either raises KeyboardInterrupt, as Python's own SIGINT handler
+does (a node being built, a callback, a long plan is interrupted), and the node stops in order
+with its context still up. Its exit hook runs (later signals are ignored until it is gone, so a
+policy being saved is not cut short), then it waits (at most ACK_WAIT s) until every subscriber
+has acknowledged its reliable messages: a recorder that fell behind under load gets what DDS
+dropped on the way resent (a reliable writer resends only on its next heartbeat, 3 s apart in
+Fast DDS, and a writer that is gone resends nothing: a loaded run once lost 170 steps of a
+recording so).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 import re
+import signal
+import time
 
 import rclpy
+from rclpy.duration import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 import rclpy.node
+from rclpy.qos import ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 
 from stealth_node_kit.full_disk import EXIT_DISK_FULL, DiskFullError
 
 EXIT_CANNOT_START = 2
-SPIN_WAKE = 1.0  # s: the longest the executor waits before it looks at the context again
+SPIN_WAKE = 0.1  # s: the longest a stop signal goes unnoticed while the nodes spin
+ACK_WAIT = 5.0  # s a stopping node waits for its reliable messages to be acknowledged
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class StopSignals:
+    """SIGINT and SIGTERM as KeyboardInterrupt until the process begins to stop, then ignored
+    (the orchestrator's SIGKILL stays the hard stop)."""
+
+    def __init__(self):
+        self.stopping = False
+        self._previous = {}
+
+    def __enter__(self) -> StopSignals:
+        self._previous = {
+            signum: signal.signal(signum, self._on_signal) for signum in STOP_SIGNALS
+        }
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
+
+    def _on_signal(self, signum, frame) -> None:
+        if not self.stopping:
+            raise KeyboardInterrupt
 
 
 class StartupNode(rclpy.node.Node):
@@ -41,13 +81,13 @@ class StartupNode(rclpy.node.Node):
 
 
 def spin_until_shutdown(nodes: list[rclpy.node.Node]) -> None:
-    """``rclpy.spin`` for several nodes, the executor waking at least every SPIN_WAKE s.
+    """``rclpy.spin`` for several nodes until a stop signal or an external shutdown, the
+    executor waking at least every SPIN_WAKE s to notice either (a signal's handler runs only
+    between bytecodes).
 
-    rclpy's global executor, which is shut down with the context on SIGINT (one of our own was
-    only woken, and went on to take messages from endpoints being torn down: a pybind11
-    RuntimeError while the context still looked up, exit code 1 at a run's end). The wake-ups
-    bound a missed one: twice in one session an agent (a node with no timer, whose executor
-    waits without a timeout) sat out a SIGINT until the test's 15 s were up.
+    rclpy's global executor: one of our own, only woken at a shutdown, once went on to take
+    messages from endpoints being torn down (a pybind11 RuntimeError, exit code 1 at a run's
+    end).
     """
     executor = rclpy.get_global_executor()
     for node in nodes:
@@ -58,6 +98,21 @@ def spin_until_shutdown(nodes: list[rclpy.node.Node]) -> None:
     finally:
         for node in nodes:
             executor.remove_node(node)
+
+
+def wait_for_acknowledgements(nodes: list[rclpy.node.Node], timeout: float) -> list[str]:
+    """Wait (at most `timeout` s in all) until every subscriber has acknowledged every message
+    of the nodes' reliable publishers; the topics still waiting then."""
+    deadline = time.monotonic() + timeout
+    waiting = []
+    for node in nodes:
+        for publisher in node.publishers:
+            if publisher.qos_profile.reliability != ReliabilityPolicy.RELIABLE:
+                continue
+            remaining = Duration(nanoseconds=int(max(0.0, deadline - time.monotonic()) * 1e9))
+            if not publisher.wait_for_all_acked(remaining):
+                waiting.append(publisher.topic_name)
+    return waiting
 
 
 def _without_source_locations(error: Exception) -> str:
@@ -76,7 +131,7 @@ def run_node(
     EXIT_DISK_FULL when a DiskFullError left its callbacks or `on_exit`).
 
     `name` names the logger of the fatal line; `on_exit` runs after spinning, before the node
-    is destroyed (save a policy, log totals); after Ctrl-C its logging goes to the console only.
+    is destroyed (save a policy, log totals), with the context still up after a stop signal.
     """
     return run_nodes(
         lambda: [make_node()],
@@ -96,9 +151,13 @@ def run_nodes(
     """:func:`run_node` for several nodes in one process, spun by rclpy's global executor
     (single-threaded: their callbacks never run at the same time); `make_nodes` destroys what
     it built if it fails part-way. They are destroyed in the reverse order."""
-    logger = rclpy.logging.get_logger(name)
+    with StopSignals() as stop:
+        return _run(make_nodes, rclpy.logging.get_logger(name), args, on_exit, stop)
+
+
+def _run(make_nodes, logger, args, on_exit, stop: StopSignals) -> int:
     try:
-        rclpy.init(args=args)
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as error:  # e.g. an unreadable --params-file
         logger.fatal(f'not starting: bad arguments: {_without_source_locations(error)}')
         return EXIT_CANNOT_START
@@ -109,8 +168,8 @@ def run_nodes(
         return 0
     except Exception as error:  # StartupError, or rcl's own (e.g. a bad remapping)
         if not rclpy.ok():
-            # rclpy's SIGINT handler shut the context down while the node was being built, and
-            # an rcl call failed on it before Python raised the KeyboardInterrupt: a stop too.
+            # The context was shut down while the node was being built (rclpy.shutdown from
+            # elsewhere in the process) and an rcl call failed on it: a stop too.
             return 0
         logger.fatal(f'not starting: {_without_source_locations(error)}')
         rclpy.try_shutdown()
@@ -123,18 +182,27 @@ def run_nodes(
     except DiskFullError as error:
         code = _stop_for_full_disk(logger, error)
     except (_rclpy.RCLError, RuntimeError):
-        # rclpy's SIGINT handler shuts the context down from another thread: a wait set being
-        # built then fails (RCLError), and a message being taken fails to convert (a plain
-        # RuntimeError from pybind11, seen as a node's exit code 1 at a run's end). Either is
-        # part of the stop once the context is down; while it is up, a real failure.
+        # A node that shuts its context down itself (the environment giving up on its robot)
+        # can leave a wait set being built failing (RCLError) or a message being taken failing
+        # to convert (a plain RuntimeError from pybind11). Either is part of the stop once the
+        # context is down; while it is up, a real failure.
         if rclpy.ok():
             raise
     finally:
+        stop.stopping = True
         if on_exit is not None:
             try:
                 on_exit(nodes)
             except DiskFullError as error:
                 code = _stop_for_full_disk(logger, error)
+        if rclpy.ok():
+            waiting = wait_for_acknowledgements(nodes, ACK_WAIT)
+            if waiting:
+                logger.warning(
+                    f'stopping with messages on {", ".join(waiting)} not acknowledged by every '
+                    f'subscriber within {ACK_WAIT:g} s: a subscriber that fell behind (a '
+                    'recorder, a bridge) misses them'
+                )
         for node in reversed(nodes):
             node.destroy_node()
         rclpy.try_shutdown()

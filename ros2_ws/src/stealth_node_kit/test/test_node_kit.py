@@ -99,8 +99,8 @@ def test_a_node_stopped_while_it_starts_exits_quietly(capfd):
 
 
 def test_a_node_whose_context_is_shut_down_while_it_starts_exits_quietly(capfd):
-    """SIGINT shuts the context down (rclpy's handler) and an rcl call of the node being built
-    fails on it before Python raises KeyboardInterrupt: a stop, not a node that cannot start."""
+    """The context shut down from elsewhere while the node is built, an rcl call failing on
+    it: a stop, not a node that cannot start."""
 
     def stopped_mid_build():
         rclpy.shutdown()
@@ -142,9 +142,9 @@ def test_a_node_whose_set_up_fails_destroys_itself(error, monkeypatch):
 def test_an_error_while_spinning_is_the_stop_only_once_the_context_is_down(
     context_down, monkeypatch
 ):
-    """rclpy's SIGINT handler shuts the context down from another thread; a message being
-    taken meanwhile fails with a plain RuntimeError. That is the stop (exit 0); the same error
-    while the context is up is a real failure."""
+    """A node that shuts its context down itself can leave a message being taken failing with
+    a plain RuntimeError. That is the stop (exit 0); the same error while the context is up is
+    a real failure."""
     import rclpy
 
     monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')  # this machine only
