@@ -51,8 +51,10 @@ def _interrupt(command, ready, after: float, env=None) -> tuple[int, float, str]
 # One plan of a 500 x 500 lattice at the most backups the header allows: 6-15 s of XLA (a
 # building of 250 x 250 m at 0.5 m); Ctrl-C 0.5 s into the run (JAX logs the compile's end).
 _LONG_PLAN = """
+import signal
 import sys
 import numpy as np
+signal.signal(signal.SIGINT, signal.default_int_handler)  # as at a terminal, even in a job
 from stealth_learn.generalist import GeneralistPolicy
 from stealth_learn.vin import FREE, GOAL, MOVE_RIGHT, MOVE_UP
 grid = np.zeros((500, 500, 7), np.float32)
