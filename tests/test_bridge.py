@@ -38,6 +38,20 @@ def free_port() -> int:
         return probe.getsockname()[1]
 
 
+def wait_for_port(port: int, process, timeout: float = 120.0) -> None:
+    """Until something listens on `port` (a server started with its process, which must live);
+    a client that connects first is refused and does not try again."""
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            socket.create_connection(('127.0.0.1', port), timeout=1.0).close()
+            return
+        except OSError:
+            assert process.poll() is None, f'it exited with {process.returncode} before listening'
+            assert time.monotonic() < deadline, f'nothing listens on {port} after {timeout:g} s'
+            time.sleep(0.2)
+
+
 def foxglove_client(port: int, topics: dict[str, int], tmp_path, name: str, timeout=240.0):
     """(exit status, report, last decoded message per topic) of a client session."""
     node = node_tool(CLIENT_DIR, 'ws')
@@ -173,7 +187,7 @@ def test_watch_serves_the_run_to_foxglove_clients(system, tmp_path):  # noqa: F8
         )  # fmt: skip
         system.started.append(play)
         try:
-            time.sleep(2.0)
+            wait_for_port(port, play)
             status, replayed, samples = foxglove_client(
                 port, {'/map': 1, '/rl_env/step_info': 2}, tmp_path, 'replay', 90
             )
