@@ -4,8 +4,9 @@ and a node that keeps crashing.
 The chaos run kills the agent, the environment, the simulator and the recorder, one at each of
 KILL_AT's episodes; the run must still reach its stop criterion with contiguous episode numbers
 (none counted twice), a recording that holds every step of every episode (the killed recorder's
-file recovered, the respawned recorder's file beside it), and nothing left running or in
-/dev/shm (the `system` fixture checks those two).
+file recovered, the respawned recorder's file beside it; the episode the killed environment cut
+short may end early there, as the last step it sent may reach only the monitor), and nothing
+left running or in /dev/shm (the `system` fixture checks those two).
 """
 
 import csv
