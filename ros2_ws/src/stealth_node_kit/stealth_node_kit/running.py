@@ -201,7 +201,8 @@ def _run(make_nodes, logger, args, on_exit, stop: StopSignals) -> int:
                 logger.warning(
                     f'stopping with messages on {", ".join(waiting)} not acknowledged by every '
                     f'subscriber within {ACK_WAIT:g} s: a subscriber that fell behind (a '
-                    'recorder, a bridge) misses them'
+                    'recorder, a bridge) misses them, or one that died is still matched until '
+                    'its DDS lease ends'
                 )
         for node in reversed(nodes):
             node.destroy_node()
