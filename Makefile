@@ -104,7 +104,7 @@ test-packages: setup $(LEARN_STAMP) ## colcon test: each package's pytest suite
 	colcon test-result --verbose || rc=1; exit $$rc
 
 test-system: setup $(LEARN_STAMP) $(JS_STAMP) $(WS_STAMP) ## The top-level system tests in tests/
-	@$(ROS_ENV) && python -m pytest tests -q -p no:cacheprovider
+	@$(ROS_ENV) && python -m pytest tests -q -p no:cacheprovider --durations=15
 
 lint: venv ## ruff check and format check over the whole repository
 	@$(VENV)/bin/ruff check . && $(VENV)/bin/ruff format --check .
