@@ -91,7 +91,7 @@ from stealth_node_kit.in_process import InProcessServices
 from stealth_node_kit.log_throttle import Throttle
 from stealth_node_kit.on_demand import OnDemand, events_on_demand
 from stealth_node_kit.parameters import StartupError, declare_parameters, non_finite
-from stealth_node_kit.running import StartupNode, run_node
+from stealth_node_kit.running import StartupNode, StopRequested, run_node
 
 from stealth_env.agent_link import TOPICS, AgentLink
 from stealth_env.env_messages import MAP_FRAME
@@ -427,7 +427,10 @@ class EnvironmentNode(StartupNode):
         self.get_logger().fatal(f'stopping: {reason}')
         self.exit_code = EXIT_ROBOT_NOT_RESPONDING
         self.robot.cancel()
-        self.create_timer(STOP_DELAY, self.context.try_shutdown, clock=self._steady)
+        self.create_timer(STOP_DELAY, self._stop, clock=self._steady)
+
+    def _stop(self) -> None:
+        raise StopRequested(f'{NODE_NAME} gave up on its robot')
 
     def _abort(self, token: int, reason: str) -> None:
         aborted = self.flow.abort(token, reason)

@@ -40,6 +40,11 @@ ACK_WAIT = 5.0  # s a stopping node waits for its reliable messages to be acknow
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
+class StopRequested(Exception):  # noqa: N818 - a request, not an error
+    """Raised by a node's callback to stop its process in order, as a stop signal does (the
+    exit hook, then the acknowledgements): the environment giving up on its robot."""
+
+
 class StopSignals:
     """SIGINT and SIGTERM as KeyboardInterrupt until the process begins to stop, then ignored
     (the orchestrator's SIGKILL stays the hard stop)."""
@@ -177,15 +182,15 @@ def _run(make_nodes, logger, args, on_exit, stop: StopSignals) -> int:
     code = 0
     try:
         spin_until_shutdown(nodes)
-    except (KeyboardInterrupt, ExternalShutdownException):
+    except (KeyboardInterrupt, ExternalShutdownException, StopRequested):
         pass
     except DiskFullError as error:
         code = _stop_for_full_disk(logger, error)
     except (_rclpy.RCLError, RuntimeError):
-        # A node that shuts its context down itself (the environment giving up on its robot)
-        # can leave a wait set being built failing (RCLError) or a message being taken failing
-        # to convert (a plain RuntimeError from pybind11). Either is part of the stop once the
-        # context is down; while it is up, a real failure.
+        # A context shut down from elsewhere in the process can leave a wait set being built
+        # failing (RCLError) or a message being taken failing to convert (a plain RuntimeError
+        # from pybind11). Either is part of the stop once the context is down; while it is up,
+        # a real failure.
         if rclpy.ok():
             raise
     finally:

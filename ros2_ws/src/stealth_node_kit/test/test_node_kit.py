@@ -170,6 +170,36 @@ def test_an_error_while_spinning_is_the_stop_only_once_the_context_is_down(
     assert len(finished) == 1  # on_exit ran either way (the policy is saved, totals logged)
 
 
+def test_a_node_that_asks_to_stop_stops_in_order(monkeypatch):
+    """StopRequested from a callback: the exit hook runs with the context still up, the node's
+    reliable messages are waited for (none unacknowledged: nobody subscribes), exit 0."""
+    from std_msgs.msg import String
+    from stealth_node_kit.running import StopRequested
+
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')  # this machine only
+    monkeypatch.delenv('ROS_LOCALHOST_ONLY', raising=False)
+    seen = []
+
+    def make():
+        node = rclpy.create_node('kit_stop_test')
+        publisher = node.create_publisher(String, 'kit_stop_words', 10)
+
+        def give_up():
+            publisher.publish(String(data='the last word'))
+            raise StopRequested('given up')
+
+        node.create_timer(0.05, give_up)
+        return node
+
+    def on_exit(node):
+        seen.append((rclpy.ok(), [p.topic_name for p in node.publishers]))
+
+    assert run_node(make, 'kit_test', args=[], on_exit=on_exit) == 0
+    assert seen and seen[0][0] and '/kit_stop_words' in seen[0][1]
+    assert running.wait_for_acknowledgements([], 0.0) == []
+    assert not rclpy.ok()
+
+
 @pytest.fixture
 def ros_context(monkeypatch):
     """A private rclpy context on this machine only (nothing else hears its nodes)."""
