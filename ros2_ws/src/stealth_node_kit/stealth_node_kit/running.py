@@ -47,10 +47,13 @@ class StopRequested(Exception):  # noqa: N818 - a request, not an error
 
 class StopSignals:
     """SIGINT and SIGTERM as KeyboardInterrupt until the process begins to stop, then ignored
-    (the orchestrator's SIGKILL stays the hard stop)."""
+    (the orchestrator's SIGKILL stays the hard stop). ``received`` stays set: a KeyboardInterrupt
+    raised inside rclpy's pybind11 code (a message being taken) comes out as a RuntimeError, or
+    not at all, and the spin loop must still stop."""
 
     def __init__(self):
         self.stopping = False
+        self.received = False
         self._previous = {}
 
     def __enter__(self) -> StopSignals:
@@ -65,6 +68,7 @@ class StopSignals:
 
     def _on_signal(self, signum, frame) -> None:
         if not self.stopping:
+            self.received = True
             raise KeyboardInterrupt
 
 
@@ -85,7 +89,7 @@ class StartupNode(rclpy.node.Node):
         raise NotImplementedError
 
 
-def spin_until_shutdown(nodes: list[rclpy.node.Node]) -> None:
+def spin_until_shutdown(nodes: list[rclpy.node.Node], stop: StopSignals) -> None:
     """``rclpy.spin`` for several nodes until a stop signal or an external shutdown, the
     executor waking at least every SPIN_WAKE s to notice either (a signal's handler runs only
     between bytecodes).
@@ -98,7 +102,7 @@ def spin_until_shutdown(nodes: list[rclpy.node.Node]) -> None:
     for node in nodes:
         executor.add_node(node)
     try:
-        while executor.context.ok():
+        while executor.context.ok() and not stop.received:
             executor.spin_once(timeout_sec=SPIN_WAKE)
     finally:
         for node in nodes:
@@ -181,17 +185,17 @@ def _run(make_nodes, logger, args, on_exit, stop: StopSignals) -> int:
         return EXIT_CANNOT_START
     code = 0
     try:
-        spin_until_shutdown(nodes)
+        spin_until_shutdown(nodes, stop)
     except (KeyboardInterrupt, ExternalShutdownException, StopRequested):
         pass
     except DiskFullError as error:
         code = _stop_for_full_disk(logger, error)
     except (_rclpy.RCLError, RuntimeError):
-        # A context shut down from elsewhere in the process can leave a wait set being built
-        # failing (RCLError) or a message being taken failing to convert (a plain RuntimeError
-        # from pybind11). Either is part of the stop once the context is down; while it is up,
-        # a real failure.
-        if rclpy.ok():
+        # A stop signal's KeyboardInterrupt raised while pybind11 converts a message being
+        # taken comes out as a plain RuntimeError ('Unable to convert call argument'), and a
+        # context shut down from elsewhere in the process can leave a wait set being built
+        # failing (RCLError): the stop, either of them. Otherwise a real failure.
+        if rclpy.ok() and not stop.received:
             raise
     finally:
         stop.stopping = True
