@@ -174,22 +174,33 @@ class SpinningNode:
     def spin_for(self, seconds: float) -> None:
         self.spin_until(lambda: False, seconds)
 
-    def handshake(self, client, request, timeout: float, resend: float = 1.0):
-        """The answer to `request` (which must change nothing), sent again every `resend` s
-        until one comes; None after `timeout` s. ``service_is_ready`` only says this side has
-        matched the server: Fast DDS's server waits 100 ms for its side to match this client's
-        answer reader and otherwise drops the answer ('failed to send response (timeout)' in
-        its log). An answer proves both sides matched, and matches last."""
+    def handshake(self, calls: dict, timeout: float, resend: float = 1.0, alive=lambda: True):
+        """{name: answer} of `calls` ({name: (client, request)}, each request one that changes
+        nothing), all sent at once and each again every `resend` s until answered; a name with
+        no answer within `timeout` s, or once ``alive()`` is false, is left out.
+        ``service_is_ready`` only says this side has matched the server: Fast DDS's server
+        waits 100 ms for its side to match this client's answer reader and otherwise drops the
+        answer ('failed to send response (timeout)' in its log). An answer proves both sides
+        matched, and matches last."""
+        futures, sent = {}, {}
         deadline = time.monotonic() + timeout
-        future = None
-        while time.monotonic() < deadline:
-            if not self.spin_until(client.service_is_ready, deadline - time.monotonic()):
+
+        def answered(name) -> bool:
+            return name in futures and futures[name].done()
+
+        while time.monotonic() < deadline and alive():
+            if all(answered(name) for name in calls):
                 break
-            if future is not None:
-                client.remove_pending_request(future)
-            future = client.call_async(request)
-            if self.spin_until(future.done, min(resend, max(0.0, deadline - time.monotonic()))):
-                return future.result()
-        if future is not None and not future.done():
-            client.remove_pending_request(future)
-        return None
+            for name, (client, request) in calls.items():
+                if answered(name) or not client.service_is_ready():
+                    continue
+                if time.monotonic() - sent.get(name, -resend) < resend:
+                    continue
+                if name in futures:
+                    client.remove_pending_request(futures[name])
+                futures[name], sent[name] = client.call_async(request), time.monotonic()
+            self.executor.spin_once(timeout_sec=0.02)
+        for name, future in futures.items():
+            if not future.done():
+                calls[name][0].remove_pending_request(future)
+        return {name: f.result() for name, f in futures.items() if f.done()}

@@ -67,14 +67,14 @@ class SimClient(SpinningNode):
         """Until both services answer: a move of no distance and a reset to no number are
         rejected and change nothing (see SpinningNode.handshake for why readiness is not
         enough)."""
-        for client, request in (
-            (self.move_client, ExecuteMove.Request(kind=ExecuteMove.Request.UP, distance=0.0)),
-            (self.reset_client, ResetRobot.Request(x=math.nan, y=math.nan, yaw=0.0)),
-        ):
-            answer = self.handshake(client, request, 30.0)
-            assert answer is not None, (
-                f'the services never came up:\n{process.log_path.read_text()}'
-            )
+        answers = self.handshake(
+            {
+                'move': (self.move_client, ExecuteMove.Request(kind=ExecuteMove.Request.UP)),
+                'reset': (self.reset_client, ResetRobot.Request(x=math.nan, y=math.nan)),
+            },
+            30.0,
+        )
+        assert len(answers) == 2, f'the services never came up:\n{process.log_path.read_text()}'
 
     def call(self, client, request, timeout: float = 30.0):
         future = client.call_async(request)

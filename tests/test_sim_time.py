@@ -51,31 +51,15 @@ def _use_sim_time(probe: SpinningNode, nodes: tuple[str, ...], run) -> dict[str,
         node: probe.node.create_client(GetParameters, f'/{node}/get_parameters') for node in nodes
     }
     try:
-        probe.spin_until(
-            lambda: run.poll() is not None or all(c.service_is_ready() for c in clients.values()),
-            60.0,
-        )
-        # Unanswered requests go again every second (SpinningNode.handshake says why).
+        # Each request goes again every second until answered (SpinningNode.handshake: why).
         request = GetParameters.Request(names=['use_sim_time'])
-        futures = {}
-        deadline = time.monotonic() + 20.0
-        while time.monotonic() < deadline and run.poll() is None:
-            for node, client in clients.items():
-                future = futures.get(node)
-                if future is not None and future.done() or not client.service_is_ready():
-                    continue
-                if future is not None:
-                    client.remove_pending_request(future)
-                futures[node] = client.call_async(request)
-            if probe.spin_until(lambda: all(f.done() for f in futures.values()), 1.0) and len(
-                futures
-            ) == len(nodes):
-                break
+        answers = probe.handshake(
+            {node: (client, request) for node, client in clients.items()},
+            80.0,
+            alive=lambda: run.poll() is None,
+        )
         return {
-            node: futures[node].result().values[0].bool_value
-            if node in futures and futures[node].done()
-            else None
-            for node in nodes
+            node: answers[node].values[0].bool_value if node in answers else None for node in nodes
         }
     finally:
         for client in clients.values():
