@@ -12,9 +12,17 @@ import json
 import os
 import signal
 import time
+import warnings
 
 from ros_support import leaked_shm_segments, shm_segments
-from test_system import one_line_error, processes_naming, read_bag, short_scenario, wait_for_text
+from test_system import (
+    described,
+    one_line_error,
+    processes_naming,
+    read_bag,
+    short_scenario,
+    wait_for_text,
+)
 from test_system import system as system  # noqa: F401, PLC0414 - the fixture, used by name
 
 KILLED_AFTER = 7  # episodes counted before the orchestrator is killed (two greedy ones)
@@ -52,7 +60,11 @@ def test_a_killed_orchestrator_leaves_its_outputs_and_the_run_goes_on(system, tm
     while processes_naming(run) and time.monotonic() - killed_at < 60:
         time.sleep(0.2)
     stopped_after = time.monotonic() - killed_at
-    assert not processes_naming(run), 'nodes outlived their orchestrator by a minute'
+    outlived = described(processes_naming(run))
+    assert not outlived, f'nodes outlived their orchestrator by a minute: {outlived}'
+    for log in sorted((run / 'logs').glob('*.log')):  # running.STOP_LIMIT's stack dump
+        if 'Timeout (' in (text := log.read_text(errors='replace')):
+            warnings.warn(f'{log.name}: a stop hung, then exited:\n{text[-3000:]}', stacklevel=1)
 
     # What the killed run left: every episode it counted, the summary of its last evaluation.
     counted = episodes_in(run / 'episodes.csv')

@@ -61,9 +61,10 @@ def system(tmp_path):
             process.kill()
             process.wait(10)
     leftovers = processes_naming(tmp_path)
+    still = described(leftovers)
     for pid in leftovers:
         os.kill(pid, signal.SIGKILL)
-    assert not leftovers, f'processes of the run still running: {leftovers}'
+    assert not leftovers, f'processes of the run still running: {still}'
     leaked = leaked_shm_segments(before)
     assert not leaked, f'Fast DDS shared memory left in /dev/shm: {sorted(leaked)}'
 
@@ -115,6 +116,22 @@ def processes_naming(path: Path) -> list[int]:
         if str(path) in text and int(cmdline.parent.name) != os.getpid():
             found.append(int(cmdline.parent.name))
     return found
+
+
+def described(pids: list[int]) -> str:
+    """Which processes: each PID with its state and program (`python` stripped), for a failure
+    that names what outlived a run."""
+    lines = []
+    for pid in pids:
+        try:
+            words = Path(f'/proc/{pid}/cmdline').read_bytes().split(b'\0')
+            state = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0]
+        except OSError:
+            lines.append(f'{pid} (gone)')
+            continue
+        program = next((w for w in words[1:] if b'/' in w), words[0]).decode(errors='replace')
+        lines.append(f'{pid} (state {state}, {Path(program).name})')
+    return ', '.join(lines)
 
 
 def short_scenario(tmp_path: Path) -> Path:

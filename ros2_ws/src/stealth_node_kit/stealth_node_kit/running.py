@@ -14,12 +14,18 @@ policy being saved is not cut short), then it waits (at most ACK_WAIT s) until e
 has acknowledged its reliable messages: a recorder that fell behind under load gets what DDS
 dropped on the way resent (a reliable writer resends only on its next heartbeat, 3 s apart in
 Fast DDS, and a writer that is gone resends nothing: a loaded run once lost 170 steps of a
-recording so).
+recording so). A node whose parent died (a killed orchestrator: PR_SET_PDEATHSIG) does not
+wait: the run's recorder is stopping too, and the dead parent's readers stay matched until
+their DDS lease ends, so the wait would only hold the orphan. A stop that hangs after the exit
+hook (STOP_LIMIT s) dumps every thread's stack to stderr and exits 1: an orphan has no one to
+kill it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+import faulthandler
+import os
 import re
 import signal
 import time
@@ -37,6 +43,8 @@ from stealth_node_kit.full_disk import EXIT_DISK_FULL, DiskFullError
 EXIT_CANNOT_START = 2
 SPIN_WAKE = 0.1  # s: the longest a stop signal goes unnoticed while the nodes spin
 ACK_WAIT = 5.0  # s a stopping node waits for its reliable messages to be acknowledged
+ACK_SLICE = 0.1  # s between looks at whether to give up waiting (the parent died meanwhile)
+STOP_LIMIT = ACK_WAIT + 10.0  # s after the exit hook before a stuck stop dumps stacks, exits 1
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
@@ -54,6 +62,7 @@ class StopSignals:
     def __init__(self):
         self.stopping = False
         self.received = False
+        self.parent = os.getppid()
         self._previous = {}
 
     def __enter__(self) -> StopSignals:
@@ -65,6 +74,11 @@ class StopSignals:
     def __exit__(self, *exc) -> None:
         for signum, handler in self._previous.items():
             signal.signal(signum, handler)
+
+    @property
+    def orphaned(self) -> bool:
+        """Whether the process that started this one has died."""
+        return os.getppid() != self.parent
 
     def _on_signal(self, signum, frame) -> None:
         if not self.stopping:
@@ -109,19 +123,29 @@ def spin_until_shutdown(nodes: list[rclpy.node.Node], stop: StopSignals) -> None
             executor.remove_node(node)
 
 
-def wait_for_acknowledgements(nodes: list[rclpy.node.Node], timeout: float) -> list[str]:
-    """Wait (at most `timeout` s in all) until every subscriber has acknowledged every message
-    of the nodes' reliable publishers; the topics still waiting then."""
+def wait_for_acknowledgements(
+    nodes: list[rclpy.node.Node], timeout: float, give_up: Callable[[], bool] = lambda: False
+) -> list[str]:
+    """Wait (at most `timeout` s in all, looking at `give_up()` every ACK_SLICE s) until every
+    subscriber has acknowledged every message of the nodes' reliable publishers; the topics
+    still waiting then."""
     deadline = time.monotonic() + timeout
     waiting = []
     for node in nodes:
         for publisher in node.publishers:
             if publisher.qos_profile.reliability != ReliabilityPolicy.RELIABLE:
                 continue
-            remaining = Duration(nanoseconds=int(max(0.0, deadline - time.monotonic()) * 1e9))
-            if not publisher.wait_for_all_acked(remaining):
-                waiting.append(publisher.topic_name)
+            while not publisher.wait_for_all_acked(
+                _seconds(min(ACK_SLICE, deadline - time.monotonic()))
+            ):
+                if time.monotonic() >= deadline or give_up():
+                    waiting.append(publisher.topic_name)
+                    break
     return waiting
+
+
+def _seconds(value: float) -> Duration:
+    return Duration(nanoseconds=int(max(0.0, value) * 1e9))
 
 
 def _without_source_locations(error: Exception) -> str:
@@ -204,19 +228,33 @@ def _run(make_nodes, logger, args, on_exit, stop: StopSignals) -> int:
                 on_exit(nodes)
             except DiskFullError as error:
                 code = _stop_for_full_disk(logger, error)
-        if rclpy.ok():
-            waiting = wait_for_acknowledgements(nodes, ACK_WAIT)
-            if waiting:
-                logger.warning(
-                    f'stopping with messages on {", ".join(waiting)} not acknowledged by every '
-                    f'subscriber within {ACK_WAIT:g} s: a subscriber that fell behind (a '
-                    'recorder, a bridge) misses them, or one that died is still matched until '
-                    'its DDS lease ends'
-                )
+        _finish(nodes, logger, stop)
+    return code
+
+
+def _finish(nodes, logger, stop: StopSignals) -> None:
+    """After the exit hook: wait for the acknowledgements (not as an orphan), destroy the nodes
+    in the reverse order, shut down. Stuck here for STOP_LIMIT s: every thread's stack to
+    stderr, and exit 1."""
+    faulthandler.dump_traceback_later(STOP_LIMIT, exit=True)
+    try:
+        waiting = []
+        if rclpy.ok() and not stop.orphaned:
+            waiting = wait_for_acknowledgements(nodes, ACK_WAIT, lambda: stop.orphaned)
+        if stop.orphaned:
+            logger.info('the process that started this one is gone: not waiting for its acks')
+        elif waiting:
+            logger.warning(
+                f'stopping with messages on {", ".join(waiting)} not acknowledged by every '
+                f'subscriber within {ACK_WAIT:g} s: a subscriber that fell behind (a '
+                'recorder, a bridge) misses them, or one that died is still matched until '
+                'its DDS lease ends'
+            )
         for node in reversed(nodes):
             node.destroy_node()
         rclpy.try_shutdown()
-    return code
+    finally:
+        faulthandler.cancel_dump_traceback_later()
 
 
 def _stop_for_full_disk(logger, error: DiskFullError) -> int:

@@ -201,6 +201,86 @@ def test_a_node_that_asks_to_stop_stops_in_order(monkeypatch):
     assert not rclpy.ok()
 
 
+@pytest.mark.parametrize('orphaned', [False, True])
+def test_an_orphan_stops_without_waiting_for_acknowledgements(orphaned, monkeypatch):
+    """A node whose parent died (a killed orchestrator) does not wait for its subscribers: the
+    dead parent's readers stay matched until their lease ends (5 s held every time)."""
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')  # this machine only
+    monkeypatch.delenv('ROS_LOCALHOST_ONLY', raising=False)
+    waited = []
+    monkeypatch.setattr(
+        running, 'wait_for_acknowledgements', lambda nodes, t, give_up: waited.append(t)
+    )
+
+    def stop_at_once(nodes, stop):
+        if orphaned:  # the parent dies while the node spins: init adopts it
+            monkeypatch.setattr(running.os, 'getppid', lambda: 1)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(running, 'spin_until_shutdown', stop_at_once)
+    assert run_node(lambda: rclpy.create_node('kit_orphan_test'), 'kit_test', args=[]) == 0
+    assert waited == ([] if orphaned else [running.ACK_WAIT])
+
+
+def test_waiting_for_acknowledgements_ends_at_the_deadline_or_when_told_to_give_up():
+    """A reader that never acknowledges (a dead one, still matched): the wait ends at its
+    deadline, or at the first look after give_up() turns true (the parent died meanwhile)."""
+    import time
+    from types import SimpleNamespace
+
+    from rclpy.qos import ReliabilityPolicy
+
+    waits = []
+
+    def never_acked(timeout):
+        waits.append(timeout.nanoseconds / 1e9)
+        time.sleep(waits[-1])
+        return False
+
+    reliable = SimpleNamespace(reliability=ReliabilityPolicy.RELIABLE)
+    node = SimpleNamespace(
+        publishers=[SimpleNamespace(qos_profile=reliable, topic_name=f'/t{i}',
+                                    wait_for_all_acked=never_acked) for i in range(2)]
+    )  # fmt: skip
+    started = time.monotonic()
+    assert running.wait_for_acknowledgements([node], 0.35) == ['/t0', '/t1']
+    assert 0.3 <= time.monotonic() - started < 1.0 and max(waits) <= running.ACK_SLICE
+    waits.clear()
+    assert running.wait_for_acknowledgements([node], 5.0, lambda: len(waits) >= 3) == [
+        '/t0', '/t1'
+    ]  # fmt: skip
+    assert len(waits) == 4  # three slices for the first, then one look for the second
+
+
+STUCK_STOP = """
+import time
+import rclpy
+from stealth_node_kit import running
+running.STOP_LIMIT = 1.0
+running.wait_for_acknowledgements = lambda nodes, timeout, give_up: time.sleep(60)
+def stop_at_once(nodes, stop):
+    raise KeyboardInterrupt
+running.spin_until_shutdown = stop_at_once
+running.run_node(lambda: rclpy.create_node('kit_stuck_test'), 'kit_test', args=[])
+"""
+
+
+def test_a_stop_stuck_after_the_exit_hook_dumps_its_stacks_and_exits_1():
+    """An orphan has no one to kill it: a stop that hangs prints where, and ends."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST', 'ROS_DOMAIN_ID': '230'}
+    env.pop('ROS_LOCALHOST_ONLY', None)
+    done = subprocess.run(
+        [sys.executable, '-c', STUCK_STOP], env=env, capture_output=True, text=True, timeout=30
+    )
+    assert done.returncode == 1, done.stderr
+    assert 'Timeout (0:00:01)!' in done.stderr, done.stderr
+    assert 'in <lambda>' in done.stderr and 'in _finish' in done.stderr, done.stderr
+
+
 @pytest.fixture
 def ros_context(monkeypatch):
     """A private rclpy context on this machine only (nothing else hears its nodes)."""
