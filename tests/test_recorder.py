@@ -213,6 +213,28 @@ def test_sigkill_loses_at_most_a_second_and_recover_restores_an_indexed_file(
     assert lost_ns < 1e9
 
 
+STUCK_CLOSE = """
+import sys, time
+from stealth_tools import recorder
+recorder.STOP_LIMIT = 1.0
+recorder.Recorder.close = lambda self: time.sleep(60)
+sys.exit(recorder.main(sys.argv[1:]))
+"""
+
+
+def test_a_stop_stuck_in_closing_dumps_its_stacks_and_exits_1(node_processes, tmp_path):
+    """An orphaned recorder (its orchestrator SIGKILLed) has no one to kill it: a stop that
+    hangs says where, and ends (the file is then recovered as after a SIGKILL)."""
+    recorder = node_processes.start_python(
+        STUCK_CLOSE, 'recorder', '--ros-args', '-p', f'output:={tmp_path / "stuck.mcap"}'
+    )
+    wait_for_output(recorder, 'Recording to')
+    os.killpg(recorder.pid, signal.SIGTERM)
+    assert recorder.wait(20) == 1
+    log = recorder.log_path.read_text()
+    assert 'Timeout (0:00:01)!' in log and 'in <lambda>' in log and 'in _record' in log, log
+
+
 def test_a_burst_beyond_one_batch_is_all_written_without_more_traffic(node_processes, tmp_path):
     """DDS wakes a subscription for new data, not for data left over: what a burst leaves
     queued beyond one batch's take must still reach the file, with nothing more arriving and

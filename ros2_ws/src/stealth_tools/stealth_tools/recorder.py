@@ -30,7 +30,9 @@ when a chunk is closed, ``compression`` of the chunks (zstd, lz4, none),
 
 ## Stopping
 
-SIGINT and SIGTERM close the file with summary and indexes; after a SIGKILL at most
+SIGINT and SIGTERM close the file with summary and indexes (a stop stuck for STOP_LIMIT s
+writes every thread's stack to stderr and exits 1: an orphan of a killed orchestrator has no
+one to SIGKILL it, and the file is recovered as after a SIGKILL); after a SIGKILL at most
 ~max_chunk_duration * 1.5 + batch_period is missing and `stealth bag recover` restores an
 indexed file. A full disk stops the recorder with one line naming the file and the space left,
 exit code EXIT_DISK_FULL (4): the file keeps the chunks written before, for `stealth bag
@@ -53,6 +55,7 @@ from __future__ import annotations
 
 import contextlib
 from dataclasses import dataclass
+import faulthandler
 import sys
 import time
 
@@ -87,6 +90,7 @@ NODE_NAME = 'recorder'
 # it a best-effort sample is dropped and a reliable one waits for the writer's repair).
 BUSY_TAKE = 100
 CLOSING_TAKE = 2.0  # s: the longest a stop spends taking what is still queued
+STOP_LIMIT = 30.0  # s from the stop to the end of the process before a stuck stop dumps, exits 1
 
 
 def default_output() -> str:
@@ -311,6 +315,13 @@ class Recorder(StartupNode):
 
 def record(args: list[str] | None = None, overrides: list[Parameter] | None = None) -> int:
     """Run the recorder until SIGINT or SIGTERM; 1 with one line on stderr if it cannot."""
+    try:
+        return _record(args, overrides)
+    finally:  # the stop's watchdog, once rclpy is shut down too
+        faulthandler.cancel_dump_traceback_later()
+
+
+def _record(args, overrides) -> int:
     with ros_session(args) as stop:
         try:
             node = Recorder(parameter_overrides=overrides or [])
@@ -325,6 +336,7 @@ def record(args: list[str] | None = None, overrides: list[Parameter] | None = No
         except OSError as error:
             status = _write_failed(node.bag.paths.mcap, 'writing', error)
         finally:
+            faulthandler.dump_traceback_later(STOP_LIMIT, exit=True)  # cancelled by record()
             if status == EXIT_DISK_FULL:  # closing would only fail the same way
                 node.bag.abandon()
             else:
