@@ -15,7 +15,9 @@ default id GridBased too), dark_path, astar, policy.
   (stealth_interfaces/SearchlightArray, transient local) when no scenario is given;
   ``amcl_pose`` (geometry_msgs/PoseWithCovarianceStamped, transient local, as AMCL); ``/tf``
   (tf2_msgs/TFMessage, as tf2_ros's listener).
-* publishes ``plan`` (nav_msgs/Path, depth 1, as Nav2's planner server): each path found.
+* publishes ``plan`` (nav_msgs/Path, depth 1, transient local): each path found. Nav2's
+  planner server publishes it volatile; latched, a viewer that joins after the goal still sees
+  the path being followed, and volatile readers (RViz's default) match it as before.
 
 ## Actions
 
@@ -120,7 +122,7 @@ class PlannerServer(StartupNode):
         self.frames = FrameTree()
         self._bad_tf_log = Throttle(5.0)
         self.create_subscription(TFMessage, '/tf', self._on_tf, TF_QOS)
-        self.plan_publisher = self.create_publisher(Path, 'plan', 1)
+        self.plan_publisher = self.create_publisher(Path, 'plan', latched)
         self._serve_actions(values)
         if scene is not None:
             started = time.perf_counter()
