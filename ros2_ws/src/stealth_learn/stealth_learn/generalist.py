@@ -37,6 +37,7 @@ from stealth_learn.obs_layout import LayoutError, check_layout, phased_layout_id
 from stealth_learn.vin import ROBOT, Vin, logits_of_values
 
 DEFAULT_POLICY = policy_file.SHIPPED
+NO_HORIZON = np.iinfo(np.int32).max  # no step limit known: backups up to Bellman-Ford's bound
 
 
 class GeneralistPolicy:
@@ -111,21 +112,23 @@ class GeneralistPolicy:
             self.layout, _scenario_layout(scenario, model, self.track), f'{self.source} ({where})'
         )
 
-    def cell_logits(self, grid) -> np.ndarray:
+    def cell_logits(self, grid, horizon: int | None = None) -> np.ndarray:
         """(R, C, 4) the logits of every cell of one grid (R, C, 7), or (L, R, C, 5) of every
         cell and layer of a phased grid (L, R, C, 12), from values backed up until they are
-        a fixed point (``vin.Vin.q_and_backups``; ``backups`` says how many that took); Ctrl-C
-        stops it at once, compile or run (``interruptible``)."""
+        a fixed point (``vin.Vin.q_and_backups``; ``backups`` says how many that took), at most
+        max(iterations, ``horizon``) backups: the episode's step limit where it is known (None:
+        Bellman-Ford's bound); Ctrl-C stops it at once, compile or run (``interruptible``)."""
         batch = jnp.asarray(grid)[None]
-        plan = lambda: jax.device_get(self._logits(self.variables, batch))  # noqa: E731
+        cap = jnp.asarray(NO_HORIZON if horizon is None else horizon, jnp.int32)
+        plan = lambda: jax.device_get(self._logits(self.variables, batch, cap))  # noqa: E731
         logits, backups = interruptible(plan)
         self.backups = int(backups)
         return np.asarray(logits)[0]
 
-    def act(self, grid) -> int:
+    def act(self, grid, horizon: int | None = None) -> int:
         """The move (0 up, 1 down, 2 left, 3 right; 4 wait: time-aware) at the robot's cell
-        (and layer) of one grid."""
-        return int(np.argmax(self.cell_logits(grid)[robot_cell(grid)]))
+        (and layer) of one grid (``horizon``: ``cell_logits``')."""
+        return int(np.argmax(self.cell_logits(grid, horizon)[robot_cell(grid)]))
 
 
 def _scenario_layout(scenario, model=None, track: str = 'full') -> str:
@@ -143,8 +146,8 @@ def _compiled(architecture: tuple):
     not once per policy)."""
     model = Vin(**dict(architecture))
 
-    def decide(variables, grid):
-        q, backups = model.apply(variables, grid, True, method=Vin.q_and_backups)
+    def decide(variables, grid, horizon):
+        q, backups = model.apply(variables, grid, True, horizon, method=Vin.q_and_backups)
         return logits_of_values(variables, q), backups
 
     return jax.jit(decide)
@@ -159,7 +162,8 @@ def robot_cell(grid) -> tuple[int, ...]:
 
 class PlanCache:
     """Every cell's move (``GeneralistPolicy.act`` at each cell) for a grid, computed by the
-    network once per distinct grid and then looked up: with static lights a whole episode (or
+    network once per distinct grid (at most ``horizon`` backups: ``GeneralistPolicy.
+    cell_logits``) and then looked up: with static lights a whole episode (or
     run) reads one plan, and a decision costs a lookup. The robot channel is ignored (the
     decision is read at the robot's cell); the last grid is compared in place (a decision's
     common case, about 10x cheaper than hashing a copy), another looked up by the hash of its
@@ -168,8 +172,11 @@ class PlanCache:
     once per grid that is not the last; plans are keyed on the grid read, so grids that differ
     only in what their belief fills in share one."""
 
-    def __init__(self, policy: GeneralistPolicy, keep: int = 64, prepare=None):
+    def __init__(
+        self, policy: GeneralistPolicy, keep: int = 64, prepare=None, horizon: int | None = None
+    ):
         self.policy = policy
+        self.horizon = horizon
         self.keep = keep
         self.prepare = prepare
         self.computed = 0  # plans computed (each a full pass of the network)
@@ -199,7 +206,7 @@ class PlanCache:
         )
         moves = self._plans.get(key)
         if moves is None:
-            moves = self.policy.cell_logits(read).argmax(axis=-1).astype(np.int8)
+            moves = self.policy.cell_logits(read, self.horizon).argmax(axis=-1).astype(np.int8)
             self.computed += 1
             if len(self._plans) >= self.keep:
                 self._plans.pop(next(iter(self._plans)))
@@ -230,7 +237,8 @@ def rollout(policy: GeneralistPolicy, scenario) -> Episode:
     obs, state = env.reset(jax.random.PRNGKey(0), one)
     phased = policy.model.phased
     grid = data.phased_grid(arrays) if phased else np.asarray(obs.grid)
-    logits = policy.cell_logits(grid)
+    limit = int(one.step_limit)
+    logits = policy.cell_logits(grid, limit)
     # per place of the padded grid (phased: layer * cells + cell, the env's place)
     actions = jnp.asarray(logits.argmax(-1).reshape(-1))
     cells = actions.shape[0]
@@ -245,7 +253,6 @@ def rollout(policy: GeneralistPolicy, scenario) -> Episode:
         return (keep(after, state), done | step_done, keep(step_info, info)), None
 
     _, _, _, _, info0 = env.step_env(None, state, 0, one)
-    limit = int(one.step_limit)
     carry, _ = jax.lax.scan(body, (state, jnp.asarray(False), info0), None, length=limit)
     info = carry[2]
     optimum = value_iteration(model)

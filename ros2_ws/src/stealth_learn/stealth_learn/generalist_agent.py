@@ -114,7 +114,9 @@ class GeneralistAgent:
             reach = lamp_reach(env.model)
             threshold = env.scenario.detection_threshold
             self.assumed[self.row, self.col] = np.where(reach, threshold, 0.0)
-        self.plans = PlanCache(policy, keep=_KEPT)
+        # at most the step limit's backups a plan: more change no decision an episode can
+        # carry out (``vin.Vin.q_and_backups``)
+        self.plans = PlanCache(policy, keep=_KEPT, horizon=env.model.task.step_limit)
 
     def grid(self, observation) -> np.ndarray:
         """(R, C, 7) the grid the network reads for this observation (module docstring); the

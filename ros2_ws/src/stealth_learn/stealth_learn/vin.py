@@ -22,8 +22,9 @@ decision is the attention on the robot's cell (its Q values are the logits).
   lattice rather than learned, so the recurrence stays exact over hundreds of iterations.
 - **Value**: V_0 = 0; V_{k+1} = G on goal cells (G learned), max_a (R_a + V_k(after a)) on
   free cells, ``iterations`` times in training (the weights are tied, so the count is free);
-  at decision time (``q_and_backups``) at least as many and then on to the fixed point, so a
-  covert path longer than training's horizon is still found.
+  at decision time (``q_and_backups``) at least as many and then on to the fixed point (no
+  more than the episode's step limit, where it is given), so a covert path longer than
+  training's horizon is still found.
 - **Decision**: logits = scale * Q(robot's cell) (scale learned), masked moves at -1e9.
 
 **Moving lights** (``layers`` > 1): the same network over the lattice model's time
@@ -205,7 +206,7 @@ class Vin(nn.Module):
         then on until the values are a fixed point (``fixed_point``)."""
         return self.q_and_backups(x, until_fixed)[0]
 
-    def q_and_backups(self, x, until_fixed: bool = False):
+    def q_and_backups(self, x, until_fixed: bool = False, horizon=None):
         """(``q_map``'s values, the backups made: () int32). Value iteration's own stopping
         rule at decision time: after the ``iterations`` backups (the floor: the horizon the
         weights were evaluated with), go on while any value of a node the goal can be reached
@@ -213,8 +214,12 @@ class Vin(nn.Module):
         nothing), at most as many more as the time-expanded lattice has free nodes (layers x
         free cells: Bellman-Ford's bound, reached only if the learned reward pays for a
         cycle). A building whose covert path is longer than ``iterations`` gets the backups it
-        needs; more backups cannot change a fixed point. Training keeps the fixed count
-        (``lax.scan``: differentiable)."""
+        needs; more backups cannot change a fixed point. ``horizon`` (the episode's step
+        limit, () int; None: no cap) caps the backups at max(``iterations``, ``horizon``):
+        k backups give the best k-step return, so a path the episode can walk is found with
+        ``horizon`` of them and more change no decision it can carry out, while a reward that
+        pays for a cycle (an untrained network's) no longer runs to Bellman-Ford's bound.
+        Training keeps the fixed count (``lax.scan``: differentiable)."""
         grid, lights, exists = self.inputs(x)
         rewards = self._rewards(grid, lights, exists)
         free, goal = grid[..., FREE] > 0.5, grid[..., GOAL] > 0.5
@@ -239,6 +244,8 @@ class Vin(nn.Module):
 
             compared = reachable(goal, free, leads_on)
             bound = backups + free.sum().astype(jnp.int32)
+            if horizon is not None:
+                bound = jnp.minimum(bound, jnp.maximum(backups, jnp.asarray(horizon, jnp.int32)))
             values, backups = fixed_point(
                 lambda v: iterate(v)[0], values, backups, compared, bound
             )

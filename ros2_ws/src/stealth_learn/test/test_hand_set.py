@@ -152,3 +152,40 @@ def test_a_closed_room_does_not_hold_the_fixed_point_back(generated):
     room[8, 8:10] = True
     np.testing.assert_array_equal(q[~room], more[~room])
     assert more[8, 8, 3] < q[8, 8, 3]  # the move inside the room: still falling
+
+
+def _paying_a_cycle(policy: GeneralistPolicy) -> GeneralistPolicy:
+    """``policy`` with every move's reward raised by 2: the dark-step twin's -1 a move becomes
+    +1, a reward that pays for walking in circles (as an untrained network's can)."""
+    params = dict(policy.variables['params'])
+    params['reward_out'] = dict(params['reward_out'])
+    params['reward_out']['bias'] = params['reward_out']['bias'] + 2.0
+    architecture = policy.header['architecture']
+    return GeneralistPolicy(params, architecture, source='a reward paying for a cycle')
+
+
+def test_the_step_limit_caps_a_plan_whose_reward_pays_for_a_cycle(generated):
+    """Values that never settle (a reward paying for a cycle) ran a decision to Bellman-Ford's
+    bound, thousands of backups on a large building; with the episode's step limit as the
+    horizon the plan stops there (k backups: the best k-step return), and a reward that does
+    not pay for a cycle, whose fixed point comes first, plans exactly as without it."""
+    grid = np.zeros((12, 12, 7), np.float32)
+    grid[..., FREE] = 1.0
+    grid[0, 0, GOAL] = 1.0
+    grid[-1, :, MOVE_UP] = grid[:, -1, MOVE_RIGHT] = -2.0  # the edges
+    reward = ScenarioReward.of(generated['still'])
+    twin = GeneralistPolicy.hand_set({**SHIPPED, 'iterations': 5}, reward, 'dark-steps')
+    settled = twin.cell_logits(grid)
+    assert 22 < twin.backups < 40, twin.backups
+    np.testing.assert_array_equal(twin.cell_logits(grid, horizon=40), settled)
+    assert 22 < twin.backups < 40, twin.backups
+
+    paying = _paying_a_cycle(twin)
+    paying.cell_logits(grid)
+    assert paying.backups == 5 + 144, paying.backups  # the bound: iterations + free cells
+    for horizon, backups in ((40, 40), (3, 5)):  # never fewer than the file's iterations
+        capped = paying.cell_logits(grid, horizon=horizon)
+        assert paying.backups == backups, (horizon, paying.backups)
+        k_steps = Vin(**{**twin.header['architecture'], 'iterations': backups})
+        q = k_steps.apply(paying.variables, grid[None], method=Vin.q_map)
+        np.testing.assert_array_equal(capped.argmax(-1), np.asarray(q)[0].argmax(-1))
