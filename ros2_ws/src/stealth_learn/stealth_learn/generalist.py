@@ -37,7 +37,7 @@ from stealth_learn.obs_layout import LayoutError, check_layout, phased_layout_id
 from stealth_learn.vin import ROBOT, Vin, logits_of_values
 
 DEFAULT_POLICY = policy_file.SHIPPED
-NO_HORIZON = np.iinfo(np.int32).max  # no step limit known: backups up to Bellman-Ford's bound
+NO_HORIZON = np.iinfo(np.int32).max  # no horizon given: backups up to Bellman-Ford's bound
 
 
 class GeneralistPolicy:
@@ -116,7 +116,7 @@ class GeneralistPolicy:
         """(R, C, 4) the logits of every cell of one grid (R, C, 7), or (L, R, C, 5) of every
         cell and layer of a phased grid (L, R, C, 12), from values backed up until they are
         a fixed point (``vin.Vin.q_and_backups``; ``backups`` says how many that took), at most
-        max(iterations, ``horizon``) backups: the episode's step limit where it is known (None:
+        max(iterations, ``horizon``) backups where a horizon is given (None: up to
         Bellman-Ford's bound); Ctrl-C stops it at once, compile or run (``interruptible``)."""
         batch = jnp.asarray(grid)[None]
         cap = jnp.asarray(NO_HORIZON if horizon is None else horizon, jnp.int32)
@@ -237,8 +237,7 @@ def rollout(policy: GeneralistPolicy, scenario) -> Episode:
     obs, state = env.reset(jax.random.PRNGKey(0), one)
     phased = policy.model.phased
     grid = data.phased_grid(arrays) if phased else np.asarray(obs.grid)
-    limit = int(one.step_limit)
-    logits = policy.cell_logits(grid, limit)
+    logits = policy.cell_logits(grid)
     # per place of the padded grid (phased: layer * cells + cell, the env's place)
     actions = jnp.asarray(logits.argmax(-1).reshape(-1))
     cells = actions.shape[0]
@@ -253,6 +252,7 @@ def rollout(policy: GeneralistPolicy, scenario) -> Episode:
         return (keep(after, state), done | step_done, keep(step_info, info)), None
 
     _, _, _, _, info0 = env.step_env(None, state, 0, one)
+    limit = int(one.step_limit)
     carry, _ = jax.lax.scan(body, (state, jnp.asarray(False), info0), None, length=limit)
     info = carry[2]
     optimum = value_iteration(model)

@@ -79,10 +79,18 @@ def load_policy(path=None, iterations: int | None = None) -> GeneralistPolicy:
 
 class GeneralistAgent:
     """``act(observation) -> action`` on ``env`` (module docstring). ``env`` is read for its
-    robot's place (``env.node``); its scenario and goal give the floor plan's grid."""
+    robot's place (``env.node``); its scenario and goal give the floor plan's grid.
+    ``horizon``: at most max(iterations, horizon) backups a plan (``vin.Vin.q_and_backups``;
+    None: to the fixed point), for weights whose reward pays for a cycle (the untrained twin's),
+    whose values never settle."""
 
     def __init__(
-        self, policy: GeneralistPolicy, env, unknown: str = 'dark', brightest: bool = False
+        self,
+        policy: GeneralistPolicy,
+        env,
+        unknown: str = 'dark',
+        brightest: bool = False,
+        horizon: int | None = None,
     ):
         if unknown not in UNKNOWN_RULES:
             raise ValueError(
@@ -114,9 +122,7 @@ class GeneralistAgent:
             reach = lamp_reach(env.model)
             threshold = env.scenario.detection_threshold
             self.assumed[self.row, self.col] = np.where(reach, threshold, 0.0)
-        # at most the step limit's backups a plan: more change no decision an episode can
-        # carry out (``vin.Vin.q_and_backups``)
-        self.plans = PlanCache(policy, keep=_KEPT, horizon=env.model.task.step_limit)
+        self.plans = PlanCache(policy, keep=_KEPT, horizon=horizon)
 
     def grid(self, observation) -> np.ndarray:
         """(R, C, 7) the grid the network reads for this observation (module docstring); the

@@ -23,8 +23,8 @@ decision is the attention on the robot's cell (its Q values are the logits).
 - **Value**: V_0 = 0; V_{k+1} = G on goal cells (G learned), max_a (R_a + V_k(after a)) on
   free cells, ``iterations`` times in training (the weights are tied, so the count is free);
   at decision time (``q_and_backups``) at least as many and then on to the fixed point (no
-  more than the episode's step limit, where it is given), so a covert path longer than
-  training's horizon is still found.
+  more than a horizon, where one is given), so a covert path longer than training's horizon
+  is still found.
 - **Decision**: logits = scale * Q(robot's cell) (scale learned), masked moves at -1e9.
 
 **Moving lights** (``layers`` > 1): the same network over the lattice model's time
@@ -214,12 +214,13 @@ class Vin(nn.Module):
         nothing), at most as many more as the time-expanded lattice has free nodes (layers x
         free cells: Bellman-Ford's bound, reached only if the learned reward pays for a
         cycle). A building whose covert path is longer than ``iterations`` gets the backups it
-        needs; more backups cannot change a fixed point. ``horizon`` (the episode's step
-        limit, () int; None: no cap) caps the backups at max(``iterations``, ``horizon``):
-        k backups give the best k-step return, so a path the episode can walk is found with
-        ``horizon`` of them and more change no decision it can carry out, while a reward that
-        pays for a cycle (an untrained network's) no longer runs to Bellman-Ford's bound.
-        Training keeps the fixed count (``lax.scan``: differentiable)."""
+        needs; more backups cannot change a fixed point. ``horizon`` (() int; None: no cap)
+        caps the backups at max(``iterations``, ``horizon``): k backups give the best k-step
+        return, so with the episode's step limit a reward that pays for a cycle (an untrained
+        network's) stops there instead of at Bellman-Ford's bound. Not a free cut for others:
+        where the belief leaves no dark way to the goal, the values fall on towards the fixed
+        point long after, and near-tied moves there can order otherwise. Training keeps the
+        fixed count (``lax.scan``: differentiable)."""
         grid, lights, exists = self.inputs(x)
         rewards = self._rewards(grid, lights, exists)
         free, goal = grid[..., FREE] > 0.5, grid[..., GOAL] > 0.5
