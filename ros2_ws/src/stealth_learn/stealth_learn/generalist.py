@@ -125,10 +125,10 @@ class GeneralistPolicy:
         self.backups = int(backups)
         return np.asarray(logits)[0]
 
-    def act(self, grid, horizon: int | None = None) -> int:
+    def act(self, grid) -> int:
         """The move (0 up, 1 down, 2 left, 3 right; 4 wait: time-aware) at the robot's cell
-        (and layer) of one grid (``horizon``: ``cell_logits``')."""
-        return int(np.argmax(self.cell_logits(grid, horizon)[robot_cell(grid)]))
+        (and layer) of one grid."""
+        return int(np.argmax(self.cell_logits(grid)[robot_cell(grid)]))
 
 
 def _scenario_layout(scenario, model=None, track: str = 'full') -> str:
@@ -162,9 +162,9 @@ def robot_cell(grid) -> tuple[int, ...]:
 
 class PlanCache:
     """Every cell's move (``GeneralistPolicy.act`` at each cell) for a grid, computed by the
-    network once per distinct grid (at most ``horizon`` backups: ``GeneralistPolicy.
-    cell_logits``) and then looked up: with static lights a whole episode (or
-    run) reads one plan, and a decision costs a lookup. The robot channel is ignored (the
+    network once per distinct grid (``horizon``: ``GeneralistPolicy.cell_logits``') and then
+    looked up: with static lights a whole episode (or run) reads one plan, and a decision costs
+    a lookup. The robot channel is ignored (the
     decision is read at the robot's cell); the last grid is compared in place (a decision's
     common case, about 10x cheaper than hashing a copy), another looked up by the hash of its
     static channels; the ``keep`` latest distinct plans are kept. ``prepare``: the grid the
