@@ -46,11 +46,14 @@ def believed(light, moves, assumed=0.0) -> tuple[np.ndarray, np.ndarray]:
     return light, np.where(moves == UNKNOWN, ends, moves)
 
 
-def believed_grid(grid, assumed=0.0) -> np.ndarray:
+def believed_grid(grid, assumed=0.0, uncertain: bool = False) -> np.ndarray:
     """A (R, C, 7) grid (``stealth_core.grid_observation``) with its light channels believed
     (``believed``; unknown nodes ``assumed``, default dark); a new array, the other channels as
-    they are."""
+    they are, except with ``uncertain`` (a network reading the never-sensed input): the age
+    channel then 1 on a node never sensed, else 0 (``ppo.believe`` is the JAX twin)."""
     grid = np.array(grid, dtype=np.float32)
+    if uncertain:
+        grid[..., AGE] = grid[..., LIGHT] == UNKNOWN
     moves = np.moveaxis(grid[..., [MOVE_UP, MOVE_RIGHT]], -1, 0)
     light, moves = believed(grid[..., LIGHT], moves, assumed)
     grid[..., LIGHT] = light

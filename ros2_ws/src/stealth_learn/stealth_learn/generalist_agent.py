@@ -43,11 +43,11 @@ same network reads the belief grid, so no other file is needed (nor accepted).
 from __future__ import annotations
 
 import numpy as np
-from stealth_core.grid_observation import FullTrackGrid
+from stealth_core.grid_observation import AGE, FullTrackGrid
 from stealth_core.replanning import lamp_reach
 
 from stealth_learn import policy_file
-from stealth_learn.belief import believed, believed_phased
+from stealth_learn.belief import UNKNOWN, believed, believed_phased
 from stealth_learn.env_tables import TaskArrays
 from stealth_learn.generalist import DEFAULT_POLICY, GeneralistPolicy, PlanCache
 from stealth_learn.generalist_data import grid_of, phased_grid
@@ -138,7 +138,10 @@ class GeneralistAgent:
         if self.env.track == 'full':
             return grid_of(self.tables, int(self.env.node) // self.nodes)
         light, moves = believed(observation['light'], observation['moves'], self.assumed)
-        return grid_of(self.tables, 0, light, moves)
+        grid = grid_of(self.tables, 0, light, moves)
+        if self.policy.model.uncertain:  # trained for this track: it reads what was never sensed
+            grid[..., AGE] = np.asarray(observation['light']) == UNKNOWN
+        return grid
 
     def act(self, observation) -> int:
         """The action with the highest logit at the robot's cell (and layer: time-aware; a

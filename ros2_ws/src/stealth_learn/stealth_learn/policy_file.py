@@ -114,6 +114,11 @@ TRAINING_FIELDS = {
     'seconds': Range(False, 0.0),
     'train_seconds': Range(False, 0.0),  # the optimiser's loop (validation included)
     'samples_per_second': Range(False, 0.0),  # scenarios (every cell of each) a second
+    # reinforcement learning (``train_ppo``): environment steps taken, and a second over the
+    # rollouts and learning; the update whose weights were kept (validation's best)
+    'env_steps': Range(True, 1),
+    'env_steps_per_second': Range(False, 0.0),
+    'selected_update': Range(True, 0),
 }
 SIZES = 'sizes'  # training: [[width m, height m, lights], ...], whole numbers >= 1
 # The largest network the ranges allow has ~1 MB of parameters: a bigger file is not one.
@@ -165,7 +170,8 @@ def save(path, params, track: str, architecture: dict, training: dict | None = N
 def load(path, env_layout: str | None) -> tuple[dict, dict]:
     """(params tree, header) of the file at ``path`` for an environment giving ``env_layout``
     (``obs_layout.layout_id``: any grid size; None: any lights-known layout, static or phased,
-    or the phased sensed one of a network trained for that track, the scenario's checked
+    or the sensed one, static or phased, of a network trained for that track (it reads the
+    never-sensed input), the scenario's checked
     when it is known: ``GeneralistPolicy.check_scenario``), checked
     whole (module docstring). PolicyFileError or ``obs_layout.LayoutError`` (another layout,
     track or phase count): one line naming the path. Needs the learning extra (the shapes
@@ -175,7 +181,9 @@ def load(path, env_layout: str | None) -> tuple[dict, dict]:
     header, flat = _read(path)
     header = check_header(path, header)
     if env_layout is None:
+        trained_sensed = header['architecture'].get('uncertain', 0) == 1
         known = header['track'] == 'full' or header['layout'].startswith(PHASED_PREFIX)
+        known = known or trained_sensed
         env_layout = header['layout'] if known else policy_layout('full')
     check_layout(header['layout'], without_size(env_layout), str(path))
     _check_params(path, flat, header['architecture'])

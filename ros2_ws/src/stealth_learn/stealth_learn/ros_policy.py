@@ -29,6 +29,7 @@ phased grid, time-aware ones and the static sensed belief included).
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -56,7 +57,8 @@ class CachedGeneralist:
         architecture = policy.header['architecture'] if model.phased else None
         self.reads = (self.layout, policy_file.policy_layout('sensed', architecture))
         self.advance = model.advance
-        prepare = self._believed_phased if model.phased else believed_grid
+        uncertain = functools.partial(believed_grid, uncertain=bool(model.uncertain))
+        prepare = self._believed_phased if model.phased else uncertain
         self.plans = PlanCache(policy, keep=KEEP_PLANS, prepare=prepare)
 
     def _believed_phased(self, grid: np.ndarray) -> np.ndarray:

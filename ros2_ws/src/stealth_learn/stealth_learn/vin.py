@@ -106,7 +106,12 @@ class Vin(nn.Module):
     ``layers``, ``advance``: the phase layers of moving lights and the layers a step advances
     (1, 0: static lights, the static grid as input; more layers add the wait action);
     ``uncertain``: 1 to read the never-sensed input of the sensed track; ``distance_cap``:
-    the most distance the reward reads, tens of lattice steps (0: uncapped)."""
+    the most distance the reward reads, tens of lattice steps (0: uncapped);
+    ``gradient_backups``: in training, only the last N backups are differentiated (the values
+    before them held fixed: truncated backpropagation through the recurrence, as for an RNN;
+    the reward still gets every cell's gradient through them), for reinforcement learning's
+    many forward-and-backward passes (``ppo``); 0 differentiates all. Decisions and values are
+    the same either way; it is not stored in a weights file."""
 
     iterations: int = 200
     hidden: int = 32
@@ -116,6 +121,7 @@ class Vin(nn.Module):
     advance: int = 0
     uncertain: int = 0  # 1: the never-sensed input (module docstring)
     distance_cap: float = 0.0  # tens of lattice steps; 0: uncapped (module docstring)
+    gradient_backups: int = 0  # training only: differentiate the last N backups (0: all)
 
     @property
     def num_actions(self) -> int:
@@ -235,7 +241,12 @@ class Vin(nn.Module):
             return jnp.where(goal, goal_value, jnp.where(free, best, 0.0)), None
 
         values = jnp.where(goal, goal_value, 0.0)
-        values, _ = jax.lax.scan(iterate, values, None, length=self.iterations)
+        tail = self.gradient_backups
+        if 0 < tail < self.iterations:  # truncated backpropagation (the class docstring)
+            values, _ = jax.lax.scan(iterate, values, None, length=self.iterations - tail)
+            values, _ = jax.lax.scan(iterate, jax.lax.stop_gradient(values), None, length=tail)
+        else:
+            values, _ = jax.lax.scan(iterate, values, None, length=self.iterations)
         backups = jnp.asarray(self.iterations, jnp.int32)
         if until_fixed:
 
