@@ -22,6 +22,11 @@ unusable --cache (``benchmark_cache``); --jobs beyond the CPUs this process may 
 failed; a method that raises on a scenario fails its row only. SIGINT or SIGTERM
 (``sweep_stop``): the trials done are written, the rest marked interrupted, and the exit status
 is 130 (143).
+
+Each trial's rows are also written to ``--out``'s journal as the trial ends
+(``benchmark_journal``: trials.jsonl, synced), so a benchmark killed outright loses only the
+trials then running; ``--resume`` goes on with it: the trials the journal holds from the same
+settings and inputs are kept, the others run, and the results of all are written.
 """
 
 from __future__ import annotations
@@ -38,11 +43,13 @@ from stealth_core.scenario_generator import FINAL_TEST_SEED, MOVING, Options
 from stealth_experiments import sweep_stop
 from stealth_experiments.benchmark_cache import check_cache
 from stealth_experiments.benchmark_checks import (
+    BenchmarkError,
     check_out,
     check_scenarios,
     check_tracks,
     policy_cases,
 )
+from stealth_experiments.benchmark_journal import JOURNAL, JournalError, Writer, read, reusable
 from stealth_experiments.benchmark_learning import LEARNING_SEEDS
 from stealth_experiments.benchmark_learning_report import write_learning_csv, write_learning_plot
 from stealth_experiments.benchmark_methods import (
@@ -218,7 +225,15 @@ def parser(preset: Preset = BENCHMARK) -> argparse.ArgumentParser:
     p.add_argument(
         '--force',
         action='store_true',
-        help=f"overwrite an earlier benchmark's results in --out ({', '.join(RESULT_FILES)})",
+        help=f"overwrite an earlier benchmark's results in --out ({', '.join(RESULT_FILES)}, "
+        f'{JOURNAL})',
+    )
+    p.add_argument(
+        '--resume',
+        action='store_true',
+        help=f'go on with the benchmark in --out: its journal ({JOURNAL}, each trial written '
+        'as it ends) gives the trials run before with the same settings and inputs; only the '
+        'others run, then the results of all are written',
     )
     return p
 
@@ -283,6 +298,8 @@ def main(argv: Sequence[str] | None = None, preset: Preset = BENCHMARK) -> int:
     prog = preset.prog
     if args.scenarios and args.set:
         p.error('give scenarios or --set, not both')
+    if args.resume and args.force:
+        p.error('give --resume (go on) or --force (start over), not both')
     if (
         args.count < 1
         or args.jobs < 1
@@ -299,7 +316,12 @@ def main(argv: Sequence[str] | None = None, preset: Preset = BENCHMARK) -> int:
         methods = _methods(args, preset)
         check_tracks(_asked(args, methods), args.tracks)
         check_scenarios(args.scenarios, Path.cwd())
-        check_out(args.out, args.force)
+        check_out(args.out, args.force or args.resume)
+        if args.resume and not (args.out / JOURNAL).is_file():
+            raise BenchmarkError(
+                f'--resume: {args.out / JOURNAL} does not exist: nothing to go on with; run '
+                'without --resume'
+            )
         if generated:
             check_cache(cache)
     except ValueError as error:  # BenchmarkError, CacheError, PolicyFileError: one line
@@ -346,16 +368,25 @@ def main(argv: Sequence[str] | None = None, preset: Preset = BENCHMARK) -> int:
     )  # fmt: skip
     say(f'benchmark: {_count(len(cases), "scenario goal")} x {_count(len(methods), "method")}: '
         f'{_counted(laid)}')  # fmt: skip
-    started = time.monotonic()
     done: dict[str, list[dict]] = {}
+    try:
+        if args.resume:
+            done.update(_resumed(args.out / JOURNAL, laid, say))
+        journal = Writer(args.out / JOURNAL, fresh=not args.resume)
+    except JournalError as error:
+        print(f'{prog}: {error}', file=sys.stderr)
+        return 1
+    resumed = len(done)
+    started = time.monotonic()
     note, code = '', 0
     try:
-        run_trials(laid, done, jobs=jobs, say=say)
+        with journal:
+            run_trials(laid, done, jobs=jobs, say=say, journal=journal)
     except KeyboardInterrupt as stop:  # sweep_stop.Interrupted
         name = getattr(stop, 'name', 'SIGINT')
         code = getattr(stop, 'exit_code', 130)
         note = f'Interrupted by {name}: {len(done)} of {len(laid)} trials done; the rest marked'
-        note += ' interrupted.'
+        note += f' interrupted; go on with the same command and --resume ({JOURNAL}).'
     rows = collect(laid, done)
     elapsed = time.monotonic() - started
     made = ''
@@ -366,6 +397,9 @@ def main(argv: Sequence[str] | None = None, preset: Preset = BENCHMARK) -> int:
             f'{options.moving}). '
         )
     settings = _settings(args, methods, laid, elapsed, len(cases), jobs, made)
+    if resumed:
+        settings += (f' Resumed: {_count(resumed, "trial")} from {JOURNAL} (run before), '
+                     f'{len(done) - resumed} run now in the time given.')  # fmt: skip
     csv_file, summary_file, plot, seeds_file, curves = (args.out / name for name in RESULT_FILES)
     try:
         write_csv(csv_file, rows)
@@ -439,15 +473,36 @@ def _methods(args, preset: Preset = BENCHMARK) -> list[str]:
     return list(dict.fromkeys(names))
 
 
-def run_trials(laid: list[dict], done: dict, *, jobs: int, say: Callable[[str], None]) -> None:
-    """Each trial's rows into ``done`` (by trial id) as it ends; trials of unreadable
-    scenarios are not run. Raises sweep_stop.Interrupted on SIGINT or SIGTERM."""
-    runnable = [t for t in laid if not t['error']]
+def _resumed(path: Path, laid: list[dict], say: Callable[[str], None]) -> dict:
+    """{trial id: rows} the journal at ``path`` holds for ``laid`` (``benchmark_journal``);
+    said: how many, and how many it holds from other settings or inputs (run again)."""
+    kept, stale = reusable(read(path, say), laid)
+    say(f'benchmark: resuming: {len(kept)} of {len(laid)} trials from {path}')
+    if stale:
+        say(f'benchmark: {_count(stale, "trial")} of the journal ran with other settings or '
+            'inputs (scenario file, weights, budget, seed): run again')  # fmt: skip
+    return kept
+
+
+def run_trials(
+    laid: list[dict], done: dict, *, jobs: int, say: Callable[[str], None], journal=None
+) -> None:
+    """Each trial's rows into ``done`` (by trial id) as it ends, and into ``journal`` (a
+    ``benchmark_journal.Writer``) where given; trials already in ``done`` (resumed) and trials
+    of unreadable scenarios are not run. Raises sweep_stop.Interrupted on SIGINT or SIGTERM."""
+    runnable = [t for t in laid if not t['error'] and t['id'] not in done]
+    by_id = {t['id']: t for t in runnable}
+
+    def finished(trial: dict, rows: list[dict]) -> None:
+        done[trial['id']] = rows
+        if journal is not None:
+            journal.add(trial, rows)
+
     with sweep_stop.signals_stop():
         if jobs <= 1 or len(runnable) <= 1:
             started = time.monotonic()
             for k, trial in enumerate(runnable, start=1):
-                done[trial['id']] = run_case(trial)
+                finished(trial, run_case(trial))
                 failed = sum(r['status'] != 'ok' for rows in done.values() for r in rows)
                 mean = (time.monotonic() - started) / k
                 say(
@@ -459,7 +514,11 @@ def run_trials(laid: list[dict], done: dict, *, jobs: int, say: Callable[[str], 
 
         def keep(records: list[dict]) -> None:
             if records:
-                done[records[0]['trial']] = records
+                trial = by_id.get(records[0]['trial'])
+                if trial is None:
+                    done[records[0]['trial']] = records
+                else:
+                    finished(trial, records)
 
         with Engine(None, jobs, say) as engine:
             engine.run_fixed(runnable, keep, runner=run_case, label='benchmark')

@@ -14,6 +14,7 @@ from stealth_bringup.rollout_source import CONTENT_WORDS
 from stealth_core.scenario import ScenarioError, content_identity, find_scenario, load_scenario
 from stealth_core.task import StealthTask
 
+from stealth_experiments.benchmark_journal import JOURNAL
 from stealth_experiments.benchmark_methods import METHODS
 from stealth_experiments.benchmark_plan import Case
 from stealth_experiments.benchmark_report import RESULT_FILES
@@ -54,7 +55,7 @@ def check_out(out: Path, force: bool) -> list[str]:
     overwrite; BenchmarkError when there are some without --force."""
     if out.exists() and not out.is_dir():
         raise BenchmarkError(f'--out {out}: not a directory')
-    earlier = [name for name in RESULT_FILES if (out / name).exists()]
+    earlier = [name for name in (*RESULT_FILES, JOURNAL) if (out / name).exists()]
     if earlier and not force:
         raise BenchmarkError(
             f'--out {out}: holds the results of an earlier benchmark ({", ".join(earlier)}); '

@@ -139,8 +139,8 @@ def test_earlier_results_are_refused_unless_force(tmp_path, capsys):
     assert code == 1
     assert err == (
         f'{PROG}: --out {out}: holds the results of an earlier benchmark (results.csv, '
-        'summary.md, benchmark.png); give a new or empty directory, or --force to overwrite '
-        'them\n'
+        'summary.md, benchmark.png, trials.jsonl); give a new or empty directory, or --force '
+        'to overwrite them\n'
     )
     assert (out / 'results.csv').read_text() == 'an earlier benchmark'
     code, _, _ = _main(capsys, *argv, '--force', '--no-plots')

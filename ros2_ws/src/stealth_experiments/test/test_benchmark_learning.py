@@ -69,7 +69,7 @@ def test_the_learning_track_end_to_end_on_a_tiny_budget(tmp_path):
             '--episodes', '25', '--learning-seeds', '2', '--jobs', '1']  # fmt: skip
     assert benchmark.main([*argv, '--out', str(out)]) == 0
     assert sorted(p.name for p in out.iterdir() if p.is_file()) == [
-        'learning.csv', 'learning.png', 'results.csv', 'summary.md',
+        'learning.csv', 'learning.png', 'results.csv', 'summary.md', 'trials.jsonl',
     ]  # fmt: skip
     with open(out / 'results.csv', encoding='utf-8') as stream:
         rows = {r['method']: r for r in csv.DictReader(stream)}
