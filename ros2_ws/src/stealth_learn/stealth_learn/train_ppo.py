@@ -188,8 +188,11 @@ def plot_curve(curve: dict, path: Path) -> Path:
 
     matplotlib.use('Agg')
     from matplotlib import pyplot as plt
+    from matplotlib.ticker import FuncFormatter
 
     figure, (left, right) = plt.subplots(1, 2, figsize=(9, 3.5))
+    for axis in (left, right):  # thousands of steps: full numbers run into each other
+        axis.xaxis.set_major_formatter(FuncFormatter(lambda value, _: f'{value / 1000:g}k'))
     left.plot(curve['env_steps'], curve['success'], label='validation: at the goal')
     left.plot(curve['env_steps'], curve['detected'], label='validation: detected')
     left.plot(curve['env_steps'], curve['train_success'], label='training episodes: at the goal')
