@@ -6,6 +6,11 @@ seeds only; the weights file (track 'sensed', the never-sensed input) and the cu
     python -m stealth_learn.train_ppo --out /tmp/ppo.npz                 # ~1 h on 2 cores
     python -m stealth_learn.train_ppo --train 4 --validation 2 --updates 2 --out /tmp/p.npz
 
+``--hardest-of N``: the training buildings are the ``--train`` of N training seeds where the
+starting weights do worst (greedy, on the sensed Gym env: the shortfall of their return from
+value iteration's), screened once before training: prioritized level replay's idea (Jiang et
+al. 2021) without the replay, so the rollouts hold the failures there are to learn from.
+
 Environment steps a second are counted over the whole training (rollouts and learning, not
 the validation) and stored in the weights file with the wall time.
 """
@@ -47,6 +52,11 @@ def parse_args(argv=None) -> argparse.Namespace:
                         help='the buildings: WIDTHxHEIGHTxLIGHTS (default 30x30x4)')  # fmt: skip
     parser.add_argument('--train', type=int, default=32,
                         help='training buildings, one environment each')  # fmt: skip
+    parser.add_argument(
+        '--hardest-of', type=int, default=0, metavar='N',
+        help='train on the --train of N training seeds where the starting weights do worst '
+        '(module docstring; 0: the first --train seeds)',
+    )  # fmt: skip
     parser.add_argument('--validation', type=int, default=16, help='validation buildings')
     parser.add_argument('--updates', type=int, default=200, help='PPO updates')
     parser.add_argument('--num-steps', type=int, default=defaults.num_steps,
@@ -68,6 +78,8 @@ def parse_args(argv=None) -> argparse.Namespace:
                  'iterations', 'eval_iterations', 'every'):  # fmt: skip
         if getattr(args, name) < 1:
             parser.error(f'--{name.replace("_", "-")}: expected a positive whole number')
+    if args.hardest_of and args.hardest_of < args.train:
+        parser.error('--hardest-of: expected 0 or at least --train')
     if (args.train * args.num_steps) % args.minibatches:
         parser.error('--minibatches: expected a divisor of --train x --num-steps')
     if not 0 <= args.gradient_backups <= args.iterations:
@@ -103,6 +115,29 @@ def _buildings(range_name: str, count: int, options: Options, directory: Path, l
     return scenarios
 
 
+def hardest(scenarios, policy, count: int, log, progress: bool) -> list:
+    """The ``count`` of ``scenarios`` where ``policy`` (a ``GeneralistPolicy``) does worst,
+    greedy on the sensed Gym env: the shortfall of its return from value iteration's."""
+    from stealth_core.gym_env import StealthNavEnv
+    from stealth_core.planners import value_iteration
+    from stealth_core.replanning import play
+    from tqdm import tqdm
+
+    from stealth_learn.generalist_agent import GeneralistAgent
+
+    shortfall = []
+    for scenario in tqdm(scenarios, desc='screening', unit='building', disable=not progress):
+        env = StealthNavEnv(scenario, track='sensed')
+        played = play(env, GeneralistAgent(policy, env).act, seed=0)
+        optimum = value_iteration(env.model).optimal_return
+        shortfall.append(optimum - played['total_reward'])
+    order = sorted(range(len(scenarios)), key=lambda i: -shortfall[i])[:count]
+    caught = sum(shortfall[i] > 1000 for i in order)  # a detection costs the goal and more
+    log(f'screened {len(scenarios)} buildings: kept the {len(order)} hardest (shortfall '
+        f'{shortfall[order[-1]]:.1f} to {shortfall[order[0]]:.1f}; {caught} caught)')  # fmt: skip
+    return [scenarios[i] for i in order]
+
+
 def train(args, log=print, progress: bool = False) -> dict:
     """Generate, train, validate, select; the run's record (curve, selection, throughput)."""
     from tqdm import tqdm
@@ -121,7 +156,12 @@ def train(args, log=print, progress: bool = False) -> dict:
     width, height, lights = args.size
     options = Options(width=width, height=height, lights=lights)
     directory = Path(tempfile.mkdtemp(prefix='ppo-'))
-    train_set = _buildings('train', args.train, options, directory, log)
+    train_set = _buildings('train', args.hardest_of or args.train, options, directory, log)
+    if args.hardest_of:
+        from stealth_learn.generalist import GeneralistPolicy
+
+        start = GeneralistPolicy(init, architecture, header, source=args.init)
+        train_set = hardest(train_set, start, args.train, log, progress)
     validation_set = _buildings('validation', args.validation, options, directory, log)
     env, params = jax_env.build(train_set, track='sensed', layout='grid')
     val_env, val_params = jax_env.build(validation_set, track='sensed', layout='grid')

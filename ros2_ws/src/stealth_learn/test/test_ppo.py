@@ -89,12 +89,13 @@ def test_an_update_trains_the_never_sensed_input_and_counts_its_steps(generated,
     assert np.isfinite([metrics['loss'], metrics['value_loss'], metrics['entropy']]).all()
 
 
-def test_the_command_writes_a_sensed_weights_file_the_agent_loads(tmp_path, generated):
+def test_the_command_writes_a_sensed_weights_file_the_agent_loads(tmp_path, generated, capsys):
     out = tmp_path / 'ppo.npz'
-    argv = ['--out', str(out), '--size', '20x20x3', '--train', '2', '--validation', '1',
-            '--updates', '1', '--num-steps', '4', '--minibatches', '2', '--iterations', '20',
-            '--gradient-backups', '5']  # fmt: skip
+    argv = ['--out', str(out), '--size', '20x20x3', '--train', '2', '--hardest-of', '3',
+            '--validation', '1', '--updates', '1', '--num-steps', '4', '--minibatches', '2',
+            '--iterations', '20', '--gradient-backups', '5']  # fmt: skip
     assert main(argv) == 0
+    assert 'screened 3 buildings: kept the 2 hardest' in capsys.readouterr().out
     policy = GeneralistPolicy.load(out, None)
     assert policy.track == 'sensed' and policy.model.uncertain == 1
     training = policy.header['training']
@@ -114,6 +115,7 @@ def test_the_command_writes_a_sensed_weights_file_the_agent_loads(tmp_path, gene
         (['--gradient-backups', '200', '--iterations', '100'], '--gradient-backups: expected'),
         (['--size', '20x20'], 'expected WIDTHxHEIGHTxLIGHTS'),
         (['--train', '3', '--num-steps', '5', '--minibatches', '2'], '--minibatches'),
+        (['--train', '4', '--hardest-of', '3'], '--hardest-of: expected 0 or at least --train'),
     ],
 )
 def test_bad_arguments_are_refused_in_one_line(tmp_path, capsys, argv, message):
