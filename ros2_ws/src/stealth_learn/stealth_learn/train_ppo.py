@@ -132,9 +132,10 @@ def hardest(scenarios, policy, count: int, log, progress: bool) -> list:
         optimum = value_iteration(env.model).optimal_return
         shortfall.append(optimum - played['total_reward'])
     order = sorted(range(len(scenarios)), key=lambda i: -shortfall[i])[:count]
-    caught = sum(shortfall[i] > 1000 for i in order)  # a detection costs the goal and more
+    lost = sum(shortfall[i] > 1000 for i in order)  # the goal lost: caught or out of steps
+    low, high = shortfall[order[-1]], shortfall[order[0]]
     log(f'screened {len(scenarios)} buildings: kept the {len(order)} hardest (shortfall '
-        f'{shortfall[order[-1]]:.1f} to {shortfall[order[0]]:.1f}; {caught} caught)')  # fmt: skip
+        f'{low:.1f} to {high:.1f}; {lost} without the goal)')  # fmt: skip
     return [scenarios[i] for i in order]
 
 
