@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import time
 
+from stealth_learn.hand_set import INPUTS
 from stealth_learn.jax_deps import jax, jnp
 from stealth_learn.vin import AGE, LIGHT, MOVE_RIGHT, MOVE_UP, ROBOT, Vin
 
@@ -99,7 +100,7 @@ def initial_params(actor_params) -> dict:
     input at weight 0: the same decisions on the belief)."""
     actor = jax.tree.map(jnp.asarray, actor_params)
     kernel = actor['reward_hidden']['kernel']
-    if kernel.shape[0] == 13:  # 5 step features + 8 context channels: no never-sensed input
+    if kernel.shape[0] == INPUTS + actor['context']['bias'].shape[0]:  # no never-sensed input
         actor = {**actor, 'reward_hidden': {**actor['reward_hidden'],
                  'kernel': jnp.concatenate([kernel, jnp.zeros_like(kernel[:1])])}}  # fmt: skip
     critic = {'w': jnp.array([1.0, 0.0, 0.0], jnp.float32), 'b': jnp.zeros((), jnp.float32)}
@@ -161,15 +162,15 @@ class Trainer:
                 step_keys, state, action, env_params
             )
             transition = (obs, action, log_prob, value, reward * REWARD_SCALE, done,
-                          info['terminated'], info['outcome'])  # fmt: skip
+                          info['outcome'])  # fmt: skip
             return (next_obs, state, key), transition
 
         (obs, state, key), batch = jax.lax.scan(
             env_step, (obs, state, key), None, length=config.num_steps
         )
-        observations, actions, log_probs, values, rewards, dones, terminated, outcomes = batch
+        observations, actions, log_probs, values, rewards, dones, outcomes = batch
         _, last_value = self.net(params, obs)
-        advantages, targets = _gae(values, rewards, dones, terminated, last_value, config)
+        advantages, targets = _gae(values, rewards, dones, last_value, config)
 
         def loss_fn(params, minibatch):
             obs, action, old_log_prob, old_value, advantage, target = minibatch
@@ -232,7 +233,7 @@ class Trainer:
         return (params, opt_state, obs, state, key), metrics
 
 
-def _gae(values, rewards, dones, terminated, last_value, config: PpoConfig):
+def _gae(values, rewards, dones, last_value, config: PpoConfig):
     """(advantages, value targets) by GAE(lambda) over a rollout (T, N): a terminated step
     bootstraps nothing, a truncated one (the step limit) is treated as terminated too
     (PureJaxRL's simplification: the auto-reset's observation is the next episode's)."""
@@ -244,7 +245,6 @@ def _gae(values, rewards, dones, terminated, last_value, config: PpoConfig):
         advantage = delta + config.gamma * config.gae_lambda * (1 - done) * advantage
         return (advantage, value), advantage
 
-    del terminated
     _, advantages = jax.lax.scan(
         backwards,
         (jnp.zeros_like(last_value), last_value),
