@@ -27,11 +27,13 @@ import time
 
 from stealth_learn.hand_set import INPUTS
 from stealth_learn.jax_deps import jax, jnp
-from stealth_learn.vin import AGE, LIGHT, MOVE_RIGHT, MOVE_UP, ROBOT, Vin
+from stealth_learn.obs_layout import VECTOR
+from stealth_learn.vin import AGE, LIGHT, MASKED, MOVE_RIGHT, MOVE_UP, ROBOT, Vin
 
 UNKNOWN = -1.0  # the sensed grid: never sensed
 REWARD_SCALE = 0.01  # the env's rewards (goal ~1000) scaled into the critic's range
 VALUE_SCALE = 0.01  # the actor's values (the learned reward's units) read by the critic
+_LIT, _TIME = VECTOR.index('lit'), VECTOR.index('time_used')  # the critic's other inputs
 
 
 @dataclasses.dataclass(frozen=True)
@@ -85,12 +87,11 @@ class ActorCritic:
         q = self.vin.apply({'params': params['actor']}, grid, method=Vin.q_map)
         robot = grid[..., ROBOT]
         at_robot = jnp.einsum('brc,brca->ba', robot, q)
-        masked = at_robot <= -1e8
-        scale = params['actor']['scale']
-        logits = jnp.where(masked, -1e9, scale * at_robot)
+        masked = at_robot <= MASKED / 2  # Vin.__call__'s rule
+        logits = jnp.where(masked, MASKED, params['actor']['scale'] * at_robot)
         best = jax.lax.stop_gradient(jnp.where(masked, -jnp.inf, at_robot).max(axis=-1))
         vector = observation.vector
-        features = jnp.stack([best * VALUE_SCALE, vector[:, 4], vector[:, 5]], axis=-1)
+        features = jnp.stack([best * VALUE_SCALE, vector[:, _LIT], vector[:, _TIME]], axis=-1)
         value = features @ params['critic']['w'] + params['critic']['b']
         return logits, value
 
