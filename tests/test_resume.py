@@ -61,10 +61,14 @@ def test_a_killed_orchestrator_leaves_its_outputs_and_the_run_goes_on(system, tm
         time.sleep(0.2)
     stopped_after = time.monotonic() - killed_at
     outlived = described(processes_naming(run))
-    assert not outlived, f'nodes outlived their orchestrator by a minute: {outlived}'
-    for log in sorted((run / 'logs').glob('*.log')):  # running.STOP_LIMIT's stack dump
-        if 'Timeout (' in (text := log.read_text(errors='replace')):
-            warnings.warn(f'{log.name}: a stop hung, then exited:\n{text[-3000:]}', stacklevel=1)
+    logs = {log.name: log.read_text(errors='replace') for log in (run / 'logs').glob('*.log')}
+    assert not outlived, f'nodes outlived their orchestrator by a minute: {outlived}\n' + ''.join(
+        f'--- the end of {name}:\n{text[-1500:]}\n' for name, text in sorted(logs.items())
+    )
+    for name, text in sorted(logs.items()):
+        # a stop watchdog's dump (running.STOP_LIMIT, the recorder's) or the orphan watch's
+        if 'Timeout (' in text or 'most recent call first' in text:
+            warnings.warn(f'{name}: a stop hung, then ended:\n{text[-3000:]}', stacklevel=1)
 
     # What the killed run left: every episode it counted, the summary of its last evaluation.
     counted = episodes_in(run / 'episodes.csv')

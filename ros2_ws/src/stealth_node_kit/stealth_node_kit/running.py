@@ -18,7 +18,7 @@ recording so). A node whose parent died (a killed orchestrator: PR_SET_PDEATHSIG
 wait: the run's recorder is stopping too, and the dead parent's readers stay matched until
 their DDS lease ends, so the wait would only hold the orphan. A stop that hangs after the exit
 hook (STOP_LIMIT s) dumps every thread's stack to stderr and exits 1: an orphan has no one to
-kill it.
+kill it (and ``orphan_watch`` ends an orphan stuck anywhere else).
 """
 
 from __future__ import annotations
@@ -39,6 +39,7 @@ from rclpy.qos import ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
 from stealth_node_kit.full_disk import EXIT_DISK_FULL, DiskFullError
+from stealth_node_kit.orphan_watch import watch_for_orphaning
 
 EXIT_CANNOT_START = 2
 SPIN_WAKE = 0.1  # s: the longest a stop signal goes unnoticed while the nodes spin
@@ -66,6 +67,7 @@ class StopSignals:
         self._previous = {}
 
     def __enter__(self) -> StopSignals:
+        watch_for_orphaning()
         self._previous = {
             signum: signal.signal(signum, self._on_signal) for signum in STOP_SIGNALS
         }

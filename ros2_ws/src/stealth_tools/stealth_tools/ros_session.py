@@ -2,7 +2,8 @@
 
 These tools own SIGINT and SIGTERM themselves (rclpy's handlers off): a signal only sets an
 event, the spin loop notices it within a tenth of a second, and the tool then finishes its
-work in order (close the bag, destroy the node) instead of dying inside a callback.
+work in order (close the bag, destroy the node) instead of dying inside a callback. Started by
+the orchestrator (asked to die with it), a tool is watched for outliving it (``orphan_watch``).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from rclpy.qos import (
     ReliabilityPolicy,
 )
 from rclpy.signals import SignalHandlerOptions
+from stealth_node_kit.orphan_watch import watch_for_orphaning
 
 from stealth_tools.qos_text import INFINITE_NS, QosDescription
 
@@ -33,6 +35,7 @@ SPIN_PERIOD = 0.1  # s: how long a signal can go unnoticed
 def ros_session(args: list[str] | None = None) -> Iterator[threading.Event]:
     """rclpy initialised with our own SIGINT/SIGTERM handling; yields the stop event."""
     stop = threading.Event()
+    watch_for_orphaning()
     previous = {
         signum: signal.signal(signum, lambda *_: stop.set())
         for signum in (signal.SIGINT, signal.SIGTERM)

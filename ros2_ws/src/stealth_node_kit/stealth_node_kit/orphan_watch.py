@@ -1,0 +1,67 @@
+"""The last resort against a node outliving its killed orchestrator.
+
+A node started by the orchestrator is asked to die with it (PR_SET_PDEATHSIG: SIGTERM) and then
+stops in order, with its own watchdog over a stop that hangs (``running.STOP_LIMIT``, the
+recorder's). Neither covers a main thread stuck before the stop signal's Python handler runs
+(it runs only between bytecodes), nor an exit that hangs after that watchdog is cancelled
+(interpreter teardown, DDS's destructors): such a process lives on with no one left to kill it.
+A CI run found a recorder so, a minute after the kill, its place never caught.
+
+The watch is a daemon thread that looks at the parent every POLL s. Once the parent is gone it
+sets a timer: ORPHAN_LIMIT s later SIGALRM writes every thread's stack to stderr (the node's log;
+faulthandler, no Python code needed) and then ends the process (SIGALRM's default action, the
+kernel's doing: it works with the main thread stuck or the interpreter torn down). A process
+not asked to die with its parent (a user's ``nohup stealth bag record``) is never watched.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import faulthandler
+import os
+import signal
+import sys
+import threading
+
+ORPHAN_LIMIT = 40.0  # s from finding the parent gone to the end (after every stop watchdog)
+POLL = 0.5  # s between looks at the parent
+_PR_GET_PDEATHSIG = 2
+
+
+def parent_death_signal() -> int:
+    """The signal this process gets when its parent dies (PR_GET_PDEATHSIG); 0 for none or
+    where prctl is missing."""
+    try:
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return 0
+    value = ctypes.c_int(0)
+    if prctl(_PR_GET_PDEATHSIG, ctypes.byref(value), 0, 0, 0) != 0:
+        return 0
+    return value.value
+
+
+def watch_for_orphaning(
+    limit: float = ORPHAN_LIMIT, poll: float = POLL
+) -> threading.Thread | None:
+    """Start the watch (see the module's docstring) if this process was asked to die with its
+    parent; the thread, or None when not."""
+    if not parent_death_signal():
+        return None
+    parent = os.getppid()
+    thread = threading.Thread(
+        target=_watch, args=(parent, limit, poll), name='orphan-watch', daemon=True
+    )
+    thread.start()
+    return thread
+
+
+def _watch(parent: int, limit: float, poll: float) -> None:
+    stopped = threading.Event()  # never set: a sleep that is not a busy loop
+    while os.getppid() == parent:
+        stopped.wait(poll)
+    with contextlib.suppress(ValueError, OSError, AttributeError, RuntimeError):
+        # stderr gone or not a file: the end comes all the same, without the stacks
+        faulthandler.register(signal.SIGALRM, file=sys.stderr, all_threads=True, chain=True)
+    signal.setitimer(signal.ITIMER_REAL, limit)
