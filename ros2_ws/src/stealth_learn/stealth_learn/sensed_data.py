@@ -8,7 +8,9 @@ memory, its age channel 1 where a layer's node was never sensed) with the buildi
 targets (``generalist_data.sample_of``: the layered value iteration's optimal actions on the
 lights as they are, at every cell of every layer). So the network learns to act, from what it
 has sensed, as the robot that knows the lights would; the robot's own (layer, cell), where
-the decision is taken, weighs ``robot_weight`` times more.
+the decision is taken, weighs ``robot_weight`` times more. With ``robot_only`` it is the only
+label of a snapshot: the dense labels elsewhere teach the optimum's action at places the belief
+cannot tell apart (most of them never sensed), and the network then fits those averages.
 
     buildings = load_buildings(seeds, options, directory)     # [(scenario, Sample)]
     samples = snapshots(buildings, policy_of, every=8)        # policy_of(scenario) -> policy
@@ -22,6 +24,7 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
+import numpy as np
 from stealth_core.grid_observation import AGE, FREE
 from stealth_core.gym_env import StealthNavEnv
 from stealth_core.scenario_generator import GenerationError, Options
@@ -49,9 +52,12 @@ def load_buildings(seeds, options: Options, directory: Path, log=None) -> list:
     return out
 
 
-def episode_snapshots(scenario, sample, policy, every: int, robot_weight: float) -> list:
+def episode_snapshots(
+    scenario, sample, policy, every: int, robot_weight: float, robot_only: bool = False
+) -> list:
     """The snapshots (``Sample``s) of one greedy episode of ``policy`` on the sensed track of
-    ``scenario``: at its first state and every ``every`` steps after."""
+    ``scenario``: at its first state and every ``every`` steps after (``robot_only``: labelled
+    at the robot's (layer, cell) alone, with the building's weight there)."""
     env = StealthNavEnv(scenario, track='sensed')
     agent = GeneralistAgent(policy, env)
     nodes = agent.nodes
@@ -60,8 +66,9 @@ def episode_snapshots(scenario, sample, policy, every: int, robot_weight: float)
     while True:
         if step % every == 0:
             layer, node = divmod(int(env.node), nodes)
-            weight = sample.weight.copy()
-            weight[layer, agent.row[node], agent.col[node]] *= 1.0 + robot_weight
+            at = (layer, agent.row[node], agent.col[node])
+            weight = np.zeros_like(sample.weight) if robot_only else sample.weight.copy()
+            weight[at] = sample.weight[at] * (1.0 + robot_weight)
             out.append(dataclasses.replace(sample, grid=agent.grid(observation), weight=weight))
         observation, _, terminated, truncated, _ = env.step(agent.act(observation))
         step += 1
@@ -69,12 +76,20 @@ def episode_snapshots(scenario, sample, policy, every: int, robot_weight: float)
             return out
 
 
-def snapshots(buildings, policy_of, every: int = 8, robot_weight: float = 20.0, bar=None):
+def snapshots(
+    buildings,
+    policy_of,
+    every: int = 8,
+    robot_weight: float = 20.0,
+    bar=None,
+    robot_only: bool = False,
+):
     """Every building's episode snapshots (``episode_snapshots``), the episode played by
     ``policy_of(scenario)``; ``bar``: a tqdm to advance per building."""
     out = []
     for scenario, sample in buildings:
-        out.extend(episode_snapshots(scenario, sample, policy_of(scenario), every, robot_weight))
+        policy = policy_of(scenario)
+        out.extend(episode_snapshots(scenario, sample, policy, every, robot_weight, robot_only))
         if bar is not None:
             bar.update(1)
     return out

@@ -122,6 +122,11 @@ def parse_args(argv=None) -> argparse.Namespace:
         help="the loss weight added at the robot's own layer and cell (1 + this)",
     )  # fmt: skip
     sensed.add_argument(
+        '--labels', choices=('all', 'robot'), default='all',
+        help="where a snapshot is labelled: every cell of every layer (the robot's weighing "
+        "--robot-weight more), or the robot's own (layer, cell) alone",
+    )  # fmt: skip
+    sensed.add_argument(
         '--init', type=Path, default=MOVING_OUT,
         help='the weights to start from (time-aware, lights known; default the shipped '
         'generalist-moving.npz), the never-sensed input at 0',
@@ -363,7 +368,14 @@ def _snapshots(groups, policy_of, args, label: str, progress: bool) -> list:
         total=sum(map(len, groups)), desc=label, unit='episode', disable=not progress
     ) as bar:
         return [
-            sensed_data.snapshots(group, policy_of, args.snapshot_every, args.robot_weight, bar)
+            sensed_data.snapshots(
+                group,
+                policy_of,
+                args.snapshot_every,
+                args.robot_weight,
+                bar,
+                robot_only=args.labels == 'robot',
+            )
             for group in groups
         ]
 

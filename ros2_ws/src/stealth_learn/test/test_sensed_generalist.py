@@ -84,6 +84,13 @@ def test_snapshots_are_the_agents_belief_with_the_buildings_targets(belief, tmp_
     boosted = first.weight != sample.weight
     assert boosted.sum() == 1 and first.weight[boosted] == 21.0 * sample.weight[boosted]
     assert 0.0 < sensed_data.unknown_share(shots) < 1.0
+    # --labels robot: the robot's (layer, cell) is a snapshot's only label, weighed as before
+    alone = sensed_data.episode_snapshots(
+        scenario, sample, twin, every=10, robot_weight=20.0, robot_only=True
+    )
+    assert [s.grid.tolist() for s in alone[:2]] == [s.grid.tolist() for s in shots[:2]]
+    assert (alone[0].weight > 0).sum() == 1
+    np.testing.assert_array_equal(alone[0].weight[boosted], first.weight[boosted])
 
 
 def test_the_training_command_trains_the_sensed_network(tmp_path, capsys):
