@@ -119,16 +119,25 @@ def grid_of(tables, layer: int = 0, light=None, moves=None) -> np.ndarray:
     return stack(tables.free, tables.goal_cells, light, moves)
 
 
-def load_samples(seeds, options: Options, directory: Path, log=None) -> list[Sample]:
-    """The samples of ``seeds`` (a seed the generator cannot prove is skipped, and said)."""
-    samples = []
+def scenarios_of(seeds, options: Options, directory: Path, log=None) -> list:
+    """[(seed, scenario)] of ``seeds`` (a seed the generator cannot prove is skipped, and
+    said through ``log``)."""
+    out = []
     for seed in seeds:
         try:
-            samples.append(sample_of(seed, scenario_of(seed, options, directory)))
+            out.append((seed, scenario_of(seed, options, directory)))
         except GenerationError as error:
             if log:
                 log(f'seed {seed}: skipped ({error})')
-    return samples
+    return out
+
+
+def load_samples(seeds, options: Options, directory: Path, log=None) -> list[Sample]:
+    """The samples of ``seeds`` (a seed the generator cannot prove is skipped, and said)."""
+    return [
+        sample_of(seed, scenario)
+        for seed, scenario in scenarios_of(seeds, options, directory, log)
+    ]
 
 
 def batch(samples, dims: tuple[int, int] | None = None):

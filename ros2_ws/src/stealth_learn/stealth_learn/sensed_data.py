@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 from stealth_core.grid_observation import AGE, FREE
 from stealth_core.gym_env import StealthNavEnv
-from stealth_core.scenario_generator import GenerationError, Options
+from stealth_core.scenario_generator import Options
 
 from stealth_learn import generalist_data as data
 from stealth_learn.generalist_agent import GeneralistAgent
@@ -37,13 +37,7 @@ def load_buildings(seeds, options: Options, directory: Path, log=None) -> list:
     """[(scenario, Sample)] of ``seeds`` whose lights move (a seed the generator cannot prove,
     or whose lights stand still, is skipped, and said)."""
     out = []
-    for seed in seeds:
-        try:
-            scenario = data.scenario_of(seed, options, directory)
-        except GenerationError as error:
-            if log:
-                log(f'seed {seed}: skipped ({error})')
-            continue
+    for seed, scenario in data.scenarios_of(seeds, options, directory, log):
         if not scenario.has_moving_lights:
             if log:
                 log(f'seed {seed}: skipped (its lights are not moving)')

@@ -106,13 +106,8 @@ def _size(text: str) -> tuple[int, int, int]:
 
 
 def _buildings(range_name: str, count: int, options: Options, directory: Path, log) -> list:
-    scenarios = []
-    for seed in data.seeds_of(range_name, count):
-        try:
-            scenarios.append(data.scenario_of(seed, options, directory))
-        except GenerationError as error:
-            log(f'seed {seed}: skipped ({error})')
-    return scenarios
+    seeds = data.seeds_of(range_name, count)
+    return [scenario for _, scenario in data.scenarios_of(seeds, options, directory, log)]
 
 
 def hardest(scenarios, policy, count: int, log, progress: bool) -> list:
