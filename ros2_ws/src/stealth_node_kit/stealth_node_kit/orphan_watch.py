@@ -23,6 +23,7 @@ import os
 import signal
 import sys
 import threading
+import time
 
 ORPHAN_LIMIT = 40.0  # s from finding the parent gone to the end (after every stop watchdog)
 POLL = 0.5  # s between looks at the parent
@@ -58,9 +59,8 @@ def watch_for_orphaning(
 
 
 def _watch(parent: int, limit: float, poll: float) -> None:
-    stopped = threading.Event()  # never set: a sleep that is not a busy loop
     while os.getppid() == parent:
-        stopped.wait(poll)
+        time.sleep(poll)
     with contextlib.suppress(ValueError, OSError, AttributeError, RuntimeError):
         # stderr gone or not a file: the end comes all the same, without the stacks
         faulthandler.register(signal.SIGALRM, file=sys.stderr, all_threads=True, chain=True)
