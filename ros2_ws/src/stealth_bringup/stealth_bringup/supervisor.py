@@ -12,7 +12,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 import contextlib
-import ctypes
 import dataclasses
 import os
 from pathlib import Path
@@ -21,7 +20,8 @@ import signal
 import subprocess
 import time
 
-_PR_SET_PDEATHSIG = 1
+from stealth_node_kit.orphan_watch import die_with_parent
+
 CLEAN_EXITS = (0, -signal.SIGINT, -signal.SIGTERM, 130, 143)
 _LOG_PREFIX = re.compile(r'^\[(\w+)\] \[[0-9.]+\] \[([^\]]+)\]: ')
 _RESTART_MARK = re.compile(r'^--- \w+ started again: ')  # Supervisor.start's, in a log
@@ -31,23 +31,9 @@ _FRAME = re.compile(r'^\s+File "')
 
 
 def _preexec(niceness: int = 0) -> Callable[[], None]:
-    """A preexec function that asks for SIGTERM when the parent dies and lowers the priority
-    by `niceness` (prepared here, so the child only makes system calls between fork and exec)."""
-    try:
-        prctl = ctypes.CDLL(None, use_errno=True).prctl
-    except (OSError, AttributeError):
-        prctl = None
-    parent = os.getpid()
-
-    def child() -> None:
-        if prctl is not None:
-            prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
-            if os.getppid() != parent:  # the parent died before prctl: go at once
-                os._exit(1)
-        if niceness:
-            os.nice(niceness)
-
-    return child
+    """A preexec function that lowers the priority by `niceness` and asks for SIGTERM when the
+    parent dies (``orphan_watch.die_with_parent``)."""
+    return die_with_parent((lambda: os.nice(niceness)) if niceness else None)
 
 
 def last_line(path: Path, limit: int = 64 * 1024) -> str:

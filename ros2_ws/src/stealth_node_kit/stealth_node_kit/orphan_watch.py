@@ -12,10 +12,14 @@ sets a timer: ORPHAN_LIMIT s later SIGALRM writes every thread's stack to stderr
 faulthandler, no Python code needed) and then ends the process (SIGALRM's default action, the
 kernel's doing: it works with the main thread stuck or the interpreter torn down). A process
 not asked to die with its parent (a user's ``nohup stealth bag record``) is never watched.
+
+``die_with_parent`` is how a starter asks (the orchestrator's supervisor, ``stealth run``, a
+sweep's ROS trial): one preexec function for all of them.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 import contextlib
 import ctypes
 import faulthandler
@@ -27,15 +31,41 @@ import time
 
 ORPHAN_LIMIT = 40.0  # s from finding the parent gone to the end (after every stop watchdog)
 POLL = 0.5  # s between looks at the parent
-_PR_GET_PDEATHSIG = 2
+_PR_SET_PDEATHSIG, _PR_GET_PDEATHSIG = 1, 2
+
+
+def _prctl():
+    """libc's prctl, or None where there is none (not Linux)."""
+    try:
+        return ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+
+
+def die_with_parent(first: Callable[[], None] | None = None) -> Callable[[], None]:
+    """A preexec function for ``subprocess.Popen``: the child runs ``first`` (if given), then
+    asks for SIGTERM when this process dies, and ends at once if it died already (between the
+    fork and the request). Prepared here, in the parent, so that the child makes only system
+    calls between fork and exec."""
+    prctl = _prctl()
+    parent = os.getpid()
+
+    def child() -> None:
+        if first is not None:
+            first()
+        if prctl is not None:
+            prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+            if os.getppid() != parent:
+                os._exit(1)
+
+    return child
 
 
 def parent_death_signal() -> int:
     """The signal this process gets when its parent dies (PR_GET_PDEATHSIG); 0 for none or
     where prctl is missing."""
-    try:
-        prctl = ctypes.CDLL(None, use_errno=True).prctl
-    except (OSError, AttributeError):
+    prctl = _prctl()
+    if prctl is None:
         return 0
     value = ctypes.c_int(0)
     if prctl(_PR_GET_PDEATHSIG, ctypes.byref(value), 0, 0, 0) != 0:

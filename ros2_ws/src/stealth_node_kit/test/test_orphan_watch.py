@@ -2,6 +2,7 @@
 even when its main thread is stuck; one not asked is left alone."""
 
 from pathlib import Path
+import signal
 import subprocess
 import sys
 import time
@@ -97,3 +98,33 @@ def test_a_process_not_asked_to_die_with_its_parent_is_left_alone(tmp_path):
 def test_only_a_process_asked_to_die_with_its_parent_is_watched():
     assert parent_death_signal() == 0  # pytest is not
     assert watch_for_orphaning() is None
+
+
+# Starts a sleeper with die_with_parent (its `first` writing a mark the sleeper reads back, and
+# the sleeper reporting its parent-death signal), passes its pid and that line on, then dies.
+STARTER = """
+import os, subprocess, sys
+from stealth_node_kit.orphan_watch import die_with_parent
+sleeper = subprocess.Popen(
+    [sys.executable, '-c',
+     'import os, time; from stealth_node_kit.orphan_watch import parent_death_signal; '
+     'print(os.getpid(), os.environ.get("FIRST_RAN", "-"), parent_death_signal(), flush=True); '
+     'time.sleep(60)'],
+    stdout=subprocess.PIPE,
+    preexec_fn=die_with_parent(lambda: os.environ.__setitem__('FIRST_RAN', 'yes')),
+)
+print(sleeper.stdout.readline().decode().strip(), flush=True)
+"""
+
+
+def test_a_child_started_to_die_with_its_parent_ends_when_the_parent_dies():
+    starter = subprocess.run(
+        [sys.executable, '-c', STARTER], capture_output=True, text=True, timeout=30, check=True
+    )
+    pid, first_ran, death_signal = starter.stdout.split()
+    try:
+        assert first_ran == 'yes'  # `first` ran in the child, before exec
+        assert int(death_signal) == signal.SIGTERM
+        assert wait_gone(int(pid), 10.0), 'the child outlived its parent'
+    finally:
+        kill(int(pid))

@@ -11,8 +11,6 @@ status and the last line it wrote to stderr.
 from __future__ import annotations
 
 from collections.abc import Sequence
-import contextlib
-import ctypes
 import os
 from pathlib import Path
 import signal
@@ -26,8 +24,7 @@ from ament_index_python.packages import (
     get_package_prefix,
     get_packages_with_prefixes,
 )
-
-_PR_SET_PDEATHSIG = 1
+from stealth_node_kit.orphan_watch import die_with_parent
 
 
 class ExecutableNotFoundError(LookupError):
@@ -65,13 +62,6 @@ def find_executable(package: str, executable: str) -> Path:
     )
 
 
-def _die_with_parent() -> None:
-    """In the child, before exec: get SIGTERM when the supervising process dies."""
-    with contextlib.suppress(OSError, AttributeError):
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
-
-
 def _relay_stderr(source, sink, last_line: list[str]) -> None:
     """Copy the child's stderr through, remembering its last non-empty line."""
     for raw in iter(source.readline, b''):
@@ -97,7 +87,7 @@ def failure_line(label: str, returncode: int, seconds: float, last_stderr: str) 
 def run_supervised(command: Sequence[str], label: str) -> int:
     """Run a child to completion; on failure print one line; return its exit status."""
     started = time.monotonic()
-    process = subprocess.Popen(list(command), stderr=subprocess.PIPE, preexec_fn=_die_with_parent)
+    process = subprocess.Popen(list(command), stderr=subprocess.PIPE, preexec_fn=die_with_parent())
     last_line = ['']
     relay = threading.Thread(
         target=_relay_stderr, args=(process.stderr, sys.stderr.buffer, last_line), daemon=True
