@@ -141,7 +141,7 @@ run: setup ## The main job: train the agent on the default scenario (runs/<name>
 generalist: setup $(LEARN_STAMP) ## Train the lights-known generalist from nothing (runs/generalist/; about 5 min on 2 cores)
 	@$(ROS_ENV) && python -m stealth_learn.train_generalist --distance-cap 4 --out runs/generalist/generalist-full.npz
 
-generalist-moving: setup $(LEARN_STAMP) ## Train the time-aware generalist (moving lights) from nothing (runs/generalist/; about 17 min on 2 cores)
+generalist-moving: setup $(LEARN_STAMP) ## Train the time-aware generalist (moving lights) from nothing (runs/generalist/; about 21 min on 2 cores)
 	@$(ROS_ENV) && python -m stealth_learn.train_generalist --moving mixed --sizes 20x20x3,30x30x4 --steps 2400 --batch 4 --lit-weight 30 --distance-cap 4 --out runs/generalist/generalist-moving.npz
 
 compare: setup ## Learners vs A*, Dark Path and value iteration on every scenario, on local Ray (runs/eval/)
