@@ -13,8 +13,7 @@ faulthandler, no Python code needed) and then ends the process (SIGALRM's defaul
 kernel's doing: it works with the main thread stuck or the interpreter torn down). A process
 not asked to die with its parent (a user's ``nohup stealth bag record``) is never watched.
 
-``die_with_parent`` is how a starter asks (the orchestrator's supervisor, ``stealth run``, a
-sweep's ROS trial): one preexec function for all of them.
+``die_with_parent`` is how a starter asks (the orchestrator's supervisor, ``stealth run``).
 """
 
 from __future__ import annotations
