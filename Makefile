@@ -86,9 +86,10 @@ $(BUILD_STAMP): $(VENV_STAMP)
 	@# rather than in the first simulator a run or a test starts (tens of seconds).
 	@$(ROS_ENV) && python -c 'from stealth_sim.move_executor import warm_up; \
 		s = warm_up(); print("setup: simulator kernels " + ("ready in %.0f s" % s if s is not None else "not compiled (no numba): the Python path runs"))'
-	@# Likewise the one-bounce light's kernels (stealth_core.bounce_kernels, a few seconds).
-	@$(ROS_ENV) && python -c 'from stealth_core.visibility import warm_up_bounce; \
-		s = warm_up_bounce(); print("setup: one-bounce light kernels " + ("ready in %.0f s" % s if s is not None else "not compiled (no numba): the Python loops run"))'
+	@# Likewise the lines of sight and the one-bounce light (stealth_core.sight_kernels,
+	@# stealth_core.bounce_kernels: a few seconds).
+	@$(ROS_ENV) && python -c 'from stealth_core.visibility import warm_up_kernels; \
+		s = warm_up_kernels(); print("setup: line-of-sight and one-bounce light kernels " + ("ready in %.0f s" % s if s is not None else "not compiled (no numba): the Python loops run"))'
 	@rm -f $(STAMPS)/build-* && echo "$@" > $@
 
 test: setup ## Build if needed, run every package's tests (colcon test) and the system tests

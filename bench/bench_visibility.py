@@ -8,6 +8,11 @@ Then the one-bounce light (``stealth_core.bounce``) on lgfloor (600 x 600, its f
 albedo 0.3, range 3 m): the compiled bounce field against ``bounce.point_bounce`` the same way,
 the reference's one-off work (finding the emitters and their received light, point by point)
 counted once in its extrapolated time.
+
+Last the lines of sight as the light model's search asks them (``visibility._occluded``): from
+each of 300 lamp cells of lgfloor, 200 random cells of a 4 m box around it (what a birth or a
+moved light asks of a lamp cell new to it), compiled (``sight_kernels``) against the lockstep
+numpy trace it replaced (the path where numba does not import), the same answers asserted.
 Run: PYTHONPATH=ros2_ws/src/stealth_core python bench/bench_visibility.py
 """
 
@@ -22,7 +27,13 @@ from stealth_core.bounce import Bounce, point_bounce, received_light, wall_emitt
 from stealth_core.lighting import GridFrame, point_visibility
 from stealth_core.scenario import load_scenario
 from stealth_core.searchlight import Searchlight
-from stealth_core.visibility import bounce_field, visibility_field
+from stealth_core.visibility import (
+    _occluded,
+    _occluded_in_lockstep,
+    bounce_field,
+    corner_maps,
+    visibility_field,
+)
 
 SIZE = 600
 RESOLUTION = 0.05
@@ -31,6 +42,9 @@ SAMPLE_CELLS = 2000
 REPEATS = 3
 BOUNCE = Bounce(albedo=0.3, range=3.0)
 BOUNCE_SAMPLE_CELLS = 1000
+SIGHT_LAMPS = 300
+SIGHT_BOX = 2.0  # m from the lamp cell to the box's sides
+SIGHT_CELLS = 200  # random cells of the box a lamp cell is asked for (a new lamp's samples)
 
 
 def bench_map(seed: int = 0) -> np.ndarray:
@@ -95,7 +109,47 @@ def run(report=print) -> dict:
     )
     report(f'  speed-up: {ratio:.0f}x (goal >= 100x, field < 1 s)')
     figures = _figures('visibility', field_seconds, reference_seconds, SAMPLE_CELLS, 1.0)
-    return {**figures, **run_bounce(report)}
+    return {**figures, **run_bounce(report), **run_sight(report)}
+
+
+def run_sight(report=print) -> dict:
+    """The lines of sight of many small traces, compiled against lockstep (see the module)."""
+    occupancy = load_scenario('lgfloor').map
+    blocked = occupancy.blocked
+    corners = corner_maps(blocked)
+    height, width = blocked.shape
+    reach = int(round(SIGHT_BOX / occupancy.resolution))
+    rng = np.random.default_rng(3)
+    traces = []
+    for _ in range(SIGHT_LAMPS):
+        col, row = int(rng.integers(width)), int(rng.integers(height))
+        rows, cols = np.mgrid[
+            max(row - reach, 0) : min(row + reach + 1, height),
+            max(col - reach, 0) : min(col + reach + 1, width),
+        ]
+        pick = rng.choice(cols.size, min(SIGHT_CELLS, cols.size), replace=False)
+        traces.append(((col, row), cols.ravel()[pick], rows.ravel()[pick]))
+    _occluded(blocked, corners, *traces[0])  # compiled, or loaded from numba's cache
+
+    def trace_all(trace):
+        return [trace(blocked, corners, lamp, cols, rows) for lamp, cols, rows in traces]
+
+    compiled_seconds, compiled = best_of(lambda: trace_all(_occluded))
+    lockstep_seconds, lockstep = best_of(lambda: trace_all(_occluded_in_lockstep))
+    if not all(np.array_equal(a, b) for a, b in zip(compiled, lockstep, strict=True)):
+        raise AssertionError('the compiled lines of sight differ from the lockstep ones')
+    lines = sum(cols.size for _, cols, _ in traces)
+    ratio = lockstep_seconds / compiled_seconds
+    report(
+        f'lines of sight, lgfloor, {SIGHT_LAMPS} lamp cells x {SIGHT_CELLS} cells of a'
+        f' {2 * SIGHT_BOX:g} m box ({lines} lines): compiled {compiled_seconds * 1e3:.1f} ms,'
+        f' lockstep numpy {lockstep_seconds * 1e3:.1f} ms (best of {REPEATS}): {ratio:.0f}x'
+    )
+    return {
+        'sight_compiled_seconds': round(compiled_seconds, 4),
+        'sight_lockstep_seconds': round(lockstep_seconds, 4),
+        'sight_speedup': round(ratio, 1),
+    }
 
 
 def _figures(name, field_seconds, reference_seconds, sample_cells, limit_seconds) -> dict:

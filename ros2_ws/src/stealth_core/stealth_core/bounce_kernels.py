@@ -1,43 +1,21 @@
 """The one-bounce light's compiled kernels (numba, through ``stealth_core.jit``):
 ``visibility.bounce_field`` and ``PointVisibility`` call them; imported only when a scenario
-has a bounce, so that direct-light users never import numba.
+has a bounce.
 
-They are ``stealth_core.bounce``'s reference, loop for loop: ``bounce.contribution`` and
-``lighting``'s Bresenham start and step themselves compiled, walked as ``line_of_sight`` walks
-a line, stopping at the first block. The
-sums run per cell (per point) in emitter order, as the reference adds them, so the results are
-equal to the last bit. Without numba ``jit`` leaves them plain Python: the same numbers, slowly
-(``test_bounce`` runs them both ways).
+They are ``stealth_core.bounce``'s reference, loop for loop: ``bounce.contribution`` itself
+compiled, and each line walked as ``line_of_sight`` walks it (``sight_kernels.line_blocked``,
+stopping at the first block). The sums run per cell (per point) in emitter order, as the
+reference adds them, so the results are equal to the last bit. Without numba ``jit`` leaves
+them plain Python: the same numbers, slowly (``test_bounce`` runs them both ways).
 """
 
 import numpy as np
 
 from stealth_core.bounce import Bounce, Emitters, contribution
 from stealth_core.jit import jit
-from stealth_core.lighting import bresenham_start, bresenham_step
+from stealth_core.sight_kernels import line_blocked as _line_blocked
 
 _contribution = jit(contribution)
-
-
-_start = jit(bresenham_start)
-_step = jit(bresenham_step)
-
-
-@jit
-def _line_blocked(blocked, col0, row0, col1, row1):
-    """``lighting.line_of_sight``'s answer negated, walking the same Bresenham steps and
-    stopping at the first block (compiled: the bounce traces millions of short lines)."""
-    line = _start(col0, row0, col1, row1)
-    col, row = col0, row0
-    while col != col1 or row != row1:
-        if (col != col0 or row != row0) and blocked[row, col]:
-            return True
-        next_col, next_row, line = _step(col, row, line)
-        diagonal = next_col != col and next_row != row
-        if diagonal and blocked[row, next_col] and blocked[next_row, col]:
-            return True
-        col, row = next_col, next_row
-    return False
 
 
 @jit

@@ -2,10 +2,10 @@
 cell centres (``stealth_core.visibility_cache`` keeps it on disk per scenario).
 
 How it is fast: for each light only the cells within its range's bounding box and actually lit
-(in range and cone) are traced. Their Bresenham lines run in lockstep, one numpy step for all
-lines at a time, with exactly the reference's integer error-term arithmetic. The lines are
-sorted longest first, so at step k the lines still running are a prefix of the arrays: slicing,
-no compaction.
+(in range and cone) are traced, each line walked in compiled code (``sight_kernels``, numba)
+with the reference's own integer arithmetic. Where numba does not import, the lines run in
+lockstep instead, one numpy step for all lines at a time, with exactly the reference's integer
+error-term arithmetic (``_occluded_in_lockstep``; the same answers, 4x to 100x slower).
 
 One-bounce light (``stealth_core.bounce``, when a ``Bounce`` is given) is added on top of the
 direct field: ``bounce_field`` walks, for every wall cell that receives light, the line to each
@@ -20,6 +20,7 @@ from __future__ import annotations
 from collections import OrderedDict
 from collections.abc import Iterable, Sequence
 import copy
+import functools
 import time
 
 import numpy as np
@@ -65,8 +66,38 @@ COMPACT_EVERY = 16  # steps between dropping lines already blocked
 UNKNOWN, CLEAR, BLOCKED = 0, 1, 2  # a cell in a lamp's sight memo (PointVisibility)
 
 
+@functools.cache
+def _compiled_sight():
+    """``sight_kernels`` where numba imports (compiled at first use, or loaded from numba's
+    cache: ``make setup`` warms it), else None. Imported here, not at the top, so that a
+    visibility user who never traces a line never imports numba."""
+    from stealth_core import jit
+
+    if jit.import_problem() is not None:
+        return None
+    from stealth_core import sight_kernels
+
+    return sight_kernels
+
+
 def _occluded(blocked: np.ndarray, corners: np.ndarray, lamp, cols, rows) -> np.ndarray:
-    """For each target cell, whether its Bresenham line from the lamp is blocked.
+    """For each target cell (cols, rows: int arrays), whether its Bresenham line from the lamp
+    cell (col, row) is blocked: ``lighting.line_of_sight``'s rules, compiled where numba
+    imports, in lockstep otherwise (``corners``: ``corner_maps`` of ``blocked``)."""
+    kernels = _compiled_sight()
+    if kernels is None:
+        return _occluded_in_lockstep(blocked, corners, lamp, cols, rows)
+    return kernels.occluded(
+        blocked, int(lamp[0]), int(lamp[1]),
+        np.asarray(cols, dtype=np.int64).ravel(), np.asarray(rows, dtype=np.int64).ravel(),
+    )  # fmt: skip
+
+
+def _occluded_in_lockstep(
+    blocked: np.ndarray, corners: np.ndarray, lamp, cols, rows
+) -> np.ndarray:
+    """``_occluded`` in numpy: for each target cell, whether its Bresenham line from the lamp
+    is blocked.
 
     Same rules and the same integer arithmetic as ``lighting.line_of_sight``, written per line
     in major/minor-axis form: every step moves along the major axis (length M), and along the
@@ -202,14 +233,14 @@ class PointVisibility:
     range^2 in the same float arithmetic, skips them: its value is 0). The occlusion test is
     what is faster: the line of sight from a lamp's cell is computed for a whole TILE x TILE
     block of target cells at once (``_occluded``, the same integer Bresenham and corner rule)
-    and kept, keyed by the lamp's cell and the block (``many`` uses the blocks too when a light
-    lights few cells, and traces many cells in one ``_occluded`` call). Keying by the lamp's
-    cell serves every kind of light: static and sweeping lights (only the direction changes)
-    reuse the blocks of their one cell, patrolling lights those of the cells they pass; the
-    least recently used blocks beyond ``max_tiles`` are dropped. Above the blocks, each lamp
-    cell keeps a memo of every cell's line of sight traced so far (one int8 per map cell, the
-    ``max_lamps`` most recently used lamp cells), so a cell is traced once per lamp cell
-    however many calls ask for it. ``blocked`` must not change afterwards.
+    and kept, keyed by the lamp's cell and the block (``many`` traces the cells it needs in
+    one ``_occluded`` call, or, without numba, asks the blocks when a light lights few cells).
+    Keying by the lamp's cell serves every kind of light: static and sweeping lights (only the
+    direction changes) reuse the blocks of their one cell, patrolling lights those of the
+    cells they pass; the least recently used blocks beyond ``max_tiles`` are dropped. Above
+    the blocks, each lamp cell keeps a memo of every cell's line of sight traced so far (one
+    int8 per map cell, the ``max_lamps`` most recently used lamp cells), so a cell is traced
+    once per lamp cell however many calls ask for it. ``blocked`` must not change afterwards.
 
     With a ``footprint`` (``exposure.Footprint``), a point asked for with the robot's heading
     has each light's value multiplied by the exposure factor before the lights are added
@@ -219,9 +250,10 @@ class PointVisibility:
     """
 
     TILE = 16  # cells along each side of a block of targets
-    # ``many`` at up to this many lit cells per light (a move's samples, judged every step)
-    # asks the block cache cell by cell: tracing them afresh cost ~1 ms a light, a Python step
-    # of _occluded per cell along the longest line, however few the targets.
+    # Without numba, ``many`` at up to this many lit cells per light (a move's samples, judged
+    # every step) asks the block cache cell by cell: tracing them afresh in lockstep cost ~1 ms
+    # a light, a numpy step per cell along the longest line, however few the targets.
+    # Compiled, a trace of a few cells costs microseconds: they are traced afresh.
     FEW_CELLS = 64
 
     def __init__(
@@ -440,7 +472,7 @@ class PointVisibility:
         new = cells[sight[cells] == UNKNOWN]
         if new.size:
             width = self.frame.width
-            if new.size <= self.FEW_CELLS:  # a move's samples: the block cache
+            if new.size <= self.FEW_CELLS and _compiled_sight() is None:  # the block cache
                 occluded = np.array(
                     [not self.line_of_sight(lamp, (c % width, c // width)) for c in new.tolist()],
                     dtype=bool,
@@ -515,9 +547,10 @@ class _BounceSources:
         )  # fmt: skip
 
 
-def warm_up_bounce() -> float | None:
-    """Compile the bounce kernels (or load them from numba's cache) on a throwaway map, so that
-    no scenario load pays for it (``make setup`` calls this): the seconds, None without numba."""
+def warm_up_kernels() -> float | None:
+    """Compile the line-of-sight and bounce kernels (or load them from numba's cache) on a
+    throwaway map, so that no scenario load pays for it (``make setup`` calls this): the
+    seconds, None without numba."""
     from stealth_core import jit
 
     if jit.import_problem() is not None:

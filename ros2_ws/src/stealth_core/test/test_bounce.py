@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from stealth_core import bounce_kernels, visibility
+from stealth_core import bounce_kernels, sight_kernels, visibility
 from stealth_core.bounce import (
     Bounce,
     bounce_bound,
@@ -233,9 +233,10 @@ def test_the_bound_holds_for_a_wall_lit_all_round():
 
 
 def test_warm_up_compiles_the_kernels():
-    seconds = visibility.warm_up_bounce()
+    seconds = visibility.warm_up_kernels()
     if not hasattr(bounce_kernels.field, 'signatures'):
         assert seconds is None  # no numba: nothing to compile
         return
     assert seconds >= 0.0
     assert bounce_kernels.field.signatures and bounce_kernels.at_points.signatures
+    assert sight_kernels.occluded.signatures

@@ -8,7 +8,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from stealth_core import visibility, visibility_cache
+from stealth_core import sight_kernels, visibility, visibility_cache
 from stealth_core.lighting import (
     GridFrame,
     line_of_sight,
@@ -307,6 +307,43 @@ def test_point_visibility_line_of_sight_equals_bresenham_on_every_cell(seed):
             for col in range(width):
                 expected = line_of_sight(blocked, lamp, (col, row))
                 assert fast.line_of_sight(lamp, (col, row)) == expected, (lamp, col, row)
+
+
+@pytest.mark.parametrize('seed', range(20))
+def test_the_compiled_and_the_lockstep_trace_agree_on_every_cell(seed):
+    """Every cell of a random map from a random lamp cell (every octant, the lamp's own cell,
+    squeezed corners): the compiled lines, the same code run as Python and the lockstep numpy
+    trace give the same answers, and they are the reference's on a sample."""
+    rng = np.random.default_rng(3000 + seed)
+    height, width = (int(n) for n in rng.integers(2, 90, 2))
+    blocked = rng.random((height, width)) < rng.uniform(0.0, 0.5)
+    lamp = (int(rng.integers(width)), int(rng.integers(height)))
+    rows, cols = (a.ravel() for a in np.indices((height, width)))
+    corners = visibility.corner_maps(blocked)
+    lockstep = visibility._occluded_in_lockstep(blocked, corners, lamp, cols, rows)
+    traced = visibility._occluded(blocked, corners, lamp, cols, rows)
+    np.testing.assert_array_equal(traced, lockstep)
+    compiled = sight_kernels.occluded
+    plain = getattr(compiled, 'py_func', compiled)
+    np.testing.assert_array_equal(plain(blocked, *lamp, cols[:200], rows[:200]), lockstep[:200])
+    for k in rng.choice(cols.size, min(60, cols.size), replace=False):
+        assert lockstep[k] == (not line_of_sight(blocked, lamp, (cols[k], rows[k])))
+
+
+@pytest.mark.parametrize('seed', range(12))
+def test_the_lockstep_trace_where_numba_is_missing_equals_the_reference(seed, monkeypatch):
+    """Without numba the lines run in lockstep (a few cells through the block cache): the same
+    field and the same points, to the last bit."""
+    monkeypatch.setattr(visibility, '_compiled_sight', lambda: None)
+    case = random_case(seed)
+    for got, expected in zip(visibility_field(*case), reference_field(*case), strict=True):
+        np.testing.assert_array_equal(got, expected)
+    rng = np.random.default_rng(4000 + seed)
+    _, _, fast, (x0, y0, x1, y1) = evicting_case(seed, rng, max_tiles=3)
+    for count in (1, fast.FEW_CELLS, 400):
+        xs, ys = rng.uniform(x0, x1 - 1e-9, count), rng.uniform(y0, y1 - 1e-9, count)
+        expected = [point_visibility(*case, x, y) for x, y in zip(xs, ys, strict=True)]
+        np.testing.assert_array_equal(fast.many(xs, ys), expected)
 
 
 def test_point_visibility_of_moving_lights_equals_the_reference():
