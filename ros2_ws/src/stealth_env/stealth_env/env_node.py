@@ -6,8 +6,8 @@ decisions are ``stealth_env.episode_flow``'s, the messages ``env_messages``', th
 
 ## Topics
 
-Frame ``map``; names and QoS of the RL loop from ``stealth_node_kit.rl_contract``: the RL
-topics are reliable and volatile, with a lockstep history that never fills (no step is lost).
+Frame ``map``; the RL loop's names and QoS from ``stealth_node_kit.rl_contract`` (reliable,
+volatile, a lockstep history that never fills: no step is lost).
 
 * publishes ``rl_env/rl_env_description`` (RLEnvDescription; reliable + transient local,
   depth 1) once; ``rl_env/rl_state_reward`` (RLStateReward) at every episode start and after
@@ -40,20 +40,19 @@ serves them: ``stealth_bringup.sim_env``).
 
 ## Episodes
 
-The description goes out at once; the first episode starts when both simulator services answer
-and an agent is connected (its rl_state_reward reader matched, so the volatile first state is
-not lost), after ``start_delay``. Each action is a move of the scenario's step distance
+The description goes out at once; the first episode starts ``start_delay`` after both
+simulator services answer and an agent is connected (its rl_state_reward reader matched: the
+volatile first state is not lost). Each action is a move of the scenario's step distance
 (``ExecuteMove.GO_TO`` the lattice node), a wait where lights move (``HOLD``), or a turn in place
 where the scenario weighs lights by exposure (``TURN_TO_HEADING``); the new state is the
 localisation estimate in the answer, rounded to the state grid (cells centred on the move
 lattice's nodes); reward and terminal come from the core, judged on the true pose at the move's
 end time (``judge_on: estimate`` for the original's estimate-only way). Goal, detection or the
-step limit end an episode; the agent's RLExperimentInfo starts the next one. Actions that
-arrive out of turn or out of range are dropped with a warning. A move the simulator rejects,
-fails or does not answer within ``move_timeout`` ends the episode as ABORTED (a terminal state
-with reward 0 keeps the agent in step), and so does a first state with no answer within
-``first_action_timeout``. An agent that goes away ends its episode as ABORTED, and the next agent
-to come gets a fresh one. Totals of actions and states are logged at shutdown.
+step limit end an episode; the agent's RLExperimentInfo starts the next one. Actions out of
+turn or out of range are dropped with a warning. A move the simulator rejects, fails or does not
+answer within ``move_timeout``, a first state with no answer within ``first_action_timeout`` and
+an agent that goes away end the episode as ABORTED (a terminal state with reward 0 keeps the
+agent in step; the next agent to come gets a fresh one). Totals are logged at shutdown.
 
 ## Parameters
 
@@ -119,6 +118,9 @@ MOVE_NOTE_LOG_PERIOD = 5.0  # s of wall time between lines about bumped moves
 RESET_FAILED_LOG_PERIOD = 10.0  # s of wall time between lines about failed resets
 STOP_DELAY = 1.0  # s of wall time between giving up on the robot and exiting (messages go out)
 EXIT_ROBOT_NOT_RESPONDING = 3
+# Parameters the node reads where it uses them: a change takes effect at once.
+READ_AT_USE = ('move_timeout', 'clock_timeout', 'start_delay', 'first_action_timeout',
+               'step_readers', 'log_every')  # fmt: skip
 DONE = ExecuteMove.Response.DONE
 
 
@@ -244,14 +246,7 @@ class EnvironmentNode(StartupNode):
                 self.flow.judge_on = change.value
             elif change.name == 'marker_period':
                 self.scene.schedule(change.value)
-            elif change.name in (
-                'move_timeout',
-                'clock_timeout',
-                'start_delay',
-                'first_action_timeout',
-                'step_readers',
-                'log_every',
-            ):
+            elif change.name in READ_AT_USE:
                 setattr(self, change.name, change.value)
         names = ', '.join(f'{c.name}={c.value}' for c in changes)
         self.get_logger().info(f'parameters changed: {names}')
