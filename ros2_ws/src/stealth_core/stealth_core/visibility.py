@@ -80,6 +80,18 @@ def _compiled_sight():
     return sight_kernels
 
 
+_NO_CELLS = np.zeros(0, dtype=np.int64)
+
+
+def _warm_sight(blocked: np.ndarray) -> None:
+    """Load the compiled trace for this map's array now: numba's import and cache cost about a
+    second once a process, which a node should pay when it starts, not at the first step it
+    judges."""
+    kernels = _compiled_sight()
+    if kernels is not None and blocked.size:
+        kernels.occluded(blocked, 0, 0, _NO_CELLS, _NO_CELLS)
+
+
 def _occluded(blocked: np.ndarray, corners: np.ndarray, lamp, cols, rows) -> np.ndarray:
     """For each target cell (cols, rows: int arrays), whether its Bresenham line from the lamp
     cell (col, row) is blocked: ``lighting.line_of_sight``'s rules, compiled where numba
@@ -270,6 +282,7 @@ class PointVisibility:
         self.frame = GridFrame.of(blocked, resolution, origin)
         self.footprint = footprint
         self.blocked = blocked
+        _warm_sight(blocked)
         self.lights = tuple(lights)
         self.max_tiles = max_tiles
         self.max_lamps = max_lamps
