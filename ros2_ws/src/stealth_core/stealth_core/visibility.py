@@ -69,8 +69,9 @@ UNKNOWN, CLEAR, BLOCKED = 0, 1, 2  # a cell in a lamp's sight memo (PointVisibil
 @functools.cache
 def _compiled_sight():
     """``sight_kernels`` where numba imports (compiled at first use, or loaded from numba's
-    cache: ``make setup`` warms it), else None. Imported here, not at the top, so that a
-    visibility user who never traces a line never imports numba."""
+    cache: ``make setup`` warms it), else None. Imported here, not at the top, so that
+    importing this module stays light: numba comes with the first ``PointVisibility`` or
+    trace."""
     from stealth_core import jit
 
     if jit.import_problem() is not None:
