@@ -96,6 +96,15 @@ PARAMETERS = {
         'runs/<name>/world.yaml); required to learn with light-model, unused otherwise.',
         read_only=True,
     ),
+    'pose_jitter': Param(
+        0.15,
+        "light-model: how far (m) the environment's judged pose may stand off its lattice node "
+        '(the true pose stops a few cm off it: median 5 cm, at most 31 cm on floorplan-moving); '
+        "a step's light is expected anywhere in its range over the node and that far around "
+        'it, so a step near a beam edge may read dark once and lit once. 0 = on the node.',
+        bounds=(0.0, 1.0),
+        read_only=True,
+    ),
     'grid_sha256': Param(
         '',
         "SHA-256 of the scenario's occupancy grid (stealth train sets it): saved with the "

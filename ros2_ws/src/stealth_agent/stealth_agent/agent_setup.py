@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import pathlib
 
 import numpy as np
+from stealth_core.light_belief import BeliefSettings
 from stealth_core.light_world import UnmodelledLawError
 from stealth_core.world_file import WorldFileError, load_world
 
@@ -86,7 +87,8 @@ def set_up_agent(description: EnvDescription, values: Mapping) -> AgentSetup:
         learner = make_learner(learner_name, description.num_actions, learner_config(values))
         index = StateIndex(mapping)
     if isinstance(learner, LightModelLearner) and not evaluate:
-        problem = attach_world(learner, index, rng, values['world_file'], description)
+        settings = BeliefSettings(pose_jitter=values['pose_jitter'])
+        problem = attach_world(learner, index, rng, values['world_file'], description, settings)
         if problem is not None:
             return AgentSetup(None, tuple(warnings), error=problem)
         source += f'; the world of {values["world_file"]} (no lights)'
@@ -96,7 +98,11 @@ def set_up_agent(description: EnvDescription, values: Mapping) -> AgentSetup:
     if evaluate:
         settings = f'greedy, ties broken with seed {seed}'
     elif isinstance(learner, LightModelLearner):  # it plans: no alpha, epsilon, n
-        settings = f'gamma {config.gamma}, planning rule {learner.rule}, seed {seed}'
+        jitter = learner.belief.settings.pose_jitter
+        settings = (
+            f'gamma {config.gamma}, planning rule {learner.rule}, pose jitter {jitter:g} m, '
+            f'seed {seed}'
+        )
     else:
         settings = (
             f'gamma {config.gamma}, alpha {learner.alpha} ({config.alpha.kind}), '
@@ -114,10 +120,13 @@ def set_up_agent(description: EnvDescription, values: Mapping) -> AgentSetup:
     return AgentSetup(core, tuple(warnings), summary=summary)
 
 
-def attach_world(learner: LightModelLearner, index, rng, path: str, description) -> str | None:
+def attach_world(
+    learner: LightModelLearner, index, rng, path: str, description, settings=None
+) -> str | None:
     """Attach the light model to the world of the file at ``path`` (the scenario without its
-    lights): None, or the one line saying why it cannot be (unreadable, lights in it, a law it
-    does not model, another lattice than the environment's)."""
+    lights), its belief searching by ``settings`` (BeliefSettings): None, or the one line
+    saying why it cannot be (unreadable, lights in it, a law it does not model, another
+    lattice than the environment's)."""
     try:
         world = load_world(path)
     except (WorldFileError, UnmodelledLawError) as error:
@@ -126,7 +135,7 @@ def attach_world(learner: LightModelLearner, index, rng, path: str, description)
     if problem is not None:
         return f'world_file {path}: {problem}'
     try:
-        learner.attach(world, index, rng)
+        learner.attach(world, index, rng, settings=settings)
     except LightModelError as error:
         return f'world_file {path}: {error}'
     return None

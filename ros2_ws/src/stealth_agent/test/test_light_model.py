@@ -200,3 +200,20 @@ def test_after_a_success_it_tests_the_shorter_route_some_hypothesis_lights(tmp_p
     shortest = len(follow(model, lambda i: int(optimum.policy[i]))) - 1
     assert evaluated[-1] == EpisodeOutcome.SUCCESS.name, evaluated
     assert steps <= 1.1 * shortest, (steps, shortest)
+
+
+def test_a_step_read_detected_once_and_dark_once_is_planned_as_often_detected():
+    """Through ROS a step beside a beam's edge reads lit or dark by where the true pose stopped:
+    the plan takes it as detected as often as it was (in-process a step always reads the same),
+    its light as its dark readings', whatever the particles say; cautious and optimistic take
+    it as detected and as dark."""
+    learner, _ = light_model(load_scenario('simple-maze'))
+    place, direction = learner.world.model.start, 0
+    for low, high in ((0.1, 0.1), (learner.world.threshold, math.inf), (0.2, 0.2)):
+        learner.belief.observe(StepEvidence(place, direction, low, high))
+    for rule, detected in (('expected', 1 / 3), ('cautious', 1.0), ('optimistic', 0.0)):
+        p_detected, light = learner.planned_visibility(rule)
+        assert p_detected[place, direction] == pytest.approx(detected), rule
+        assert light[place, direction] == pytest.approx(0.15), rule
+    other = learner.planned_visibility('expected')[0]
+    assert np.count_nonzero(other) == 1  # no other step was read

@@ -39,6 +39,7 @@ import math
 import numpy as np
 
 from stealth_core import exposure
+from stealth_core.light_evidence import EvidenceSet
 from stealth_core.light_motion import (
     MOTION_POLISH_STEPS,
     STILL_TAIL,
@@ -85,6 +86,9 @@ class BeliefSettings:
     still_cost: float = 4.0
     abs_tol: float = 0.004  # tolerance of a read visibility, absolute
     rel_tol: float = 0.02  # and relative to it
+    # m: how far the judged pose may stand off its lattice node (light_evidence; through ROS
+    # the agent node's light_model_pose_jitter, in-process 0: the pose is the node's)
+    pose_jitter: float = 0.0
     max_range: float = 30.0  # m, the farthest a hypothesised light may reach
     max_lights: int = 12
 
@@ -93,6 +97,8 @@ class BeliefSettings:
             raise ValueError('belief settings: particles and max_lights >= 1, moves >= 0')
         if self.abs_tol <= 0 or self.rel_tol < 0 or self.light_cost < 0:
             raise ValueError('belief settings: abs_tol > 0, rel_tol >= 0, light_cost >= 0')
+        if not 0.0 <= self.pose_jitter <= 1.0:
+            raise ValueError(f'belief settings: pose_jitter in [0, 1] m, got {self.pose_jitter}')
 
 
 @dataclasses.dataclass
@@ -100,7 +106,7 @@ class _Light:
     """One hypothesised light: its parameters and its light at the evidence's samples."""
 
     params: tuple  # x, y, direction, fov, beta, range (and kind, a, b, period_bins, offset)
-    at_evidence: np.ndarray  # (evidence rows, width): its direct light
+    at_evidence: np.ndarray  # (distinct steps, shifts * width): its direct light
     # Its bounced light there, where light bounces (None: none yet). Tracing a light's bounce
     # costs tens of ms, so a moved light keeps its parent's until the fit's end refreshes it.
     bounced: np.ndarray | None = None
@@ -126,10 +132,10 @@ class LightBelief:
         self.world = world
         self.rng = rng
         self.settings = settings or BeliefSettings()
-        self.evidence: list[StepEvidence] = []
-        self._rows = np.zeros(0, dtype=np.int64)  # sample rows of the evidence
-        self._low = np.zeros(0)
-        self._high = np.zeros(0)
+        settings = self.settings
+        self.observed = EvidenceSet(
+            world, settings.abs_tol, settings.rel_tol, settings.pose_jitter
+        )
         self.particles = [_Particle([]) for _ in range(self.settings.particles)]
         self._lamps = _lamp_places(world)
         self._sight_from: dict[tuple[int, int], np.ndarray] = {}
@@ -138,34 +144,28 @@ class LightBelief:
 
     # --- evidence ------------------------------------------------------------------------------
 
+    @property
+    def evidence(self) -> list[StepEvidence]:
+        """What every step taken said, in order."""
+        return self.observed.steps
+
     def observe(self, evidence: StepEvidence) -> None:
-        """Add what one step said (the particles' lights learn its samples' light)."""
-        row = int(self.world.samples.step_rows(evidence.place, evidence.direction))
-        self.evidence.append(evidence)
-        self._rows = np.append(self._rows, row)
-        self._low = np.append(self._low, evidence.low)
-        self._high = np.append(self._high, evidence.high)
+        """Add what one step said (the particles' lights learn its samples' light, when the
+        step is new)."""
+        if self.observed.observe(evidence):
+            last = np.array([len(self.observed.distinct) - 1])
+            for particle in self.particles:
+                for light in particle.lights:
+                    extra = self._light_at(light.params, last)
+                    light.at_evidence = np.concatenate([light.at_evidence, extra])
+                    if light.bounced is not None:
+                        bounced = self._bounced_at(light.params, last)
+                        light.bounced = np.concatenate([light.bounced, bounced])
         for particle in self.particles:
-            for light in particle.lights:
-                extra = self._light_at(light.params, self._rows[-1:])
-                light.at_evidence = np.concatenate([light.at_evidence, extra])
-                if light.bounced is not None:
-                    bounced = self._bounced_at(light.params, self._rows[-1:])
-                    light.bounced = np.concatenate([light.bounced, bounced])
             particle.energy = math.inf
 
-    def _tolerance(self) -> np.ndarray:
-        finite = np.where(np.isfinite(self._high), self._high, self._low)
-        return self.settings.abs_tol + self.settings.rel_tol * finite
-
-    def misses(self, predicted: np.ndarray) -> np.ndarray:
-        """Each evidence step's miss, in tolerances (0 inside its bounds)."""
-        over = np.maximum(predicted - self._high, 0.0)
-        under = np.maximum(self._low - predicted, 0.0)
-        return (over + under) / self._tolerance()
-
     def _energy(self, lights: list[_Light]) -> float:
-        z = self.misses(self._predict(lights))
+        z = self.observed.misses(*self._predict(lights))
         cost = self.settings.light_cost * len(lights)
         moving = sum(light.moving for light in lights)
         cost += self.settings.motion_cost * moving
@@ -173,18 +173,18 @@ class LightBelief:
             cost += self.settings.still_cost
         return float(np.sum(np.sqrt(1.0 + z * z) - 1.0)) + cost
 
-    def _predict(self, lights: list[_Light]) -> np.ndarray:
-        if not lights:
-            return np.zeros(len(self.evidence))
-        total = lights[0].light()
-        for light in lights[1:]:
-            total = total + light.light()
-        return total.max(axis=1)
+    def _predict(self, lights: list[_Light]) -> tuple[np.ndarray, np.ndarray]:
+        """(low, high): the light the lights put on each observation's step, as a range
+        (``EvidenceSet.predict``)."""
+        total = None
+        for light in lights:
+            total = light.light() if total is None else total + light.light()
+        return self.observed.predict(total)
 
-    def _light_at(self, params: tuple, rows: np.ndarray) -> np.ndarray:
-        """A light's direct light at the samples of evidence rows."""
+    def _light_at(self, params: tuple, distinct: np.ndarray | None = None) -> np.ndarray:
+        """A light's direct light at the samples of distinct evidence steps (all by default)."""
         light = hypothesis_light('hypothesis', params, self.world.timing)
-        return self.world.samples.light_at(self.world.see([light], bounce=False), rows)
+        return self.observed.light_at(self.world.see([light], bounce=False), distinct)
 
     def _seeing(self, params: tuple):
         """The point visibility of one light, bounce included, kept while its light is asked
@@ -197,19 +197,19 @@ class LightBelief:
             self._seeing_cache[params] = see
         return see
 
-    def _bounced_at(self, params: tuple, rows: np.ndarray) -> np.ndarray:
-        """A light's bounced light at the samples of evidence rows."""
-        samples = self.world.samples
-        return samples.light_at(self._seeing(params), rows) - self._light_at(params, rows)
+    def _bounced_at(self, params: tuple, distinct: np.ndarray | None = None) -> np.ndarray:
+        """A light's bounced light at the samples of distinct evidence steps (all by default)."""
+        seen = self.observed.light_at(self._seeing(params), distinct)
+        return seen - self._light_at(params, distinct)
 
     def _make(self, params: tuple, bounced: np.ndarray | None = None) -> _Light:
-        return _Light(params, self._light_at(params, self._rows), bounced)
+        return _Light(params, self._light_at(params), bounced)
 
     def _refresh_bounce(self, particle: _Particle) -> None:
         """Trace the bounce of every light of a particle afresh, and its energy with it."""
         if self.world.bounces:
             for light in particle.lights:
-                light.bounced = self._bounced_at(light.params, self._rows)
+                light.bounced = self._bounced_at(light.params)
             particle.energy = self._energy(particle.lights)
 
     # --- search --------------------------------------------------------------------------------
@@ -296,12 +296,11 @@ class LightBelief:
     def _lit_time(self, light: _Light) -> float:
         """The time of the evidence sample the light lights most (a random time of the cycle
         when it lights none): where a motion keeps it."""
-        samples, timing = self.world.samples, self.world.timing
         lit = light.at_evidence
         if lit.size == 0 or lit.max() <= 0.0:
-            return float(self.rng.uniform(0.0, timing.cycle))
+            return float(self.rng.uniform(0.0, self.world.timing.cycle))
         row, column = np.unravel_index(int(np.argmax(lit)), lit.shape)
-        return float(samples.t[self._rows[row], column])
+        return self.observed.sample_time(int(row), int(column))
 
     def _animated(self, light: _Light) -> tuple | None:
         when = self._lit_time(light)
@@ -360,14 +359,15 @@ class LightBelief:
         """A light proposed to explain a step lit more than the hypothesis says."""
         if len(lights) >= self.settings.max_lights:
             return None
-        predicted = self._predict(lights)
-        missing = np.where(np.isfinite(self._high), self._high, self._low) - predicted
-        candidates = np.flatnonzero(missing > self._tolerance())
+        observed = self.observed
+        _, most = self._predict(lights)
+        missing = np.where(np.isfinite(observed.high), observed.high, observed.low) - most
+        candidates = np.flatnonzero(missing > observed.tolerance())
         if candidates.size == 0:
             return None
         k = int(candidates[self.rng.choice(candidates.size, p=_normalised(missing[candidates]))])
         target = float(missing[k])
-        if not np.isfinite(self._high[k]):  # a detection: at least that much more
+        if not np.isfinite(observed.high[k]):  # a detection: at least that much more
             target += float(self.rng.uniform(0.0, 0.5))
         target = min(target, 0.95)
         found = self._lamp_for(k, target, candidates, missing)
@@ -416,8 +416,9 @@ class LightBelief:
         # worse (it was cautious by this), so it stays until caution is built in (docs: the
         # light model, "why the fix is not in").
         arrival = samples.width - 1 if not samples.weighs_heading else 0
-        others = candidates[np.isfinite(self._high[candidates]) & (candidates != k)]
-        rows = self._rows[np.append(k, others)]
+        observed = self.observed
+        others = candidates[np.isfinite(observed.high[candidates]) & (candidates != k)]
+        rows = observed.rows[np.append(k, others)]
         points = np.stack([samples.x[rows, arrival], samples.y[rows, arrival]], 1)
         values = np.minimum(np.append(target, missing[others]), 0.95)
         close = np.hypot(*(points - points[0]).T) <= 4.0
@@ -504,18 +505,19 @@ class LightBelief:
         if not self.evidence:
             return []
         lights = self.particles[self.best()].lights
-        predicted = self._predict(lights)
-        z = self.misses(predicted)
+        low, high = self._predict(lights)
+        z = self.observed.misses(low, high)
         lines = []
         model = self.world.model
         for k in np.flatnonzero(z > CONTRADICTION_Z):
             e = self.evidence[k]
             x, y = model.points[e.place]
             said = f'{e.low:.3f}' if e.exact else f'in [{e.low:.3f}, {e.high:.3f}]'
+            says = f'{low[k]:.3f}' if low[k] == high[k] else f'{low[k]:.3f} to {high[k]:.3f}'
             lines.append(
                 f'step from ({x:.2f}, {y:.2f}) direction {e.direction}: light {said}, '
                 f'the best of {len(self.particles)} hypotheses ({len(lights)} lights) says '
-                f'{predicted[k]:.3f}'
+                f'{says}'
             )
         return lines
 

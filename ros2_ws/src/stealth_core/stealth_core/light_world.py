@@ -150,15 +150,27 @@ class LatticeSamples:
         """The sample rows of steps (arrays of places and directions)."""
         return np.asarray(places) * self.shape[1] + np.asarray(directions)
 
-    def light_at(self, see: PointVisibility, rows: np.ndarray | None = None) -> np.ndarray:
+    def light_at(
+        self, see: PointVisibility, rows: np.ndarray | None = None, offsets=None
+    ) -> np.ndarray:
         """(rows, width): the light of ``see`` (one light's, usually) at the samples of the step
-        rows (all steps when None); moving lights where each sample's time puts them."""
+        rows (all steps when None); moving lights where each sample's time puts them. With
+        ``offsets`` ((k, 2) m), (rows, k * width): each row's samples shifted by each offset
+        in turn (the step walked that far off its nodes)."""
         pick = slice(None) if rows is None else rows
         xs, ys = self.x[pick], self.y[pick]
         headings = None if self.yaw is None else self.yaw[pick]
-        if self.t is None or not any(light.is_moving for light in see.lights):
+        ts = None if self.t is None else self.t[pick]
+        if offsets is not None:
+            offsets = np.asarray(offsets, dtype=np.float64)
+            count = xs.shape[0]
+            xs = (xs[:, None, :] + offsets[None, :, 0, None]).reshape(count, -1)
+            ys = (ys[:, None, :] + offsets[None, :, 1, None]).reshape(count, -1)
+            headings = None if headings is None else np.tile(headings, (1, len(offsets)))
+            ts = None if ts is None else np.tile(ts, (1, len(offsets)))
+        if ts is None or not any(light.is_moving for light in see.lights):
             return see.many(xs, ys, 0.0, headings)
-        return see.many_at_times(xs, ys, self.t[pick], headings)
+        return see.many_at_times(xs, ys, ts, headings)
 
     def step_peaks(self, light: np.ndarray) -> np.ndarray:
         """A field at the samples, (rows, width), as each step's visibility: its most."""

@@ -1,0 +1,97 @@
+"""The steps the robot has taken, what each said of the light on it, and how far a hypothesised
+light field misses them: the data side of ``light_belief``. No rclpy.
+
+A step is one row of ``LatticeSamples`` (its start place and direction); its evidence a
+``StepEvidence`` (a value read off the reward, or a bound). A robot walks the same steps again
+and again, so a light's light is computed once per *distinct* step (``distinct``), and every
+observation points at its own (``which``): after a few hundred training episodes through ROS,
+22,000 observations were 710 distinct steps.
+
+**Where the pose is judged off the node** (through ROS the environment judges the true pose,
+which stops a few centimetres from the lattice node: median 5 cm, at most 31 cm, measured on
+floorplan-moving), a step near a beam's edge reads dark once and lit the next time, and no
+light field explains both at the node. With ``pose_jitter`` r > 0 each step is also sampled
+with its whole way shifted by r along +x, +y, -x and -y, and a hypothesis predicts the
+*range* of the step's light over the node and those four shifts: a reading inside the range
+is no miss. (The true lights, at 15 cm, explained all but 1 of the 85 readings the node alone
+missed on floorplan-moving and all 32 on map1-moving; at 10 cm 5 were left.) In-process the
+pose is the node's (r = 0) and the range is one value.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stealth_core.light_world import LightWorld, StepEvidence
+
+
+class EvidenceSet:
+    """Observations of lattice steps and their sample rows (``observe``), a light's light at
+    their distinct steps (``light_at``), and a summed field's misses (``predict``, ``misses``)."""
+
+    def __init__(self, world: LightWorld, abs_tol: float, rel_tol: float, pose_jitter=0.0):
+        self.world = world
+        self.abs_tol, self.rel_tol = abs_tol, rel_tol
+        self.steps: list[StepEvidence] = []
+        self.rows = np.zeros(0, dtype=np.int64)  # each observation's sample row
+        self.low = np.zeros(0)
+        self.high = np.zeros(0)
+        self.distinct = np.zeros(0, dtype=np.int64)  # the sample rows, in the order first taken
+        self.which = np.zeros(0, dtype=np.int64)  # each observation's index in ``distinct``
+        self._index: dict[int, int] = {}
+        r = float(pose_jitter)
+        shifts = [(0.0, 0.0)] + ([(r, 0.0), (0.0, r), (-r, 0.0), (0.0, -r)] if r > 0 else [])
+        self.offsets = np.array(shifts)  # (shifts, 2) m: the node's first
+
+    def __len__(self) -> int:
+        return len(self.steps)
+
+    def observe(self, evidence: StepEvidence) -> bool:
+        """Add one observation; True when its step is new (lights must learn its light)."""
+        row = int(self.world.samples.step_rows(evidence.place, evidence.direction))
+        self.steps.append(evidence)
+        self.rows = np.append(self.rows, row)
+        self.low = np.append(self.low, evidence.low)
+        self.high = np.append(self.high, evidence.high)
+        new = row not in self._index
+        if new:
+            self._index[row] = len(self.distinct)
+            self.distinct = np.append(self.distinct, row)
+        self.which = np.append(self.which, self._index[row])
+        return new
+
+    def light_at(self, see, distinct: np.ndarray | None = None) -> np.ndarray:
+        """(steps, shifts * width): the light of ``see`` at the samples of distinct steps (all
+        by default), each step's samples at the node, then at each shift."""
+        rows = self.distinct if distinct is None else self.distinct[distinct]
+        return self.world.samples.light_at(see, rows, self.offsets)
+
+    def predict(self, total: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """(low, high) per observation: the least and most of a field's step light (``total``,
+        the lights' ``light_at`` summed; None: no light) over the node and the shifts."""
+        if total is None:
+            zeros = np.zeros(len(self.steps))
+            return zeros, zeros
+        peaks = total.reshape(total.shape[0], len(self.offsets), -1).max(axis=2)
+        if peaks.shape[1] == 1:
+            values = peaks[:, 0][self.which]
+            return values, values
+        return peaks.min(axis=1)[self.which], peaks.max(axis=1)[self.which]
+
+    def tolerance(self) -> np.ndarray:
+        """Each observation's tolerance: ``abs_tol + rel_tol * v``."""
+        finite = np.where(np.isfinite(self.high), self.high, self.low)
+        return self.abs_tol + self.rel_tol * finite
+
+    def misses(self, low: np.ndarray, high: np.ndarray | None = None) -> np.ndarray:
+        """Each observation's miss, in tolerances (0 where the predicted range [low, high]
+        meets the observation's bounds)."""
+        high = low if high is None else high
+        over = np.maximum(low - self.high, 0.0)
+        under = np.maximum(self.low - high, 0.0)
+        return (over + under) / self.tolerance()
+
+    def sample_time(self, distinct: int, column: int) -> float:
+        """The time in the cycle of a column of ``light_at``'s row ``distinct``."""
+        samples = self.world.samples
+        return float(samples.t[self.distinct[distinct], column % samples.width])

@@ -1,0 +1,107 @@
+"""The light model's evidence: a step walked again is one distinct step, and with a pose jitter a
+hypothesis predicts a range that takes in a step read dark once and lit once near a beam edge
+(through ROS the true pose stops a few cm off its node)."""
+
+import math
+
+import numpy as np
+import pytest
+from stealth_core.light_belief import BeliefSettings, LightBelief
+from stealth_core.light_evidence import EvidenceSet
+from stealth_core.light_world import LightWorld, StepEvidence
+from stealth_core.scenario import load_scenario
+
+JITTER = 0.15
+
+
+@pytest.fixture(scope='module')
+def world():
+    return LightWorld(load_scenario('simple-maze'))
+
+
+@pytest.fixture(scope='module')
+def truth(world):
+    """The scenario's lights as the world sees them (the world itself has none)."""
+    return world.see(load_scenario('simple-maze').lights)
+
+
+def test_a_step_walked_again_is_one_distinct_step_and_each_observation_keeps_its_own(world):
+    evidence = EvidenceSet(world, 0.004, 0.02)
+    assert evidence.observe(StepEvidence(3, 1, 0.2, 0.2))
+    assert not evidence.observe(StepEvidence(3, 1, 0.25, 0.25))
+    assert evidence.observe(StepEvidence(4, 0, 0.0, 0.0))
+    assert len(evidence) == 3 and evidence.distinct.size == 2
+    assert evidence.which.tolist() == [0, 0, 1]
+    total = np.array([[0.2] * world.samples.width, [0.0] * world.samples.width])
+    low, high = evidence.predict(total)
+    assert low.tolist() == high.tolist() == [0.2, 0.2, 0.0]
+    # the second observation missed by 0.05 in tolerances of its reading
+    assert evidence.misses(low, high).tolist() == pytest.approx([0.0, 0.05 / 0.009, 0.0])
+
+
+def test_without_jitter_a_step_is_predicted_at_its_nodes_as_the_lattice_judges_it(world, truth):
+    evidence = EvidenceSet(world, 0.004, 0.02)
+    rows = np.arange(0, world.samples.x.shape[0], 7)
+    shape = world.samples.shape
+    for row in rows.tolist():
+        evidence.observe(StepEvidence(row // shape[1], row % shape[1], 0.0, 0.0))
+    low, high = evidence.predict(evidence.light_at(truth))
+    peaks = world.samples.step_peaks(world.samples.light_at(truth, rows))
+    assert np.array_equal(low, peaks) and np.array_equal(high, peaks)
+
+
+def test_the_shifted_samples_are_the_step_walked_that_far_off_its_nodes(world, truth):
+    evidence = EvidenceSet(world, 0.004, 0.02, JITTER)
+    assert evidence.offsets.tolist() == [
+        [0.0, 0.0], [JITTER, 0.0], [0.0, JITTER], [-JITTER, 0.0], [0.0, -JITTER]
+    ]  # fmt: skip
+    evidence.observe(StepEvidence(5, 2, 0.0, 0.0))
+    light = evidence.light_at(truth)
+    samples, width = world.samples, world.samples.width
+    row = evidence.distinct[0]
+    for k, (dx, dy) in enumerate(evidence.offsets):
+        direct = truth.many(samples.x[row] + dx, samples.y[row] + dy)
+        assert np.array_equal(light[0, k * width : (k + 1) * width], direct)
+
+
+def edge_step(world, truth):
+    """A step of simple-maze's lights dark at its nodes and lit above the threshold with its
+    way shifted by JITTER: a beam edge beside the node."""
+    evidence = EvidenceSet(world, 0.004, 0.02, JITTER)
+    places, directions = world.samples.shape
+    for row in range(places * directions):
+        evidence.observe(StepEvidence(row // directions, row % directions, 0.0, 0.0))
+    light = evidence.light_at(truth)
+    peaks = light.reshape(light.shape[0], len(evidence.offsets), -1).max(axis=2)
+    edges = np.flatnonzero((peaks[:, 0] == 0.0) & (peaks.max(axis=1) >= world.threshold))
+    assert edges.size, 'no beam edge within the jitter of a node'
+    row = int(evidence.distinct[edges[0]])
+    return row // directions, row % directions
+
+
+def test_with_jitter_a_step_read_dark_once_and_detected_once_contradicts_no_true_light(world):
+    """The true lights, as a hypothesis, miss the detection at the node (the reading the
+    environment gave a pose 10 cm off it) and explain both readings with the jitter."""
+    scenario = load_scenario('simple-maze')
+    truth = world.see(scenario.lights)
+    place, direction = edge_step(world, truth)
+    energies = {}
+    for jitter in (0.0, JITTER):
+        belief = LightBelief(world, np.random.default_rng(0), BeliefSettings(pose_jitter=jitter))
+        belief.observe(StepEvidence(place, direction, 0.0, 0.0))
+        belief.observe(StepEvidence(place, direction, world.threshold, math.inf))
+        lights = [belief._make(parameters_of(light)) for light in scenario.lights]
+        energies[jitter] = belief._energy(lights) - belief.settings.light_cost * len(lights)
+    assert energies[JITTER] == 0.0
+    assert energies[0.0] > 20.0  # the detection missed by the threshold: 30 tolerances
+
+
+def parameters_of(light):
+    """A Searchlight as the six parameters a hypothesis has (``light_from_parameters``)."""
+    beta = (1.0 - light.delta) / (light.delta * light.range**2)
+    return (light.x, light.y, light.direction, light.fov, beta, light.range)
+
+
+def test_pose_jitter_is_checked():
+    with pytest.raises(ValueError, match='pose_jitter'):
+        BeliefSettings(pose_jitter=-0.1)
