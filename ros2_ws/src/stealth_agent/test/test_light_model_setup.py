@@ -40,7 +40,15 @@ def test_it_learns_on_the_world_of_its_file(world_file):
     assert isinstance(learner, LightModelLearner) and learner.world.scenario.lights == ()
     assert len(setup.core.index) == learner.world.model.size  # a row for every place
     assert f'the world of {world_file} (no lights)' in setup.summary
-    assert 'planning rule expected' in setup.summary
+    assert 'planning rule expected, pose jitter 0.15 m' in setup.summary
+    assert learner.belief.settings.pose_jitter == 0.15  # through ROS the pose stops off its node
+
+
+def test_the_pose_jitter_reaches_the_belief(world_file):
+    values = light_model(world_file=str(world_file), pose_jitter=0.0)
+    setup = set_up_agent(description(), values)
+    assert setup.core.learner.belief.settings.pose_jitter == 0.0
+    assert 'pose jitter 0 m' in setup.summary
 
 
 def test_a_resumed_light_model_replays_its_evidence(world_file, tmp_path):
