@@ -105,6 +105,15 @@ PARAMETERS = {
         bounds=(0.0, 1.0),
         read_only=True,
     ),
+    'plan_margin': Param(
+        0.1,
+        'light-model: plan a step as detected where a hypothesis lights it to (1 - plan_margin) '
+        "x the detection threshold: through ROS one step's readings spread by a few per cent "
+        '(the pose, the controller), and a plan on the threshold itself is caught by them. '
+        '0 = on the threshold.',
+        bounds=(0.0, 0.9),
+        read_only=True,
+    ),
     'grid_sha256': Param(
         '',
         "SHA-256 of the scenario's occupancy grid (stealth train sets it): saved with the "

@@ -88,7 +88,9 @@ def set_up_agent(description: EnvDescription, values: Mapping) -> AgentSetup:
         index = StateIndex(mapping)
     if isinstance(learner, LightModelLearner) and not evaluate:
         settings = BeliefSettings(pose_jitter=values['pose_jitter'])
-        problem = attach_world(learner, index, rng, values['world_file'], description, settings)
+        problem = attach_world(
+            learner, index, rng, values['world_file'], description, settings, values['plan_margin']
+        )
         if problem is not None:
             return AgentSetup(None, tuple(warnings), error=problem)
         source += f'; the world of {values["world_file"]} (no lights)'
@@ -101,7 +103,7 @@ def set_up_agent(description: EnvDescription, values: Mapping) -> AgentSetup:
         jitter = learner.belief.settings.pose_jitter
         settings = (
             f'gamma {config.gamma}, planning rule {learner.rule}, pose jitter {jitter:g} m, '
-            f'seed {seed}'
+            f'plan margin {learner.plan_margin:g}, seed {seed}'
         )
     else:
         settings = (
@@ -121,10 +123,11 @@ def set_up_agent(description: EnvDescription, values: Mapping) -> AgentSetup:
 
 
 def attach_world(
-    learner: LightModelLearner, index, rng, path: str, description, settings=None
+    learner: LightModelLearner, index, rng, path: str, description, settings=None, margin=0.0
 ) -> str | None:
     """Attach the light model to the world of the file at ``path`` (the scenario without its
-    lights), its belief searching by ``settings`` (BeliefSettings): None, or the one line
+    lights), its belief searching by ``settings`` (BeliefSettings), planning with ``margin``
+    (``LightModelLearner.attach``'s plan_margin): None, or the one line
     saying why it cannot be (unreadable, lights in it, a law it does not model, another
     lattice than the environment's)."""
     try:
@@ -135,7 +138,7 @@ def attach_world(
     if problem is not None:
         return f'world_file {path}: {problem}'
     try:
-        learner.attach(world, index, rng, settings=settings)
+        learner.attach(world, index, rng, settings=settings, plan_margin=margin)
     except LightModelError as error:
         return f'world_file {path}: {error}'
     return None

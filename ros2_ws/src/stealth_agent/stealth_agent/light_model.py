@@ -76,6 +76,7 @@ class LightModelLearner(TabularLearner):
         self._probing = False  # this training episode follows the optimistic plan
         self._reached_goal = False  # the last episode ended at the goal
         self._loaded_evidence: np.ndarray | None = None
+        self.plan_margin = 0.0  # of the threshold: lit enough to plan a step as detected
 
     def attach(
         self,
@@ -84,14 +85,19 @@ class LightModelLearner(TabularLearner):
         rng: np.random.Generator,
         rule: str = DEFAULT_RULE,
         settings: BeliefSettings | None = None,
+        plan_margin: float = 0.0,
     ) -> None:
         """Know the world: register every lattice place's state in ``index`` (a place's row is
-        its place number), start the belief (drawing from ``rng``) and plan. LightModelError when
-        the index already numbers states otherwise or the actions differ."""
+        its place number), start the belief (drawing from ``rng``) and plan, a step taken as
+        detected where a hypothesis lights it to (1 - plan_margin) x the threshold (through ROS
+        the readings of one step spread by a few per cent). LightModelError when the index
+        already numbers states otherwise or the actions differ."""
         if rule not in PLANNING_RULES:
             raise LightModelError(
                 f'light-model rule: expected one of {", ".join(PLANNING_RULES)}, got {rule!r}'
             )
+        if not 0.0 <= plan_margin < 1.0:
+            raise LightModelError(f'light-model plan_margin: expected [0, 1), got {plan_margin}')
         model = world.model
         if model.num_actions != self.num_actions:
             raise LightModelError(
@@ -105,7 +111,7 @@ class LightModelLearner(TabularLearner):
                     'to a fresh index, or to the one saved with its table)'
                 )
         self.ensure_rows(model.size)
-        self.world, self.rule = world, rule
+        self.world, self.rule, self.plan_margin = world, rule, float(plan_margin)
         self.belief = LightBelief(world, rng, settings)
         if self._loaded_evidence is not None:
             for place, direction, low, high in self._loaded_evidence.tolist():
@@ -215,7 +221,7 @@ class LightModelLearner(TabularLearner):
         to what they said."""
         rule = self.rule if rule is None else rule
         belief = self._attached()
-        threshold = belief.world.threshold
+        threshold = belief.world.threshold * (1.0 - self.plan_margin)
         weights = belief.weights()
         if rule == 'thompson':
             chosen = int(belief.rng.choice(len(weights), p=weights))

@@ -217,3 +217,18 @@ def test_a_step_read_detected_once_and_dark_once_is_planned_as_often_detected():
         assert light[place, direction] == pytest.approx(0.15), rule
     other = learner.planned_visibility('expected')[0]
     assert np.count_nonzero(other) == 1  # no other step was read
+
+
+def test_with_a_plan_margin_a_step_lit_just_below_the_threshold_is_planned_as_detected():
+    """Through ROS one step's readings spread by a few per cent: a step read at 0.28 against a
+    threshold of 0.3 is taken as detected by a plan with a 10 % margin, as dark without one."""
+    scenario = load_scenario('simple-maze')
+    for margin, detected in ((0.0, 0.0), (0.1, 1.0)):
+        learner = make_learner('light-model', 4, CONFIG)
+        world = LightWorld(scenario)
+        learner.attach(world, StateIndex(), np.random.default_rng(0), plan_margin=margin)
+        place = world.model.start
+        learner.belief.observe(StepEvidence(place, 0, 0.28, 0.28))
+        assert learner.planned_visibility('expected')[0][place, 0] == detected
+    with pytest.raises(LightModelError, match='plan_margin'):
+        learner.attach(world, StateIndex(), np.random.default_rng(0), plan_margin=1.0)
