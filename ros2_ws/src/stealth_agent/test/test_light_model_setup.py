@@ -42,14 +42,14 @@ def test_it_learns_on_the_world_of_its_file(world_file):
     assert f'the world of {world_file} (no lights)' in setup.summary
     assert 'planning rule expected, pose jitter 0.15 m' in setup.summary
     assert learner.belief.settings.pose_jitter == 0.15  # through ROS the pose stops off its node
-    assert learner.plan_margin == 0.1 and 'plan margin 0.1' in setup.summary
+    assert learner.plan_margin == 0.0 and 'plan margin 0,' in setup.summary
 
 
 def test_the_pose_jitter_and_the_plan_margin_reach_the_learner(world_file):
-    values = light_model(world_file=str(world_file), pose_jitter=0.0, plan_margin=0.0)
+    values = light_model(world_file=str(world_file), pose_jitter=0.0, plan_margin=0.1)
     setup = set_up_agent(description(), values)
     assert setup.core.learner.belief.settings.pose_jitter == 0.0
-    assert setup.core.learner.plan_margin == 0.0
+    assert setup.core.learner.plan_margin == 0.1
     assert 'pose jitter 0 m' in setup.summary
 
 
