@@ -44,7 +44,6 @@ from stealth_core.light_motion import (
     MOTION_POLISH_STEPS,
     STILL_TAIL,
     animated,
-    fitted_patrol,
     motion_perturbed,
     motion_valid,
     stilled,
@@ -280,8 +279,6 @@ class LightBelief:
             light, timing = lights[k], self.world.timing
             if light.moving:
                 params = stilled(light.params, self._lit_time(light), timing)
-            elif self.rng.random() < 0.5:
-                params = self._fitted_patrol(lights, k)
             else:
                 params = self._animated(light)
         elif lights[k].moving and kind < 0.75:
@@ -308,20 +305,6 @@ class LightBelief:
     def _animated(self, light: _Light) -> tuple | None:
         when = self._lit_time(light)
         return animated(self.rng, light.params, when, self.world.timing, self._rail_free)
-
-    def _fitted_patrol(self, lights: list[_Light], k: int) -> tuple | None:
-        """Light k as a patrol fitted to the steps lit more than the other lights explain,
-        within its range of its lamp (``light_motion.fitted_patrol``)."""
-        observed, samples, params = self.observed, self.world.samples, lights[k].params
-        _, most = self._predict(lights[:k] + lights[k + 1 :])
-        read = np.where(np.isfinite(observed.high), observed.high, observed.low)
-        rows = np.unique(observed.rows[read - most > observed.tolerance()])
-        arrival = samples.width - 1
-        points = np.stack([samples.x[rows, arrival], samples.y[rows, arrival]], axis=1)
-        near = np.hypot(*(points - params[:2]).T) <= params[5]
-        times = samples.t[rows[near], arrival]
-        timing = self.world.timing
-        return fitted_patrol(self.rng, params, points[near], times, timing, self._rail_free)
 
     def _rail_free(self, start, end) -> bool:
         """Whether a patrol's rail runs over free places only (every 0.1 m)."""

@@ -80,64 +80,6 @@ def animated(
     )  # fmt: skip
 
 
-def fitted_patrol(
-    rng: np.random.Generator,
-    params: tuple,
-    points: np.ndarray,
-    times: np.ndarray,
-    timing: Timing,
-    free_rail: RailCheck,
-) -> tuple | None:
-    """A patrol fitted to where and when steps were lit near a light: a rail through its lamp,
-    across its beam (or now and then along it), whose lamp stands at each lit step's
-    projection on the rail at that step's time. For every period and 16 phases the lamp's
-    place along the rail is a triangle wave of time, so the rail's start and length are a
-    least-squares line in it; the fit is drawn by its residual (48 phases: the lamp a
-    48th of its loop off at most). None when too few steps were
-    lit at different times, or no rail of 1-8 m fits a free place.
-
-    ``points`` (k, 2) m and ``times`` (k,) s: the lit steps' arrivals and their times. Random
-    patrols (``animated``) find a rail one draw in hundreds; where a lit patch moves, the
-    evidence says how."""
-    if len(points) < 3 or np.ptp(times) <= 0.0:
-        return None
-    x, y, direction = params[:3]
-    axis = direction + math.pi / 2 if rng.random() < 0.8 else direction
-    unit = np.array([math.cos(axis), math.sin(axis)])
-    along = (points - np.array([x, y])) @ unit  # the lit steps along the rail, from the lamp
-    # Every period and phase at once: the wave (fits, k), then the least-squares line
-    # along = start + length * wave of each (its slope, intercept and mean squared residual).
-    choices = [(period, phase) for period in periods(timing) for phase in np.arange(48) / 48]
-    seconds = np.array([period for period, _ in choices]) * timing.bin_seconds
-    phases = np.array([phase for _, phase in choices])
-    cycle = (phases[:, None] + times[None, :] / seconds[:, None]) % 1.0
-    wave = np.where(cycle <= 0.5, 2.0 * cycle, 2.0 - 2.0 * cycle)
-    wave_mean, along_mean = wave.mean(axis=1), along.mean()
-    spread = np.maximum(((wave - wave_mean[:, None]) ** 2).mean(axis=1), 1e-12)
-    covariance = ((wave - wave_mean[:, None]) * (along - along_mean)).mean(axis=1)
-    lengths = covariance / spread
-    starts = along_mean - lengths * wave_mean
-    residuals = np.maximum(along.var() - covariance**2 / spread, 0.0)
-    usable = np.flatnonzero((np.abs(lengths) >= 1.0) & (np.abs(lengths) <= 8.0))
-    if usable.size == 0:
-        return None
-    best = float(residuals[usable].min())
-    weights = np.exp(-(residuals[usable] - best) / max(best, 0.05))
-    chosen = int(usable[rng.choice(usable.size, p=weights / weights.sum())])
-    period, phase = choices[chosen]
-    start, length = float(starts[chosen]), float(lengths[chosen])
-    if length < 0:  # the lamp is at the far end at the wave's low: start there, half a loop on
-        start, length, phase = start + length, -length, (phase + 0.5) % 1.0
-    first = np.array([x, y]) + start * unit
-    last = first + length * unit
-    if not free_rail(first, last):
-        return None
-    return (
-        float(first[0]), float(first[1]), direction, *params[3:6],
-        float(PATROL), float(last[0]), float(last[1]), period, float(phase * 2.0 * length),
-    )  # fmt: skip
-
-
 def stilled(params: tuple, when: float, timing: Timing) -> tuple:
     """A moving light stopped where it stands at time ``when``."""
     still = hypothesis_light('h', params, timing).at(when)
