@@ -275,10 +275,10 @@ class LightModelLearner(TabularLearner):
         )
         reads = np.bincount(observed.which, read, minlength=observed.distinct.size)
         rows = observed.distinct[mixed]
-        width = self._attached().world.samples.shape[1]
+        directions = self._attached().world.samples.shape[1]  # a sample row: place, direction
         share = detected[mixed] / counts[mixed]
         dark = sums[mixed] / np.maximum(reads[mixed], 1)
-        return rows // width, rows % width, share, dark
+        return rows // directions, rows % directions, share, dark
 
     def _with_evidence(self, table: np.ndarray) -> np.ndarray:
         belief = self._attached()
