@@ -249,36 +249,11 @@ class LightModelLearner(TabularLearner):
                 out=np.zeros_like(dark_weight),
                 where=dark_weight > 0,
             )
-        places, directions, share, dark = self._mixed_steps()
+        places, directions, share, dark = belief.observed.mixed_steps()
         if places.size:  # as often detected as they were, whatever a particle says
             p_detected[places, directions] = {'cautious': 1.0, 'optimistic': 0.0}.get(rule, share)
             light[places, directions] = dark
         return p_detected, light
-
-    def _mixed_steps(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """The steps read detected once and not another time (through ROS: a beam's edge within
-        the pose's few cm off the node; in-process a step always reads the same): (places,
-        directions, the share of their readings that were detections, the mean light of their
-        undetected readings)."""
-        observed = self._attached().observed
-        counts = np.bincount(observed.which, minlength=observed.distinct.size)
-        detected = np.bincount(
-            observed.which, ~np.isfinite(observed.high), minlength=observed.distinct.size
-        )
-        mixed = np.flatnonzero((detected > 0) & (detected < counts))
-        if mixed.size == 0:
-            empty = np.zeros(0, dtype=np.int64)
-            return empty, empty, np.zeros(0), np.zeros(0)
-        read = np.isfinite(observed.high) & (observed.low == observed.high)
-        sums = np.bincount(
-            observed.which, np.where(read, observed.low, 0.0), observed.distinct.size
-        )
-        reads = np.bincount(observed.which, read, minlength=observed.distinct.size)
-        rows = observed.distinct[mixed]
-        directions = self._attached().world.samples.shape[1]  # a sample row: place, direction
-        share = detected[mixed] / counts[mixed]
-        dark = sums[mixed] / np.maximum(reads[mixed], 1)
-        return rows // directions, rows % directions, share, dark
 
     def _with_evidence(self, table: np.ndarray) -> np.ndarray:
         belief = self._attached()

@@ -87,7 +87,7 @@ class BeliefSettings:
     abs_tol: float = 0.004  # tolerance of a read visibility, absolute
     rel_tol: float = 0.02  # and relative to it
     # m: how far the judged pose may stand off its lattice node (light_evidence; through ROS
-    # the agent node's light_model_pose_jitter, in-process 0: the pose is the node's)
+    # the agent node's parameter pose_jitter, in-process 0: the pose is the node's)
     pose_jitter: float = 0.0
     max_range: float = 30.0  # m, the farthest a hypothesised light may reach
     max_lights: int = 12

@@ -91,6 +91,27 @@ class EvidenceSet:
         under = np.maximum(self.low - high, 0.0)
         return (over + under) / self.tolerance()
 
+    def mixed_steps(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The steps read detected once and not another time (through ROS: a beam's edge within
+        the pose's few cm off the node; in-process a step always reads the same): (places,
+        directions, the share of their readings that were detections, the mean light of their
+        undetected readings)."""
+        steps = self.distinct.size
+        counts = np.bincount(self.which, minlength=steps)
+        detected = np.bincount(self.which, ~np.isfinite(self.high), minlength=steps)
+        mixed = np.flatnonzero((detected > 0) & (detected < counts))
+        if mixed.size == 0:
+            empty = np.zeros(0, dtype=np.int64)
+            return empty, empty, np.zeros(0), np.zeros(0)
+        read = np.isfinite(self.high) & (self.low == self.high)
+        sums = np.bincount(self.which, np.where(read, self.low, 0.0), steps)
+        reads = np.bincount(self.which, read, minlength=steps)
+        rows = self.distinct[mixed]
+        directions = self.world.samples.shape[1]  # a sample row: place * directions + direction
+        share = detected[mixed] / counts[mixed]
+        dark = sums[mixed] / np.maximum(reads[mixed], 1)
+        return rows // directions, rows % directions, share, dark
+
     def sample_time(self, distinct: int, column: int) -> float:
         """The time in the cycle of a column of ``light_at``'s row ``distinct``."""
         samples = self.world.samples

@@ -39,6 +39,17 @@ def test_a_step_walked_again_is_one_distinct_step_and_each_observation_keeps_its
     assert evidence.misses(low, high).tolist() == pytest.approx([0.0, 0.05 / 0.009, 0.0])
 
 
+def test_a_step_read_detected_and_dark_is_mixed_with_its_share_and_dark_light(world):
+    evidence = EvidenceSet(world, 0.004, 0.02, JITTER)
+    for low, high in ((0.1, 0.1), (world.threshold, math.inf), (0.2, 0.2)):
+        evidence.observe(StepEvidence(7, 2, low, high))
+    evidence.observe(StepEvidence(8, 1, world.threshold, math.inf))  # detected every time
+    evidence.observe(StepEvidence(9, 0, 0.05, 0.05))  # dark every time
+    places, directions, share, dark = evidence.mixed_steps()
+    assert places.tolist() == [7] and directions.tolist() == [2]
+    assert share.tolist() == pytest.approx([1 / 3]) and dark.tolist() == pytest.approx([0.15])
+
+
 def test_without_jitter_a_step_is_predicted_at_its_nodes_as_the_lattice_judges_it(world, truth):
     evidence = EvidenceSet(world, 0.004, 0.02)
     rows = np.arange(0, world.samples.x.shape[0], 7)
