@@ -256,17 +256,10 @@ class LightModelLearner(TabularLearner):
         return p_detected, light
 
     def _with_evidence(self, table: np.ndarray) -> np.ndarray:
-        belief = self._attached()
+        """A particle's step visibilities with the steps taken set to what they said."""
+        places, directions, low, high = self._attached().observed.clamps()
         table = table.copy()
-        threshold = belief.world.threshold
-        for e in belief.evidence:
-            here = table[e.place, e.direction]
-            if e.exact:
-                table[e.place, e.direction] = e.low
-            elif not math.isfinite(e.high):
-                table[e.place, e.direction] = max(here, threshold)
-            else:
-                table[e.place, e.direction] = min(here, e.high)
+        table[places, directions] = np.clip(table[places, directions], low, high)
         return table
 
     def _plan(self) -> None:

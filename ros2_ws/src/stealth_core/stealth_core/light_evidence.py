@@ -20,9 +20,33 @@ pose is the node's (r = 0) and the range is one value.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from stealth_core.light_world import LightWorld, StepEvidence
+from stealth_core.light_world import LightWorld, SamplePoints, StepEvidence
+
+
+class _Rows:
+    """An array that grows by rows at amortised constant cost (doubling its capacity): a run
+    through ROS observes tens of thousands of steps, one at a time."""
+
+    def __init__(self, dtype, columns: int | None = None):
+        shape = (16,) if columns is None else (16, columns)
+        self._data = np.zeros(shape, dtype=dtype)
+        self.size = 0
+
+    def append(self, value) -> None:
+        if self.size == self._data.shape[0]:
+            grown = np.zeros((2 * self.size, *self._data.shape[1:]), dtype=self._data.dtype)
+            grown[: self.size] = self._data
+            self._data = grown
+        self._data[self.size] = value
+        self.size += 1
+
+    @property
+    def view(self) -> np.ndarray:
+        return self._data[: self.size]
 
 
 class EvidenceSet:
@@ -33,38 +57,104 @@ class EvidenceSet:
         self.world = world
         self.abs_tol, self.rel_tol = abs_tol, rel_tol
         self.steps: list[StepEvidence] = []
-        self.rows = np.zeros(0, dtype=np.int64)  # each observation's sample row
-        self.low = np.zeros(0)
-        self.high = np.zeros(0)
-        self.distinct = np.zeros(0, dtype=np.int64)  # the sample rows, in the order first taken
-        self.which = np.zeros(0, dtype=np.int64)  # each observation's index in ``distinct``
+        self._rows = _Rows(np.int64)  # each observation's sample row
+        self._low, self._high = _Rows(np.float64), _Rows(np.float64)
+        self._distinct = _Rows(np.int64)  # the sample rows, in the order first taken
+        self._which = _Rows(np.int64)  # each observation's index in ``distinct``
         self._index: dict[int, int] = {}
+        # Each distinct step's readings composed as one clamp of a predicted light (``clamps``).
+        self._clamp_low, self._clamp_high = _Rows(np.float64), _Rows(np.float64)
         r = float(pose_jitter)
         shifts = [(0.0, 0.0)] + ([(r, 0.0), (0.0, r), (-r, 0.0), (0.0, -r)] if r > 0 else [])
         self.offsets = np.array(shifts)  # (shifts, 2) m: the node's first
+        # The distinct steps' sample points at the node and each shift (a light's light at
+        # them is asked at every move of the search): (x, y, headings, time index) rows.
+        samples = world.samples
+        columns = len(shifts) * samples.width
+        self._points = [
+            _Rows(np.float64, columns),
+            _Rows(np.float64, columns),
+            None if samples.yaw is None else _Rows(np.float64, columns),
+            None if samples.t is None else _Rows(np.int32, columns),
+        ]
 
     def __len__(self) -> int:
         return len(self.steps)
+
+    @property
+    def rows(self) -> np.ndarray:
+        """Each observation's sample row."""
+        return self._rows.view
+
+    @property
+    def low(self) -> np.ndarray:
+        """Each observation's least light."""
+        return self._low.view
+
+    @property
+    def high(self) -> np.ndarray:
+        """Each observation's most light (inf: a detection)."""
+        return self._high.view
+
+    @property
+    def distinct(self) -> np.ndarray:
+        """The distinct steps' sample rows, in the order first taken."""
+        return self._distinct.view
+
+    @property
+    def which(self) -> np.ndarray:
+        """Each observation's index in ``distinct``."""
+        return self._which.view
 
     def observe(self, evidence: StepEvidence) -> bool:
         """Add one observation; True when its step is new (lights must learn its light)."""
         row = int(self.world.samples.step_rows(evidence.place, evidence.direction))
         self.steps.append(evidence)
-        self.rows = np.append(self.rows, row)
-        self.low = np.append(self.low, evidence.low)
-        self.high = np.append(self.high, evidence.high)
+        self._rows.append(row)
+        self._low.append(evidence.low)
+        self._high.append(evidence.high)
         new = row not in self._index
         if new:
-            self._index[row] = len(self.distinct)
-            self.distinct = np.append(self.distinct, row)
-        self.which = np.append(self.which, self._index[row])
+            self._index[row] = self._distinct.size
+            self._distinct.append(row)
+            self._clamp_low.append(-math.inf)
+            self._clamp_high.append(math.inf)
+            points = self.world.samples.points(np.array([row]), self.offsets)
+            for column, values in zip(self._points, points, strict=True):
+                if column is not None:
+                    column.append(values[0])
+        self._which.append(self._index[row])
+        self._compose_clamp(self._index[row], evidence)
         return new
+
+    def _compose_clamp(self, step: int, evidence: StepEvidence) -> None:
+        """Follow a distinct step's clamp by one more reading's: an exact reading sets the
+        light, a detection raises it to the threshold, a goal caps it below."""
+        if evidence.exact:
+            low, high = evidence.low, evidence.low
+        elif not math.isfinite(evidence.high):
+            low, high = self.world.threshold, math.inf
+        else:
+            low, high = -math.inf, evidence.high
+        lows, highs = self._clamp_low.view, self._clamp_high.view
+        lows[step], highs[step] = (min(max(v, low), high) for v in (lows[step], highs[step]))
+
+    def clamps(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(places, directions, low, high) of the distinct steps: a predicted light v of a step
+        becomes ``clip(v, low, high)``, what its readings in turn make of it (the last exact
+        one, raised to the threshold by a detection after it, capped by a goal after it)."""
+        rows = self.distinct
+        directions = self.world.samples.shape[1]
+        return rows // directions, rows % directions, self._clamp_low.view, self._clamp_high.view
 
     def light_at(self, see, distinct: np.ndarray | None = None) -> np.ndarray:
         """(steps, shifts * width): the light of ``see`` at the samples of distinct steps (all
         by default), each step's samples at the node, then at each shift."""
-        rows = self.distinct if distinct is None else self.distinct[distinct]
-        return self.world.samples.light_at(see, rows, self.offsets)
+        pick = slice(None) if distinct is None else distinct
+        points = SamplePoints(
+            *(None if column is None else column.view[pick] for column in self._points)
+        )
+        return self.world.samples.light_of(see, points)
 
     def predict(self, total: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         """(low, high) per observation: the least and most of a field's step light (``total``,

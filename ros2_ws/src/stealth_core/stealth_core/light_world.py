@@ -96,6 +96,17 @@ class LightWorld:
         return self.points.bounce is not None
 
 
+class SamplePoints(NamedTuple):
+    """Sample points of lattice steps, (rows, columns) each: where, the robot's heading (None
+    where exposure does not weigh the lights) and the time, an index into
+    ``LatticeSamples.times`` (None where lights do not move)."""
+
+    x: np.ndarray
+    y: np.ndarray
+    headings: np.ndarray | None
+    time_index: np.ndarray | None
+
+
 class LatticeSamples:
     """Every step (place, direction) of the lattice model as ``width`` sample points (x, y and,
     where exposure weighs the lights, the robot's heading; where lights move, the time in the
@@ -145,32 +156,48 @@ class LatticeSamples:
             if timing is not None
             else None
         )
+        # The samples' few distinct times, and each sample's among them (``SamplePoints``).
+        self.times, self.time_index = None, None
+        if self.t is not None:
+            self.times, inverse = np.unique(self.t, return_inverse=True)
+            self.time_index = inverse.reshape(self.t.shape).astype(np.int32)
 
     def step_rows(self, places, directions) -> np.ndarray:
         """The sample rows of steps (arrays of places and directions)."""
         return np.asarray(places) * self.shape[1] + np.asarray(directions)
 
-    def light_at(
-        self, see: PointVisibility, rows: np.ndarray | None = None, offsets=None
-    ) -> np.ndarray:
-        """(rows, width): the light of ``see`` (one light's, usually) at the samples of the step
-        rows (all steps when None); moving lights where each sample's time puts them. With
-        ``offsets`` ((k, 2) m), (rows, k * width): each row's samples shifted by each offset
-        in turn (the step walked that far off its nodes)."""
+    def points(self, rows: np.ndarray | None = None, offsets=None) -> SamplePoints:
+        """The samples of the step rows (all steps when None), (rows, width); with ``offsets``
+        ((k, 2) m), (rows, k * width): each row's samples shifted by each offset in turn (the
+        step walked that far off its nodes)."""
         pick = slice(None) if rows is None else rows
         xs, ys = self.x[pick], self.y[pick]
         headings = None if self.yaw is None else self.yaw[pick]
-        ts = None if self.t is None else self.t[pick]
+        index = None if self.t is None else self.time_index[pick]
         if offsets is not None:
             offsets = np.asarray(offsets, dtype=np.float64)
             count = xs.shape[0]
             xs = (xs[:, None, :] + offsets[None, :, 0, None]).reshape(count, -1)
             ys = (ys[:, None, :] + offsets[None, :, 1, None]).reshape(count, -1)
             headings = None if headings is None else np.tile(headings, (1, len(offsets)))
-            ts = None if ts is None else np.tile(ts, (1, len(offsets)))
-        if ts is None or not any(light.is_moving for light in see.lights):
-            return see.many(xs, ys, 0.0, headings)
-        return see.many_at_times(xs, ys, ts, headings)
+            index = None if index is None else np.tile(index, (1, len(offsets)))
+        return SamplePoints(xs, ys, headings, index)
+
+    def light_of(self, see: PointVisibility, points: SamplePoints) -> np.ndarray:
+        """The light of ``see`` (one light's, usually) at sample points (``points``), moving
+        lights where each sample's time puts them."""
+        if points.time_index is None or not any(light.is_moving for light in see.lights):
+            return see.many(points.x, points.y, 0.0, points.headings)
+        return see.many_at_times(
+            points.x, points.y, self.times, points.headings, time_index=points.time_index
+        )
+
+    def light_at(
+        self, see: PointVisibility, rows: np.ndarray | None = None, offsets=None
+    ) -> np.ndarray:
+        """(rows, width): the light of ``see`` at the samples of the step rows (all steps when
+        None); with ``offsets``, (rows, k * width), each row's samples shifted (``points``)."""
+        return self.light_of(see, self.points(rows, offsets))
 
     def step_peaks(self, light: np.ndarray) -> np.ndarray:
         """A field at the samples, (rows, width), as each step's visibility: its most."""

@@ -389,21 +389,29 @@ class PointVisibility:
             totals.append(total)
         return totals
 
-    def many_at_times(self, xs, ys, ts, headings=None) -> np.ndarray:
+    def many_at_times(self, xs, ys, ts, headings=None, time_index=None) -> np.ndarray:
         """``many`` at points each at its own time (arrays ts like xs, s): equal to asking
         ``__call__`` point by point (to rounding: a pose's cosine), each light's poses taken at
         all the times at once (``searchlight.poses_at``) and its lines of sight traced per lamp
         cell, so a moving light over a lattice's samples costs a few array passes, not a call
-        per time. Direct light only: moving lights have no bounce."""
+        per time. With ``time_index`` (an int array like xs), ts are the distinct times and
+        point k's is ``ts[time_index[k]]``: a lattice's thousands of samples share a few dozen
+        times, so each light's poses are taken once a time. Direct light only: moving lights
+        have no bounce."""
         xs = np.asarray(xs, dtype=np.float64)
         ys = np.asarray(ys, dtype=np.float64)
-        ts = np.broadcast_to(np.asarray(ts, dtype=np.float64), xs.shape)
+        ts = np.asarray(ts, dtype=np.float64)
+        if time_index is None:
+            ts, time_index = np.broadcast_to(ts, xs.shape), None
         cols, rows = self._cells(xs, ys)
         if self._corners is None:
             self._corners = corner_maps(self.blocked)
         frame, total = self.frame, np.zeros(xs.shape)
         for light in self.lights:
             lamp_x, lamp_y, direction = poses_at(light, ts)
+            if time_index is not None:
+                lamp_x, lamp_y = lamp_x[time_index], lamp_y[time_index]
+                direction = direction[time_index]
             dx, dy = xs - lamp_x, ys - lamp_y
             value = np.zeros(xs.shape)
             near = dx * dx + dy * dy <= light.range * light.range

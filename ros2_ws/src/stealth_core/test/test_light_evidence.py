@@ -39,6 +39,49 @@ def test_a_step_walked_again_is_one_distinct_step_and_each_observation_keeps_its
     assert evidence.misses(low, high).tolist() == pytest.approx([0.0, 0.05 / 0.009, 0.0])
 
 
+def test_many_observations_keep_their_order_and_their_steps_light_as_the_lattice_has_it():
+    """Past the arrays' first capacity (they double), every observation is kept in order and a
+    moving light's light at the distinct steps, shifted, is the lattice samples' own."""
+    scenario = load_scenario('map1-moving')
+    world = LightWorld(scenario)
+    evidence = EvidenceSet(world, 0.004, 0.02, JITTER)
+    rng = np.random.default_rng(3)
+    places = rng.integers(0, world.samples.shape[0], 90)
+    directions = rng.integers(0, world.samples.shape[1], 90)
+    for k, (place, direction) in enumerate(zip(places.tolist(), directions.tolist(), strict=True)):
+        evidence.observe(StepEvidence(place, direction, k / 100, k / 100))
+    rows = world.samples.step_rows(places, directions)
+    assert evidence.rows.tolist() == rows.tolist()
+    assert evidence.low.tolist() == evidence.high.tolist() == [k / 100 for k in range(90)]
+    assert evidence.distinct[evidence.which].tolist() == rows.tolist()
+    see = world.see(scenario.lights, bounce=False)
+    assert any(light.is_moving for light in see.lights)
+    expected = world.samples.light_at(see, evidence.distinct, evidence.offsets)
+    assert np.array_equal(evidence.light_at(see), expected)
+    assert np.array_equal(evidence.light_at(see, np.array([2, 0])), expected[[2, 0]])
+
+
+def test_a_steps_readings_clamp_a_prediction_as_applying_them_in_turn_would(world):
+    threshold = world.threshold
+    readings = {  # (low, high) in the order read
+        (5, 0): [(0.1, 0.1), (threshold, math.inf)],  # read 0.1, then detected: the threshold
+        (5, 1): [(threshold, math.inf), (0.1, 0.1)],  # detected, then read 0.1: 0.1
+        (6, 2): [(0.0, 0.2)],  # reached the goal: at most 0.2
+        (6, 3): [(0.0, 0.2), (threshold, math.inf), (0.0, 0.25)],  # up to the threshold, capped
+    }
+    evidence = EvidenceSet(world, 0.004, 0.02)
+    for (place, direction), bounds in readings.items():
+        for low, high in bounds:
+            evidence.observe(StepEvidence(place, direction, low, high))
+    places, directions, low, high = evidence.clamps()
+    assert list(zip(places.tolist(), directions.tolist(), strict=True)) == list(readings)
+    for predicted, expected in (
+        (0.05, [threshold, 0.1, 0.05, 0.25]),
+        (0.9, [threshold, 0.1, 0.2, 0.25]),
+    ):
+        assert np.clip(predicted, low, high).tolist() == pytest.approx(expected)
+
+
 def test_a_step_read_detected_and_dark_is_mixed_with_its_share_and_dark_light(world):
     evidence = EvidenceSet(world, 0.004, 0.02, JITTER)
     for low, high in ((0.1, 0.1), (world.threshold, math.inf), (0.2, 0.2)):

@@ -390,6 +390,11 @@ def test_many_at_times_is_each_point_at_its_own_time(seed):
     ts = rng.uniform(0.0, 30.0, 300)
     expected = [fast(x, y, t) for x, y, t in zip(xs, ys, ts, strict=True)]
     np.testing.assert_allclose(fast.many_at_times(xs, ys, ts), expected, rtol=0, atol=1e-12)
+    # A few shared times given once and indexed: the same to the last bit as each its own.
+    times = rng.uniform(0.0, 30.0, 7)
+    index = rng.integers(0, 7, 300)
+    indexed = fast.many_at_times(xs, ys, times, time_index=index)
+    assert np.array_equal(indexed, fast.many_at_times(xs, ys, times[index]))
 
 
 def test_point_visibility_refuses_what_the_reference_refuses():
