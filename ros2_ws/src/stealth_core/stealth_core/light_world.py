@@ -34,7 +34,7 @@ from stealth_core.lattice_model import LatticeModel
 from stealth_core.light_cycle import Timing
 from stealth_core.reward import detection_reward
 from stealth_core.scenario import Scenario
-from stealth_core.searchlight import PatrolMotion, Searchlight, SweepMotion
+from stealth_core.searchlight import PatrolMotion, Searchlight, SweepMotion, poses_at
 from stealth_core.task import StealthTask
 from stealth_core.visibility import PointVisibility, scenario_point_visibility
 
@@ -198,6 +198,18 @@ class LatticeSamples:
         """(rows, width): the light of ``see`` at the samples of the step rows (all steps when
         None); with ``offsets``, (rows, k * width), each row's samples shifted (``points``)."""
         return self.light_of(see, self.points(rows, offsets))
+
+    def rows_within(self, light: Searchlight, reach: float) -> np.ndarray:
+        """The step rows with a sample within the light's range plus ``reach`` (m) of its lamp,
+        at the sample's time where it moves: the rest get none of its direct light, even walked
+        ``reach`` off their nodes."""
+        if self.t is None or not light.is_moving:
+            lamp_x, lamp_y = light.x, light.y
+        else:
+            xs, ys, _ = poses_at(light, self.times)
+            lamp_x, lamp_y = xs[self.time_index], ys[self.time_index]
+        squared = (self.x - lamp_x) ** 2 + (self.y - lamp_y) ** 2
+        return np.flatnonzero(squared.min(axis=1) <= (light.range + reach) ** 2)
 
     def step_peaks(self, light: np.ndarray) -> np.ndarray:
         """A field at the samples, (rows, width), as each step's visibility: its most."""
