@@ -40,6 +40,7 @@ import numpy as np
 
 from stealth_core import exposure
 from stealth_core.light_evidence import EvidenceSet
+from stealth_core.light_fields import PlanFields
 from stealth_core.light_motion import (
     MOTION_POLISH_STEPS,
     STILL_TAIL,
@@ -139,9 +140,8 @@ class LightBelief:
         self.particles = [_Particle([]) for _ in range(self.settings.particles)]
         self._lamps = _lamp_places(world)
         self._sight_from: dict[tuple[int, int], np.ndarray] = {}
-        self._field_cache: dict[tuple, np.ndarray] = {}
-        self._shifted_cache: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
         self._seeing_cache: dict[tuple, object] = {}
+        self.fields = PlanFields(world, self.observed.offsets, self._seeing)
 
     # --- evidence ------------------------------------------------------------------------------
 
@@ -483,55 +483,12 @@ class LightBelief:
 
     def step_visibility(self, particle: int) -> np.ndarray:
         """(places, directions): particle's predicted visibility of every lattice step."""
-        samples = self.world.samples
-        total = None
-        for light in self.particles[particle].lights:
-            field = self._field_cache.get(light.params)
-            if field is None:
-                field = samples.light_at(self._seeing(light.params))
-                if len(self._field_cache) > 256:
-                    self._field_cache.clear()
-                self._field_cache[light.params] = field
-            total = field if total is None else total + field
-        if total is None:
-            return np.zeros(samples.shape)
-        return samples.step_peaks(total).reshape(samples.shape)
+        return self.fields.step_visibility(self.particles[particle].lights)
 
     def shifted_visibility(self, particle: int) -> np.ndarray:
         """(places, directions, shifts): particle's predicted visibility of every lattice step
-        at its nodes and walked off them by each shift of the pose jitter
-        (``EvidenceSet.offsets``, the node's first): the steps the likelihood calls possibly
-        lit, for a plan to weigh. Without a jitter, ``step_visibility`` with one shift."""
-        offsets = self.observed.offsets
-        if len(offsets) == 1:
-            return self.step_visibility(particle)[..., None]
-        samples = self.world.samples
-        total = np.zeros((samples.x.shape[0], len(offsets) * samples.width))
-        for light in self.particles[particle].lights:
-            rows, field = self._shifted_field(light.params)
-            total[rows] += field
-        peaks = total.reshape(total.shape[0], len(offsets), samples.width).max(axis=2)
-        return peaks.reshape(*samples.shape, len(offsets))
-
-    def _shifted_field(self, params: tuple) -> tuple[np.ndarray, np.ndarray]:
-        """(rows, light): one light's light at the samples of the step rows it can reach, at
-        the node and each shift, kept while it is asked (the lattice's whole field at five
-        shifts costs about a second a light on floorplan)."""
-        kept = self._shifted_cache.get(params)
-        if kept is None:
-            see = self._seeing(params)
-            samples, offsets = self.world.samples, self.observed.offsets
-            reach = float(np.abs(offsets).max())
-            rows = (
-                np.arange(samples.x.shape[0])  # a bounce reaches past the range
-                if self.world.bounces
-                else samples.rows_within(see.lights[0], reach)
-            )
-            kept = (rows, samples.light_at(see, rows, offsets))
-            if len(self._shifted_cache) >= 48:
-                self._shifted_cache.pop(next(iter(self._shifted_cache)))
-            self._shifted_cache[params] = kept
-        return kept
+        at its nodes and walked off them by each shift of the pose jitter (``PlanFields``)."""
+        return self.fields.shifted_visibility(self.particles[particle].lights)
 
     def best(self) -> int:
         return int(np.argmax(self.weights()))
