@@ -59,14 +59,15 @@ def test_where_lights_move_a_hypothesis_without_a_moving_light_costs_one_light_m
 def test_with_a_pose_jitter_a_plan_sees_every_step_at_its_nodes_and_at_each_shift():
     """The shifted visibility a plan weighs: at the nodes exactly the particle's step
     visibility, and at each shift the light of its lights at the shifted samples, on every
-    step, not only on those within the lights' reach the belief computes (map1-moving: a
-    static light and a patrol)."""
+    step, not only on those the belief finds a light could reach (map1-moving: a static
+    light, a patrol and a sweep)."""
     world = LightWorld(load_scenario('map1-moving'))
     belief = LightBelief(world, np.random.default_rng(0), BeliefSettings(pose_jitter=0.15))
-    (x0, y0), (x1, y1) = world.model.points[5], world.model.points[60]
+    (x0, y0), (x1, y1), (x2, y2) = world.model.points[[5, 60, 120]]
     static = (x0, y0, 0.3, 1.0, 0.2, 6.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     patrol = (x1, y1, 2.0, 0.8, 0.3, 5.0, 2.0, x1 + 1.0, y1 - 1.0, 8.0, 0.4)
-    belief.particles[0].lights = [belief._make(static), belief._make(patrol)]
+    sweep = (x2, y2, -1.0, 0.3, 0.1, 7.0, 1.0, 2.5, 0.0, 4.0, 1.0)
+    belief.particles[0].lights = [belief._make(p) for p in (static, patrol, sweep)]
     shifted = belief.shifted_visibility(0)
     offsets = belief.observed.offsets
     assert shifted.shape == (*world.samples.shape, len(offsets))
