@@ -7,9 +7,9 @@ lights stay as they were. With a pose jitter (``EvidenceSet.offsets``: the node,
 0.15 m along +-x and +-y through ROS) the likelihood calls a step's light anything over its
 shifts, and a plan weighs it the same way (``shifted_visibility``): a lamp hypothesised on the
 robot's way leaves the node itself dark and the steps beside it lit. A light's field at the
-shifts is computed only on the steps within its range (plus the shift) of its lamp, where it
-moves as it stands at each sample's time, and off its beam by at most half its opening plus the angle the
-shift subtends (``LatticeSamples.rows_within``): the rest get none of its direct light.
+shifts is computed only on the steps a shifted sample could stand in its cone and range (as it
+stands at the sample's time, where it moves: ``LatticeSamples.rows_within``); the rest get
+none of its direct light.
 """
 
 from __future__ import annotations
