@@ -219,8 +219,9 @@ class LightModelLearner(TabularLearner):
         """(probability each step is detected, the light it costs if not), (places,
         directions), by a planning rule (the learner's by default), with the steps taken set
         to what they said. With a pose jitter (through ROS) a particle detects a step with the
-        share of its shifts that light it (``LightBelief.shifted_visibility``): the pose
-        stops a few cm off the node, and beside a beam, or a lamp, that decides."""
+        share of the poses (the node's and the shifts', ``EvidenceSet.shares``) that it lights
+        (``LightBelief.shifted_visibility``): the pose stops a few cm off the node, and beside
+        a beam, or a lamp, that decides."""
         rule = self.rule if rule is None else rule
         belief = self._attached()
         threshold = belief.world.threshold * (1.0 - self.plan_margin)
@@ -234,7 +235,8 @@ class LightModelLearner(TabularLearner):
             weights = weights / weights.sum()
         tables = np.stack([self._with_evidence(table) for table in tables])
         lit_shifts = tables >= threshold  # (particles, places, directions, shifts)
-        lit = lit_shifts.mean(axis=3)  # each particle's chance the step is detected
+        shares = belief.observed.shares  # of the pose at the node and at each shift
+        lit = np.dot(lit_shifts, shares)  # each particle's chance the step is detected
         dark_light = np.where(lit_shifts, 0.0, tables).sum(axis=3)
         dark_shifts = (~lit_shifts).sum(axis=3)
         values = np.divide(dark_light, dark_shifts, out=np.zeros_like(lit), where=dark_shifts > 0)

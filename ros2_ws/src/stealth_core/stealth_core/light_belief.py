@@ -166,21 +166,25 @@ class LightBelief:
             particle.energy = math.inf
 
     def _energy(self, lights: list[_Light]) -> float:
-        z = self.observed.misses(*self._predict(lights))
+        misses = self.observed.energy(self._total(lights))
         cost = self.settings.light_cost * len(lights)
         moving = sum(light.moving for light in lights)
         cost += self.settings.motion_cost * moving
         if self.world.timing is not None and not moving:  # the world says a light moves
             cost += self.settings.still_cost
-        return float(np.sum(np.sqrt(1.0 + z * z) - 1.0)) + cost
+        return misses + cost
+
+    def _total(self, lights: list[_Light]) -> np.ndarray | None:
+        """The lights' summed light at the evidence's samples (None: no light)."""
+        total = None
+        for light in lights:
+            total = light.light() if total is None else total + light.light()
+        return total
 
     def _predict(self, lights: list[_Light]) -> tuple[np.ndarray, np.ndarray]:
         """(low, high): the light the lights put on each observation's step, as a range
         (``EvidenceSet.predict``)."""
-        total = None
-        for light in lights:
-            total = light.light() if total is None else total + light.light()
-        return self.observed.predict(total)
+        return self.observed.predict(self._total(lights))
 
     def _light_at(self, params: tuple, distinct: np.ndarray | None = None) -> np.ndarray:
         """A light's direct light at the samples of distinct evidence steps (all by default)."""

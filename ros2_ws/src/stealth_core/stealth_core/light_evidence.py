@@ -26,6 +26,11 @@ import numpy as np
 
 from stealth_core.light_world import LightWorld, SamplePoints, StepEvidence
 
+# Where the pose jitters, the share of readings judged at the node itself; each shift has an
+# equal share of the rest (the pose stops a median 5 cm off the node through ROS, the shifts
+# are 15 cm: the node is the likeliest).
+NODE_SHARE = 0.6
+
 
 class _Rows:
     """An array that grows by rows at amortised constant cost (doubling its capacity): a run
@@ -62,11 +67,20 @@ class EvidenceSet:
         self._distinct = _Rows(np.int64)  # the sample rows, in the order first taken
         self._which = _Rows(np.int64)  # each observation's index in ``distinct``
         self._index: dict[int, int] = {}
+        # The distinct readings (a step read again reads the same, mostly): their step, bounds
+        # and how often each was read, for the likelihood where the pose jitters (``energy``).
+        self._reading: dict[tuple, int] = {}
+        self._reading_step, self._reading_count = _Rows(np.int64), _Rows(np.float64)
+        self._reading_low, self._reading_high = _Rows(np.float64), _Rows(np.float64)
         # Each distinct step's readings composed as one clamp of a predicted light (``clamps``).
         self._clamp_low, self._clamp_high = _Rows(np.float64), _Rows(np.float64)
         r = float(pose_jitter)
         shifts = [(0.0, 0.0)] + ([(r, 0.0), (0.0, r), (-r, 0.0), (0.0, -r)] if r > 0 else [])
         self.offsets = np.array(shifts)  # (shifts, 2) m: the node's first
+        rest = (1.0 - NODE_SHARE) / max(len(shifts) - 1, 1)
+        self.shares = np.array(
+            [NODE_SHARE if len(shifts) > 1 else 1.0] + [rest] * (len(shifts) - 1)
+        )
         # The distinct steps' sample points at the node and each shift (a light's light at
         # them is asked at every move of the search): (x, y, headings, time index) rows.
         samples = world.samples
@@ -125,6 +139,16 @@ class EvidenceSet:
                     column.append(values[0])
         self._which.append(self._index[row])
         self._compose_clamp(self._index[row], evidence)
+        key = (self._index[row], evidence.low, evidence.high)
+        if key not in self._reading:
+            self._reading[key] = self._reading_step.size
+            for column, value in zip(
+                (self._reading_step, self._reading_low, self._reading_high, self._reading_count),
+                (*key, 0.0),
+                strict=True,
+            ):
+                column.append(value)
+        self._reading_count.view[self._reading[key]] += 1.0
         return new
 
     def _compose_clamp(self, step: int, evidence: StepEvidence) -> None:
@@ -167,6 +191,33 @@ class EvidenceSet:
             values = peaks[:, 0][self.which]
             return values, values
         return peaks.min(axis=1)[self.which], peaks.max(axis=1)[self.which]
+
+    def energy(self, total: np.ndarray | None) -> float:
+        """The misses' energy of a field (``light_at`` summed over its lights; None: none):
+        ``sum sqrt(1 + z^2) - 1`` over the observations, z each one's miss in tolerances.
+        Where the pose jitters, each reading was judged at the node or at one shift, with
+        their ``shares``: its energy is ``-log sum_k share_k exp(-(sqrt(1 + z_k^2) - 1))``, z_k
+        its miss at shift k, so a reading a hypothesis explains only off the node costs more
+        than one it explains there (a lamp on the robot's way explains any reading beside
+        it, at some shift)."""
+        if len(self.offsets) == 1:
+            z = self.misses(*self.predict(total))
+            return float(np.sum(np.sqrt(1.0 + z * z) - 1.0))
+        steps = self._reading_step.view
+        if total is None:
+            light = np.zeros((steps.size, len(self.offsets)))
+        else:
+            peaks = total.reshape(total.shape[0], len(self.offsets), -1).max(axis=2)
+            light = peaks[steps]
+        low, high = self._reading_low.view[:, None], self._reading_high.view[:, None]
+        finite = np.where(np.isfinite(high), high, low)
+        z = (np.maximum(light - high, 0.0) + np.maximum(low - light, 0.0)) / (
+            self.abs_tol + self.rel_tol * finite
+        )
+        energies = np.sqrt(1.0 + z * z) - 1.0 - np.log(self.shares)
+        least = energies.min(axis=1)
+        per_reading = least - np.log(np.exp(least[:, None] - energies).sum(axis=1))
+        return float(np.dot(self._reading_count.view, per_reading))
 
     def tolerance(self) -> np.ndarray:
         """Each observation's tolerance: ``abs_tol + rel_tol * v``."""

@@ -135,7 +135,8 @@ def edge_step(world, truth):
 
 def test_with_jitter_a_step_read_dark_once_and_detected_once_contradicts_no_true_light(world):
     """The true lights, as a hypothesis, miss the detection at the node (the reading the
-    environment gave a pose 10 cm off it) and explain both readings with the jitter."""
+    environment gave a pose 10 cm off it) by 30 tolerances; with the jitter each reading costs
+    only the log of the share of the poses that explain it (the node's 0.6, 0.1 a shift)."""
     scenario = load_scenario('simple-maze')
     truth = world.see(scenario.lights)
     place, direction = edge_step(world, truth)
@@ -146,7 +147,13 @@ def test_with_jitter_a_step_read_dark_once_and_detected_once_contradicts_no_true
         belief.observe(StepEvidence(place, direction, world.threshold, math.inf))
         lights = [belief._make(parameters_of(light)) for light in scenario.lights]
         energies[jitter] = belief._energy(lights) - belief.settings.light_cost * len(lights)
-    assert energies[JITTER] == 0.0
+    peaks = belief.observed.light_at(truth).reshape(1, 5, -1).max(axis=2)[0]
+    lit = peaks >= world.threshold
+    assert not lit[0] and lit.any()  # dark at the node, lit walked off it
+    shares = belief.observed.shares
+    assert shares.tolist() == [0.6, 0.1, 0.1, 0.1, 0.1]
+    dark_and_lit = -math.log(shares[~lit].sum()) - math.log(shares[lit].sum())
+    assert energies[JITTER] == pytest.approx(dark_and_lit, abs=1e-6)
     assert energies[0.0] > 20.0  # the detection missed by the threshold: 30 tolerances
 
 
@@ -159,3 +166,21 @@ def parameters_of(light):
 def test_pose_jitter_is_checked():
     with pytest.raises(ValueError, match='pose_jitter'):
         BeliefSettings(pose_jitter=-0.1)
+
+
+def test_with_jitter_a_reading_explained_only_off_the_node_costs_more_and_repeats_count(world):
+    """The likelihood where the pose jitters: a reading a field explains at its node costs
+    -log(0.6 + ...), one it explains only at one shift -log(0.1); the same reading twice costs
+    twice (readings are kept once with their count)."""
+    evidence = EvidenceSet(world, 0.004, 0.02, JITTER)
+    evidence.observe(StepEvidence(3, 1, 0.5, 0.5))
+    width = world.samples.width
+    at_node = np.zeros((1, 5 * width))
+    at_node[0, :width] = 0.5
+    at_shift = np.zeros((1, 5 * width))
+    at_shift[0, width : 2 * width] = 0.5
+    assert evidence.energy(at_node) == pytest.approx(-math.log(0.6), abs=1e-9)
+    assert evidence.energy(at_shift) == pytest.approx(-math.log(0.1), abs=1e-9)
+    evidence.observe(StepEvidence(3, 1, 0.5, 0.5))
+    assert evidence.energy(at_shift) == pytest.approx(-2 * math.log(0.1), abs=1e-9)
+    assert evidence.energy(None) > 30.0  # no light: missed by 0.5 at every pose
