@@ -218,42 +218,33 @@ class LightModelLearner(TabularLearner):
     def planned_visibility(self, rule: str | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(probability each step is detected, the light it costs if not), (places,
         directions), by a planning rule (the learner's by default), with the steps taken set
-        to what they said. With a pose jitter (through ROS) a particle detects a step with the
-        share of the poses (the node's and the shifts', ``EvidenceSet.shares``) that it lights
-        (``LightBelief.shifted_visibility``): the pose stops a few cm off the node, and beside
-        a beam, or a lamp, that decides."""
+        to what they said."""
         rule = self.rule if rule is None else rule
         belief = self._attached()
         threshold = belief.world.threshold * (1.0 - self.plan_margin)
         weights = belief.weights()
         if rule == 'thompson':
             chosen = int(belief.rng.choice(len(weights), p=weights))
-            tables, weights = [belief.shifted_visibility(chosen)], np.ones(1)
+            tables, weights = [belief.step_visibility(chosen)], np.ones(1)
         else:  # the particles that carry weight (each table costs a light field)
             kept = np.flatnonzero(weights >= MIN_WEIGHT)
-            tables, weights = [belief.shifted_visibility(k) for k in kept], weights[kept]
+            tables, weights = [belief.step_visibility(k) for k in kept], weights[kept]
             weights = weights / weights.sum()
-        tables = np.stack([self._with_evidence(table) for table in tables])
-        lit_shifts = tables >= threshold  # (particles, places, directions, shifts)
-        shares = belief.observed.shares  # of the pose at the node and at each shift
-        lit = np.dot(lit_shifts, shares)  # each particle's chance the step is detected
-        dark_light = np.where(lit_shifts, 0.0, tables).sum(axis=3)
-        dark_shifts = (~lit_shifts).sum(axis=3)
-        values = np.divide(dark_light, dark_shifts, out=np.zeros_like(lit), where=dark_shifts > 0)
+        tables = [self._with_evidence(table) for table in tables]
+        lit = np.stack([table >= threshold for table in tables])
+        values = np.stack(tables)
         if rule in ('cautious', 'optimistic'):
             heavy = weights > 0.01
-            if rule == 'cautious':
-                p_detected = (lit[heavy] > 0.0).any(axis=0).astype(np.float64)
-                light = values[heavy].max(axis=0)
-            else:
-                p_detected = (lit[heavy] == 1.0).all(axis=0).astype(np.float64)
-                light = values[heavy].min(axis=0)
+            agree = lit[heavy].any(axis=0) if rule == 'cautious' else lit[heavy].all(axis=0)
+            light = np.where(lit[heavy], 0.0, values[heavy])
+            light = light.max(axis=0) if rule == 'cautious' else light.min(axis=0)
+            p_detected = agree.astype(np.float64)
         else:
             w = weights[:, None, None]
             p_detected = np.clip(np.sum(w * lit, axis=0), 0.0, 1.0)
-            dark_weight = np.sum(w * (1.0 - lit), axis=0)
+            dark_weight = np.sum(w * ~lit, axis=0)
             light = np.divide(
-                np.sum(w * (1.0 - lit) * values, axis=0),
+                np.sum(w * np.where(lit, 0.0, values), axis=0),
                 dark_weight,
                 out=np.zeros_like(dark_weight),
                 where=dark_weight > 0,
@@ -267,8 +258,8 @@ class LightModelLearner(TabularLearner):
     def _with_evidence(self, table: np.ndarray) -> np.ndarray:
         """A particle's step visibilities with the steps taken set to what they said."""
         places, directions, low, high = self._attached().observed.clamps()
-        table = table.copy()  # (places, directions, shifts): a reading holds at every shift
-        table[places, directions] = np.clip(table[places, directions], low[:, None], high[:, None])
+        table = table.copy()
+        table[places, directions] = np.clip(table[places, directions], low, high)
         return table
 
     def _plan(self) -> None:

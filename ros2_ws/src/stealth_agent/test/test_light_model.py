@@ -219,24 +219,6 @@ def test_a_step_read_detected_once_and_dark_once_is_planned_as_often_detected():
     assert np.count_nonzero(other) == 1  # no other step was read
 
 
-def test_with_a_pose_jitter_a_step_lit_off_its_node_is_planned_detected_with_that_poses_share():
-    """Through ROS the pose stops a few cm off the node: a particle that lights a step only
-    walked off its nodes one way makes it detected with that shift's share of the poses (0.1;
-    its light the dark poses'), cautious with certainty, optimistic not at all."""
-    learner, _ = light_model(load_scenario('simple-maze'))
-    learner.belief.observed.shares = np.array([0.6, 0.1, 0.1, 0.1, 0.1])  # as with a jitter
-    threshold = learner.world.threshold
-    table = np.zeros((*learner.world.samples.shape, 5))
-    place = learner.world.model.start
-    table[place, 0] = (0.1, threshold + 0.2, 0.1, 0.1, 0.1)
-    learner.belief.shifted_visibility = lambda particle: table
-    for rule, detected in (('expected', 0.1), ('cautious', 1.0), ('optimistic', 0.0)):
-        p_detected, light = learner.planned_visibility(rule)
-        assert p_detected[place, 0] == pytest.approx(detected), rule
-        assert light[place, 0] == pytest.approx(0.1), rule
-        assert np.count_nonzero(p_detected) == (detected > 0), rule
-
-
 def test_with_a_plan_margin_a_step_lit_just_below_the_threshold_is_planned_as_detected():
     """Through ROS one step's readings spread by a few per cent: a step read at 0.28 against a
     threshold of 0.3 is taken as detected by a plan with a 10 % margin, as dark without one."""

@@ -141,7 +141,7 @@ class LightBelief:
         self._lamps = _lamp_places(world)
         self._sight_from: dict[tuple[int, int], np.ndarray] = {}
         self._seeing_cache: dict[tuple, object] = {}
-        self.fields = PlanFields(world, self.observed.offsets, self._seeing)
+        self.fields = PlanFields(world, self._seeing)
 
     # --- evidence ------------------------------------------------------------------------------
 
@@ -488,11 +488,6 @@ class LightBelief:
     def step_visibility(self, particle: int) -> np.ndarray:
         """(places, directions): particle's predicted visibility of every lattice step."""
         return self.fields.step_visibility(self.particles[particle].lights)
-
-    def shifted_visibility(self, particle: int) -> np.ndarray:
-        """(places, directions, shifts): particle's predicted visibility of every lattice step
-        at its nodes and walked off them by each shift of the pose jitter (``PlanFields``)."""
-        return self.fields.shifted_visibility(self.particles[particle].lights)
 
     def best(self) -> int:
         return int(np.argmax(self.weights()))

@@ -29,12 +29,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from stealth_core import exposure, lighting
+from stealth_core import exposure
 from stealth_core.lattice_model import LatticeModel
 from stealth_core.light_cycle import Timing
 from stealth_core.reward import detection_reward
 from stealth_core.scenario import Scenario
-from stealth_core.searchlight import PatrolMotion, Searchlight, SweepMotion, poses_at
+from stealth_core.searchlight import PatrolMotion, Searchlight, SweepMotion
 from stealth_core.task import StealthTask
 from stealth_core.visibility import PointVisibility, scenario_point_visibility
 
@@ -198,25 +198,6 @@ class LatticeSamples:
         """(rows, width): the light of ``see`` at the samples of the step rows (all steps when
         None); with ``offsets``, (rows, k * width), each row's samples shifted (``points``)."""
         return self.light_of(see, self.points(rows, offsets))
-
-    def rows_within(self, light: Searchlight, reach: float) -> np.ndarray:
-        """The step rows with a sample that, moved by up to ``reach`` (m), could stand in the
-        light's cone and range (where it moves, as it stands at the sample's time): within
-        range + reach of the lamp, and off the beam's axis by at most half its opening plus
-        the angle ``reach`` subtends there. The rest get none of its direct light, even
-        walked ``reach`` off their nodes."""
-        if self.t is None or not light.is_moving:
-            dx, dy, direction = self.x - light.x, self.y - light.y, None
-        else:
-            xs, ys, directions = poses_at(light, self.times)
-            dx, dy = self.x - xs[self.time_index], self.y - ys[self.time_index]
-            direction = directions[self.time_index]
-        distance = np.hypot(dx, dy)
-        off = np.abs(lighting.angle_off_axis(light, dx, dy, direction))
-        widen = np.arcsin(np.clip(reach / np.maximum(distance, 1e-12), 0.0, 1.0))
-        near = distance <= reach  # at the lamp, any direction is a shift away
-        could = (distance <= light.range + reach) & (off <= light.fov / 2 + widen + 1e-9)
-        return np.flatnonzero(np.any(near | could, axis=1))
 
     def step_peaks(self, light: np.ndarray) -> np.ndarray:
         """A field at the samples, (rows, width), as each step's visibility: its most."""

@@ -54,30 +54,3 @@ def test_where_lights_move_a_hypothesis_without_a_moving_light_costs_one_light_m
     assert belief._energy([]) == settings.still_cost
     still = LightWorld(load_scenario('simple-maze'))
     assert LightBelief(still, np.random.default_rng(0))._energy([]) == 0.0
-
-
-def test_with_a_pose_jitter_a_plan_sees_every_step_at_its_nodes_and_at_each_shift():
-    """The shifted visibility a plan weighs: at the nodes exactly the particle's step
-    visibility, and at each shift the light of its lights at the shifted samples, on every
-    step, not only on those the belief finds a light could reach (map1-moving: a static
-    light, a patrol and a sweep)."""
-    world = LightWorld(load_scenario('map1-moving'))
-    belief = LightBelief(world, np.random.default_rng(0), BeliefSettings(pose_jitter=0.15))
-    (x0, y0), (x1, y1), (x2, y2) = world.model.points[[5, 60, 120]]
-    static = (x0, y0, 0.3, 1.0, 0.2, 6.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-    patrol = (x1, y1, 2.0, 0.8, 0.3, 5.0, 2.0, x1 + 1.0, y1 - 1.0, 8.0, 0.4)
-    sweep = (x2, y2, -1.0, 0.3, 0.1, 7.0, 1.0, 2.5, 0.0, 4.0, 1.0)
-    belief.particles[0].lights = [belief._make(p) for p in (static, patrol, sweep)]
-    shifted = belief.shifted_visibility(0)
-    offsets = belief.observed.offsets
-    assert shifted.shape == (*world.samples.shape, len(offsets))
-    assert np.array_equal(shifted[..., 0], belief.step_visibility(0))
-    see = world.see(belief.lights(0))
-    everywhere = world.samples.light_at(see, None, offsets)
-    peaks = everywhere.reshape(everywhere.shape[0], len(offsets), -1).max(axis=2)
-    np.testing.assert_allclose(shifted.reshape(-1, len(offsets)), peaks, rtol=0, atol=1e-12)
-    off_node = shifted[..., 1:].max(axis=2) >= world.threshold
-    assert np.any(off_node & (shifted[..., 0] < world.threshold))  # lit only walked off
-    without = LightBelief(world, np.random.default_rng(0))
-    without.particles[0].lights = [without._make(static)]
-    assert np.array_equal(without.shifted_visibility(0)[..., 0], without.step_visibility(0))
