@@ -50,7 +50,7 @@ RAY_ENVIRONMENT = {
     'RAY_USAGE_STATS_ENABLED': '0',
     'RAY_AIR_NEW_OUTPUT': '0',  # no experiment box: the progress lines below say what runs
     # A worker's end would SIGKILL its children: a ROS trial's `stealth train` gets SIGTERM
-    # instead (sweep_trials: die_with_parent) and stops its nodes in order.
+    # instead (sweep_trials._stop_with_parent) and stops its nodes in order.
     'RAY_kill_child_processes_on_worker_exit': '0',
     # Ray runs its workers at niceness 15, under everything else on the host: on cores that
     # other work shares, two trials side by side then got less CPU than one alone in the driver.

@@ -20,7 +20,7 @@ replacement worker is asked for, which starts wherever the cluster has room (nev
 that is gone: the pool carries on with the workers it has). A trial whose runner raises is not
 retried: its records say failed, with the error's last line. SIGINT and SIGTERM (sweep_stop)
 raise Interrupted out of ``run``; close() then kills the workers (a ROS trial's `stealth train`
-gets SIGTERM from its dying worker: sweep_trials: die_with_parent).
+gets SIGTERM from its dying worker: sweep_trials._stop_with_parent).
 """
 
 from __future__ import annotations

@@ -33,7 +33,6 @@ import time
 
 import numpy as np
 from stealth_core.reward import EpisodeOutcome
-from stealth_node_kit.orphan_watch import die_with_parent
 
 from stealth_experiments.harness import RunResult, RunSpec, run, settled, settled_within
 from stealth_experiments.sweep_stop import MARK, TRIAL_MARK, scratch_prefix
@@ -123,20 +122,21 @@ def ros_command(trial: dict, seed: int, runs_dir: Path) -> list[str]:
     return command
 
 
-def _default_signals():
-    """A preexec step for the `stealth train` child, prepared here (the child makes only
-    system calls): SIGINT and SIGTERM back to their defaults and none blocked. A Ray worker
-    runs a trial in a thread with SIGINT blocked; a child inherits the mask, and its nodes then
-    ignored the SIGINT that stops them (the run ended "did not stop cleanly")."""
+def _stop_with_parent() -> None:
+    """In the `stealth train` child, before it runs: the signals of a process of its own, and
+    SIGTERM (its orderly stop) when the worker that started it dies, so that a killed worker
+    leaves no ROS nodes behind (Linux prctl PR_SET_PDEATHSIG).
+
+    A Ray worker runs a trial in a thread with SIGINT blocked; a child inherits the mask, and
+    its nodes then ignored the SIGINT that stops them (the run ended "did not stop cleanly").
+    The child runs in a session of its own (sweep_stop: one stop signal, not the terminal's
+    Ctrl-C as well), marked as its sweep's."""
     libc = ctypes.CDLL(None, use_errno=True)
     libc.signal.argtypes = [ctypes.c_int, ctypes.c_void_p]
-
-    def child() -> None:
-        for number in (signal.SIGINT, signal.SIGTERM):
-            libc.signal(int(number), None)  # SIG_DFL
-        signal.pthread_sigmask(signal.SIG_SETMASK, [])
-
-    return child
+    for number in (signal.SIGINT, signal.SIGTERM):
+        libc.signal(int(number), None)  # SIG_DFL
+    signal.pthread_sigmask(signal.SIG_SETMASK, [])
+    libc.prctl(1, int(signal.SIGTERM))
 
 
 def _run_ros(trial: dict, seed: int, scratch: Path):
@@ -155,10 +155,7 @@ def _run_ros(trial: dict, seed: int, scratch: Path):
         finished = subprocess.run(
             ros_command(trial, seed, scratch), stdout=stream, stderr=subprocess.STDOUT,
             stdin=subprocess.DEVNULL, timeout=ROS_TIMEOUT, check=False, env=env,
-            # Its signals its own, and SIGTERM (its orderly stop) when the worker that
-            # started it dies, so that a killed worker leaves no ROS nodes behind; a session
-            # of its own (sweep_stop: one stop signal, not the terminal's Ctrl-C as well).
-            preexec_fn=die_with_parent(_default_signals()), start_new_session=True,
+            preexec_fn=_stop_with_parent, start_new_session=True,
         )  # fmt: skip
     run_dir = scratch / 'run'
     summary_file = run_dir / 'summary.json'
