@@ -172,9 +172,8 @@ class EvidenceSet:
         """(places, directions, low, high) of the distinct steps: a predicted light v of a step
         becomes ``clip(v, low, high)``, what its readings in turn make of it (the last exact
         one, raised to the threshold by a detection after it, capped by a goal after it)."""
-        rows = self.distinct
-        directions = self.world.samples.shape[1]
-        return rows // directions, rows % directions, self._clamp_low.view, self._clamp_high.view
+        places, directions = self.world.samples.steps_of(self.distinct)
+        return places, directions, self._clamp_low.view, self._clamp_high.view
 
     def light_at(self, see, distinct: np.ndarray | None = None) -> np.ndarray:
         """(steps, shifts * width): the light of ``see`` at the samples of distinct steps (all
@@ -215,10 +214,7 @@ class EvidenceSet:
             peaks = total.reshape(total.shape[0], len(self.offsets), -1).max(axis=2)
             light = peaks[steps]
         low, high = self._reading_low.view[:, None], self._reading_high.view[:, None]
-        finite = np.where(np.isfinite(high), high, low)
-        z = (np.maximum(light - high, 0.0) + np.maximum(low - light, 0.0)) / (
-            self.abs_tol + self.rel_tol * finite
-        )
+        z = self._misses(light, light, low, high)
         energies = np.sqrt(1.0 + z * z) - 1.0 - np.log(self.shares)
         least = energies.min(axis=1)
         per_reading = least - np.log(np.exp(least[:, None] - energies).sum(axis=1))
@@ -226,16 +222,23 @@ class EvidenceSet:
 
     def tolerance(self) -> np.ndarray:
         """Each observation's tolerance: ``abs_tol + rel_tol * v``."""
-        finite = np.where(np.isfinite(self.high), self.high, self.low)
-        return self.abs_tol + self.rel_tol * finite
+        return self._tolerance(self.low, self.high)
 
     def misses(self, low: np.ndarray, high: np.ndarray | None = None) -> np.ndarray:
         """Each observation's miss, in tolerances (0 where the predicted range [low, high]
         meets the observation's bounds)."""
-        high = low if high is None else high
-        over = np.maximum(low - self.high, 0.0)
-        under = np.maximum(self.low - high, 0.0)
-        return (over + under) / self.tolerance()
+        return self._misses(low, low if high is None else high, self.low, self.high)
+
+    def _tolerance(self, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+        """The tolerance of readings with bounds [low, high]: of the value read, or the bound."""
+        finite = np.where(np.isfinite(high), high, low)
+        return self.abs_tol + self.rel_tol * finite
+
+    def _misses(self, predicted_low, predicted_high, low, high) -> np.ndarray:
+        """How far a predicted range misses readings' bounds, in the readings' tolerances."""
+        over = np.maximum(predicted_low - high, 0.0)
+        under = np.maximum(low - predicted_high, 0.0)
+        return (over + under) / self._tolerance(low, high)
 
     def mixed_steps(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The steps read detected once and not another time (through ROS: a beam's edge within
@@ -252,11 +255,10 @@ class EvidenceSet:
         read = np.isfinite(self.high) & (self.low == self.high)
         sums = np.bincount(self.which, np.where(read, self.low, 0.0), steps)
         reads = np.bincount(self.which, read, minlength=steps)
-        rows = self.distinct[mixed]
-        directions = self.world.samples.shape[1]  # a sample row: place * directions + direction
+        places, directions = self.world.samples.steps_of(self.distinct[mixed])
         share = detected[mixed] / counts[mixed]
         dark = sums[mixed] / np.maximum(reads[mixed], 1)
-        return rows // directions, rows % directions, share, dark
+        return places, directions, share, dark
 
     def sample_time(self, distinct: int, column: int) -> float:
         """The time in the cycle of a column of ``light_at``'s row ``distinct``."""

@@ -166,6 +166,10 @@ class LatticeSamples:
         """The sample rows of steps (arrays of places and directions)."""
         return np.asarray(places) * self.shape[1] + np.asarray(directions)
 
+    def steps_of(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(places, directions) of sample rows: ``step_rows`` undone."""
+        return rows // self.shape[1], rows % self.shape[1]
+
     def points(self, rows: np.ndarray | None = None, offsets=None) -> SamplePoints:
         """The samples of the step rows (all steps when None), (rows, width); with ``offsets``
         ((k, 2) m), (rows, k * width): each row's samples shifted by each offset in turn (the
