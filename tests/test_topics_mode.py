@@ -9,6 +9,7 @@ from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 import pytest
 from rclpy.qos import qos_profile_sensor_data
+from stealth_bringup.run_plan import SIM_TIME, TOPICS_ENVIRONMENT, TOPICS_SIMULATOR
 from stealth_core.scenario import find_scenario, load_scenario
 from stealth_core.task import StealthTask
 from stealth_interfaces.msg import EpisodeSummary, RLAction, RLExperimentInfo
@@ -29,10 +30,16 @@ from test_env_node import (
     wait_for_log,
 )
 
-# What the run sets for topics mode (stealth_bringup's run plan): simulated time at 20x, a tick
-# of 10 ms wall (0.2 s simulated) and odometry once per tick.
-TOPICS_SIM = {'real_time_factor': 20.0, 'idle_period': 0.01, 'publish_rate': 5.0}
-TOPICS_ENV = {'robot_interface': 'topics', 'marker_period': 0.0}
+# What the run sets for topics mode (stealth_bringup's run plan): the simulator in lockstep with
+# the controller (one odometry per 0.2 s control period, the next as soon as its command came),
+# both nodes on simulated time.
+TOPICS_SIM = {**TOPICS_SIMULATOR, **SIM_TIME}
+TOPICS_ENV = {'robot_interface': 'topics', 'marker_period': 0.0, **TOPICS_ENVIRONMENT, **SIM_TIME}
+# A simulator paced on its own clock, as a robot is, and the environment on the wall clock; at
+# 4x, where 20x failed moves when the machine was busy (the clock ran on while the controller
+# waited for a core: a 9 s move timeout was 0.45 s of wall time).
+PACED_SIM = {'real_time_factor': 4.0, 'idle_period': 0.01, 'publish_rate': 5.0}
+PACED_ENV = {'robot_interface': 'topics', 'marker_period': 0.0}
 
 
 @pytest.fixture
@@ -92,8 +99,8 @@ def test_drive_reset_and_bad_estimates(agent, node_processes, tmp_path):
     amcl_pose in another frame or a NaN one is dropped with one line naming the topic."""
     path = copy_scenario(tmp_path, SCENARIO, step_limit=3)
     scenario = load_scenario(path)
-    sim = start_sim(node_processes, scenario, **TOPICS_SIM)
-    env = start_env(node_processes, scenario=path, reset_mode='drive', **TOPICS_ENV)
+    sim = start_sim(node_processes, scenario, **PACED_SIM)
+    env = start_env(node_processes, scenario=path, reset_mode='drive', **PACED_ENV)
     agent.next_state(timeout=30.0)
     for action in (RIGHT, RIGHT, UP):
         state, info = agent.act(action)
@@ -128,14 +135,14 @@ def test_drive_reset_and_bad_estimates(agent, node_processes, tmp_path):
 
 def test_a_robot_that_ignores_cmd_vel_stops_the_run_with_a_clear_line(agent, node_processes):
     scenario = load_scenario(SCENARIO)
-    start_sim(node_processes, scenario, **TOPICS_SIM)
+    start_sim(node_processes, scenario, **PACED_SIM)
     # cmd_vel goes nowhere: the robot never hears a command.
     env = start_env(
         node_processes,
         scenario=SCENARIO,
         unresponsive_moves=2,
         extra_args=['-r', 'cmd_vel:=nobody_listens'],
-        **TOPICS_ENV,
+        **PACED_ENV,
     )
     agent.next_state(timeout=30.0)
     state, info = agent.act(RIGHT, timeout=60.0)  # TIMED_OUT, judged where the robot stands
@@ -158,15 +165,13 @@ def test_steps_per_second_topics_against_service(agent, node_processes):
     """Measured, not asserted: the same random walk through both robot interfaces."""
     scenario = load_scenario(SCENARIO)
     rates = {}
-    for interface, sim_params in (('service', {}), ('topics', TOPICS_SIM)):
+    service = {'robot_interface': 'service', 'marker_period': 0.0}
+    for interface, sim_params, env_params in (
+        ('service', {}, service),
+        ('topics', TOPICS_SIM, TOPICS_ENV),
+    ):
         sim = start_sim(node_processes, scenario, name=f'sim_{interface}', **sim_params)
-        env = start_env(
-            node_processes,
-            name=f'env_{interface}',
-            scenario=SCENARIO,
-            robot_interface=interface,
-            marker_period=0.0,
-        )
+        env = start_env(node_processes, name=f'env_{interface}', scenario=SCENARIO, **env_params)
         agent.next_state(timeout=30.0)
         steps, started = 0, time.monotonic()
         actions = (RIGHT, RIGHT, UP, LEFT, 1, RIGHT, UP, LEFT, LEFT, 1) * 4  # 1: down
@@ -192,7 +197,7 @@ def test_a_topics_run_is_on_simulated_time_in_lockstep_with_the_controller(tmp_p
     from the odometry it answers, and every node on use_sim_time; --set still wins, --watch
     stays real time, and a service run is on the wall clock as before."""
     from stealth_bringup.run_arguments import train_parser
-    from stealth_bringup.run_plan import TOPICS_ENVIRONMENT, TOPICS_SIMULATOR, make_plan
+    from stealth_bringup.run_plan import make_plan
 
     def parameters(*options: str) -> dict:
         argv = ['--runs-dir', str(tmp_path), *options]

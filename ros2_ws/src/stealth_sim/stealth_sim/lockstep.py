@@ -7,8 +7,11 @@ scan and ``/clock``, and steps the next period as soon as the command that answe
 odometry arrives on ``cmd_vel`` (a controller that decides on every odometry message, as the
 environment's ``topics`` interface and nav2's controllers do). A subscriber that does not
 answer (a teleop tool, a viewer, a controller between its moves, a node that died) stalls
-nothing: after one period of wall time without an answer the period goes by anyway, so time
-never runs slower than real time.
+little: after one period of wall time without an answer the period goes by anyway, so time
+runs at real time. A controller that answered the last period is waited for longer
+(``PATIENCE``): it is slow, not gone. On a busy machine it may be off a core for a few hundred
+milliseconds, and a period gone by under its last command drove the robot on past where the
+controller meant to stop it (a move ended on the next node).
 
 A controller that falls behind (its answer comes after that wait) would otherwise answer every
 later period one period late, the simulator taking its answer to the previous odometry as the
@@ -20,16 +23,20 @@ moves) owes nothing, and at most one command is ever taken as late.
 
 from __future__ import annotations
 
+PATIENCE = 1.0  # wall s a period waits for the answer of a controller that answered the last
+
 
 class Lockstep:
     """The answers a simulator in lockstep waits for: one command per odometry it published.
 
     Times are the caller's wall clock (s, e.g. time.monotonic()); ``max_wait`` is how long a
-    period waits for its answer (the control period, in wall seconds: never slower than 1x).
+    period waits for its answer (the control period, in wall seconds: 1x once nobody answers),
+    ``patience`` how long when the last period was answered (at least ``max_wait``).
     """
 
-    def __init__(self, max_wait: float):
+    def __init__(self, max_wait: float, patience: float = PATIENCE):
         self.max_wait = max_wait
+        self.patience = patience
         self.restart()
 
     def restart(self) -> None:
@@ -58,7 +65,8 @@ class Lockstep:
     def waited_out(self, now: float) -> bool:
         """Whether the awaited answer is overdue, so the next period goes by without it (it
         may still come: a late answer is owed when the previous period was answered)."""
-        if self._sent_at is None or self._answered or now - self._sent_at < self.max_wait:
+        wait = max(self.max_wait, self.patience) if self._last_answered else self.max_wait
+        if self._sent_at is None or self._answered or now - self._sent_at < wait:
             return False
         if self._last_answered:
             self.owed = 1

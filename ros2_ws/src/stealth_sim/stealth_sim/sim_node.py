@@ -53,8 +53,9 @@ physics step, random draw or clock tick ever happens because wall time passed
 up, in lockstep with the controller (:mod:`stealth_sim.lockstep`): the simulator steps one
 control period (``1 / publish_rate`` of simulated time), publishes odometry, scan and clock, and
 steps the next period as soon as the command answering that odometry arrives, or after one
-period of wall time without an answer (a teleop tool or a silent subscriber: never slower than
-real time, never stalled); once the command is older than ``cmd_vel_timeout`` and the robot is
+period of wall time without an answer (a teleop tool or a silent subscriber: real time, never
+stalled; a controller that answered the last period is given a second, ``lockstep.PATIENCE``);
+once the command is older than ``cmd_vel_timeout`` and the robot is
 at rest, time stands still again. The periodic topics go out at ``publish_rate`` Hz of simulated
 time, and only when someone subscribes: publishing every physics step would slow training down;
 they draw their scan noise from a stream of their own.

@@ -49,7 +49,7 @@ PARAMETERS = {
     'real_time_factor': Param(
         0.0,
         'Simulated s per wall s; 0: as fast as possible (service moves) or as the cmd_vel '
-        'publisher answers each odometry (lockstep, at least 1x; see sim_node Time).',
+        'publisher answers each odometry (lockstep, 1x once nobody answers; see sim_node Time).',
         (0.0, 1000.0),
     ),
     'cmd_vel_timeout': Param(0.5, 'Drop a cmd_vel older than this (s, simulated).', (0.01, 60.0)),
