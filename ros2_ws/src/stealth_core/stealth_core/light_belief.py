@@ -151,19 +151,25 @@ class LightBelief:
         return self.observed.steps
 
     def observe(self, evidence: StepEvidence) -> None:
-        """Add what one step said (the particles' lights learn its samples' light, when the
-        step is new)."""
-        if self.observed.observe(evidence):
-            last = np.array([len(self.observed.distinct) - 1])
-            for particle in self.particles:
-                for light in particle.lights:
-                    extra = self._light_at(light.params, last)
-                    light.at_evidence = np.concatenate([light.at_evidence, extra])
-                    if light.bounced is not None:
-                        bounced = self._bounced_at(light.params, last)
-                        light.bounced = np.concatenate([light.bounced, bounced])
+        """Add what one step said (a light learns a new step's light when next read,
+        ``_current``: a stop landing part-way leaves no light short of the evidence)."""
+        self.observed.observe(evidence)
         for particle in self.particles:
             particle.energy = math.inf
+
+    def _current(self, light: _Light) -> _Light:
+        """The light with its light at every distinct evidence step: the steps observed since
+        it was made or last read are added (its direct and bounced light each, by its own
+        count, so a half-done extension is finished on the next read)."""
+        count = len(self.observed.distinct)
+        have = light.at_evidence.shape[0]
+        if have < count:
+            extra = self._light_at(light.params, np.arange(have, count))
+            light.at_evidence = np.concatenate([light.at_evidence, extra])
+        if light.bounced is not None and light.bounced.shape[0] < count:
+            new = np.arange(light.bounced.shape[0], count)
+            light.bounced = np.concatenate([light.bounced, self._bounced_at(light.params, new)])
+        return light
 
     def _energy(self, lights: list[_Light]) -> float:
         misses = self.observed.energy(self._total(lights))
@@ -178,7 +184,8 @@ class LightBelief:
         """The lights' summed light at the evidence's samples (None: no light)."""
         total = None
         for light in lights:
-            total = light.light() if total is None else total + light.light()
+            light = self._current(light).light()
+            total = light if total is None else total + light
         return total
 
     def _predict(self, lights: list[_Light]) -> tuple[np.ndarray, np.ndarray]:
@@ -207,7 +214,10 @@ class LightBelief:
         seen = self.observed.light_at(self._seeing(params), distinct)
         return seen - self._light_at(params, distinct)
 
-    def _make(self, params: tuple, bounced: np.ndarray | None = None) -> _Light:
+    def _make(self, params: tuple, parent: _Light | None = None) -> _Light:
+        """A light at params (its bounced light the parent's until the fit's end traces its
+        own: ``_Light.bounced``)."""
+        bounced = None if parent is None else self._current(parent).bounced
         return _Light(params, self._light_at(params), bounced)
 
     def _refresh_bounce(self, particle: _Particle) -> None:
@@ -262,7 +272,7 @@ class LightBelief:
                             continue
                         lights = [
                             *particle.lights[:k],
-                            self._make(params, particle.lights[k].bounced),
+                            self._make(params, particle.lights[k]),
                             *particle.lights[k + 1 :],
                         ]
                         energy = self._energy(lights)
@@ -294,14 +304,14 @@ class LightBelief:
             params = self._perturbed(lights[k].params)
         if params is None:
             return None
-        return [*lights[:k], self._make(params, lights[k].bounced), *lights[k + 1 :]]
+        return [*lights[:k], self._make(params, lights[k]), *lights[k + 1 :]]
 
     # --- moving lights (a world with timing) ---------------------------------------------------
 
     def _lit_time(self, light: _Light) -> float:
         """The time of the evidence sample the light lights most (a random time of the cycle
         when it lights none): where a motion keeps it."""
-        lit = light.at_evidence
+        lit = self._current(light).at_evidence
         if lit.size == 0 or lit.max() <= 0.0:
             return float(self.rng.uniform(0.0, self.world.timing.cycle))
         row, column = np.unravel_index(int(np.argmax(lit)), lit.shape)

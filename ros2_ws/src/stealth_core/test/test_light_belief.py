@@ -54,3 +54,33 @@ def test_where_lights_move_a_hypothesis_without_a_moving_light_costs_one_light_m
     assert belief._energy([]) == settings.still_cost
     still = LightWorld(load_scenario('simple-maze'))
     assert LightBelief(still, np.random.default_rng(0))._energy([]) == 0.0
+
+
+def test_a_stop_between_taking_a_step_and_the_lights_learning_it_leaves_the_belief_whole():
+    """A stop signal can land anywhere in an agent's callback, and the agent saves its belief
+    at shutdown (the posterior weights with it). Two beliefs fitted alike; one takes the last
+    two steps whole, the other only into its evidence (as a stop after that line leaves it):
+    their weights agree, where a light short of the evidence once raised an IndexError."""
+    scenario = load_scenario('simple-maze')
+    truth = LatticeModel.build(StealthTask(scenario)).step_visibility
+    world = LightWorld(scenario)
+    light = scenario.lights[0]
+    places, directions = steps_near(
+        world.model, (light.x, light.y), 5.0, np.random.default_rng(2), 42
+    )
+    steps = [
+        StepEvidence(
+            place, direction, float(truth[place, direction]), float(truth[place, direction])
+        )
+        for place, direction in zip(places.tolist(), directions.tolist(), strict=True)
+    ]
+    whole, stopped = (LightBelief(world, np.random.default_rng(0)) for _ in range(2))
+    for belief in (whole, stopped):
+        for step in steps[:40]:
+            belief.observe(step)
+        belief.fit(moves=60)
+        belief.observe(steps[40])
+    whole.observe(steps[41])
+    stopped.observed.observe(steps[41])
+    assert len(whole.observed.distinct) == 42
+    np.testing.assert_array_equal(stopped.weights(), whole.weights())
