@@ -249,11 +249,16 @@ def test_initialpose_reinitialises_localisation_like_amcl(client, node_processes
     covariance[0, 0] = covariance[1, 1] = 0.3**2
     covariance[5, 5] = 0.1**2
     guess.pose.covariance = covariance.ravel().tolist()
-    before = len(client.received['pose'])
+    before, odometry = len(client.received['pose']), len(client.received['odom'])
     client.initial_pose.publish(guess)
     assert client.spin_until(lambda: len(client.received['pose']) > before, 10.0)
     position = client.received['pose'][-1].pose.pose.position
     assert math.hypot(position.x - 2.3, position.y - 1.8) < 0.1
+    # Only the estimate, while time stands still (nothing commands the robot): an odometry
+    # more of the same period is a period more to a controller in lockstep (it answers twice,
+    # and every later command acts a period late).
+    client.spin_until(lambda: False, 0.5)
+    assert len(client.received['odom']) == odometry
     for kind in (ExecuteMove.Request.RIGHT, ExecuteMove.Request.UP, ExecuteMove.Request.LEFT) * 2:
         result = client.move(kind, 0.5)
     truth, estimate = result.true_pose.position, result.estimate.pose.position

@@ -32,9 +32,7 @@ from test_env_node import (
 
 # A simulator paced on its own clock, as a robot is, and the environment on the wall clock; at
 # 4x, where 20x failed moves when the machine was busy (the clock ran on while the controller
-# waited for a core: a 9 s move timeout was 0.45 s of wall time). The drive home on the run's
-# lockstep settings failed its first move in 3 of 7 runs, a turn swinging across its heading
-# (docs/running.md, a known problem), so the drive-reset test stays on this one.
+# waited for a core: a 9 s move timeout was 0.45 s of wall time).
 PACED_SIM = {'real_time_factor': 4.0, 'idle_period': 0.01, 'publish_rate': 5.0}
 PACED_ENV = {'robot_interface': 'topics', 'marker_period': 0.0}
 # What the run sets for topics mode (stealth_bringup's run plan): the simulator in lockstep with
@@ -96,13 +94,20 @@ def test_covert_path_over_topics_reaches_the_goal_then_teleports_back(agent, nod
     assert counts['received'] == counts['executed'] == number + 2
 
 
-def test_drive_reset_and_bad_estimates(agent, node_processes, tmp_path):
+@pytest.mark.parametrize(
+    ('sim_params', 'env_params'),
+    [(PACED_SIM, PACED_ENV), (TOPICS_SIM, TOPICS_ENV)],
+    ids=['paced', 'lockstep'],
+)
+def test_drive_reset_and_bad_estimates(agent, node_processes, tmp_path, sim_params, env_params):
     """reset_mode drive brings the robot back over the lattice and re-initialises AMCL; an
-    amcl_pose in another frame or a NaN one is dropped with one line naming the topic."""
+    amcl_pose in another frame or a NaN one is dropped with one line naming the topic. In
+    lockstep too: the initialpose once came with a second odometry of its period, and every
+    command after it acted a period late (the first move after a drive home timed out)."""
     path = copy_scenario(tmp_path, SCENARIO, step_limit=3)
     scenario = load_scenario(path)
-    sim = start_sim(node_processes, scenario, **PACED_SIM)
-    env = start_env(node_processes, scenario=path, reset_mode='drive', **PACED_ENV)
+    sim = start_sim(node_processes, scenario, **sim_params)
+    env = start_env(node_processes, scenario=path, reset_mode='drive', **env_params)
     agent.next_state(timeout=30.0)
     for action in (RIGHT, RIGHT, UP):
         state, info = agent.act(action)

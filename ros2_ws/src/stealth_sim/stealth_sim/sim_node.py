@@ -390,7 +390,11 @@ class SimulatorNode(StartupNode):
         self.get_logger().info(
             f'initial pose set to ({estimate.x:.2f}, {estimate.y:.2f}, {estimate.yaw:.2f})'
         )
-        self._publish_state(everything=True)  # the new estimate and its map -> odom, as AMCL
+        # The new estimate now, as AMCL publishes it; odometry, scan and /tf keep their period.
+        # An odometry more (it once went out too) was a control period more to a controller in
+        # lockstep: its second answer was taken as the next period's, and every command after
+        # acted a period late (a drive home's first turn swung across its heading).
+        self._publish_estimate(only_if_subscribed=True)
 
     # --- services ----------------------------------------------------------------------------
 
