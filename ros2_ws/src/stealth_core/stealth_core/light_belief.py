@@ -43,10 +43,14 @@ from stealth_core.light_evidence import EvidenceSet
 from stealth_core.light_fields import PlanFields
 from stealth_core.light_motion import (
     MOTION_POLISH_STEPS,
+    RAIL_STRETCH,
+    RAIL_X,
+    RAIL_Y,
     STILL_TAIL,
     animated,
     motion_perturbed,
     motion_valid,
+    rail_stepped,
     stilled,
 )
 from stealth_core.light_world import (
@@ -539,6 +543,8 @@ def _stepped(params: tuple, parameter: int, step: float) -> tuple | None:
     moved = list(params)
     if parameter == 4:
         moved[4] = params[4] * math.exp(step)
+    elif parameter in (RAIL_X, RAIL_Y, RAIL_STRETCH):
+        return rail_stepped(params, parameter, step)
     elif parameter == SLIDE:  # slide along the beam, beta keeping the light where it is dim
         x, y, direction, _, beta, _ = params[:6]
         reach = math.sqrt((1.0 / 0.3 - 1.0) / beta)

@@ -20,11 +20,14 @@ from stealth_core.light_world import PATROL, STATIC, SWEEP, hypothesis_light
 
 MIN_SPAN = math.radians(5.0)  # the narrowest sweep searched
 STILL_TAIL = (float(STATIC), 0.0, 0.0, 0.0, 0.0)  # a static light's motion in a timed world
+# A patrol's rail moved whole, as polish parameter numbers (``rail_stepped``): along x, along y,
+# and stretched about its middle.
+RAIL_X, RAIL_Y, RAIL_STRETCH = -2, -3, -4
 # The polish's first steps (parameter, step) of a motion: a sweep's span and offset (rad), a
-# patrol's far end (m) and offset (m).
+# patrol's far end (m) and offset (m), and its rail moved whole (m).
 MOTION_POLISH_STEPS = {
     SWEEP: ((7, math.radians(8.0)), (10, math.radians(8.0))),
-    PATROL: ((7, 0.2), (8, 0.2), (10, 0.3)),
+    PATROL: ((7, 0.2), (8, 0.2), (10, 0.3), (RAIL_X, 0.3), (RAIL_Y, 0.3), (RAIL_STRETCH, 0.3)),
 }
 
 RailCheck = Callable[[np.ndarray, np.ndarray], bool]
@@ -111,6 +114,31 @@ def motion_perturbed(
                 return None
         length = math.hypot(moved[7] - moved[0], moved[8] - moved[1])
         moved[10] = float((params[10] + rng.normal(0, 0.5 * scale)) % max(2 * length, 1e-9))
+    return tuple(moved)
+
+
+def rail_stepped(params: tuple, parameter: int, step: float) -> tuple | None:
+    """A patrol with its rail moved whole by ``step`` m: along x (``RAIL_X``) or y
+    (``RAIL_Y``), or stretched at both ends (``RAIL_STRETCH``, the offset scaled with the loop so
+    the lamp keeps its phase); None for a rail shorter than 0.5 m.
+
+    Stepping one end alone moves where the lamp is at every time but that end's: a rail found
+    a quarter of a metre short of both ends (floorplan-moving's, 2026-12-08) stayed there, where
+    these steps took it to the truth's within 0.1 m."""
+    moved = list(params)
+    if parameter == RAIL_X:
+        moved[0], moved[7] = params[0] + step, params[7] + step
+    elif parameter == RAIL_Y:
+        moved[1], moved[8] = params[1] + step, params[8] + step
+    else:
+        dx, dy = params[7] - params[0], params[8] - params[1]
+        length = math.hypot(dx, dy)
+        if length <= 0.0 or length + 2.0 * step < 0.5:
+            return None
+        ux, uy = dx / length, dy / length
+        moved[0], moved[1] = params[0] - step * ux, params[1] - step * uy
+        moved[7], moved[8] = params[7] + step * ux, params[8] + step * uy
+        moved[10] = params[10] * (length + 2.0 * step) / length
     return tuple(moved)
 
 
