@@ -126,7 +126,8 @@ class EvidenceSet:
         return self._which.view
 
     def observe(self, evidence: StepEvidence) -> bool:
-        """Add one observation; True when its step is new (lights must learn its light)."""
+        """Add one observation; True when its step is new (a distinct step more, whose light a
+        hypothesised light learns when next read: ``LightBelief._current``)."""
         row = int(self.world.samples.step_rows(evidence.place, evidence.direction))
         self.steps.append(evidence)
         self._rows.append(row)
