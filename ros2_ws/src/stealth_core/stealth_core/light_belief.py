@@ -43,15 +43,19 @@ from stealth_core.light_evidence import EvidenceSet
 from stealth_core.light_fields import PlanFields
 from stealth_core.light_motion import (
     MOTION_POLISH_STEPS,
-    RAIL_STRETCH,
-    RAIL_X,
-    RAIL_Y,
     STILL_TAIL,
     animated,
     motion_perturbed,
-    motion_valid,
-    rail_stepped,
     stilled,
+)
+from stealth_core.light_polish import (
+    EDGE_ROUNDS,
+    MIN_FOV,
+    POLISH_HALVINGS,
+    POLISH_STEPS,
+    edge_moved,
+    edge_steps,
+    stepped,
 )
 from stealth_core.light_world import (
     PATROL,
@@ -63,19 +67,7 @@ from stealth_core.light_world import (
 
 CONTRADICTION_Z = 6.0
 ANNEAL_START = 30.0  # the search's first temperature, in units of energy
-_MIN_FOV = math.radians(5.0)
 _LAMP_STRIDE = 0.25  # m between the candidate lamp places of a birth
-SLIDE = -1  # the polish's slide along the beam, as a parameter number
-# The pattern search's first steps, (parameter, step): x, y (m), direction, fov (rad), log beta,
-# range (m), and a slide along the beam (m) that keeps the light at the reach of intensity 0.3
-# (x and beta alone trade off: a lamp farther back with a smaller beta lights a far patch
-# alike). A moving light adds its motion's: a sweep's span and offset (rad), a patrol's far end
-# (m) and offset (m): light_motion.MOTION_POLISH_STEPS.
-POLISH_STEPS = (
-    (0, 0.2), (1, 0.2), (2, math.radians(4.0)), (3, math.radians(4.0)), (4, 0.2), (5, 0.5),
-    (SLIDE, 0.4),
-)  # fmt: skip
-POLISH_HALVINGS = 5
 
 
 @dataclasses.dataclass(frozen=True)
@@ -260,7 +252,8 @@ class LightBelief:
 
     def polish(self, particle: _Particle, halvings: int = POLISH_HALVINGS) -> None:
         """Pattern search on each light of a particle: every parameter stepped both ways, a
-        step that lowers the energy kept, a step that does not halved, ``halvings`` times. The
+        step that lowers the energy kept, a step that does not halved, ``halvings`` times;
+        then each light's cone edges placed where the misses ask (``_place_edges``). The
         Metropolis moves find a light near the truth; this fits it to the tolerances."""
         if not math.isfinite(particle.energy):
             particle.energy = self._energy(particle.lights)
@@ -271,20 +264,45 @@ class LightBelief:
                 step = first
                 for _ in range(halvings):
                     for sign in (1.0, -1.0):
-                        params = _stepped(particle.lights[k].params, parameter, sign * step)
-                        if params is None or not self._placeable(params):
-                            continue
-                        lights = [
-                            *particle.lights[:k],
-                            self._make(params, particle.lights[k]),
-                            *particle.lights[k + 1 :],
-                        ]
-                        energy = self._energy(lights)
-                        if energy < particle.energy:
-                            particle.lights, particle.energy = lights, energy
+                        params = stepped(particle.lights[k].params, parameter, sign * step)
+                        tried = self._with_light(particle, k, params)
+                        if tried is not None and tried[0] < particle.energy:
+                            particle.energy, particle.lights = tried
                             break
                     else:
                         step /= 2
+        for k in range(len(particle.lights)):
+            self._place_edges(particle, k)
+
+    def _place_edges(self, particle: _Particle, k: int) -> None:
+        """Light k's cone edges set where the misses ask (``light_polish.edge_steps``): of
+        the moves, the one that lowers the energy most kept, ``EDGE_ROUNDS`` times."""
+        for _ in range(EDGE_ROUNDS):
+            params = particle.lights[k].params
+            too_dark, too_bright = self.observed.wanting(*self._predict(particle.lights))
+            moves = edge_steps(
+                hypothesis_light('hypothesis', params, self.world.timing),
+                params,
+                self.observed.sample_points(too_dark),
+                self.observed.sample_points(too_bright),
+            )
+            best = None
+            for edge, delta in moves:
+                tried = self._with_light(particle, k, edge_moved(params, edge, delta))
+                if tried is not None and tried[0] < (particle.energy if best is None else best[0]):
+                    best = tried
+            if best is None:
+                return
+            particle.energy, particle.lights = best
+
+    def _with_light(self, particle: _Particle, k: int, params: tuple | None):
+        """(energy, lights) of the particle with light k's parameters replaced (None where
+        ``params`` is None or its lamp stands in a wall)."""
+        if params is None or not self._placeable(params):
+            return None
+        lights = [*particle.lights[:k], self._make(params, particle.lights[k])]
+        lights += particle.lights[k + 1 :]
+        return self._energy(lights), lights
 
     def _propose(self, lights: list[_Light]) -> list[_Light] | None:
         kind = self.rng.random()
@@ -345,7 +363,7 @@ class LightBelief:
             direction += rng.normal(0, math.radians(10.0) * scale)
         elif which == 2:
             fov = float(
-                np.clip(fov + rng.normal(0, math.radians(10.0) * scale), _MIN_FOV, 2 * math.pi)
+                np.clip(fov + rng.normal(0, math.radians(10.0) * scale), MIN_FOV, 2 * math.pi)
             )
         elif which == 3:
             beta *= math.exp(rng.normal(0, 0.3 * scale))
@@ -535,34 +553,6 @@ class LightBelief:
             hypothesis_light(f'inferred-{i}', light.params, self.world.timing)
             for i, light in enumerate(self.particles[particle].lights)
         ]
-
-
-def _stepped(params: tuple, parameter: int, step: float) -> tuple | None:
-    """params with one parameter moved by ``step`` (beta by a factor exp(step); ``SLIDE``
-    along the beam); None when that leaves its range."""
-    moved = list(params)
-    if parameter == 4:
-        moved[4] = params[4] * math.exp(step)
-    elif parameter in (RAIL_X, RAIL_Y, RAIL_STRETCH):
-        return rail_stepped(params, parameter, step)
-    elif parameter == SLIDE:  # slide along the beam, beta keeping the light where it is dim
-        x, y, direction, _, beta, _ = params[:6]
-        reach = math.sqrt((1.0 / 0.3 - 1.0) / beta)
-        if reach - step <= 0.1:
-            return None
-        dx, dy = step * math.cos(direction), step * math.sin(direction)
-        moved[0], moved[1] = x + dx, y + dy
-        if len(params) > 6 and int(params[6]) == PATROL:  # the rail slides with its lamp
-            moved[7], moved[8] = params[7] + dx, params[8] + dy
-        moved[4] = beta * (reach / (reach - step)) ** 2
-        moved[5] = params[5] - step
-    else:
-        moved[parameter] = params[parameter] + step
-    if not (_MIN_FOV <= moved[3] <= 2 * math.pi) or moved[5] <= 0.2:
-        return None
-    if not motion_valid(moved):
-        return None
-    return tuple(moved)
 
 
 def _normalised(values: np.ndarray) -> np.ndarray:

@@ -185,6 +185,21 @@ class EvidenceSet:
         )
         return self.world.samples.light_of(see, points)
 
+    def sample_points(self, distinct: np.ndarray) -> tuple:
+        """(x, y, t) of the samples of distinct steps at the node and every shift, (steps,
+        samples) each; t (s in the cycle) None where lights do not move."""
+        x, y, _, time_index = self._points
+        t = None if time_index is None else self.world.samples.times[time_index.view[distinct]]
+        return x.view[distinct], y.view[distinct], t
+
+    def wanting(self, low: np.ndarray, high: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The distinct steps a predicted range (``predict``) leaves too dark for one of their
+        readings, and those it leaves too bright, each by more than a tolerance."""
+        z = self.misses(low, high)
+        too_dark = np.unique(self.which[(z > 1.0) & (self.low > high)])
+        too_bright = np.unique(self.which[(z > 1.0) & (low > self.high)])
+        return too_dark, too_bright
+
     def predict(self, total: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         """(low, high) per observation: the least and most of a field's step light (``total``,
         the lights' ``light_at`` summed; None: no light) over the node and the shifts."""
