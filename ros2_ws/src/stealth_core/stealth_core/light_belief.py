@@ -17,10 +17,11 @@ rounding in-process, the pose noise through ROS), and the belief is ``particles`
 each weighed by ``exp(-E)``: an approximation of the posterior under a sparsity prior, the
 number of lights included. Each fit runs Metropolis moves on every particle (birth, death,
 perturbation at a random scale), annealed from ANNEAL_START down to temperature 1, then a
-pattern-search polish of each light (``polish``). A birth is proposed from the data: a step lit
-more than the hypothesis says is explained by a lamp at a free place that sees it, aimed at the
-unexplained steps near it, with ``beta`` their median, the place scored by how well one
-``beta`` fits them (one light's intensities ``1/(1 + beta*d^2)`` fix the ratio of its
+pattern-search polish of each light (``polish``: its parameters stepped, then its cone's edges
+placed at the angles the misses ask for, ``light_polish``). A birth is proposed from the data: a
+step lit more than the hypothesis says is explained by a lamp at a free place that sees it,
+aimed at the unexplained steps near it, with ``beta`` their median, the place scored by how well
+one ``beta`` fits them (one light's intensities ``1/(1 + beta*d^2)`` fix the ratio of its
 distances). Where light bounces, a light's bounce is traced when the fit ends and kept through
 the moves (a trace costs tens of ms; the direct light is recomputed at every move).
 

@@ -184,3 +184,22 @@ def test_with_jitter_a_reading_explained_only_off_the_node_costs_more_and_repeat
     evidence.observe(StepEvidence(3, 1, 0.5, 0.5))
     assert evidence.energy(at_shift) == pytest.approx(-2 * math.log(0.1), abs=1e-9)
     assert evidence.energy(None) > 30.0  # no light: missed by 0.5 at every pose
+
+
+def test_the_steps_a_prediction_leaves_too_dark_or_too_bright_are_named_with_their_samples():
+    """What the polish's edge moves read: distinct steps a predicted range misses by more than a
+    tolerance each way (a detection predicted dark, a dark reading predicted lit), and their
+    samples where the lattice has them."""
+    scenario = load_scenario('map1-moving')
+    world = LightWorld(scenario)
+    evidence = EvidenceSet(world, 0.004, 0.02)
+    readings = [(3, 1, 0.5, math.inf), (4, 0, 0.0, 0.0), (5, 2, 0.2, 0.2), (3, 1, 0.5, math.inf)]
+    for place, direction, low, high in readings:
+        evidence.observe(StepEvidence(place, direction, low, high))
+    predicted = np.array([0.1, 0.3, 0.2, 0.1])  # per observation: dark, lit, right, dark
+    too_dark, too_bright = evidence.wanting(predicted, predicted)
+    assert too_dark.tolist() == [0] and too_bright.tolist() == [1]
+    x, y, t = evidence.sample_points(np.array([1, 2]))
+    rows = world.samples.step_rows(np.array([4, 5]), np.array([0, 2]))
+    assert np.array_equal(x, world.samples.x[rows]) and np.array_equal(y, world.samples.y[rows])
+    assert np.array_equal(t, world.samples.t[rows])

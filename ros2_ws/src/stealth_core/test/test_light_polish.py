@@ -46,18 +46,22 @@ def test_an_edge_moved_keeps_the_other_edge_where_it_was():
     assert edge_moved(LIGHT, UPPER, MIN_FOV - FOV - 0.01) is None  # narrower than a cone may be
 
 
-def test_an_edge_opens_just_past_a_step_left_dark_and_closes_short_of_one_left_bright():
+def test_an_edge_opens_just_past_a_sample_left_dark_and_closes_short_of_one_left_bright():
     light = Searchlight('lamp', 0.0, 0.0, 0.0, FOV, 6.0)
     nothing = at_bearings(*np.zeros((0, 1)))
     # Too dark: one sample 3 degrees past the upper edge (the other beyond the edge's reach).
     moves = edge_steps(light, LIGHT, at_bearings([23.0, 50.0]), nothing)
-    assert moves == [(UPPER, pytest.approx(math.radians(3.0) + EDGE_CLEARANCE, abs=1e-6))]
+    assert moves == [(UPPER, pytest.approx(math.radians(3.0) + EDGE_CLEARANCE, abs=1e-4))]
     # Out of the light's range: no move.
     assert edge_steps(light, LIGHT, at_bearings([23.0], distance=7.0), nothing) == []
-    # Too bright: every sample of the step in the cone must leave it, so the upper edge closes
-    # short of 15 degrees, not of 18; a step lit across the axis moves neither edge.
+    # Too bright: each sample in the cone within the edge's reach, the nearest first; the
+    # sample across the axis is the lower edge's.
     moves = edge_steps(light, LIGHT, nothing, at_bearings([15.0, 18.0], [18.0, -19.0]))
-    assert moves == [(UPPER, pytest.approx(math.radians(-5.0) - EDGE_CLEARANCE, abs=1e-6))]
+    assert moves == [
+        (UPPER, pytest.approx(math.radians(-2.0) - EDGE_CLEARANCE, abs=1e-4)),
+        (UPPER, pytest.approx(math.radians(-5.0) - EDGE_CLEARANCE, abs=1e-4)),
+        (LOWER, pytest.approx(math.radians(-1.0) - EDGE_CLEARANCE, abs=1e-4)),
+    ]
 
 
 def test_a_moving_lamp_is_judged_where_it_was_when_the_step_was_taken():
@@ -65,7 +69,7 @@ def test_a_moving_lamp_is_judged_where_it_was_when_the_step_was_taken():
     x, y, _ = at_bearings([23.0])
     y = y + 4.0  # 23 degrees off the axis from the rail's far end, reached at t = 4 s
     then = edge_steps(light, LIGHT, (x, y, np.array([[4.0]])), (x[:0], y[:0], None))
-    assert then == [(UPPER, pytest.approx(math.radians(3.0) + EDGE_CLEARANCE, abs=1e-6))]
+    assert then == [(UPPER, pytest.approx(math.radians(3.0) + EDGE_CLEARANCE, abs=1e-4))]
     assert edge_steps(light, LIGHT, (x, y, np.array([[0.0]])), (x[:0], y[:0], None)) == []
 
 
