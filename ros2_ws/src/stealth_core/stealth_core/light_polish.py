@@ -10,10 +10,9 @@ truth's edge lies in a narrow window (floorplan-moving's rail lamp, 2026-12-08: 
 0.35 degrees inside its edge, steps read dark a degree outside it), no step lowered the energy:
 the best hypothesis stayed at 395 against the truth's 12, and at 288 with its edges placed on
 the same evidence (in training that seed then met the criterion, docs: the light model). The
-edge moves
-try exactly the angles that matter: each edge opened just past a sample the hypothesis leaves
-too dark, or closed just short of one it leaves too bright (the nearest ``EDGE_CANDIDATES`` on
-each side), the other edge kept where it is.
+edge moves try exactly the angles that matter: each edge opened just past a sample the
+hypothesis leaves too dark, or closed just short of one it leaves too bright (the nearest
+``EDGE_CANDIDATES`` on each side), the other edge kept where it is.
 """
 
 from __future__ import annotations
@@ -22,9 +21,9 @@ import math
 
 import numpy as np
 
-from stealth_core.exposure import wrap
 from stealth_core.light_motion import RAIL_STRETCH, RAIL_X, RAIL_Y, motion_valid, rail_stepped
 from stealth_core.light_world import PATROL
+from stealth_core.lighting import angle_off_axis
 from stealth_core.searchlight import Searchlight, poses_at
 
 MIN_FOV = math.radians(5.0)  # the narrowest cone a hypothesis may have
@@ -96,9 +95,9 @@ def edge_steps(light: Searchlight, params: tuple, too_dark, too_bright) -> list[
     side: opened just past a sample of a step left too dark (one lit sample lights it), closed
     just short of a sample of a step left too bright (a sample at a time: closing short of
     every in-cone sample of the step was measured and not kept, docs: the light model).
-    ``too_dark`` and ``too_bright`` are
-    the steps' sample points (x, y, t: (steps, samples) arrays, t None where lights do not
-    move); ``light`` is the hypothesis' Searchlight, ``params`` its parameters."""
+    ``too_dark`` and ``too_bright`` are the steps' sample points (x, y, t: (steps, samples)
+    arrays, t None where lights do not move); ``light`` is the hypothesis' Searchlight,
+    ``params`` its parameters."""
     half = params[3] / 2.0
     moves = []
     for points, opening in ((too_dark, True), (too_bright, False)):
@@ -120,11 +119,11 @@ def edge_steps(light: Searchlight, params: tuple, too_dark, too_bright) -> list[
 
 
 def _bearings(light: Searchlight, reach: float, x, y, t) -> np.ndarray:
-    """Each sample's bearing off the light's axis (rad, in [-pi, pi)) at the sample's time,
-    NaN beyond the light's range."""
+    """Each sample's angle off the light's axis at the sample's time (rad, the law's own:
+    ``lighting.angle_off_axis``), NaN beyond the light's range."""
     if t is None:
-        lamp_x, lamp_y, direction = light.x, light.y, light.direction
+        lamp_x, lamp_y, direction = light.x, light.y, None
     else:
         lamp_x, lamp_y, direction = poses_at(light, t)
-    bearing = wrap(np.arctan2(y - lamp_y, x - lamp_x) - direction)
+    bearing = angle_off_axis(light, x - lamp_x, y - lamp_y, direction)
     return np.where(np.hypot(x - lamp_x, y - lamp_y) <= reach, bearing, np.nan)
